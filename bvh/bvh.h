@@ -1,0 +1,93 @@
+/*
+ * bvh: a binary SAH BVH per tile prototype over its draw clusters, built once
+ * with Embree's rtcBuildBVH and flattened into an index-linked node array
+ * (DESIGN.md §1, §7). A BVH is immutable after its build and shared by every
+ * cell that shows its prototype; per-view state lives elsewhere (cull/).
+ */
+#ifndef TW_BVH_H
+#define TW_BVH_H
+
+#include <stdint.h>
+
+#include "tiles/tiles.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define TW_BVH_NONE UINT32_MAX
+
+/* One node. Interior nodes have two children; leaves have a cluster range. */
+struct tw_bvh_node {
+    struct tw_box box;          /* tile-local, tight around its clusters */
+    uint32_t parent;            /* TW_BVH_NONE for the root (node 0) */
+    uint32_t child[2];          /* TW_BVH_NONE for a leaf */
+    uint32_t first_cluster;     /* leaf: range into tw_bvh.cluster_order */
+    uint32_t cluster_count;     /* leaf: > 0; interior: 0 */
+    uint32_t first_tight;       /* range into tw_bvh.tight_boxes */
+    uint32_t tight_count;       /* >= 1; 1 means the node's own box */
+    uint32_t depth;             /* root = 0 */
+    uint32_t triangle_count;    /* in the whole subtree */
+};
+
+struct tw_bvh_settings {
+    uint32_t max_depth;            /* default 32 */
+    uint32_t min_leaf_triangles;   /* a node with fewer triangles is a leaf; default 0 */
+    uint32_t tight_depth;          /* tight boxes from up to this many levels down; default 3 */
+    float tight_area_ratio;        /* use them when their area <= ratio * node area; default 1.4 */
+};
+
+/* Fills in the defaults of every zero field. */
+void tw_bvh_default_settings(struct tw_bvh_settings *s);
+
+struct tw_bvh {
+    struct tw_bvh_node *nodes;     /* node 0 is the root */
+    uint32_t node_count;
+    uint32_t *cluster_order;       /* cluster indices of the prototype, leaf by leaf */
+    uint32_t cluster_count;
+    struct tw_box *tight_boxes;
+    uint32_t tight_box_count;
+    uint32_t leaf_count;
+    uint32_t depth;                /* deepest node's depth */
+    double build_ms;
+    uint64_t bytes;                /* heap bytes of this structure */
+};
+
+/* A builder owns an Embree device; Embree's errors go to the logger. One
+ * builder may build many BVHs, one at a time. */
+struct tw_bvh_builder;
+
+/* log is copied; it may be NULL. */
+int tw_bvh_builder_create(const struct tw_log *log, struct tw_bvh_builder **out);
+void tw_bvh_builder_destroy(struct tw_bvh_builder *b);
+
+/* Builds the BVH of proto's clusters (settings NULL: defaults). The caller
+ * owns *out and frees it with tw_bvh_destroy(). */
+int tw_bvh_build(struct tw_bvh_builder *b, const struct tw_prototype *proto,
+                 const struct tw_bvh_settings *settings, struct tw_bvh **out);
+
+/* The same tree built by median splits along the longest axis, no SAH, no
+ * Embree: the reference that tests and benchmarks compare SAH against. */
+int tw_bvh_build_median(const struct tw_prototype *proto,
+                        const struct tw_bvh_settings *settings,
+                        struct tw_bvh **out);
+
+void tw_bvh_destroy(struct tw_bvh *bvh);
+
+/* SAH cost of the tree: sum over interior nodes of area(node)/area(root) *
+ * C_trav + sum over leaves of area(leaf)/area(root) * triangles(leaf) *
+ * C_tri, with C_trav = 1, C_tri = 1 / 64 (clusters are drawn, not
+ * intersected, so a triangle costs little next to a node). */
+double tw_bvh_sah_cost(const struct tw_bvh *bvh);
+
+/* Checks the invariants (every cluster in exactly one leaf, every box holds
+ * its children's, parents and depths consistent, depth <= max_depth).
+ * Returns TW_OK or TW_ERR_STATE with a message written to why (may be NULL). */
+int tw_bvh_validate(const struct tw_bvh *bvh, const struct tw_prototype *proto,
+                    uint32_t max_depth, char *why, size_t why_size);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

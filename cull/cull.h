@@ -1,0 +1,230 @@
+/*
+ * cull: visibility algorithms with no GL in them (DESIGN.md §4-§7).
+ *
+ * Coordinates: every position here is *view-relative*: metres from the origin
+ * corner of the camera's cell (struct tw_view.cell). A tile at cell c is
+ * placed at offset tw_tiles_cell_offset(c, view.cell, W, D); its tile-local
+ * boxes are moved by that offset. Nothing here ever sees an absolute world
+ * position in float.
+ *
+ * The GPU is reached only through struct tw_query_backend, so that every
+ * algorithm runs against OpenGL (runtime/) and against a deterministic fake
+ * in unit tests.
+ */
+#ifndef TW_CULL_H
+#define TW_CULL_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "bvh/bvh.h"
+#include "tiles/tiles.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- frusta ---------------------------------------------------------------- */
+
+/* A plane n.p + d = 0; points with n.p + d >= 0 are inside. */
+struct tw_plane {
+    float n[3];
+    float d;
+};
+
+/* Left, right, bottom, top, near, far; normals point inwards. */
+struct tw_frustum {
+    struct tw_plane planes[6];
+};
+
+enum tw_cull_test {
+    TW_CULL_OUTSIDE = 0,
+    TW_CULL_INTERSECT = 1,
+    TW_CULL_INSIDE = 2,
+};
+
+/* Extracts the frustum of a column-major view-projection matrix (OpenGL clip
+ * conventions, -w <= x, y, z <= w), normalising the planes. */
+void tw_cull_frustum_from_matrix(const float view_proj[16],
+                                 struct tw_frustum *out);
+
+/* Classifies box b moved by offset (NULL for none) against f. Conservative:
+ * TW_CULL_OUTSIDE only when the box is certainly outside. */
+enum tw_cull_test tw_cull_frustum_box(const struct tw_frustum *f,
+                                      const struct tw_box *b,
+                                      const float offset[3]);
+
+/* ---- the view of one frame ------------------------------------------------ */
+
+struct tw_view {
+    struct tw_cell cell;        /* the camera's cell: origin of view-relative space */
+    float eye[3];               /* camera position, view-relative (= its local offset) */
+    float view_proj[16];        /* column-major, view-relative world -> clip */
+    struct tw_frustum frustum;
+    float near_plane;           /* metres */
+    float view_distance;        /* metres; tiles whose box lies farther are not drawn */
+    uint64_t frame;             /* frame number, starting at 1 */
+};
+
+/* Fills view_proj and frustum from the camera (eye in view-relative space,
+ * yaw/pitch in degrees as DESIGN §9 defines them), a vertical field of view
+ * in degrees, an aspect ratio, near and far planes. */
+void tw_cull_view_setup(struct tw_view *v, struct tw_cell cell,
+                        const float eye[3], float yaw_deg, float pitch_deg,
+                        float fov_y_deg, float aspect, float near_plane,
+                        float far_plane);
+
+/* True if the camera is inside box b moved by offset, or within near-plane
+ * distance of it: such a box may be clipped by the near plane, so an
+ * occlusion query on it can wrongly return 0 samples (DESIGN §4 step 1). */
+bool tw_cull_near_box(const struct tw_view *v, const struct tw_box *b,
+                      const float offset[3]);
+
+/* Distance from the eye to the nearest point of box b moved by offset. */
+float tw_cull_box_distance(const struct tw_view *v, const struct tw_box *b,
+                           const float offset[3]);
+
+/* A cell considered for drawing, with its distance (eye to the nearest
+ * point of the common box placed there). */
+struct tw_cull_cell {
+    struct tw_cell cell;
+    float distance;
+};
+
+/* Every cell whose common box (tile-local, footprint w x d) placed at that
+ * cell meets the frustum and lies within the view distance, sorted front to
+ * back (by distance, ties by cell). Writes up to cap cells into out and
+ * returns how many there are in all (may exceed cap: call again with more
+ * room). */
+size_t tw_cull_cells_in_view(const struct tw_view *v,
+                             const struct tw_box *common_box, float w, float d,
+                             struct tw_cull_cell *out, size_t cap);
+
+/* ---- the query backend (DESIGN §5) ----------------------------------------- */
+
+/* Query handles are non-zero. Every issued query is read exactly once with
+ * wait(), which also releases it; a query may stay unread across frames. */
+struct tw_query_backend {
+    void *ctx;
+    /* Issues one occlusion query drawing count tile-local boxes moved by
+     * offset (several boxes: a multiquery). Never blocks. */
+    uint32_t (*issue)(void *ctx, const struct tw_box *boxes, uint32_t count,
+                      const float offset[3]);
+    /* True once the query's result is available. Never blocks. */
+    bool (*ready)(void *ctx, uint32_t query);
+    /* Blocks until the result is available, releases the query and returns
+     * the number of samples that passed (for GL_ANY_SAMPLES_PASSED: 0 or 1). */
+    uint32_t (*wait)(void *ctx, uint32_t query);
+    /* Draws clusters (indices into the prototype's clusters) of the tile
+     * showing prototype at cell, placed at offset. Arrays are only read
+     * during the call. */
+    void (*draw)(void *ctx, struct tw_cell cell, uint32_t prototype,
+                 const float offset[3], const uint32_t *clusters,
+                 uint32_t count);
+    /* Sends issued work to the GPU. */
+    void (*flush)(void *ctx);
+};
+
+/* ---- vfc: view-frustum culling inside one tile ------------------------------ */
+
+/* Writes into out (room for proto->cluster_count) the clusters of proto whose
+ * box, moved by offset, meets the frustum within the view distance, and
+ * returns how many. */
+uint32_t tw_cull_vfc_tile(const struct tw_view *v, const struct tw_prototype *proto,
+                          const float offset[3], uint32_t *out);
+
+/* ---- CHC++ inside one tile (DESIGN §7) --------------------------------------- */
+
+struct tw_chc_settings {
+    uint32_t batch_size;        /* b: I-queue batch; default 50 */
+    uint32_t assumed_visible;   /* n_av: frames a visible leaf goes unqueried; default 8 */
+    uint32_t threshold;         /* T: visible when samples > T; default 0 */
+    bool no_multiqueries;       /* issue every I-query alone (for measurements) */
+    bool no_tight_boxes;        /* query node boxes, not tight-box lists */
+    uint64_t seed;              /* for the randomised re-query offsets */
+};
+
+/* Fills in the defaults of every zero field that has one. */
+void tw_chc_default_settings(struct tw_chc_settings *s);
+
+/* Per-view state of one tile instance: one entry per BVH node. Lives in the
+ * tile cache (its bytes are the instance's cost), zeroed by the cache. */
+struct tw_chc_node_state {
+    uint64_t visible_frame;     /* last frame found visible (0: never) */
+    uint64_t next_query_frame;  /* a visible leaf is re-queried from this frame on */
+    uint32_t invisible_frames;  /* frames in a row found invisible */
+    uint32_t pending_query;     /* non-zero while a query on this node is in flight */
+};
+
+/* Bytes of per-node state a tile instance with this BVH needs. */
+size_t tw_chc_state_bytes(const struct tw_bvh *bvh);
+
+/* Initialises state for a tile seen for the first time at frame: every node
+ * visible in the previous frame and due for a query, so that the first
+ * traversal draws everything in the frustum and queries the leaves once
+ * (no query round trip per level). */
+void tw_chc_state_init(struct tw_chc_node_state *state, const struct tw_bvh *bvh,
+                       uint64_t frame);
+
+/* Counters of the current frame, summed over tiles. */
+struct tw_chc_stats {
+    uint32_t queries;           /* occlusion queries issued */
+    uint32_t multiqueries;      /* of which covering more than one node */
+    uint32_t nodes_queried;
+    uint32_t requeries;         /* single queries re-issued after a failed multiquery */
+    uint32_t clusters_drawn;
+    uint32_t waits;             /* blocking waits */
+};
+
+/* One tile to traverse. */
+struct tw_chc_tile {
+    struct tw_cell cell;
+    uint32_t prototype;
+    const struct tw_prototype *proto;
+    const struct tw_bvh *bvh;
+    struct tw_chc_node_state *state;  /* bvh->node_count entries */
+    float offset[3];                  /* view-relative placement of the tile */
+    uint64_t tag;                     /* the caller's name for this tile instance
+                                         (e.g. a tile-cache handle), given back
+                                         with deferred V-query results */
+};
+
+/* The CHC++ traversal engine: queues and scratch space, reused every frame
+ * (no allocation per frame once warm). Holds queries across frames. */
+struct tw_chc;
+
+int tw_chc_create(const struct tw_chc_settings *settings, struct tw_chc **out);
+/* Frees the engine; queries still in flight are abandoned without reading
+ * (the caller destroys the backend's context afterwards). Accepts NULL. */
+void tw_chc_destroy(struct tw_chc *chc);
+
+/* Resolves the tile state of a deferred V-query: returns the state array of
+ * the tile instance named by tag, or NULL if it no longer exists. */
+typedef struct tw_chc_node_state *(*tw_chc_resolve_fn)(void *user, uint64_t tag,
+                                                       const struct tw_bvh **bvh);
+
+/* Starts frame v->frame: reads the V-queries left in flight at the end of the
+ * previous frame and applies them as that frame's results. */
+void tw_chc_begin_frame(struct tw_chc *chc, const struct tw_view *v,
+                        const struct tw_query_backend *be,
+                        tw_chc_resolve_fn resolve, void *resolve_user);
+
+/* Runs CHC++ over one tile to completion: everything found visible is drawn
+ * through be->draw, front to back, before it returns; V-queries still in
+ * flight are kept for tw_chc_begin_frame() of the next frame. */
+void tw_chc_traverse(struct tw_chc *chc, const struct tw_view *v,
+                     const struct tw_query_backend *be,
+                     const struct tw_chc_tile *tile);
+
+/* This frame's counters (reset by tw_chc_begin_frame). */
+const struct tw_chc_stats *tw_chc_stats(const struct tw_chc *chc);
+
+/* Heap bytes held by the engine. */
+size_t tw_chc_bytes(const struct tw_chc *chc);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

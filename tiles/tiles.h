@@ -1,0 +1,268 @@
+/*
+ * tiles: the bottom module of tileworld.
+ *
+ * Cells of the infinite grid and camera-relative coordinates (DESIGN.md §3),
+ * the tileset model (prototypes made of instances of shared meshes, split into
+ * draw clusters), selection (cell -> prototype, a pure function), error codes
+ * and the per-context logger that every module above uses.
+ *
+ * Threading: nothing here holds global state; distinct objects may be used
+ * from distinct threads.
+ */
+#ifndef TW_TILES_H
+#define TW_TILES_H
+
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- errors and logging ------------------------------------------------ */
+
+enum tw_error {
+    TW_OK = 0,
+    TW_ERR_INVALID = -1,    /* an argument or an input is malformed */
+    TW_ERR_NOMEM = -2,      /* an allocation failed */
+    TW_ERR_IO = -3,         /* a file could not be read or written */
+    TW_ERR_FORMAT = -4,     /* a file's content is malformed */
+    TW_ERR_LIMIT = -5,      /* an input exceeds a configured limit */
+    TW_ERR_GL = -6,         /* OpenGL failed or lacks a needed feature */
+    TW_ERR_EMBREE = -7,     /* Embree reported an error */
+    TW_ERR_STATE = -8,      /* the call is not valid in the object's state */
+};
+
+/* A static English string for an error code; never NULL. */
+const char *tw_error_to_str(int err);
+
+enum tw_log_level {
+    TW_LOG_ERROR = 0,
+    TW_LOG_WARN = 1,
+    TW_LOG_INFO = 2,
+    TW_LOG_DEBUG = 3,
+};
+
+/* A logger: a callback and its user pointer. A zeroed logger discards
+ * messages. Owned by whoever embeds it; the callback may be called from the
+ * thread that calls into the object the logger was given to. */
+struct tw_log {
+    void (*fn)(void *user, enum tw_log_level level, const char *msg);
+    void *user;
+};
+
+/* Formats a message and hands it to the logger (no-op for a zeroed one). */
+void tw_log_printf(const struct tw_log *log, enum tw_log_level level,
+                   const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+void tw_log_vprintf(const struct tw_log *log, enum tw_log_level level,
+                    const char *fmt, va_list ap);
+
+/* A logger that writes "tileworld: <level>: msg" lines to stderr, for
+ * messages at or below the level passed as user (cast from intptr_t). */
+void tw_log_stderr(void *user, enum tw_log_level level, const char *msg);
+
+/* ---- boxes -------------------------------------------------------------- */
+
+/* Axis-aligned box in metres. An empty box has min > max. */
+struct tw_box {
+    float min[3];
+    float max[3];
+};
+
+struct tw_box tw_box_empty(void);
+bool tw_box_is_empty(const struct tw_box *b);
+void tw_box_add_point(struct tw_box *b, const float p[3]);
+void tw_box_add_box(struct tw_box *b, const struct tw_box *o);
+/* Box of the eight corners of b under the affine 3x4 row-major transform m. */
+struct tw_box tw_box_transform(const struct tw_box *b, const float m[12]);
+float tw_box_surface_area(const struct tw_box *b);
+/* Squared distance from p to the nearest point of b (0 inside). */
+float tw_box_distance2(const struct tw_box *b, const float p[3]);
+
+/* ---- cells and positions (DESIGN §3) ------------------------------------ */
+
+/* One square of the infinite grid: i runs along +x, j along +z. */
+struct tw_cell {
+    int64_t i;
+    int64_t j;
+};
+
+/* A world position: a cell plus a float offset inside it (metres; y is
+ * height above the ground). Never an absolute position in float. */
+struct tw_world_pos {
+    struct tw_cell cell;
+    float local[3];
+};
+
+/* Floor division and the matching non-negative modulo, exact for all
+ * int64_t a and b > 0. */
+int64_t tw_tiles_floor_div(int64_t a, int64_t b);
+int64_t tw_tiles_floor_mod(int64_t a, int64_t b);
+
+/* Moves whole footprints out of p->local[0] (x) and p->local[2] (z) into the
+ * cell, so that 0 <= local[0] < w and 0 <= local[2] < d afterwards. Works for
+ * any finite local offset; computed in double. Returns TW_ERR_INVALID (p
+ * unchanged) if an offset is not finite or the cell would overflow. */
+int tw_tiles_normalize(struct tw_world_pos *p, float w, float d);
+
+/* The position of cell's origin relative to origin's origin, in metres:
+ * ((cell.i - origin.i) * w, 0, (cell.j - origin.j) * d). The difference is
+ * taken in int64_t, scaled in double and only then rounded to float, so it is
+ * exact-ish for nearby cells wherever they lie. */
+void tw_tiles_cell_offset(struct tw_cell cell, struct tw_cell origin, float w,
+                          float d, float out[3]);
+
+/* ---- the tileset model ---------------------------------------------------- */
+
+/* A material: one base colour, linear RGBA in [0, 1]. */
+struct tw_material {
+    float base_color[4];
+};
+
+/* A shared triangle mesh, in mesh-local coordinates. After
+ * tw_tileset_finish() its triangles are reordered so that each of its parts
+ * is a contiguous index range. */
+struct tw_mesh {
+    float *positions;     /* xyz per vertex, vertex_count * 3 */
+    float *normals;       /* xyz per vertex, vertex_count * 3 */
+    uint32_t *indices;    /* three per triangle, triangle_count * 3 */
+    uint32_t vertex_count;
+    uint32_t triangle_count;
+    uint32_t first_part;  /* index into tw_tileset.parts */
+    uint32_t part_count;
+    struct tw_box box;
+};
+
+/* A spatially coherent piece of a mesh: triangles [first_triangle,
+ * first_triangle + triangle_count) of mesh. */
+struct tw_mesh_part {
+    uint32_t mesh;
+    uint32_t first_triangle;
+    uint32_t triangle_count;
+    struct tw_box box;    /* mesh-local */
+};
+
+/* One placement of a shared mesh inside a prototype. */
+struct tw_instance {
+    uint32_t mesh;
+    uint32_t material;
+    float transform[12];  /* affine, row-major 3x4, mesh-local -> tile-local */
+    struct tw_box box;    /* tile-local */
+};
+
+/* The unit that the BVH indexes and the renderer draws: one part of one
+ * instance (DESIGN §1). */
+struct tw_cluster {
+    uint32_t instance;    /* index into the prototype's instances */
+    uint32_t part;        /* index into tw_tileset.parts */
+    uint32_t triangle_count;
+    struct tw_box box;    /* tile-local */
+};
+
+struct tw_prototype {
+    char name[48];
+    float weight;                 /* selection weight, > 0 */
+    struct tw_instance *instances;
+    uint32_t instance_count;
+    struct tw_cluster *clusters;  /* built by tw_tileset_finish() */
+    uint32_t cluster_count;
+    uint64_t triangle_count;
+    struct tw_box box;            /* tile-local */
+};
+
+/* A tileset: built with the calls below, then frozen by tw_tileset_finish().
+ * Readers use the fields directly through a const pointer; only the builder
+ * calls write them. Tile-local coordinates put the cell's origin corner at
+ * (0, 0, 0), the tile spanning [0, footprint[0]] x [0, footprint[1]] in x, z. */
+struct tw_tileset {
+    char name[64];
+    float footprint[2];           /* W (along x), D (along z), metres */
+    struct tw_material *materials;
+    uint32_t material_count;
+    struct tw_mesh *meshes;
+    uint32_t mesh_count;
+    struct tw_mesh_part *parts;
+    uint32_t part_count;
+    struct tw_prototype *prototypes;
+    uint32_t prototype_count;
+    struct tw_box common_box;     /* union of every prototype's box */
+    uint32_t max_cluster_triangles;
+    bool finished;
+
+    uint32_t material_cap, mesh_cap, prototype_cap; /* private */
+};
+
+/* Creates an empty tileset with footprint w x d metres (both > 0 and finite).
+ * The caller owns *out and frees it with tw_tileset_destroy(). */
+int tw_tileset_create(const char *name, float w, float d,
+                      struct tw_tileset **out);
+/* Frees a tileset; accepts NULL and unfinished tilesets. */
+void tw_tileset_destroy(struct tw_tileset *ts);
+
+/* Adds a material; returns its index (>= 0) or a negative error. */
+int tw_tileset_add_material(struct tw_tileset *ts, const float rgba[4]);
+
+/* Adds a mesh, copying the arrays. normals may be NULL: then smooth
+ * area-weighted normals are computed. Every index must be < vertex_count and
+ * every position finite. Returns the mesh index (>= 0) or a negative error. */
+int tw_tileset_add_mesh(struct tw_tileset *ts, const float *positions,
+                        const float *normals, uint32_t vertex_count,
+                        const uint32_t *indices, uint32_t triangle_count);
+
+/* Adds an empty prototype; returns its index or a negative error. */
+int tw_tileset_add_prototype(struct tw_tileset *ts, const char *name,
+                             float weight);
+
+/* Places mesh with material inside prototype proto under transform
+ * (row-major 3x4, NULL for identity). Returns the instance index or a
+ * negative error. */
+int tw_tileset_add_instance(struct tw_tileset *ts, uint32_t proto,
+                            uint32_t mesh, uint32_t material,
+                            const float transform[12]);
+
+/* Freezes the tileset: splits every mesh into parts of at most
+ * max_cluster_triangles triangles (0: never split) by recursive median
+ * splits along the longest axis, computes every box, the clusters of every
+ * prototype and the common box. Fails on a tileset with no prototype or with
+ * an empty prototype. */
+int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles);
+
+/* Sum of all mesh data bytes (what a renderer uploads once). */
+uint64_t tw_tileset_geometry_bytes(const struct tw_tileset *ts);
+
+/* ---- selection ------------------------------------------------------------ */
+
+/* A host's world generator: returns the prototype shown at cell, which must
+ * be < the tileset's prototype_count. Must be a pure function of the cell. */
+typedef uint32_t (*tw_select_fn)(void *user, struct tw_cell cell);
+
+/* How cells choose prototypes. Zero-initialisable: seed 0, not periodic,
+ * the weighted hash selection. */
+struct tw_selection {
+    uint64_t seed;
+    int64_t repeat;        /* > 0: periodic with this period in i and j */
+    tw_select_fn fn;       /* non-NULL: a host callback replaces the hash */
+    void *user;            /* passed to fn; owned by the host */
+};
+
+/* The prototype shown at cell: a seeded hash of the (periodic) cell, mapped
+ * through the prototypes' weights, or the host callback. ts must be
+ * finished. */
+uint32_t tw_tiles_select(const struct tw_tileset *ts,
+                         const struct tw_selection *sel, struct tw_cell cell);
+
+/* A 64-bit mix of (seed, i, j), the hash behind selection; exposed for
+ * generators that want the same stream. */
+uint64_t tw_tiles_hash(uint64_t seed, int64_t i, int64_t j);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif
