@@ -63,6 +63,7 @@ struct tw_view {
     float view_proj[16];        /* column-major, view-relative world -> clip */
     struct tw_frustum frustum;
     float near_plane;           /* metres */
+    float near_radius;          /* eye to the near plane's corners, metres */
     float view_distance;        /* metres; tiles whose box lies farther are not drawn */
     uint64_t frame;             /* frame number, starting at 1 */
 };

@@ -174,6 +174,7 @@ struct tw_prototype {
     uint32_t cluster_count;
     uint64_t triangle_count;
     struct tw_box box;            /* tile-local */
+    uint32_t instance_cap;        /* private */
 };
 
 /* A tileset: built with the calls below, then frozen by tw_tileset_finish().

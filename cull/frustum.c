@@ -1,0 +1,181 @@
+/* Frusta, the view, cell enumeration and per-tile frustum culling (cull.h). */
+#include "cull/cull.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+void tw_cull_frustum_from_matrix(const float m[16], struct tw_frustum *out)
+{
+    /* Row r of a column-major matrix is (m[r], m[4 + r], m[8 + r], m[12 + r]). */
+    static const int rows[6] = {0, 0, 1, 1, 2, 2};
+    static const float signs[6] = {1, -1, 1, -1, 1, -1};
+    for (int p = 0; p < 6; p++) {
+        const int r = rows[p];
+        const float s = signs[p];
+        float a = m[3] + s * m[r], b = m[7] + s * m[4 + r];
+        float c = m[11] + s * m[8 + r], d = m[15] + s * m[12 + r];
+        const float len = sqrtf(a * a + b * b + c * c);
+        if (len > 0.0f) {
+            a /= len; b /= len; c /= len; d /= len;
+        }
+        out->planes[p] = (struct tw_plane){{a, b, c}, d};
+    }
+}
+
+enum tw_cull_test tw_cull_frustum_box(const struct tw_frustum *f, const struct tw_box *b,
+                                      const float offset[3])
+{
+    const float o[3] = {offset ? offset[0] : 0.0f, offset ? offset[1] : 0.0f,
+                        offset ? offset[2] : 0.0f};
+    enum tw_cull_test result = TW_CULL_INSIDE;
+    for (int p = 0; p < 6; p++) {
+        const struct tw_plane *pl = &f->planes[p];
+        float far_d = pl->d, near_d = pl->d;
+        for (int k = 0; k < 3; k++) {
+            const float lo = b->min[k] + o[k], hi = b->max[k] + o[k];
+            far_d += pl->n[k] * (pl->n[k] >= 0.0f ? hi : lo);
+            near_d += pl->n[k] * (pl->n[k] >= 0.0f ? lo : hi);
+        }
+        if (far_d < 0.0f)
+            return TW_CULL_OUTSIDE;
+        if (near_d < 0.0f)
+            result = TW_CULL_INTERSECT;
+    }
+    return result;
+}
+
+static void mat4_mul(const float a[16], const float b[16], float out[16])
+{
+    for (int c = 0; c < 4; c++)
+        for (int r = 0; r < 4; r++) {
+            float s = 0.0f;
+            for (int k = 0; k < 4; k++)
+                s += a[4 * k + r] * b[4 * c + k];
+            out[4 * c + r] = s;
+        }
+}
+
+void tw_cull_view_setup(struct tw_view *v, struct tw_cell cell, const float eye[3],
+                        float yaw_deg, float pitch_deg, float fov_y_deg, float aspect,
+                        float near_plane, float far_plane)
+{
+    const double to_rad = 3.14159265358979323846 / 180.0;
+    const double yaw = yaw_deg * to_rad, pitch = pitch_deg * to_rad;
+    /* Yaw 0 looks along +z, yaw 90 along +x; pitch > 0 looks up (DESIGN §9). */
+    const float f[3] = {(float)(sin(yaw) * cos(pitch)), (float)sin(pitch),
+                        (float)(cos(yaw) * cos(pitch))};
+    /* right = f x up with up = +y; well defined while |pitch| < 90. */
+    float r[3] = {-f[2], 0.0f, f[0]};
+    const float rl = sqrtf(r[0] * r[0] + r[2] * r[2]);
+    if (rl > 1e-6f) {
+        r[0] /= rl;
+        r[2] /= rl;
+    } else {
+        r[0] = -(float)cos(yaw);
+        r[2] = (float)sin(yaw);
+    }
+    const float u[3] = {r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2],
+                        r[0] * f[1] - r[1] * f[0]};
+    const float view[16] = {
+        r[0], u[0], -f[0], 0.0f,
+        r[1], u[1], -f[1], 0.0f,
+        r[2], u[2], -f[2], 0.0f,
+        -(r[0] * eye[0] + r[1] * eye[1] + r[2] * eye[2]),
+        -(u[0] * eye[0] + u[1] * eye[1] + u[2] * eye[2]),
+        f[0] * eye[0] + f[1] * eye[1] + f[2] * eye[2],
+        1.0f,
+    };
+    const float t = 1.0f / (float)tan(0.5 * fov_y_deg * to_rad);
+    const float n = near_plane, fa = far_plane;
+    const float proj[16] = {
+        t / aspect, 0, 0, 0,
+        0, t, 0, 0,
+        0, 0, (fa + n) / (n - fa), -1,
+        0, 0, 2 * fa * n / (n - fa), 0,
+    };
+    v->cell = cell;
+    memcpy(v->eye, eye, sizeof(v->eye));
+    mat4_mul(proj, view, v->view_proj);
+    tw_cull_frustum_from_matrix(v->view_proj, &v->frustum);
+    v->near_plane = near_plane;
+    /* The near plane's corners lie up to n * sqrt(1 + tx^2 + ty^2) from the
+     * eye; keep that radius for the near-plane rule. */
+    const float ty = 1.0f / t, tx = ty * aspect;
+    v->near_radius = n * sqrtf(1.0f + tx * tx + ty * ty);
+}
+
+bool tw_cull_near_box(const struct tw_view *v, const struct tw_box *b, const float offset[3])
+{
+    const float r = v->near_radius > v->near_plane ? v->near_radius : v->near_plane;
+    const float d = tw_cull_box_distance(v, b, offset);
+    /* A little slack over the exact radius: a box that the near plane cuts
+     * must never be queried. */
+    return d <= r * 1.01f + 1e-4f;
+}
+
+float tw_cull_box_distance(const struct tw_view *v, const struct tw_box *b, const float offset[3])
+{
+    const float p[3] = {v->eye[0] - (offset ? offset[0] : 0.0f),
+                        v->eye[1] - (offset ? offset[1] : 0.0f),
+                        v->eye[2] - (offset ? offset[2] : 0.0f)};
+    return sqrtf(tw_box_distance2(b, p));
+}
+
+static int compare_cells(const void *a, const void *b)
+{
+    const struct tw_cull_cell *x = a, *y = b;
+    if (x->distance != y->distance)
+        return x->distance < y->distance ? -1 : 1;
+    if (x->cell.i != y->cell.i)
+        return x->cell.i < y->cell.i ? -1 : 1;
+    return (x->cell.j > y->cell.j) - (x->cell.j < y->cell.j);
+}
+
+size_t tw_cull_cells_in_view(const struct tw_view *v, const struct tw_box *common_box,
+                             float w, float d, struct tw_cull_cell *out, size_t cap)
+{
+    const float R = v->view_distance;
+    /* Cells di (relative to the camera's) whose box can be within R. */
+    const int64_t i0 = (int64_t)floorf((v->eye[0] - R - common_box->max[0]) / w);
+    const int64_t i1 = (int64_t)floorf((v->eye[0] + R - common_box->min[0]) / w);
+    const int64_t j0 = (int64_t)floorf((v->eye[2] - R - common_box->max[2]) / d);
+    const int64_t j1 = (int64_t)floorf((v->eye[2] + R - common_box->min[2]) / d);
+    size_t n = 0;
+    for (int64_t di = i0; di <= i1; di++) {
+        for (int64_t dj = j0; dj <= j1; dj++) {
+            const struct tw_cell cell = {(int64_t)((uint64_t)v->cell.i + (uint64_t)di),
+                                         (int64_t)((uint64_t)v->cell.j + (uint64_t)dj)};
+            float off[3];
+            tw_tiles_cell_offset(cell, v->cell, w, d, off);
+            const float dist = tw_cull_box_distance(v, common_box, off);
+            if (dist > R)
+                continue;
+            if (tw_cull_frustum_box(&v->frustum, common_box, off) == TW_CULL_OUTSIDE)
+                continue;
+            if (n < cap) {
+                out[n].cell = cell;
+                out[n].distance = dist;
+            }
+            n++;
+        }
+    }
+    if (n <= cap)
+        qsort(out, n, sizeof(*out), compare_cells);
+    return n;
+}
+
+uint32_t tw_cull_vfc_tile(const struct tw_view *v, const struct tw_prototype *proto,
+                          const float offset[3], uint32_t *out)
+{
+    uint32_t n = 0;
+    for (uint32_t c = 0; c < proto->cluster_count; c++) {
+        const struct tw_box *b = &proto->clusters[c].box;
+        if (tw_cull_box_distance(v, b, offset) > v->view_distance)
+            continue;
+        if (tw_cull_frustum_box(&v->frustum, b, offset) == TW_CULL_OUTSIDE)
+            continue;
+        out[n++] = c;
+    }
+    return n;
+}

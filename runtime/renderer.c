@@ -1,0 +1,535 @@
+/* The renderer and the GL query backend (renderer.h). */
+#include "runtime/renderer.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+enum mode { MODE_NONE, MODE_DRAW, MODE_QUERY };
+
+struct tw_renderer {
+    struct tw_gl gl;
+    struct tw_log log;
+    const struct tw_tileset *ts;
+    uint32_t width, height;
+
+    GLuint vao, vbo, ibo;
+    GLuint program;
+    GLint u_view_proj, u_model, u_offset, u_color, u_eye, u_fog;
+    uint32_t *mesh_base_vertex;
+    uint32_t *mesh_first_index;
+
+    GLuint box_vao, box_vbo, box_ibo;
+    GLuint box_program;
+    GLint ub_view_proj, ub_min, ub_max;
+
+    GLuint fbo, color_rb, depth_rb;
+
+    /* Query objects: handle h (> 0) names queries[h - 1]; released handles
+     * go on a free list and are reused. */
+    GLuint *queries;
+    uint32_t *free_queries;
+    uint32_t query_count, free_count, query_cap;
+
+    enum mode mode;
+    struct tw_render_counters counters;
+};
+
+double tw_renderer_now_ms(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
+}
+
+static const char *const scene_vs =
+    "#version 330 core\n"
+    "layout(location = 0) in vec3 a_pos;\n"
+    "layout(location = 1) in vec3 a_normal;\n"
+    "uniform mat4 u_view_proj;\n"
+    "uniform vec4 u_model[3];\n"
+    "uniform vec3 u_offset;\n"
+    "out vec3 v_normal;\n"
+    "out vec3 v_pos;\n"
+    "void main() {\n"
+    "    vec4 p = vec4(a_pos, 1.0);\n"
+    "    vec3 w = vec3(dot(u_model[0], p), dot(u_model[1], p), dot(u_model[2], p)) + u_offset;\n"
+    "    v_normal = vec3(dot(u_model[0].xyz, a_normal), dot(u_model[1].xyz, a_normal),\n"
+    "                    dot(u_model[2].xyz, a_normal));\n"
+    "    v_pos = w;\n"
+    "    gl_Position = u_view_proj * vec4(w, 1.0);\n"
+    "}\n";
+
+static const char *const scene_fs =
+    "#version 330 core\n"
+    "in vec3 v_normal;\n"
+    "in vec3 v_pos;\n"
+    "uniform vec4 u_color;\n"
+    "uniform vec3 u_eye;\n"
+    "uniform vec2 u_fog;\n"
+    "out vec4 o_color;\n"
+    "void main() {\n"
+    "    vec3 n = normalize(v_normal);\n"
+    "    vec3 sun = normalize(vec3(0.45, 0.8, 0.3));\n"
+    "    float light = 0.38 + 0.62 * max(dot(n, sun), 0.0) + 0.08 * max(-n.x, 0.0);\n"
+    "    vec3 c = u_color.rgb * light;\n"
+    "    float f = clamp((distance(v_pos, u_eye) - u_fog.x) / u_fog.y, 0.0, 0.85);\n"
+    "    o_color = vec4(mix(c, vec3(0.70, 0.80, 0.92), f), 1.0);\n"
+    "}\n";
+
+static const char *const box_vs =
+    "#version 330 core\n"
+    "layout(location = 0) in vec3 a_corner;\n"
+    "uniform mat4 u_view_proj;\n"
+    "uniform vec3 u_min;\n"
+    "uniform vec3 u_max;\n"
+    "void main() {\n"
+    "    gl_Position = u_view_proj * vec4(mix(u_min, u_max, a_corner), 1.0);\n"
+    "}\n";
+
+static const char *const box_fs =
+    "#version 330 core\n"
+    "out vec4 o_color;\n"
+    "void main() { o_color = vec4(1.0); }\n";
+
+static GLuint compile(struct tw_renderer *r, GLenum type, const char *src)
+{
+    const struct tw_gl *gl = &r->gl;
+    GLuint s = gl->CreateShader(type);
+    gl->ShaderSource(s, 1, &src, NULL);
+    gl->CompileShader(s);
+    GLint ok = 0;
+    gl->GetShaderiv(s, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+        char msg[1024] = "";
+        gl->GetShaderInfoLog(s, sizeof(msg), NULL, msg);
+        tw_log_printf(&r->log, TW_LOG_ERROR, "shader compilation failed (a bug): %s", msg);
+        gl->DeleteShader(s);
+        return 0;
+    }
+    return s;
+}
+
+static GLuint link_program(struct tw_renderer *r, const char *vs_src, const char *fs_src)
+{
+    const struct tw_gl *gl = &r->gl;
+    GLuint vs = compile(r, GL_VERTEX_SHADER, vs_src);
+    GLuint fs = compile(r, GL_FRAGMENT_SHADER, fs_src);
+    GLuint p = 0;
+    if (vs && fs) {
+        p = gl->CreateProgram();
+        gl->AttachShader(p, vs);
+        gl->AttachShader(p, fs);
+        gl->LinkProgram(p);
+        GLint ok = 0;
+        gl->GetProgramiv(p, GL_LINK_STATUS, &ok);
+        if (!ok) {
+            char msg[1024] = "";
+            gl->GetProgramInfoLog(p, sizeof(msg), NULL, msg);
+            tw_log_printf(&r->log, TW_LOG_ERROR, "shader link failed (a bug): %s", msg);
+            gl->DeleteProgram(p);
+            p = 0;
+        }
+    }
+    if (vs)
+        gl->DeleteShader(vs);
+    if (fs)
+        gl->DeleteShader(fs);
+    return p;
+}
+
+static int upload_meshes(struct tw_renderer *r)
+{
+    const struct tw_gl *gl = &r->gl;
+    const struct tw_tileset *ts = r->ts;
+    uint64_t vertices = 0, indices = 0;
+    for (uint32_t k = 0; k < ts->mesh_count; k++) {
+        vertices += ts->meshes[k].vertex_count;
+        indices += 3ull * ts->meshes[k].triangle_count;
+    }
+    if (vertices > UINT32_MAX || indices > UINT32_MAX / 4) {
+        tw_log_printf(&r->log, TW_LOG_ERROR, "tileset '%s' is too large to upload (%llu vertices)",
+                      ts->name, (unsigned long long)vertices);
+        return TW_ERR_LIMIT;
+    }
+    r->mesh_base_vertex = calloc(ts->mesh_count ? ts->mesh_count : 1, sizeof(uint32_t));
+    r->mesh_first_index = calloc(ts->mesh_count ? ts->mesh_count : 1, sizeof(uint32_t));
+    float *interleaved = malloc(sizeof(float) * 6 * (vertices ? vertices : 1));
+    uint32_t *index_data = malloc(sizeof(uint32_t) * (indices ? indices : 1));
+    int err = TW_OK;
+    if (!r->mesh_base_vertex || !r->mesh_first_index || !interleaved || !index_data) {
+        err = TW_ERR_NOMEM;
+        goto out;
+    }
+    uint32_t vbase = 0, ibase = 0;
+    for (uint32_t k = 0; k < ts->mesh_count; k++) {
+        const struct tw_mesh *m = &ts->meshes[k];
+        r->mesh_base_vertex[k] = vbase;
+        r->mesh_first_index[k] = ibase;
+        for (uint32_t v = 0; v < m->vertex_count; v++) {
+            memcpy(interleaved + 6 * (size_t)(vbase + v), m->positions + 3 * (size_t)v, 12);
+            memcpy(interleaved + 6 * (size_t)(vbase + v) + 3, m->normals + 3 * (size_t)v, 12);
+        }
+        memcpy(index_data + ibase, m->indices, sizeof(uint32_t) * 3 * (size_t)m->triangle_count);
+        vbase += m->vertex_count;
+        ibase += 3 * m->triangle_count;
+    }
+    gl->GenVertexArrays(1, &r->vao);
+    gl->BindVertexArray(r->vao);
+    gl->GenBuffers(1, &r->vbo);
+    gl->BindBuffer(GL_ARRAY_BUFFER, r->vbo);
+    gl->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(sizeof(float) * 6 * vertices), interleaved,
+                   GL_STATIC_DRAW);
+    gl->GenBuffers(1, &r->ibo);
+    gl->BindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->ibo);
+    gl->BufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(sizeof(uint32_t) * indices), index_data,
+                   GL_STATIC_DRAW);
+    gl->EnableVertexAttribArray(0);
+    gl->VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 24, (const void *)0);
+    gl->EnableVertexAttribArray(1);
+    gl->VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 24, (const void *)12);
+    gl->BindVertexArray(0);
+out:
+    free(interleaved);
+    free(index_data);
+    return err;
+}
+
+static void upload_box(struct tw_renderer *r)
+{
+    const struct tw_gl *gl = &r->gl;
+    static const float corners[8 * 3] = {
+        0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0, 0, 0, 1, 1, 0, 1, 0, 1, 1, 1, 1, 1,
+    };
+    static const uint8_t faces[36] = {
+        0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5, 0, 2, 6, 0, 6, 4,
+        1, 5, 7, 1, 7, 3, 0, 4, 5, 0, 5, 1, 2, 3, 7, 2, 7, 6,
+    };
+    gl->GenVertexArrays(1, &r->box_vao);
+    gl->BindVertexArray(r->box_vao);
+    gl->GenBuffers(1, &r->box_vbo);
+    gl->BindBuffer(GL_ARRAY_BUFFER, r->box_vbo);
+    gl->BufferData(GL_ARRAY_BUFFER, sizeof(corners), corners, GL_STATIC_DRAW);
+    gl->GenBuffers(1, &r->box_ibo);
+    gl->BindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->box_ibo);
+    gl->BufferData(GL_ELEMENT_ARRAY_BUFFER, sizeof(faces), faces, GL_STATIC_DRAW);
+    gl->EnableVertexAttribArray(0);
+    gl->VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, (const void *)0);
+    gl->BindVertexArray(0);
+}
+
+static int create_framebuffer(struct tw_renderer *r)
+{
+    const struct tw_gl *gl = &r->gl;
+    gl->GenFramebuffers(1, &r->fbo);
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+    gl->GenRenderbuffers(1, &r->color_rb);
+    gl->BindRenderbuffer(GL_RENDERBUFFER, r->color_rb);
+    gl->RenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, (GLsizei)r->width, (GLsizei)r->height);
+    gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER,
+                                r->color_rb);
+    gl->GenRenderbuffers(1, &r->depth_rb);
+    gl->BindRenderbuffer(GL_RENDERBUFFER, r->depth_rb);
+    gl->RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, (GLsizei)r->width,
+                            (GLsizei)r->height);
+    gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER,
+                                r->depth_rb);
+    if (gl->CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+        tw_log_printf(&r->log, TW_LOG_ERROR, "the offscreen framebuffer is incomplete");
+        return TW_ERR_GL;
+    }
+    return TW_OK;
+}
+
+int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t height, tw_gl_get_proc_fn get_proc,
+                       const struct tw_log *log, struct tw_renderer **out)
+{
+    struct tw_renderer *r = calloc(1, sizeof(*r));
+    if (!r)
+        return TW_ERR_NOMEM;
+    if (log)
+        r->log = *log;
+    r->ts = ts;
+    r->width = width;
+    r->height = height;
+    int err = tw_gl_load(&r->gl, get_proc, &r->log);
+    if (err)
+        goto fail;
+    const struct tw_gl *gl = &r->gl;
+    GLint major = 0, minor = 0;
+    gl->GetIntegerv(GL_MAJOR_VERSION, &major);
+    gl->GetIntegerv(GL_MINOR_VERSION, &minor);
+    if (major * 10 + minor < 33) {
+        tw_log_printf(&r->log, TW_LOG_ERROR, "OpenGL %d.%d is too old: 3.3 core is needed",
+                      major, minor);
+        err = TW_ERR_GL;
+        goto fail;
+    }
+    r->program = link_program(r, scene_vs, scene_fs);
+    r->box_program = link_program(r, box_vs, box_fs);
+    if (!r->program || !r->box_program) {
+        err = TW_ERR_GL;
+        goto fail;
+    }
+    r->u_view_proj = gl->GetUniformLocation(r->program, "u_view_proj");
+    r->u_model = gl->GetUniformLocation(r->program, "u_model");
+    r->u_offset = gl->GetUniformLocation(r->program, "u_offset");
+    r->u_color = gl->GetUniformLocation(r->program, "u_color");
+    r->u_eye = gl->GetUniformLocation(r->program, "u_eye");
+    r->u_fog = gl->GetUniformLocation(r->program, "u_fog");
+    r->ub_view_proj = gl->GetUniformLocation(r->box_program, "u_view_proj");
+    r->ub_min = gl->GetUniformLocation(r->box_program, "u_min");
+    r->ub_max = gl->GetUniformLocation(r->box_program, "u_max");
+    err = upload_meshes(r);
+    if (err)
+        goto fail;
+    upload_box(r);
+    err = create_framebuffer(r);
+    if (err)
+        goto fail;
+    GLenum gl_err = gl->GetError();
+    if (gl_err != GL_NO_ERROR) {
+        tw_log_printf(&r->log, TW_LOG_ERROR, "OpenGL error 0x%x while setting up", gl_err);
+        err = TW_ERR_GL;
+        goto fail;
+    }
+    *out = r;
+    return TW_OK;
+fail:
+    tw_renderer_destroy(r);
+    return err;
+}
+
+void tw_renderer_destroy(struct tw_renderer *r)
+{
+    if (!r)
+        return;
+    const struct tw_gl *gl = &r->gl;
+    if (gl->DeleteBuffers) {
+        if (r->query_count)
+            gl->DeleteQueries((GLsizei)r->query_count, r->queries);
+        gl->DeleteBuffers(1, &r->vbo);
+        gl->DeleteBuffers(1, &r->ibo);
+        gl->DeleteBuffers(1, &r->box_vbo);
+        gl->DeleteBuffers(1, &r->box_ibo);
+        gl->DeleteVertexArrays(1, &r->vao);
+        gl->DeleteVertexArrays(1, &r->box_vao);
+        gl->DeleteRenderbuffers(1, &r->color_rb);
+        gl->DeleteRenderbuffers(1, &r->depth_rb);
+        gl->DeleteFramebuffers(1, &r->fbo);
+        if (r->program)
+            gl->DeleteProgram(r->program);
+        if (r->box_program)
+            gl->DeleteProgram(r->box_program);
+    }
+    free(r->queries);
+    free(r->free_queries);
+    free(r->mesh_base_vertex);
+    free(r->mesh_first_index);
+    free(r);
+}
+
+void tw_renderer_begin_frame(struct tw_renderer *r, const struct tw_view *v)
+{
+    const struct tw_gl *gl = &r->gl;
+    memset(&r->counters, 0, sizeof(r->counters));
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+    gl->Viewport(0, 0, (GLsizei)r->width, (GLsizei)r->height);
+    gl->DepthMask(GL_TRUE);
+    gl->ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    gl->ClearColor(0.70f, 0.80f, 0.92f, 1.0f);
+    gl->ClearDepth(1.0);
+    gl->Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    gl->Enable(GL_DEPTH_TEST);
+    gl->DepthFunc(GL_LEQUAL);
+    gl->UseProgram(r->box_program);
+    gl->UniformMatrix4fv(r->ub_view_proj, 1, GL_FALSE, v->view_proj);
+    gl->UseProgram(r->program);
+    gl->UniformMatrix4fv(r->u_view_proj, 1, GL_FALSE, v->view_proj);
+    gl->Uniform3fv(r->u_eye, 1, v->eye);
+    const float fog[2] = {0.45f * v->view_distance, 0.9f * v->view_distance};
+    gl->Uniform2fv(r->u_fog, 1, fog);
+    r->mode = MODE_NONE;
+    gl->BindVertexArray(r->vao);
+}
+
+void tw_renderer_end_frame(struct tw_renderer *r)
+{
+    r->gl.Finish();
+}
+
+static void enter_draw_mode(struct tw_renderer *r)
+{
+    if (r->mode == MODE_DRAW)
+        return;
+    const struct tw_gl *gl = &r->gl;
+    gl->UseProgram(r->program);
+    gl->BindVertexArray(r->vao);
+    gl->ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    gl->DepthMask(GL_TRUE);
+    gl->Enable(GL_CULL_FACE);
+    gl->CullFace(GL_BACK);
+    r->mode = MODE_DRAW;
+}
+
+static void enter_query_mode(struct tw_renderer *r)
+{
+    if (r->mode == MODE_QUERY)
+        return;
+    const struct tw_gl *gl = &r->gl;
+    gl->UseProgram(r->box_program);
+    gl->BindVertexArray(r->box_vao);
+    gl->ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+    gl->DepthMask(GL_FALSE);
+    gl->Disable(GL_CULL_FACE);
+    r->mode = MODE_QUERY;
+}
+
+static void backend_draw(void *ctx, struct tw_cell cell, uint32_t prototype,
+                         const float offset[3], const uint32_t *clusters, uint32_t count)
+{
+    (void)cell;
+    struct tw_renderer *r = ctx;
+    if (count == 0)
+        return;
+    const double t0 = tw_renderer_now_ms();
+    const struct tw_gl *gl = &r->gl;
+    const struct tw_tileset *ts = r->ts;
+    const struct tw_prototype *proto = &ts->prototypes[prototype];
+    enter_draw_mode(r);
+    gl->Uniform3fv(r->u_offset, 1, offset);
+    uint32_t last_instance = UINT32_MAX, last_material = UINT32_MAX;
+    for (uint32_t k = 0; k < count; k++) {
+        const struct tw_cluster *c = &proto->clusters[clusters[k]];
+        const struct tw_instance *in = &proto->instances[c->instance];
+        if (c->instance != last_instance) {
+            gl->Uniform4fv(r->u_model, 3, in->transform);
+            last_instance = c->instance;
+        }
+        if (in->material != last_material) {
+            gl->Uniform4fv(r->u_color, 1, ts->materials[in->material].base_color);
+            last_material = in->material;
+        }
+        const struct tw_mesh_part *part = &ts->parts[c->part];
+        const size_t first = (size_t)r->mesh_first_index[part->mesh] + 3u * part->first_triangle;
+        gl->DrawElementsBaseVertex(GL_TRIANGLES, (GLsizei)(3u * part->triangle_count),
+                                   GL_UNSIGNED_INT, (const void *)(first * sizeof(uint32_t)),
+                                   (GLint)r->mesh_base_vertex[part->mesh]);
+        r->counters.triangles += part->triangle_count;
+        r->counters.draws++;
+    }
+    r->counters.clusters += count;
+    r->counters.ms_backend += tw_renderer_now_ms() - t0;
+}
+
+static uint32_t backend_issue(void *ctx, const struct tw_box *boxes, uint32_t count,
+                              const float offset[3])
+{
+    struct tw_renderer *r = ctx;
+    const double t0 = tw_renderer_now_ms();
+    const struct tw_gl *gl = &r->gl;
+    uint32_t handle;
+    if (r->free_count > 0) {
+        handle = r->free_queries[--r->free_count];
+    } else {
+        if (r->query_count == r->query_cap) {
+            uint32_t cap = r->query_cap ? r->query_cap * 2 : 256;
+            GLuint *q = realloc(r->queries, sizeof(*q) * cap);
+            if (!q)
+                return 0;
+            r->queries = q;
+            uint32_t *f = realloc(r->free_queries, sizeof(*f) * cap);
+            if (!f)
+                return 0;
+            r->free_queries = f;
+            r->query_cap = cap;
+        }
+        gl->GenQueries(1, &r->queries[r->query_count]);
+        handle = ++r->query_count;
+    }
+    enter_query_mode(r);
+    gl->BeginQuery(GL_ANY_SAMPLES_PASSED, r->queries[handle - 1]);
+    for (uint32_t k = 0; k < count; k++) {
+        const float lo[3] = {boxes[k].min[0] + offset[0], boxes[k].min[1] + offset[1],
+                             boxes[k].min[2] + offset[2]};
+        const float hi[3] = {boxes[k].max[0] + offset[0], boxes[k].max[1] + offset[1],
+                             boxes[k].max[2] + offset[2]};
+        gl->Uniform3fv(r->ub_min, 1, lo);
+        gl->Uniform3fv(r->ub_max, 1, hi);
+        gl->DrawElements(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, (const void *)0);
+    }
+    gl->EndQuery(GL_ANY_SAMPLES_PASSED);
+    r->counters.queries++;
+    r->counters.ms_backend += tw_renderer_now_ms() - t0;
+    return handle;
+}
+
+static bool backend_ready(void *ctx, uint32_t query)
+{
+    struct tw_renderer *r = ctx;
+    GLuint available = 0;
+    r->gl.GetQueryObjectuiv(r->queries[query - 1], GL_QUERY_RESULT_AVAILABLE, &available);
+    return available != 0;
+}
+
+static uint32_t backend_wait(void *ctx, uint32_t query)
+{
+    struct tw_renderer *r = ctx;
+    const double t0 = tw_renderer_now_ms();
+    GLuint result = 0;
+    r->gl.GetQueryObjectuiv(r->queries[query - 1], GL_QUERY_RESULT, &result);
+    r->free_queries[r->free_count++] = query;
+    const double dt = tw_renderer_now_ms() - t0;
+    r->counters.ms_wait += dt;
+    r->counters.ms_backend += dt;
+    return result;
+}
+
+static void backend_flush(void *ctx)
+{
+    struct tw_renderer *r = ctx;
+    r->gl.Flush();
+}
+
+struct tw_query_backend tw_renderer_backend(struct tw_renderer *r)
+{
+    struct tw_query_backend be = {
+        .ctx = r,
+        .issue = backend_issue,
+        .ready = backend_ready,
+        .wait = backend_wait,
+        .draw = backend_draw,
+        .flush = backend_flush,
+    };
+    return be;
+}
+
+const struct tw_render_counters *tw_renderer_counters(const struct tw_renderer *r)
+{
+    return &r->counters;
+}
+
+int tw_renderer_read_rgb(struct tw_renderer *r, uint8_t *rgb)
+{
+    const struct tw_gl *gl = &r->gl;
+    const size_t row = (size_t)r->width * 4;
+    uint8_t *rgba = malloc(row * r->height);
+    if (!rgba)
+        return TW_ERR_NOMEM;
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+    gl->ReadBuffer(GL_COLOR_ATTACHMENT0);
+    gl->PixelStorei(GL_PACK_ALIGNMENT, 1);
+    gl->ReadPixels(0, 0, (GLsizei)r->width, (GLsizei)r->height, GL_RGBA, GL_UNSIGNED_BYTE, rgba);
+    for (uint32_t y = 0; y < r->height; y++) {
+        const uint8_t *src = rgba + row * (r->height - 1 - y);
+        uint8_t *dst = rgb + (size_t)y * r->width * 3;
+        for (uint32_t x = 0; x < r->width; x++) {
+            dst[3 * x] = src[4 * x];
+            dst[3 * x + 1] = src[4 * x + 1];
+            dst[3 * x + 2] = src[4 * x + 2];
+        }
+    }
+    free(rgba);
+    return TW_OK;
+}

@@ -1,0 +1,48 @@
+/*
+ * The renderer: the tileset's meshes uploaded once into one vertex and one
+ * index buffer, clusters drawn per instance transform, query boxes, the
+ * offscreen framebuffer, and the GL implementation of struct
+ * tw_query_backend (DESIGN §5). Private to runtime/.
+ */
+#ifndef TW_RUNTIME_RENDERER_H
+#define TW_RUNTIME_RENDERER_H
+
+#include "runtime/gl.h"
+#include "runtime/runtime.h"
+
+/* Counters the renderer keeps for the current frame. */
+struct tw_render_counters {
+    uint64_t triangles;
+    uint32_t clusters;
+    uint32_t draws;
+    uint32_t queries;
+    double ms_wait;       /* blocked in wait() */
+    double ms_backend;    /* inside draw()/issue()/wait() in all */
+};
+
+struct tw_renderer;
+
+/* tileset and log are borrowed for the renderer's lifetime. The GL context
+ * must be current. */
+int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t height, tw_gl_get_proc_fn get_proc,
+                       const struct tw_log *log, struct tw_renderer **out);
+void tw_renderer_destroy(struct tw_renderer *r);
+
+/* Binds the framebuffer, clears it and sets the view for the frame; resets
+ * the counters. view_distance drives the fog. */
+void tw_renderer_begin_frame(struct tw_renderer *r, const struct tw_view *v);
+/* Waits for the GPU to finish the frame (glFinish). */
+void tw_renderer_end_frame(struct tw_renderer *r);
+
+/* The query backend drawing into this renderer. */
+struct tw_query_backend tw_renderer_backend(struct tw_renderer *r);
+
+const struct tw_render_counters *tw_renderer_counters(const struct tw_renderer *r);
+
+/* Reads the colour buffer as RGB8, top row first. */
+int tw_renderer_read_rgb(struct tw_renderer *r, uint8_t *rgb);
+
+/* Monotonic time in milliseconds. */
+double tw_renderer_now_ms(void);
+
+#endif

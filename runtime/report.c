@@ -1,0 +1,296 @@
+/* frames.csv, summary.json, summary.md and PNG snapshots (report.h). */
+#include "runtime/report.h"
+
+#include <errno.h>
+#include <json-c/json.h>
+#include <math.h>
+#include <png.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+static int make_dirs(const char *dir)
+{
+    char buf[1024];
+    if (strlen(dir) >= sizeof(buf))
+        return ENAMETOOLONG;
+    strcpy(buf, dir);
+    for (char *p = buf + 1; *p; p++) {
+        if (*p != '/')
+            continue;
+        *p = '\0';
+        if (mkdir(buf, 0777) != 0 && errno != EEXIST)
+            return errno;
+        *p = '/';
+    }
+    if (mkdir(buf, 0777) != 0 && errno != EEXIST)
+        return errno;
+    struct stat st;
+    if (stat(buf, &st) != 0)
+        return errno;
+    if (!S_ISDIR(st.st_mode))
+        return ENOTDIR;
+    return 0;
+}
+
+static const char *const csv_header =
+    "frame,method,ms_frame,ms_cull,ms_wait,triangles,clusters,draws,queries,tiles_queried,"
+    "tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,"
+    "missed_clusters,overdraw_triangles\n";
+
+int tw_report_open(struct tw_report *r, const char *dir, char *err, size_t err_size)
+{
+    struct tw_report keep = *r;
+    memset(r, 0, sizeof(*r));
+    memcpy(r->tileset, keep.tileset, sizeof(r->tileset));
+    memcpy(r->path, keep.path, sizeof(r->path));
+    r->width = keep.width;
+    r->height = keep.height;
+    r->seed = keep.seed;
+    int e = make_dirs(dir);
+    if (e) {
+        snprintf(err, err_size, "%s: cannot create the output folder: %s", dir, strerror(e));
+        return TW_ERR_IO;
+    }
+    snprintf(r->dir, sizeof(r->dir), "%s", dir);
+    char file[1100];
+    snprintf(file, sizeof(file), "%s/frames.csv", dir);
+    r->frames_csv = fopen(file, "w");
+    if (!r->frames_csv) {
+        snprintf(err, err_size, "%s: cannot write: %s", file, strerror(errno));
+        return TW_ERR_IO;
+    }
+    fputs(csv_header, r->frames_csv);
+    return TW_OK;
+}
+
+int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st)
+{
+    fprintf(r->frames_csv,
+            "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu\n",
+            (unsigned long long)st->frame, tw_method_name(st->method), st->ms_frame, st->ms_cull,
+            st->ms_wait, (unsigned long long)st->triangles, st->clusters, st->draws, st->queries,
+            st->tiles_queried, st->tiles_visible, st->tiles_new, st->tiles_cached,
+            (unsigned long long)st->cache_bytes, st->predict_fail,
+            (unsigned long long)st->missed_pixels, st->missed_clusters,
+            (unsigned long long)st->overdraw_triangles);
+    struct tw_method_summary *m = &r->methods[st->method];
+    if (m->frames == m->cap) {
+        uint32_t cap = m->cap ? m->cap * 2 : 256;
+        double *ms = realloc(m->ms, sizeof(*ms) * cap);
+        if (!ms)
+            return TW_ERR_NOMEM;
+        m->ms = ms;
+        m->cap = cap;
+    }
+    m->used = true;
+    m->ms[m->frames++] = st->ms_frame;
+    m->triangles += (double)st->triangles;
+    m->queries += st->queries;
+    m->missed_pixels_total += st->missed_pixels;
+    m->frames_with_missed_pixels += st->missed_pixels > 0;
+    m->tiles_new_total += st->tiles_new;
+    if (st->cache_bytes > m->peak_cache_bytes)
+        m->peak_cache_bytes = st->cache_bytes;
+    m->predict_fail += st->predict_fail;
+    m->tiles_queried += st->tiles_queried;
+    m->tiles_visible += st->tiles_visible;
+    m->ms_wait += st->ms_wait;
+    return TW_OK;
+}
+
+static int compare_double(const void *a, const void *b)
+{
+    const double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+double tw_report_percentile(double *values, uint32_t n, double p)
+{
+    if (n == 0)
+        return 0.0;
+    qsort(values, n, sizeof(*values), compare_double);
+    double rank = ceil(p / 100.0 * n);
+    uint32_t k = rank < 1.0 ? 0 : (uint32_t)rank - 1;
+    if (k >= n)
+        k = n - 1;
+    return values[k];
+}
+
+struct row {
+    const char *name;
+    enum tw_method method;
+    double mean, median, p95, p99, triangles, queries;
+};
+
+static void summarise(struct tw_method_summary *m, struct row *out)
+{
+    double sum = 0.0;
+    for (uint32_t k = 0; k < m->frames; k++)
+        sum += m->ms[k];
+    out->mean = m->frames ? sum / m->frames : 0.0;
+    out->median = tw_report_percentile(m->ms, m->frames, 50.0);
+    out->p95 = tw_report_percentile(m->ms, m->frames, 95.0);
+    out->p99 = tw_report_percentile(m->ms, m->frames, 99.0);
+    out->triangles = m->frames ? m->triangles / m->frames : 0.0;
+    out->queries = m->frames ? m->queries / m->frames : 0.0;
+}
+
+static double round3(double v)
+{
+    return round(v * 1000.0) / 1000.0;
+}
+
+int tw_report_close(struct tw_report *r, bool markdown, char *err, size_t err_size)
+{
+    int rc = TW_OK;
+    if (r->frames_csv && fclose(r->frames_csv) != 0) {
+        snprintf(err, err_size, "%s/frames.csv: write error", r->dir);
+        rc = TW_ERR_IO;
+    }
+    r->frames_csv = NULL;
+
+    struct row rows[TW_METHOD_COUNT];
+    int nrows = 0;
+    json_object *root = json_object_new_object();
+    json_object *methods = json_object_new_object();
+    for (int k = 0; k < TW_METHOD_COUNT; k++) {
+        struct tw_method_summary *m = &r->methods[k];
+        if (!m->used)
+            continue;
+        struct row *row = &rows[nrows++];
+        row->name = tw_method_name((enum tw_method)k);
+        row->method = (enum tw_method)k;
+        summarise(m, row);
+        json_object *o = json_object_new_object();
+        json_object_object_add(o, "frames", json_object_new_int64(m->frames));
+        json_object_object_add(o, "mean_ms", json_object_new_double(round3(row->mean)));
+        json_object_object_add(o, "median_ms", json_object_new_double(round3(row->median)));
+        json_object_object_add(o, "p95_ms", json_object_new_double(round3(row->p95)));
+        json_object_object_add(o, "p99_ms", json_object_new_double(round3(row->p99)));
+        json_object_object_add(o, "mean_triangles", json_object_new_double(round3(row->triangles)));
+        json_object_object_add(o, "mean_queries", json_object_new_double(round3(row->queries)));
+        json_object_object_add(o, "missed_pixels_total",
+                               json_object_new_int64((int64_t)m->missed_pixels_total));
+        json_object_object_add(o, "frames_with_missed_pixels",
+                               json_object_new_int64(m->frames_with_missed_pixels));
+        json_object_object_add(o, "tiles_new_total", json_object_new_int64((int64_t)m->tiles_new_total));
+        json_object_object_add(o, "peak_cache_bytes",
+                               json_object_new_int64((int64_t)m->peak_cache_bytes));
+        json_object_object_add(o, "predict_fail_rate",
+                               json_object_new_double(m->tiles_queried
+                                   ? round(1e6 * (double)m->predict_fail / (double)m->tiles_queried) / 1e6
+                                   : 0.0));
+        json_object_object_add(o, "mean_tiles_visible",
+                               json_object_new_double(round3(m->frames ? (double)m->tiles_visible / m->frames : 0.0)));
+        json_object_object_add(o, "mean_ms_wait",
+                               json_object_new_double(round3(m->frames ? m->ms_wait / m->frames : 0.0)));
+        json_object_object_add(methods, row->name, o);
+    }
+    json_object_object_add(root, "methods", methods);
+    json_object_object_add(root, "tileset", json_object_new_string(r->tileset));
+    json_object_object_add(root, "path", json_object_new_string(r->path));
+    char size[64];
+    snprintf(size, sizeof(size), "%ux%u", r->width, r->height);
+    json_object_object_add(root, "size", json_object_new_string(size));
+    json_object_object_add(root, "seed", json_object_new_int64((int64_t)r->seed));
+    char file[1100];
+    snprintf(file, sizeof(file), "%s/summary.json", r->dir);
+    if (json_object_to_file_ext(file, root, JSON_C_TO_STRING_PRETTY | JSON_C_TO_STRING_SPACED) != 0 &&
+        rc == TW_OK) {
+        snprintf(err, err_size, "%s: cannot write: %s", file, json_util_get_last_err());
+        rc = TW_ERR_IO;
+    }
+    json_object_put(root);
+
+    if (markdown && rc == TW_OK) {
+        snprintf(file, sizeof(file), "%s/summary.md", r->dir);
+        FILE *f = fopen(file, "w");
+        if (!f) {
+            snprintf(err, err_size, "%s: cannot write: %s", file, strerror(errno));
+            rc = TW_ERR_IO;
+        } else {
+            const struct row *vfc = NULL, *oracle = NULL;
+            for (int k = 0; k < nrows; k++) {
+                if (rows[k].method == TW_METHOD_VFC) vfc = &rows[k];
+                if (rows[k].method == TW_METHOD_ORACLE) oracle = &rows[k];
+            }
+            fprintf(f, "# tileworld bench: %s, path %s, %ux%u, seed %llu\n\n", r->tileset, r->path,
+                    r->width, r->height, (unsigned long long)r->seed);
+            fprintf(f, "| method | frames | mean ms | median ms | p95 ms | p99 ms | triangles | "
+                       "queries | missed pixels | time / vfc | triangles / vfc | time / oracle |\n");
+            fprintf(f, "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+            for (int k = 0; k < nrows; k++) {
+                const struct row *row = &rows[k];
+                const struct tw_method_summary *m = &r->methods[row->method];
+                char rv[32] = "-", tv[32] = "-", ro[32] = "-";
+                if (vfc && vfc->mean > 0.0)
+                    snprintf(rv, sizeof(rv), "%.3f", row->mean / vfc->mean);
+                if (vfc && vfc->triangles > 0.0)
+                    snprintf(tv, sizeof(tv), "%.3f", row->triangles / vfc->triangles);
+                if (oracle && oracle->mean > 0.0)
+                    snprintf(ro, sizeof(ro), "%.3f", row->mean / oracle->mean);
+                fprintf(f, "| %s | %u | %.2f | %.2f | %.2f | %.2f | %.0f | %.1f | %llu | %s | %s | %s |\n",
+                        row->name, m->frames, row->mean, row->median, row->p95, row->p99,
+                        row->triangles, row->queries, (unsigned long long)m->missed_pixels_total,
+                        rv, tv, ro);
+            }
+            fprintf(f, "\nRatios compare methods measured side by side in this one run; absolute "
+                       "times depend on the machine.\n");
+            if (fclose(f) != 0) {
+                snprintf(err, err_size, "%s: write error", file);
+                rc = TW_ERR_IO;
+            }
+        }
+    }
+    tw_report_abort(r);
+    return rc;
+}
+
+void tw_report_abort(struct tw_report *r)
+{
+    if (r->frames_csv)
+        fclose(r->frames_csv);
+    r->frames_csv = NULL;
+    for (int k = 0; k < TW_METHOD_COUNT; k++) {
+        free(r->methods[k].ms);
+        memset(&r->methods[k], 0, sizeof(r->methods[k]));
+    }
+}
+
+int tw_report_write_png(const char *file, const uint8_t *rgb, uint32_t width, uint32_t height,
+                        char *err, size_t err_size)
+{
+    FILE *f = fopen(file, "wb");
+    if (!f) {
+        snprintf(err, err_size, "%s: cannot write: %s", file, strerror(errno));
+        return TW_ERR_IO;
+    }
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
+    png_infop info = png ? png_create_info_struct(png) : NULL;
+    if (!png || !info) {
+        png_destroy_write_struct(&png, &info);
+        fclose(f);
+        snprintf(err, err_size, "%s: libpng could not start", file);
+        return TW_ERR_NOMEM;
+    }
+    if (setjmp(png_jmpbuf(png))) {
+        png_destroy_write_struct(&png, &info);
+        fclose(f);
+        snprintf(err, err_size, "%s: libpng failed while writing", file);
+        return TW_ERR_IO;
+    }
+    png_init_io(png, f);
+    png_set_IHDR(png, info, width, height, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
+                 PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_write_info(png, info);
+    for (uint32_t y = 0; y < height; y++)
+        png_write_row(png, (png_const_bytep)(rgb + (size_t)y * width * 3));
+    png_write_end(png, NULL);
+    png_destroy_write_struct(&png, &info);
+    if (fclose(f) != 0) {
+        snprintf(err, err_size, "%s: write error", file);
+        return TW_ERR_IO;
+    }
+    return TW_OK;
+}

@@ -1,0 +1,177 @@
+/*
+ * runtime: the public API of tileworld, what the `tileworld` command and a
+ * host world generator use (DESIGN.md §2).
+ *
+ *   tw_context_create_headless()  an OSMesa OpenGL 3.3+ core context
+ *   tw_world_create()             a world: a tileset on the infinite grid,
+ *                                 drawn with a culling method
+ *   tw_world_frame()              renders one frame from a camera
+ *   tw_world_read_rgb()           reads the frame's image
+ *   tw_world_destroy()
+ *
+ * Threading: a world and its context are used from one thread at a time.
+ * No global state: several worlds may live in one process (each needs its
+ * GL context current when it is called).
+ */
+#ifndef TW_RUNTIME_H
+#define TW_RUNTIME_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "bvh/bvh.h"
+#include "cull/cull.h"
+#include "tiles/tiles.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- GL contexts -------------------------------------------------------------- */
+
+/* Returns the address of a GL entry point, or NULL. */
+typedef void *(*tw_gl_get_proc_fn)(const char *name);
+
+/* A headless OpenGL context rendering into memory (OSMesa, llvmpipe). */
+struct tw_context;
+
+/* Creates a 3.3+ core context with a width x height framebuffer and makes it
+ * current on the calling thread. log is copied (may be NULL). */
+int tw_context_create_headless(uint32_t width, uint32_t height,
+                               const struct tw_log *log, struct tw_context **out);
+/* The loader of the context's GL entry points. */
+tw_gl_get_proc_fn tw_context_get_proc(const struct tw_context *ctx);
+/* Makes the context current again (after another context was). */
+int tw_context_make_current(struct tw_context *ctx);
+void tw_context_destroy(struct tw_context *ctx);
+
+/* ---- methods (DESIGN §6) -------------------------------------------------------- */
+
+enum tw_method {
+    TW_METHOD_VFC = 0,
+    TW_METHOD_TILEQUERY,
+    TW_METHOD_CHC,
+    TW_METHOD_TILEQUERY_CHC,
+    TW_METHOD_ORACLE,
+    TW_METHOD_COUNT
+};
+
+/* "vfc", "tilequery", "chc", "tilequery+chc", "oracle". */
+const char *tw_method_name(enum tw_method m);
+/* Parses a method name; returns TW_ERR_INVALID for an unknown one. */
+int tw_method_from_name(const char *name, enum tw_method *out);
+/* True if the method is implemented in this build. */
+bool tw_method_available(enum tw_method m);
+
+/* ---- the world ------------------------------------------------------------------ */
+
+/* A camera: a world position (cell + local offset, DESIGN §3) and angles in
+ * degrees (yaw 0 looks along +z, 90 along +x; pitch > 0 looks up). */
+struct tw_camera {
+    struct tw_world_pos pos;
+    float yaw;
+    float pitch;
+};
+
+/* Settings of a world. Zero-initialisable: tw_world_create() resolves every
+ * zero field to its default (see tw_world_default_settings()). */
+struct tw_world_settings {
+    const struct tw_tileset *tileset;  /* borrowed; must outlive the world */
+    struct tw_selection selection;     /* which prototype each cell shows */
+    enum tw_method method;             /* default TW_METHOD_VFC (0) */
+    uint32_t width, height;            /* default 640 x 360 */
+    float fov_y;                       /* vertical field of view, degrees; default 60 */
+    float near_plane;                  /* metres; default 0.2 */
+    float view_distance;               /* metres; default 600 */
+    uint32_t evict_after_frames;       /* tile cache; default 60 */
+    struct tw_chc_settings chc;
+    struct tw_bvh_settings bvh;
+    tw_gl_get_proc_fn get_proc;        /* loader of the current context; required */
+    struct tw_log log;                 /* copied; zeroed: silent */
+};
+
+/* Resolves the defaults of every zero field of s. */
+void tw_world_default_settings(struct tw_world_settings *s);
+
+/* Statistics of one frame: the columns of frames.csv (DESIGN §9). Fields a
+ * method does not produce are 0. */
+struct tw_frame_stats {
+    uint64_t frame;
+    enum tw_method method;
+    double ms_frame;         /* wall time, including glFinish */
+    double ms_cull;          /* CPU time of culling, outside draws and waits */
+    double ms_wait;          /* time blocked on query results */
+    uint64_t triangles;
+    uint32_t clusters;
+    uint32_t draws;
+    uint32_t queries;
+    uint32_t tiles_queried;
+    uint32_t tiles_visible;  /* tiles drawn */
+    uint32_t tiles_new;
+    uint32_t tiles_cached;
+    uint64_t cache_bytes;
+    uint32_t predict_fail;
+    uint64_t missed_pixels;
+    uint32_t missed_clusters;
+    uint64_t overdraw_triangles;
+};
+
+struct tw_world;
+
+/* Creates a world; the GL context that s->get_proc belongs to must be
+ * current. Uploads the tileset's meshes once. The caller owns *out. */
+int tw_world_create(const struct tw_world_settings *s, struct tw_world **out);
+void tw_world_destroy(struct tw_world *w);
+
+/* Switches the culling method. Each method keeps its own temporal state
+ * (tile cache, CHC++ state), so methods may alternate frame by frame. */
+int tw_world_set_method(struct tw_world *w, enum tw_method m);
+
+/* Renders one frame from cam with the current method and fills *stats
+ * (may be NULL). Returns TW_ERR_INVALID for a camera with non-finite values. */
+int tw_world_frame(struct tw_world *w, const struct tw_camera *cam,
+                   struct tw_frame_stats *stats);
+
+/* Copies the last frame's image as RGB8, top row first, into rgb
+ * (width * height * 3 bytes, owned by the caller). */
+int tw_world_read_rgb(struct tw_world *w, uint8_t *rgb);
+
+/* The world's resolved settings. */
+const struct tw_world_settings *tw_world_settings(const struct tw_world *w);
+
+/* The BVH of prototype p (built when the world was created). */
+const struct tw_bvh *tw_world_bvh(const struct tw_world *w, uint32_t p);
+
+/* ---- camera paths (DESIGN §9, §10) ------------------------------------------------ */
+
+struct tw_path {
+    char name[64];
+    struct tw_camera *keys;  /* one per frame, owned by the path */
+    uint32_t count;
+};
+
+/* Names of the built-in paths, NULL-terminated. */
+extern const char *const tw_path_builtin_names[];
+
+/* Generates frames keys of the built-in path name for a tileset with
+ * footprint w x d and the street width street (0: 14 m), deterministic for
+ * seed. Returns TW_ERR_INVALID for an unknown name. */
+int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float w,
+                    float d, struct tw_path *out);
+
+/* Reads a path CSV (header line, then cell_i,cell_j,x,y,z,yaw,pitch per
+ * row). On error returns a negative code and writes "FILE:LINE: reason" into
+ * err. frames > 0 keeps only the first frames rows (fewer rows: an error). */
+int tw_path_load_csv(const char *file, uint32_t frames, float w, float d,
+                     struct tw_path *out, char *err, size_t err_size);
+
+/* Moves every key by (di, dj) cells; TW_ERR_INVALID on int64 overflow. */
+int tw_path_translate(struct tw_path *p, int64_t di, int64_t dj);
+
+void tw_path_finish(struct tw_path *p);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

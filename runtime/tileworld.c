@@ -1,0 +1,501 @@
+/*
+ * The tileworld command (DESIGN.md §9): a thin client of runtime.h.
+ *   tileworld walk | bench | info   [options]
+ * Bad input: exit status 2 and one line on stderr naming the place and the
+ * reason. Runtime failures: exit status 1.
+ */
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "runtime/report.h"
+#include "runtime/runtime.h"
+#include "tilesets/tilesets.h"
+
+#define EXIT_USAGE 2
+
+struct options {
+    const char *command;
+    const char *tileset;
+    const char *path;
+    const char *out;
+    uint64_t seed;
+    uint32_t frames;        /* 0: the path's length */
+    uint32_t width, height;
+    enum tw_method method;
+    bool methods_given;
+    enum tw_method methods[TW_METHOD_COUNT];
+    uint32_t method_count;
+    struct tw_cell start_cell;
+    int64_t repeat;
+    bool verify;
+    uint32_t png_every;
+    float view_distance;
+    uint32_t cluster_triangles;
+    bool quiet;
+};
+
+static const uint32_t default_frames = 300;
+
+static void usage(FILE *f)
+{
+    fputs("usage: tileworld walk   [--tileset NAME] [--seed N] [--path NAME|FILE.csv] [--frames N]\n"
+          "                        [--method M] [--size WxH] [--start-cell I,J] [--repeat P]\n"
+          "                        [--png-every N] [--view-distance M] [--cluster-triangles N]\n"
+          "                        [--out DIR] [--quiet]\n"
+          "       tileworld bench  [same options] [--methods M1,M2,...]\n"
+          "       tileworld info   [--tileset NAME] [--seed N] [--cluster-triangles N]\n"
+          "tilesets: city; paths: street, flyover, or a CSV file\n"
+          "methods: vfc, tilequery, chc, tilequery+chc, oracle\n",
+          f);
+}
+
+/* One line on stderr, then exit: bad input is the user's, so no stack of
+ * messages and never a crash. */
+static void fail_usage(const char *place, const char *fmt, const char *value)
+{
+    fprintf(stderr, "tileworld: %s: ", place);
+    fprintf(stderr, fmt, value);
+    fputc('\n', stderr);
+    exit(EXIT_USAGE);
+}
+
+static uint64_t parse_u64(const char *opt, const char *s, uint64_t lo, uint64_t hi)
+{
+    char *end = NULL;
+    errno = 0;
+    if (!s || *s == '\0' || *s == '-' || *s == '+' || *s == ' ')
+        fail_usage(opt, "'%s' is not a non-negative whole number", s ? s : "");
+    unsigned long long v = strtoull(s, &end, 10);
+    if (*end != '\0')
+        fail_usage(opt, "'%s' is not a non-negative whole number", s);
+    if (errno == ERANGE || v < lo || v > hi) {
+        char msg[128];
+        snprintf(msg, sizeof(msg), "'%%s' is out of range [%llu, %llu]", (unsigned long long)lo,
+                 (unsigned long long)hi);
+        fail_usage(opt, msg, s);
+    }
+    return v;
+}
+
+static int64_t parse_i64(const char *opt, const char *s)
+{
+    char *end = NULL;
+    errno = 0;
+    if (!s || *s == '\0' || *s == ' ')
+        fail_usage(opt, "'%s' is not a whole number", s ? s : "");
+    long long v = strtoll(s, &end, 10);
+    if (*end != '\0')
+        fail_usage(opt, "'%s' is not a whole number", s);
+    if (errno == ERANGE)
+        fail_usage(opt, "'%s' does not fit in 64 bits", s);
+    return v;
+}
+
+static float parse_float(const char *opt, const char *s, float lo, float hi)
+{
+    char *end = NULL;
+    errno = 0;
+    if (!s || *s == '\0')
+        fail_usage(opt, "'%s' is not a number", "");
+    double v = strtod(s, &end);
+    if (*end != '\0' || end == s)
+        fail_usage(opt, "'%s' is not a number", s);
+    if (!isfinite(v) || errno == ERANGE)
+        fail_usage(opt, "'%s' is not a finite number", s);
+    if (v < lo || v > hi) {
+        char msg[128];
+        snprintf(msg, sizeof(msg), "'%%s' is out of range [%g, %g]", lo, hi);
+        fail_usage(opt, msg, s);
+    }
+    return (float)v;
+}
+
+static enum tw_method parse_method(const char *opt, const char *s)
+{
+    enum tw_method m;
+    if (tw_method_from_name(s, &m) != TW_OK)
+        fail_usage(opt, "unknown method '%s' (vfc, tilequery, chc, tilequery+chc, oracle)", s);
+    if (!tw_method_available(m))
+        fail_usage(opt, "method '%s' is not implemented in this build yet", s);
+    return m;
+}
+
+static void parse_size(const char *opt, const char *s, uint32_t *w, uint32_t *h)
+{
+    const char *x = s ? strchr(s, 'x') : NULL;
+    if (!x)
+        fail_usage(opt, "'%s' is not of the form WIDTHxHEIGHT", s ? s : "");
+    char wbuf[32];
+    size_t n = (size_t)(x - s);
+    if (n == 0 || n >= sizeof(wbuf))
+        fail_usage(opt, "'%s' is not of the form WIDTHxHEIGHT", s);
+    memcpy(wbuf, s, n);
+    wbuf[n] = '\0';
+    *w = (uint32_t)parse_u64(opt, wbuf, 16, 8192);
+    *h = (uint32_t)parse_u64(opt, x + 1, 16, 8192);
+}
+
+static void parse_cell(const char *opt, const char *s, struct tw_cell *c)
+{
+    const char *comma = s ? strchr(s, ',') : NULL;
+    if (!comma)
+        fail_usage(opt, "'%s' is not of the form I,J", s ? s : "");
+    char ibuf[32];
+    size_t n = (size_t)(comma - s);
+    if (n == 0 || n >= sizeof(ibuf))
+        fail_usage(opt, "'%s' is not of the form I,J", s);
+    memcpy(ibuf, s, n);
+    ibuf[n] = '\0';
+    c->i = parse_i64(opt, ibuf);
+    c->j = parse_i64(opt, comma + 1);
+    /* Keep cells where neighbour arithmetic cannot overflow. */
+    const int64_t limit = (int64_t)1 << 62;
+    if (c->i > limit || c->i < -limit || c->j > limit || c->j < -limit)
+        fail_usage(opt, "'%s' lies outside +-2^62 cells", s);
+}
+
+static void parse_methods(const char *opt, const char *s, struct options *o)
+{
+    char buf[256];
+    if (!s || strlen(s) >= sizeof(buf) || *s == '\0')
+        fail_usage(opt, "'%s' is not a comma-separated list of methods", s ? s : "");
+    strcpy(buf, s);
+    o->method_count = 0;
+    for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+        enum tw_method m = parse_method(opt, tok);
+        for (uint32_t k = 0; k < o->method_count; k++)
+            if (o->methods[k] == m)
+                fail_usage(opt, "method '%s' is listed twice", tok);
+        o->methods[o->method_count++] = m;
+    }
+    if (o->method_count == 0)
+        fail_usage(opt, "'%s' names no method", s);
+    o->methods_given = true;
+}
+
+static void parse_options(int argc, char **argv, struct options *o)
+{
+    memset(o, 0, sizeof(*o));
+    o->tileset = "city";
+    o->path = "street";
+    o->out = "out";
+    o->seed = 1;
+    o->width = 640;
+    o->height = 360;
+    o->method = TW_METHOD_VFC;
+    o->png_every = 50;
+    o->view_distance = 600.0f;
+    o->command = argv[1];
+    for (int k = 2; k < argc; k++) {
+        const char *a = argv[k];
+        const char *v = k + 1 < argc ? argv[k + 1] : NULL;
+        bool takes = true;
+        if (strcmp(a, "--verify") == 0) {
+            fail_usage(a, "%s needs the accuracy oracle, which is not implemented yet", a);
+        } else if (strcmp(a, "--quiet") == 0) {
+            o->quiet = true;
+            takes = false;
+        } else if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            usage(stdout);
+            exit(0);
+        } else if (strncmp(a, "--", 2) != 0) {
+            fail_usage(a, "unexpected argument '%s'", a);
+        } else if (!v) {
+            fail_usage(a, "%s needs a value", a);
+        } else if (strcmp(a, "--tileset") == 0) {
+            o->tileset = v;
+        } else if (strcmp(a, "--seed") == 0) {
+            o->seed = parse_u64(a, v, 0, UINT64_MAX);
+        } else if (strcmp(a, "--path") == 0) {
+            o->path = v;
+        } else if (strcmp(a, "--frames") == 0) {
+            o->frames = (uint32_t)parse_u64(a, v, 1, 10000000);
+        } else if (strcmp(a, "--method") == 0) {
+            o->method = parse_method(a, v);
+        } else if (strcmp(a, "--methods") == 0) {
+            parse_methods(a, v, o);
+        } else if (strcmp(a, "--size") == 0) {
+            parse_size(a, v, &o->width, &o->height);
+        } else if (strcmp(a, "--start-cell") == 0) {
+            parse_cell(a, v, &o->start_cell);
+        } else if (strcmp(a, "--repeat") == 0) {
+            o->repeat = (int64_t)parse_u64(a, v, 1, (uint64_t)1 << 62);
+        } else if (strcmp(a, "--png-every") == 0) {
+            o->png_every = (uint32_t)parse_u64(a, v, 0, 10000000);
+        } else if (strcmp(a, "--view-distance") == 0) {
+            o->view_distance = parse_float(a, v, 1.0f, 100000.0f);
+        } else if (strcmp(a, "--cluster-triangles") == 0) {
+            o->cluster_triangles = (uint32_t)parse_u64(a, v, 16, 1000000);
+        } else if (strcmp(a, "--out") == 0) {
+            if (*v == '\0')
+                fail_usage(a, "%sthe output folder name is empty", "");
+            o->out = v;
+        } else {
+            fail_usage(a, "unknown option '%s' (see tileworld --help)", a);
+        }
+        if (takes)
+            k++;
+    }
+}
+
+static void log_to_stderr(void *user, enum tw_log_level level, const char *msg)
+{
+    (void)user;
+    if (level <= TW_LOG_WARN)
+        fprintf(stderr, "tileworld: %s\n", msg);
+}
+
+static struct tw_tileset *load_tileset(const struct options *o, const struct tw_log *log)
+{
+    for (const char *const *n = tw_tilesets_builtin_names; *n; n++) {
+        if (strcmp(*n, o->tileset) == 0) {
+            struct tw_tileset *ts = NULL;
+            int err = tw_tilesets_builtin(o->tileset, o->seed, o->cluster_triangles, log, &ts);
+            if (err) {
+                fprintf(stderr, "tileworld: --tileset %s: generation failed: %s\n", o->tileset,
+                        tw_error_to_str(err));
+                exit(1);
+            }
+            return ts;
+        }
+    }
+    if (access(o->tileset, F_OK) == 0)
+        fail_usage("--tileset", "%s: tileset manifest files are not supported yet", o->tileset);
+    fail_usage("--tileset", "unknown tileset '%s' (built-in: city)", o->tileset);
+    return NULL;
+}
+
+static void load_path(const struct options *o, const struct tw_tileset *ts, struct tw_path *p)
+{
+    const float w = ts->footprint[0], d = ts->footprint[1];
+    int err;
+    for (const char *const *n = tw_path_builtin_names; *n; n++) {
+        if (strcmp(*n, o->path) == 0) {
+            err = tw_path_builtin(o->path, o->seed, o->frames ? o->frames : default_frames, w, d, p);
+            if (err) {
+                fprintf(stderr, "tileworld: --path %s: %s\n", o->path, tw_error_to_str(err));
+                exit(1);
+            }
+            goto translate;
+        }
+    }
+    char msg[1400];
+    err = tw_path_load_csv(o->path, o->frames, w, d, p, msg, sizeof(msg));
+    if (err) {
+        if (err == TW_ERR_IO && access(o->path, F_OK) != 0 && !strchr(o->path, '/') &&
+            !strstr(o->path, ".csv"))
+            fail_usage("--path", "unknown path '%s' (built-in: street, flyover; or a CSV file)",
+                       o->path);
+        fprintf(stderr, "tileworld: %s\n", msg);
+        exit(EXIT_USAGE);
+    }
+translate:
+    if (tw_path_translate(p, o->start_cell.i, o->start_cell.j)) {
+        fprintf(stderr, "tileworld: --start-cell: the translated path overflows the grid\n");
+        exit(EXIT_USAGE);
+    }
+}
+
+static void progress(const struct options *o, uint32_t done, uint32_t total, double mean_ms)
+{
+    if (o->quiet || !isatty(STDERR_FILENO))
+        return;
+    const int width = 30;
+    const int filled = total ? (int)((uint64_t)done * width / total) : width;
+    fprintf(stderr, "\r[%.*s%*s] %u/%u frames, %.1f ms/frame", filled,
+            "##############################", width - filled, "", done, total, mean_ms);
+    if (done == total)
+        fputc('\n', stderr);
+    fflush(stderr);
+}
+
+static int run(const struct options *o, bool bench)
+{
+    const struct tw_log log = {log_to_stderr, NULL};
+    struct tw_tileset *ts = load_tileset(o, &log);
+    struct tw_path path = {0};
+    load_path(o, ts, &path);
+
+    struct options opt = *o;
+    if (!bench) {
+        opt.methods[0] = o->method;
+        opt.method_count = 1;
+    } else if (!opt.methods_given) {
+        opt.method_count = 0;
+        for (int m = 0; m < TW_METHOD_COUNT; m++)
+            if (tw_method_available((enum tw_method)m))
+                opt.methods[opt.method_count++] = (enum tw_method)m;
+    }
+
+    int rc = 1;
+    struct tw_context *ctx = NULL;
+    struct tw_world *world = NULL;
+    uint8_t *rgb = NULL;
+    struct tw_report report = {0};
+    char msg[1400];
+    int err = tw_context_create_headless(opt.width, opt.height, &log, &ctx);
+    if (err) {
+        fprintf(stderr, "tileworld: cannot create the headless OpenGL context: %s\n",
+                tw_error_to_str(err));
+        goto out;
+    }
+    struct tw_world_settings ws = {0};
+    ws.tileset = ts;
+    ws.selection.seed = opt.seed;
+    ws.selection.repeat = opt.repeat;
+    ws.method = opt.methods[0];
+    ws.width = opt.width;
+    ws.height = opt.height;
+    ws.view_distance = opt.view_distance;
+    ws.get_proc = tw_context_get_proc(ctx);
+    ws.log = log;
+    err = tw_world_create(&ws, &world);
+    if (err) {
+        fprintf(stderr, "tileworld: cannot create the world: %s\n", tw_error_to_str(err));
+        goto out;
+    }
+    rgb = malloc((size_t)opt.width * opt.height * 3);
+    if (!rgb)
+        goto out;
+    snprintf(report.tileset, sizeof(report.tileset), "%s", o->tileset);
+    snprintf(report.path, sizeof(report.path), "%s", o->path);
+    report.width = opt.width;
+    report.height = opt.height;
+    report.seed = opt.seed;
+    if (tw_report_open(&report, opt.out, msg, sizeof(msg))) {
+        fprintf(stderr, "tileworld: %s\n", msg);
+        rc = EXIT_USAGE;
+        goto out;
+    }
+    double total_ms = 0.0;
+    for (uint32_t f = 0; f < path.count; f++) {
+        /* Methods alternate frame by frame, so drift on a shared machine
+         * hits them all alike. */
+        for (uint32_t m = 0; m < opt.method_count; m++) {
+            struct tw_frame_stats st;
+            if (tw_world_set_method(world, opt.methods[m]) ||
+                tw_world_frame(world, &path.keys[f], &st)) {
+                fprintf(stderr, "tileworld: frame %u failed\n", f + 1);
+                goto out;
+            }
+            total_ms += st.ms_frame;
+            if (tw_report_add(&report, &st))
+                goto out;
+            if (opt.png_every > 0 && f % opt.png_every == 0) {
+                char file[1200];
+                if (bench)
+                    snprintf(file, sizeof(file), "%s/frame-%05u-%s.png", opt.out, f,
+                             tw_method_name(opt.methods[m]));
+                else
+                    snprintf(file, sizeof(file), "%s/frame-%05u.png", opt.out, f);
+                if (tw_world_read_rgb(world, rgb) ||
+                    tw_report_write_png(file, rgb, opt.width, opt.height, msg, sizeof(msg))) {
+                    fprintf(stderr, "tileworld: %s\n", msg);
+                    goto out;
+                }
+            }
+        }
+        progress(o, f + 1, path.count, total_ms / ((f + 1) * (double)opt.method_count));
+    }
+    if (tw_report_close(&report, bench, msg, sizeof(msg))) {
+        fprintf(stderr, "tileworld: %s\n", msg);
+        goto out;
+    }
+    if (!o->quiet)
+        fprintf(stderr, "tileworld: wrote %s/frames.csv and %s/summary.json\n", opt.out, opt.out);
+    rc = 0;
+out:
+    tw_report_abort(&report);
+    free(rgb);
+    tw_world_destroy(world);
+    tw_context_destroy(ctx);
+    tw_path_finish(&path);
+    tw_tileset_destroy(ts);
+    return rc;
+}
+
+static int info(const struct options *o)
+{
+    const struct tw_log log = {log_to_stderr, NULL};
+    struct tw_tileset *ts = load_tileset(o, &log);
+    struct tw_bvh_builder *b = NULL;
+    int err = tw_bvh_builder_create(&log, &b);
+    if (err) {
+        tw_tileset_destroy(ts);
+        fprintf(stderr, "tileworld: cannot start Embree: %s\n", tw_error_to_str(err));
+        return 1;
+    }
+    printf("tileset %s: %u prototypes, footprint %g x %g m, clusters of <= %u triangles\n",
+           ts->name, ts->prototype_count, ts->footprint[0], ts->footprint[1],
+           ts->max_cluster_triangles);
+    printf("%-16s %10s %9s %9s %6s %6s %9s %10s\n", "tile", "triangles", "instances", "clusters",
+           "nodes", "depth", "build_ms", "bvh_bytes");
+    uint64_t clusters = 0, triangles = 0;
+    double build_ms = 0.0;
+    for (uint32_t p = 0; p < ts->prototype_count && !err; p++) {
+        const struct tw_prototype *proto = &ts->prototypes[p];
+        struct tw_bvh *bvh = NULL;
+        err = tw_bvh_build(b, proto, NULL, &bvh);
+        if (err)
+            break;
+        printf("%-16s %10llu %9u %9u %6u %6u %9.3f %10llu\n", proto->name,
+               (unsigned long long)proto->triangle_count, proto->instance_count,
+               proto->cluster_count, bvh->node_count, bvh->depth, bvh->build_ms,
+               (unsigned long long)bvh->bytes);
+        clusters += proto->cluster_count;
+        triangles += proto->triangle_count;
+        build_ms += bvh->build_ms;
+        tw_bvh_destroy(bvh);
+    }
+    tw_bvh_builder_destroy(b);
+    if (err) {
+        fprintf(stderr, "tileworld: BVH build failed: %s\n", tw_error_to_str(err));
+        tw_tileset_destroy(ts);
+        return 1;
+    }
+    const struct tw_box *cb = &ts->common_box;
+    printf("total: %llu triangles, %llu clusters, BVH build %.3f ms (%.0f clusters/s)\n",
+           (unsigned long long)triangles, (unsigned long long)clusters, build_ms,
+           build_ms > 0.0 ? clusters / (build_ms / 1000.0) : 0.0);
+    printf("common box: [%.2f, %.2f, %.2f] .. [%.2f, %.2f, %.2f]\n", cb->min[0], cb->min[1],
+           cb->min[2], cb->max[0], cb->max[1], cb->max[2]);
+    printf("geometry: %llu bytes uploaded once\n",
+           (unsigned long long)tw_tileset_geometry_bytes(ts));
+    tw_tileset_destroy(ts);
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2) {
+        usage(stderr);
+        return EXIT_USAGE;
+    }
+    if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0 ||
+        strcmp(argv[1], "help") == 0) {
+        usage(stdout);
+        return 0;
+    }
+    struct options o;
+    if (strcmp(argv[1], "walk") == 0 || strcmp(argv[1], "bench") == 0 ||
+        strcmp(argv[1], "info") == 0) {
+        parse_options(argc, argv, &o);
+    } else if (strcmp(argv[1], "view") == 0 || strcmp(argv[1], "import") == 0) {
+        fprintf(stderr, "tileworld: %s: not implemented in this build yet\n", argv[1]);
+        return EXIT_USAGE;
+    } else {
+        fprintf(stderr, "tileworld: unknown command '%s' (walk, bench, info, view, import)\n",
+                argv[1]);
+        return EXIT_USAGE;
+    }
+    if (strcmp(o.command, "info") == 0)
+        return info(&o);
+    if (o.methods_given && strcmp(o.command, "walk") == 0)
+        fail_usage("--methods", "%s belongs to bench; walk takes --method", "--methods");
+    return run(&o, strcmp(o.command, "bench") == 0);
+}

@@ -1,0 +1,284 @@
+/* The world: a tileset on the infinite grid, drawn with a method (runtime.h). */
+#include "runtime/renderer.h"
+#include "runtime/runtime.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const char *const method_names[TW_METHOD_COUNT] = {
+    [TW_METHOD_VFC] = "vfc",
+    [TW_METHOD_TILEQUERY] = "tilequery",
+    [TW_METHOD_CHC] = "chc",
+    [TW_METHOD_TILEQUERY_CHC] = "tilequery+chc",
+    [TW_METHOD_ORACLE] = "oracle",
+};
+
+const char *tw_method_name(enum tw_method m)
+{
+    return (unsigned)m < TW_METHOD_COUNT ? method_names[m] : "unknown";
+}
+
+int tw_method_from_name(const char *name, enum tw_method *out)
+{
+    for (int m = 0; m < TW_METHOD_COUNT; m++)
+        if (name && strcmp(name, method_names[m]) == 0) {
+            *out = (enum tw_method)m;
+            return TW_OK;
+        }
+    return TW_ERR_INVALID;
+}
+
+bool tw_method_available(enum tw_method m)
+{
+    return m == TW_METHOD_VFC;
+}
+
+/* Temporal state of one method; methods alternate in a bench run, so each
+ * keeps its own. */
+struct method_state {
+    uint64_t frame;
+};
+
+struct tw_world {
+    struct tw_world_settings s;
+    struct tw_renderer *renderer;
+    struct tw_bvh **bvhs;
+    struct tw_cull_cell *cells;
+    size_t cell_cap;
+    uint32_t *cluster_scratch;
+    enum tw_method method;
+    struct method_state methods[TW_METHOD_COUNT];
+};
+
+void tw_world_default_settings(struct tw_world_settings *s)
+{
+    if (s->width == 0)
+        s->width = 640;
+    if (s->height == 0)
+        s->height = 360;
+    if (!(s->fov_y > 0.0f))
+        s->fov_y = 60.0f;
+    if (!(s->near_plane > 0.0f))
+        s->near_plane = 0.2f;
+    if (!(s->view_distance > 0.0f))
+        s->view_distance = 600.0f;
+    if (s->evict_after_frames == 0)
+        s->evict_after_frames = 60;
+    tw_chc_default_settings(&s->chc);
+    tw_bvh_default_settings(&s->bvh);
+}
+
+int tw_world_create(const struct tw_world_settings *settings, struct tw_world **out)
+{
+    if (!settings || !out)
+        return TW_ERR_INVALID;
+    const struct tw_log *log = &settings->log;
+    if (!settings->tileset || !settings->tileset->finished) {
+        tw_log_printf(log, TW_LOG_ERROR, "tw_world_create: the tileset is missing or unfinished");
+        return TW_ERR_INVALID;
+    }
+    if (settings->width > 16384 || settings->height > 16384 || !isfinite(settings->fov_y) ||
+        settings->fov_y >= 179.0f || !isfinite(settings->view_distance) ||
+        !isfinite(settings->near_plane) || (unsigned)settings->method >= TW_METHOD_COUNT) {
+        tw_log_printf(log, TW_LOG_ERROR, "tw_world_create: settings out of range");
+        return TW_ERR_INVALID;
+    }
+    struct tw_world *w = calloc(1, sizeof(*w));
+    if (!w)
+        return TW_ERR_NOMEM;
+    w->s = *settings;
+    tw_world_default_settings(&w->s);
+    const struct tw_tileset *ts = w->s.tileset;
+    int err = tw_renderer_create(ts, w->s.width, w->s.height, w->s.get_proc, &w->s.log,
+                                 &w->renderer);
+    if (err)
+        goto fail;
+
+    w->bvhs = calloc(ts->prototype_count, sizeof(*w->bvhs));
+    uint32_t max_clusters = 1;
+    for (uint32_t p = 0; p < ts->prototype_count; p++)
+        if (ts->prototypes[p].cluster_count > max_clusters)
+            max_clusters = ts->prototypes[p].cluster_count;
+    w->cluster_scratch = malloc(sizeof(uint32_t) * max_clusters);
+    if (!w->bvhs || !w->cluster_scratch) {
+        err = TW_ERR_NOMEM;
+        goto fail;
+    }
+    struct tw_bvh_builder *builder = NULL;
+    err = tw_bvh_builder_create(&w->s.log, &builder);
+    if (err)
+        goto fail;
+    for (uint32_t p = 0; p < ts->prototype_count && !err; p++)
+        err = tw_bvh_build(builder, &ts->prototypes[p], &w->s.bvh, &w->bvhs[p]);
+    tw_bvh_builder_destroy(builder);
+    if (err)
+        goto fail;
+    err = tw_world_set_method(w, w->s.method);
+    if (err)
+        goto fail;
+    *out = w;
+    return TW_OK;
+fail:
+    tw_world_destroy(w);
+    return err;
+}
+
+void tw_world_destroy(struct tw_world *w)
+{
+    if (!w)
+        return;
+    if (w->bvhs)
+        for (uint32_t p = 0; p < w->s.tileset->prototype_count; p++)
+            tw_bvh_destroy(w->bvhs[p]);
+    free(w->bvhs);
+    free(w->cells);
+    free(w->cluster_scratch);
+    tw_renderer_destroy(w->renderer);
+    free(w);
+}
+
+int tw_world_set_method(struct tw_world *w, enum tw_method m)
+{
+    if (!w || (unsigned)m >= TW_METHOD_COUNT)
+        return TW_ERR_INVALID;
+    if (!tw_method_available(m)) {
+        tw_log_printf(&w->s.log, TW_LOG_ERROR, "method '%s' is not implemented yet",
+                      tw_method_name(m));
+        return TW_ERR_INVALID;
+    }
+    w->method = m;
+    w->s.method = m;
+    return TW_OK;
+}
+
+const struct tw_world_settings *tw_world_settings(const struct tw_world *w)
+{
+    return &w->s;
+}
+
+const struct tw_bvh *tw_world_bvh(const struct tw_world *w, uint32_t p)
+{
+    return p < w->s.tileset->prototype_count ? w->bvhs[p] : NULL;
+}
+
+/* Every cell in the frustum within view distance, front to back. */
+static int gather_cells(struct tw_world *w, const struct tw_view *v, size_t *count)
+{
+    const struct tw_tileset *ts = w->s.tileset;
+    for (;;) {
+        size_t n = tw_cull_cells_in_view(v, &ts->common_box, ts->footprint[0], ts->footprint[1],
+                                         w->cells, w->cell_cap);
+        if (n <= w->cell_cap) {
+            *count = n;
+            return TW_OK;
+        }
+        struct tw_cull_cell *c = realloc(w->cells, sizeof(*c) * n);
+        if (!c)
+            return TW_ERR_NOMEM;
+        w->cells = c;
+        w->cell_cap = n;
+    }
+}
+
+static int frame_vfc(struct tw_world *w, const struct tw_view *v,
+                     const struct tw_query_backend *be, struct tw_frame_stats *st)
+{
+    const struct tw_tileset *ts = w->s.tileset;
+    size_t n = 0;
+    int err = gather_cells(w, v, &n);
+    if (err)
+        return err;
+    for (size_t k = 0; k < n; k++) {
+        const struct tw_cell cell = w->cells[k].cell;
+        const uint32_t p = tw_tiles_select(ts, &w->s.selection, cell);
+        float offset[3];
+        tw_tiles_cell_offset(cell, v->cell, ts->footprint[0], ts->footprint[1], offset);
+        const uint32_t count = tw_cull_vfc_tile(v, &ts->prototypes[p], offset, w->cluster_scratch);
+        if (count > 0) {
+            be->draw(be->ctx, cell, p, offset, w->cluster_scratch, count);
+            st->tiles_visible++;
+        }
+    }
+    return TW_OK;
+}
+
+static bool camera_valid(const struct tw_camera *cam)
+{
+    return isfinite(cam->pos.local[0]) && isfinite(cam->pos.local[1]) &&
+           isfinite(cam->pos.local[2]) && isfinite(cam->yaw) && isfinite(cam->pitch) &&
+           cam->pitch > -89.9f && cam->pitch < 89.9f;
+}
+
+int tw_world_frame(struct tw_world *w, const struct tw_camera *cam, struct tw_frame_stats *out)
+{
+    if (!w || !cam)
+        return TW_ERR_INVALID;
+    if (!camera_valid(cam)) {
+        tw_log_printf(&w->s.log, TW_LOG_ERROR,
+                      "camera has a non-finite position or angle, or |pitch| >= 89.9");
+        return TW_ERR_INVALID;
+    }
+    const struct tw_tileset *ts = w->s.tileset;
+    struct tw_world_pos pos = cam->pos;
+    int err = tw_tiles_normalize(&pos, ts->footprint[0], ts->footprint[1]);
+    if (err) {
+        tw_log_printf(&w->s.log, TW_LOG_ERROR, "camera position cannot be normalised");
+        return err;
+    }
+    struct method_state *ms = &w->methods[w->method];
+    struct tw_frame_stats st = {0};
+    st.frame = ++ms->frame;
+    st.method = w->method;
+
+    const double t0 = tw_renderer_now_ms();
+    struct tw_view v;
+    const struct tw_box *cb = &ts->common_box;
+    const float diag = sqrtf((cb->max[0] - cb->min[0]) * (cb->max[0] - cb->min[0]) +
+                             (cb->max[1] - cb->min[1]) * (cb->max[1] - cb->min[1]) +
+                             (cb->max[2] - cb->min[2]) * (cb->max[2] - cb->min[2]));
+    /* The far plane lies beyond anything within view distance, so that no
+     * drawn tile is cut by it. */
+    tw_cull_view_setup(&v, pos.cell, pos.local, cam->yaw, cam->pitch, w->s.fov_y,
+                       (float)w->s.width / (float)w->s.height, w->s.near_plane,
+                       w->s.view_distance + diag);
+    v.view_distance = w->s.view_distance;
+    v.frame = st.frame;
+
+    tw_renderer_begin_frame(w->renderer, &v);
+    const struct tw_query_backend be = tw_renderer_backend(w->renderer);
+    switch (w->method) {
+    case TW_METHOD_VFC:
+        err = frame_vfc(w, &v, &be, &st);
+        break;
+    default:
+        err = TW_ERR_INVALID;
+        break;
+    }
+    const double t1 = tw_renderer_now_ms();
+    tw_renderer_end_frame(w->renderer);
+    const double t2 = tw_renderer_now_ms();
+    if (err)
+        return err;
+
+    const struct tw_render_counters *rc = tw_renderer_counters(w->renderer);
+    st.ms_frame = t2 - t0;
+    st.ms_wait = rc->ms_wait;
+    st.ms_cull = (t1 - t0) - rc->ms_backend;
+    if (st.ms_cull < 0.0)
+        st.ms_cull = 0.0;
+    st.triangles = rc->triangles;
+    st.clusters = rc->clusters;
+    st.draws = rc->draws;
+    st.queries = rc->queries;
+    if (out)
+        *out = st;
+    return TW_OK;
+}
+
+int tw_world_read_rgb(struct tw_world *w, uint8_t *rgb)
+{
+    if (!w || !rgb)
+        return TW_ERR_INVALID;
+    return tw_renderer_read_rgb(w->renderer, rgb);
+}

@@ -1,0 +1,305 @@
+/* Unit tests of tiles/: grid math, coordinates, selection, the tileset model. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "tiles/tiles.h"
+
+static int failures;
+
+#define CHECK(cond) \
+    do { \
+        if (!(cond)) { \
+            fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
+            failures++; \
+        } \
+    } while (0)
+
+static uint64_t rng_state = 0x1234567;
+
+static uint64_t next_random(void)
+{
+    rng_state ^= rng_state << 13;
+    rng_state ^= rng_state >> 7;
+    rng_state ^= rng_state << 17;
+    return rng_state;
+}
+
+static void test_floor_div_mod(void)
+{
+    CHECK(tw_tiles_floor_div(7, 3) == 2);
+    CHECK(tw_tiles_floor_div(-7, 3) == -3);
+    CHECK(tw_tiles_floor_div(-6, 3) == -2);
+    CHECK(tw_tiles_floor_mod(-7, 3) == 2);
+    CHECK(tw_tiles_floor_mod(-6, 3) == 0);
+    CHECK(tw_tiles_floor_mod(INT64_MIN, 7) >= 0);
+    CHECK(tw_tiles_floor_div(INT64_MIN, 1) == INT64_MIN);
+    for (int k = 0; k < 10000; k++) {
+        const int64_t a = (int64_t)next_random();
+        const int64_t b = (int64_t)(next_random() % 1000000) + 1;
+        const int64_t q = tw_tiles_floor_div(a, b), r = tw_tiles_floor_mod(a, b);
+        CHECK(r >= 0 && r < b);
+        /* a == q * b + r, checked in wrapping unsigned arithmetic. */
+        CHECK((uint64_t)a == (uint64_t)q * (uint64_t)b + (uint64_t)r);
+    }
+}
+
+/* Cells up to +-2^62: moving whole footprints between local and cell is
+ * exact, and the local remainder is preserved bit for bit. */
+static void test_normalize_round_trip(void)
+{
+    const float w = 80.0f, d = 64.0f;
+    const int64_t limit = (int64_t)1 << 62;
+    for (int k = 0; k < 20000; k++) {
+        struct tw_cell c = {(int64_t)(next_random() % (uint64_t)limit),
+                            (int64_t)(next_random() % (uint64_t)limit)};
+        if (next_random() & 1) c.i = -c.i;
+        if (next_random() & 1) c.j = -c.j;
+        if (k < 4) {
+            c.i = k & 1 ? limit : -limit;
+            c.j = k & 2 ? limit : -limit;
+        }
+        const float x = (float)(next_random() % 640) / 8.0f;   /* [0, 80), exact */
+        const float z = (float)(next_random() % 512) / 8.0f;   /* [0, 64), exact */
+        const int64_t ki = (int64_t)(next_random() % 2001) - 1000;
+        const int64_t kj = (int64_t)(next_random() % 2001) - 1000;
+        struct tw_world_pos p = {c, {x + (float)ki * w, 1.7f, z + (float)kj * d}};
+        const int err = tw_tiles_normalize(&p, w, d);
+        const bool overflow = (ki > 0 && c.i > INT64_MAX - ki) || (kj > 0 && c.j > INT64_MAX - kj);
+        if (overflow) {
+            CHECK(err == TW_ERR_INVALID);
+            continue;
+        }
+        CHECK(err == TW_OK);
+        CHECK(p.cell.i == c.i + ki);
+        CHECK(p.cell.j == c.j + kj);
+        CHECK(p.local[0] == x);
+        CHECK(p.local[2] == z);
+        CHECK(p.local[1] == 1.7f);
+        CHECK(p.local[0] >= 0.0f && p.local[0] < w);
+        CHECK(p.local[2] >= 0.0f && p.local[2] < d);
+
+        /* The offset of a nearby cell is exact wherever the pair lies. */
+        struct tw_cell near = {p.cell.i + 3, p.cell.j - 2};
+        if (p.cell.i > INT64_MAX - 3 || p.cell.j < INT64_MIN + 2)
+            continue;
+        float off[3];
+        tw_tiles_cell_offset(near, p.cell, w, d, off);
+        CHECK(off[0] == 240.0f && off[1] == 0.0f && off[2] == -128.0f);
+    }
+    /* Non-finite offsets and overflow are refused, the position untouched. */
+    struct tw_world_pos bad = {{0, 0}, {NAN, 0, 0}};
+    CHECK(tw_tiles_normalize(&bad, 80, 80) == TW_ERR_INVALID);
+    struct tw_world_pos edge = {{INT64_MAX, 0}, {160.0f, 0, 0}};
+    CHECK(tw_tiles_normalize(&edge, 80, 80) == TW_ERR_INVALID);
+    CHECK(edge.cell.i == INT64_MAX && edge.local[0] == 160.0f);
+    struct tw_world_pos neg = {{0, 0}, {-0.25f, 0, -80.0f}};
+    CHECK(tw_tiles_normalize(&neg, 80, 80) == TW_OK);
+    CHECK(neg.cell.i == -1 && neg.local[0] == 79.75f && neg.cell.j == -1 && neg.local[2] == 0.0f);
+    /* A tiny negative offset rounds to the footprint: it must wrap to 0. */
+    struct tw_world_pos tiny = {{5, 5}, {-1e-9f, 0, 0}};
+    CHECK(tw_tiles_normalize(&tiny, 80, 80) == TW_OK);
+    CHECK(tiny.local[0] >= 0.0f && tiny.local[0] < 80.0f);
+}
+
+static int make_tileset(struct tw_tileset **out, uint32_t prototypes, const float *weights)
+{
+    struct tw_tileset *ts = NULL;
+    int err = tw_tileset_create("test", 10.0f, 10.0f, &ts);
+    if (err)
+        return err;
+    const float pos[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
+    const uint32_t idx[] = {0, 1, 2, 1, 3, 2};
+    const int mesh = tw_tileset_add_mesh(ts, pos, NULL, 4, idx, 2);
+    const int mat = tw_tileset_add_material(ts, (const float[4]){1, 0, 0, 1});
+    for (uint32_t p = 0; p < prototypes; p++) {
+        const int proto = tw_tileset_add_prototype(ts, "p", weights ? weights[p] : 1.0f);
+        float t[12] = {1, 0, 0, (float)p, 0, 1 + (float)p, 0, 0, 0, 0, 1, 2};
+        tw_tileset_add_instance(ts, (uint32_t)proto, (uint32_t)mesh, (uint32_t)mat, t);
+    }
+    err = tw_tileset_finish(ts, 0);
+    *out = ts;
+    return err;
+}
+
+static uint32_t select_diagonal(void *user, struct tw_cell c)
+{
+    (void)user;
+    return (uint32_t)tw_tiles_floor_mod(c.i + c.j, 3);
+}
+
+static void test_selection(void)
+{
+    const float weights[4] = {1, 2, 3, 4};
+    struct tw_tileset *ts = NULL;
+    CHECK(make_tileset(&ts, 4, weights) == TW_OK);
+    if (!ts)
+        return;
+    struct tw_selection sel = {.seed = 42};
+    uint32_t counts[4] = {0};
+    const uint32_t n = 200000;
+    for (uint32_t k = 0; k < n; k++) {
+        const struct tw_cell c = {(int64_t)(k % 500) - 250, (int64_t)(k / 500) - 200};
+        const uint32_t p = tw_tiles_select(ts, &sel, c);
+        CHECK(p < 4);
+        CHECK(p == tw_tiles_select(ts, &sel, c));      /* a pure function */
+        counts[p < 4 ? p : 0]++;
+    }
+    /* Frequencies follow the weights within 2% absolute. */
+    for (int p = 0; p < 4; p++) {
+        const double share = counts[p] / (double)n, expected = weights[p] / 10.0;
+        CHECK(fabs(share - expected) < 0.02);
+    }
+    /* A different seed gives a different map. */
+    struct tw_selection other = {.seed = 43};
+    uint32_t same = 0;
+    for (int64_t k = 0; k < 1000; k++)
+        same += tw_tiles_select(ts, &sel, (struct tw_cell){k, 7}) ==
+                tw_tiles_select(ts, &other, (struct tw_cell){k, 7});
+    CHECK(same < 600);
+
+    /* Periodic selection repeats with period P, as far as 2^40 and beyond. */
+    struct tw_selection per = {.seed = 9, .repeat = 4};
+    const int64_t far = (int64_t)1 << 40;
+    for (int64_t i = -8; i < 8; i++)
+        for (int64_t j = -8; j < 8; j++) {
+            const uint32_t a = tw_tiles_select(ts, &per, (struct tw_cell){i, j});
+            CHECK(a == tw_tiles_select(ts, &per, (struct tw_cell){i + far, j + far}));
+            CHECK(a == tw_tiles_select(ts, &per, (struct tw_cell){i - 4 * far, j + 8}));
+            CHECK(a == tw_tiles_select(ts, &per, (struct tw_cell){i + 4, j - 4}));
+        }
+    /* Not every cell of a period shows the same prototype. */
+    uint32_t seen = 0;
+    for (int64_t i = 0; i < 4; i++)
+        for (int64_t j = 0; j < 4; j++)
+            seen |= 1u << tw_tiles_select(ts, &per, (struct tw_cell){i, j});
+    CHECK(seen != 1u && seen != 2u && seen != 4u && seen != 8u);
+
+    /* A host callback replaces the hash. */
+    struct tw_selection host = {.fn = select_diagonal};
+    CHECK(tw_tiles_select(ts, &host, (struct tw_cell){5, 5}) == 1);
+    CHECK(tw_tiles_select(ts, &host, (struct tw_cell){-1, 0}) == 2);
+    tw_tileset_destroy(ts);
+}
+
+static void test_tileset_builder(void)
+{
+    struct tw_tileset *ts = NULL;
+    CHECK(tw_tileset_create("t", 0.0f, 1.0f, &ts) == TW_ERR_INVALID);
+    CHECK(tw_tileset_create("t", 20.0f, 20.0f, &ts) == TW_OK);
+    if (!ts)
+        return;
+    /* A 30x30 grid of quads: 1800 triangles. */
+    enum { N = 30 };
+    float *pos = malloc(sizeof(float) * 3 * (N + 1) * (N + 1));
+    uint32_t *idx = malloc(sizeof(uint32_t) * 6 * N * N);
+    for (int z = 0; z <= N; z++)
+        for (int x = 0; x <= N; x++) {
+            float *p = pos + 3 * (z * (N + 1) + x);
+            p[0] = (float)x * 0.5f;
+            p[1] = (float)((x * 7 + z * 3) % 5) * 0.1f;
+            p[2] = (float)z * 0.5f;
+        }
+    for (int z = 0; z < N; z++)
+        for (int x = 0; x < N; x++) {
+            uint32_t *q = idx + 6 * (z * N + x);
+            const uint32_t a = (uint32_t)(z * (N + 1) + x), b = a + 1, c = a + N + 1, e = c + 1;
+            q[0] = a; q[1] = c; q[2] = b; q[3] = b; q[4] = c; q[5] = e;
+        }
+    const uint32_t bad_idx[3] = {0, 1, 100000};
+    CHECK(tw_tileset_add_mesh(ts, pos, NULL, (N + 1) * (N + 1), bad_idx, 1) == TW_ERR_INVALID);
+    const float nan_pos[9] = {0, 0, 0, NAN, 0, 0, 0, 1, 0};
+    const uint32_t tri[3] = {0, 1, 2};
+    CHECK(tw_tileset_add_mesh(ts, nan_pos, NULL, 3, tri, 1) == TW_ERR_INVALID);
+    const int mesh = tw_tileset_add_mesh(ts, pos, NULL, (N + 1) * (N + 1), idx, 2 * N * N);
+    CHECK(mesh == 0);
+    const int mat = tw_tileset_add_material(ts, (const float[4]){0.5f, 0.5f, 0.5f, 1});
+    CHECK(tw_tileset_finish(ts, 100) == TW_ERR_INVALID);   /* no prototype yet */
+    const int p0 = tw_tileset_add_prototype(ts, "a", 1.0f);
+    CHECK(tw_tileset_add_prototype(ts, "bad", 0.0f) == TW_ERR_INVALID);
+    CHECK(tw_tileset_add_instance(ts, (uint32_t)p0, 5, (uint32_t)mat, NULL) == TW_ERR_INVALID);
+    /* Rotated 90 degrees about y and moved. */
+    const float rot[12] = {0, 0, 1, 2, 0, 1, 0, 0, -1, 0, 0, 17};
+    CHECK(tw_tileset_add_instance(ts, (uint32_t)p0, (uint32_t)mesh, (uint32_t)mat, rot) == 0);
+    CHECK(tw_tileset_add_instance(ts, (uint32_t)p0, (uint32_t)mesh, (uint32_t)mat, NULL) == 1);
+    CHECK(tw_tileset_finish(ts, 100) == TW_OK);
+    CHECK(tw_tileset_add_prototype(ts, "late", 1.0f) == TW_ERR_INVALID);
+
+    const struct tw_mesh *m = &ts->meshes[0];
+    CHECK(m->part_count >= 18);
+    /* Parts tile the index range in order, each at most 100 triangles. */
+    uint32_t next = 0;
+    for (uint32_t k = m->first_part; k < m->first_part + m->part_count; k++) {
+        CHECK(ts->parts[k].first_triangle == next);
+        CHECK(ts->parts[k].triangle_count <= 100 && ts->parts[k].triangle_count > 0);
+        next += ts->parts[k].triangle_count;
+    }
+    CHECK(next == m->triangle_count);
+    /* The reordering permutes triangles: the multiset of (sorted) triangles is kept. */
+    uint64_t sum_before = 0, sum_after = 0;
+    for (uint32_t t = 0; t < 2 * N * N; t++)
+        sum_before += (uint64_t)(idx[3 * t] + 1) * (idx[3 * t + 1] + 7) * (idx[3 * t + 2] + 13);
+    for (uint32_t t = 0; t < m->triangle_count; t++)
+        sum_after += (uint64_t)(m->indices[3 * t] + 1) * (m->indices[3 * t + 1] + 7) *
+                     (m->indices[3 * t + 2] + 13);
+    CHECK(sum_before == sum_after);
+    /* Every cluster box holds its triangles, transformed; the common box holds all. */
+    const struct tw_prototype *proto = &ts->prototypes[0];
+    CHECK(proto->cluster_count == 2 * m->part_count);
+    CHECK(proto->triangle_count == 2ull * m->triangle_count);
+    for (uint32_t c = 0; c < proto->cluster_count; c++) {
+        const struct tw_cluster *cl = &proto->clusters[c];
+        const struct tw_instance *in = &proto->instances[cl->instance];
+        const struct tw_mesh_part *part = &ts->parts[cl->part];
+        for (uint32_t t = part->first_triangle; t < part->first_triangle + part->triangle_count; t++)
+            for (int v = 0; v < 3; v++) {
+                const float *p = m->positions + 3 * m->indices[3 * t + v];
+                const float *x = in->transform;
+                const float q[3] = {x[0] * p[0] + x[1] * p[1] + x[2] * p[2] + x[3],
+                                    x[4] * p[0] + x[5] * p[1] + x[6] * p[2] + x[7],
+                                    x[8] * p[0] + x[9] * p[1] + x[10] * p[2] + x[11]};
+                for (int a = 0; a < 3; a++) {
+                    CHECK(q[a] >= cl->box.min[a] && q[a] <= cl->box.max[a]);
+                    CHECK(q[a] >= ts->common_box.min[a] && q[a] <= ts->common_box.max[a]);
+                }
+            }
+    }
+    /* The rotated instance spans x in [2, 2 + 15] and z in [17 - 15, 17]. */
+    CHECK(fabsf(proto->instances[0].box.min[0] - 2.0f) < 1e-5f);
+    CHECK(fabsf(proto->instances[0].box.max[2] - 17.0f) < 1e-5f);
+    CHECK(fabsf(proto->instances[0].box.min[2] - 2.0f) < 1e-5f);
+    free(pos);
+    free(idx);
+    tw_tileset_destroy(ts);
+    tw_tileset_destroy(NULL);
+}
+
+static void test_boxes(void)
+{
+    struct tw_box b = tw_box_empty();
+    CHECK(tw_box_is_empty(&b));
+    CHECK(tw_box_surface_area(&b) == 0.0f);
+    tw_box_add_point(&b, (const float[3]){1, 2, 3});
+    tw_box_add_point(&b, (const float[3]){2, 4, 6});
+    CHECK(!tw_box_is_empty(&b));
+    CHECK(tw_box_surface_area(&b) == 2.0f * (1 * 2 + 2 * 3 + 3 * 1));
+    CHECK(tw_box_distance2(&b, (const float[3]){1.5f, 3, 4}) == 0.0f);
+    CHECK(tw_box_distance2(&b, (const float[3]){0, 2, 3}) == 1.0f);
+    CHECK(tw_box_distance2(&b, (const float[3]){5, 8, 6}) == 9.0f + 16.0f);
+}
+
+int main(void)
+{
+    test_floor_div_mod();
+    test_normalize_round_trip();
+    test_boxes();
+    test_selection();
+    test_tileset_builder();
+    if (failures) {
+        fprintf(stderr, "test-tiles: %d checks failed\n", failures);
+        return 1;
+    }
+    printf("test-tiles: all checks passed\n");
+    return 0;
+}

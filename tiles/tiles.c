@@ -1,0 +1,235 @@
+/* Errors, logging, boxes, grid math and selection (tiles.h). */
+#include "tiles/tiles.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+const char *tw_error_to_str(int err)
+{
+    switch (err) {
+    case TW_OK: return "success";
+    case TW_ERR_INVALID: return "invalid argument or input";
+    case TW_ERR_NOMEM: return "out of memory";
+    case TW_ERR_IO: return "input/output error";
+    case TW_ERR_FORMAT: return "malformed file";
+    case TW_ERR_LIMIT: return "input exceeds a configured limit";
+    case TW_ERR_GL: return "OpenGL error";
+    case TW_ERR_EMBREE: return "Embree error";
+    case TW_ERR_STATE: return "invalid state";
+    default: return "unknown error";
+    }
+}
+
+void tw_log_vprintf(const struct tw_log *log, enum tw_log_level level,
+                    const char *fmt, va_list ap)
+{
+    if (!log || !log->fn)
+        return;
+    char buf[1024];
+    vsnprintf(buf, sizeof(buf), fmt, ap);
+    log->fn(log->user, level, buf);
+}
+
+void tw_log_printf(const struct tw_log *log, enum tw_log_level level,
+                   const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    tw_log_vprintf(log, level, fmt, ap);
+    va_end(ap);
+}
+
+void tw_log_stderr(void *user, enum tw_log_level level, const char *msg)
+{
+    static const char *const names[] = {"error", "warning", "info", "debug"};
+    if ((intptr_t)level > (intptr_t)user)
+        return;
+    fprintf(stderr, "tileworld: %s: %s\n", names[level], msg);
+}
+
+/* ---- boxes ----------------------------------------------------------------- */
+
+struct tw_box tw_box_empty(void)
+{
+    struct tw_box b = {{FLT_MAX, FLT_MAX, FLT_MAX}, {-FLT_MAX, -FLT_MAX, -FLT_MAX}};
+    return b;
+}
+
+bool tw_box_is_empty(const struct tw_box *b)
+{
+    return b->min[0] > b->max[0] || b->min[1] > b->max[1] || b->min[2] > b->max[2];
+}
+
+void tw_box_add_point(struct tw_box *b, const float p[3])
+{
+    for (int k = 0; k < 3; k++) {
+        if (p[k] < b->min[k]) b->min[k] = p[k];
+        if (p[k] > b->max[k]) b->max[k] = p[k];
+    }
+}
+
+void tw_box_add_box(struct tw_box *b, const struct tw_box *o)
+{
+    if (tw_box_is_empty(o))
+        return;
+    tw_box_add_point(b, o->min);
+    tw_box_add_point(b, o->max);
+}
+
+struct tw_box tw_box_transform(const struct tw_box *b, const float m[12])
+{
+    struct tw_box r = tw_box_empty();
+    if (tw_box_is_empty(b))
+        return r;
+    for (int c = 0; c < 8; c++) {
+        const float p[3] = {
+            (c & 1) ? b->max[0] : b->min[0],
+            (c & 2) ? b->max[1] : b->min[1],
+            (c & 4) ? b->max[2] : b->min[2],
+        };
+        float q[3];
+        for (int k = 0; k < 3; k++)
+            q[k] = m[4 * k] * p[0] + m[4 * k + 1] * p[1] + m[4 * k + 2] * p[2] + m[4 * k + 3];
+        tw_box_add_point(&r, q);
+    }
+    return r;
+}
+
+float tw_box_surface_area(const struct tw_box *b)
+{
+    if (tw_box_is_empty(b))
+        return 0.0f;
+    const float dx = b->max[0] - b->min[0];
+    const float dy = b->max[1] - b->min[1];
+    const float dz = b->max[2] - b->min[2];
+    return 2.0f * (dx * dy + dy * dz + dz * dx);
+}
+
+float tw_box_distance2(const struct tw_box *b, const float p[3])
+{
+    float d2 = 0.0f;
+    for (int k = 0; k < 3; k++) {
+        float e = 0.0f;
+        if (p[k] < b->min[k]) e = b->min[k] - p[k];
+        else if (p[k] > b->max[k]) e = p[k] - b->max[k];
+        d2 += e * e;
+    }
+    return d2;
+}
+
+/* ---- cells -------------------------------------------------------------------- */
+
+int64_t tw_tiles_floor_div(int64_t a, int64_t b)
+{
+    int64_t q = a / b;
+    if ((a % b != 0) && ((a < 0) != (b < 0)))
+        q--;
+    return q;
+}
+
+int64_t tw_tiles_floor_mod(int64_t a, int64_t b)
+{
+    int64_t r = a % b;
+    if (r != 0 && ((r < 0) != (b < 0)))
+        r += b;
+    return r;
+}
+
+/* Splits a finite offset into whole footprints and a remainder in [0, size). */
+static int split_axis(double v, double size, int64_t *cells, float *rest)
+{
+    double n = floor(v / size);
+    if (!(fabs(n) < 9.0e18))
+        return TW_ERR_INVALID;
+    double r = v - n * size;
+    float rf = (float)r;
+    /* Rounding can land exactly on size (or slightly below 0). */
+    if (rf >= (float)size) { rf = 0.0f; n += 1.0; }
+    if (rf < 0.0f) { rf = 0.0f; }
+    *cells = (int64_t)n;
+    *rest = rf;
+    return TW_OK;
+}
+
+static bool add_overflows(int64_t a, int64_t b)
+{
+    return (b > 0 && a > INT64_MAX - b) || (b < 0 && a < INT64_MIN - b);
+}
+
+int tw_tiles_normalize(struct tw_world_pos *p, float w, float d)
+{
+    if (!p || !(w > 0.0f) || !(d > 0.0f) || !isfinite(p->local[0]) ||
+        !isfinite(p->local[1]) || !isfinite(p->local[2]))
+        return TW_ERR_INVALID;
+    int64_t ci, cj;
+    float x, z;
+    if (split_axis(p->local[0], w, &ci, &x) || split_axis(p->local[2], d, &cj, &z))
+        return TW_ERR_INVALID;
+    if (add_overflows(p->cell.i, ci) || add_overflows(p->cell.j, cj))
+        return TW_ERR_INVALID;
+    p->cell.i += ci;
+    p->cell.j += cj;
+    p->local[0] = x;
+    p->local[2] = z;
+    return TW_OK;
+}
+
+void tw_tiles_cell_offset(struct tw_cell cell, struct tw_cell origin, float w,
+                          float d, float out[3])
+{
+    /* Wrapping subtraction in uint64_t: the true difference of two cells in
+     * view is small, whatever their magnitude. */
+    const int64_t di = (int64_t)((uint64_t)cell.i - (uint64_t)origin.i);
+    const int64_t dj = (int64_t)((uint64_t)cell.j - (uint64_t)origin.j);
+    out[0] = (float)((double)di * (double)w);
+    out[1] = 0.0f;
+    out[2] = (float)((double)dj * (double)d);
+}
+
+/* ---- selection ------------------------------------------------------------------ */
+
+static uint64_t splitmix64(uint64_t x)
+{
+    x += 0x9e3779b97f4a7c15ull;
+    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+    x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+    return x ^ (x >> 31);
+}
+
+uint64_t tw_tiles_hash(uint64_t seed, int64_t i, int64_t j)
+{
+    uint64_t h = splitmix64(seed);
+    h = splitmix64(h ^ (uint64_t)i);
+    h = splitmix64(h ^ ((uint64_t)j * 0xd6e8feb86659fd93ull));
+    return h;
+}
+
+uint32_t tw_tiles_select(const struct tw_tileset *ts,
+                         const struct tw_selection *sel, struct tw_cell cell)
+{
+    static const struct tw_selection defaults = {0};
+    if (!sel)
+        sel = &defaults;
+    if (sel->repeat > 0) {
+        cell.i = tw_tiles_floor_mod(cell.i, sel->repeat);
+        cell.j = tw_tiles_floor_mod(cell.j, sel->repeat);
+    }
+    if (sel->fn) {
+        uint32_t p = sel->fn(sel->user, cell);
+        return p < ts->prototype_count ? p : p % ts->prototype_count;
+    }
+    double total = 0.0;
+    for (uint32_t k = 0; k < ts->prototype_count; k++)
+        total += ts->prototypes[k].weight;
+    /* 53 random bits -> [0, 1). */
+    const double u = (double)(tw_tiles_hash(sel->seed, cell.i, cell.j) >> 11) * 0x1.0p-53;
+    double target = u * total, acc = 0.0;
+    for (uint32_t k = 0; k < ts->prototype_count; k++) {
+        acc += ts->prototypes[k].weight;
+        if (target < acc)
+            return k;
+    }
+    return ts->prototype_count - 1;
+}

@@ -1,0 +1,387 @@
+/* The tileset model: builder, cluster split, boxes (tiles.h). */
+#include "tiles/tiles.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int grow(void **array, uint32_t *cap, uint32_t need, size_t elem)
+{
+    if (need <= *cap)
+        return TW_OK;
+    uint32_t n = *cap ? *cap : 8;
+    while (n < need) {
+        if (n > UINT32_MAX / 2)
+            return TW_ERR_LIMIT;
+        n *= 2;
+    }
+    void *p = realloc(*array, (size_t)n * elem);
+    if (!p)
+        return TW_ERR_NOMEM;
+    *array = p;
+    *cap = n;
+    return TW_OK;
+}
+
+int tw_tileset_create(const char *name, float w, float d, struct tw_tileset **out)
+{
+    if (!out || !isfinite(w) || !isfinite(d) || !(w > 0.0f) || !(d > 0.0f))
+        return TW_ERR_INVALID;
+    struct tw_tileset *ts = calloc(1, sizeof(*ts));
+    if (!ts)
+        return TW_ERR_NOMEM;
+    if (name)
+        strncpy(ts->name, name, sizeof(ts->name) - 1);
+    ts->footprint[0] = w;
+    ts->footprint[1] = d;
+    ts->common_box = tw_box_empty();
+    *out = ts;
+    return TW_OK;
+}
+
+void tw_tileset_destroy(struct tw_tileset *ts)
+{
+    if (!ts)
+        return;
+    for (uint32_t k = 0; k < ts->mesh_count; k++) {
+        free(ts->meshes[k].positions);
+        free(ts->meshes[k].normals);
+        free(ts->meshes[k].indices);
+    }
+    for (uint32_t k = 0; k < ts->prototype_count; k++) {
+        free(ts->prototypes[k].instances);
+        free(ts->prototypes[k].clusters);
+    }
+    free(ts->meshes);
+    free(ts->parts);
+    free(ts->materials);
+    free(ts->prototypes);
+    free(ts);
+}
+
+int tw_tileset_add_material(struct tw_tileset *ts, const float rgba[4])
+{
+    if (!ts || !rgba || ts->finished)
+        return TW_ERR_INVALID;
+    for (int k = 0; k < 4; k++)
+        if (!isfinite(rgba[k]))
+            return TW_ERR_INVALID;
+    int err = grow((void **)&ts->materials, &ts->material_cap, ts->material_count + 1,
+                   sizeof(*ts->materials));
+    if (err)
+        return err;
+    struct tw_material *m = &ts->materials[ts->material_count];
+    for (int k = 0; k < 4; k++)
+        m->base_color[k] = fminf(fmaxf(rgba[k], 0.0f), 1.0f);
+    return (int)ts->material_count++;
+}
+
+static void compute_normals(float *normals, const float *pos, uint32_t nv,
+                            const uint32_t *idx, uint32_t nt)
+{
+    memset(normals, 0, sizeof(float) * 3 * nv);
+    for (uint32_t t = 0; t < nt; t++) {
+        const float *a = pos + 3 * idx[3 * t];
+        const float *b = pos + 3 * idx[3 * t + 1];
+        const float *c = pos + 3 * idx[3 * t + 2];
+        const float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+        const float e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        const float n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                            e1[0] * e2[1] - e1[1] * e2[0]};
+        for (int v = 0; v < 3; v++)
+            for (int k = 0; k < 3; k++)
+                normals[3 * idx[3 * t + v] + k] += n[k];
+    }
+    for (uint32_t v = 0; v < nv; v++) {
+        float *n = normals + 3 * v;
+        float len = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (len > 0.0f) {
+            n[0] /= len; n[1] /= len; n[2] /= len;
+        } else {
+            n[0] = 0.0f; n[1] = 1.0f; n[2] = 0.0f;
+        }
+    }
+}
+
+int tw_tileset_add_mesh(struct tw_tileset *ts, const float *positions,
+                        const float *normals, uint32_t vertex_count,
+                        const uint32_t *indices, uint32_t triangle_count)
+{
+    if (!ts || ts->finished || !positions || !indices || vertex_count == 0 ||
+        triangle_count == 0 || triangle_count > UINT32_MAX / 3)
+        return TW_ERR_INVALID;
+    for (uint64_t k = 0; k < 3ull * vertex_count; k++)
+        if (!isfinite(positions[k]) || (normals && !isfinite(normals[k])))
+            return TW_ERR_INVALID;
+    for (uint64_t k = 0; k < 3ull * triangle_count; k++)
+        if (indices[k] >= vertex_count)
+            return TW_ERR_INVALID;
+    int err = grow((void **)&ts->meshes, &ts->mesh_cap, ts->mesh_count + 1, sizeof(*ts->meshes));
+    if (err)
+        return err;
+    struct tw_mesh m = {0};
+    const size_t vbytes = sizeof(float) * 3 * (size_t)vertex_count;
+    const size_t ibytes = sizeof(uint32_t) * 3 * (size_t)triangle_count;
+    m.positions = malloc(vbytes);
+    m.normals = malloc(vbytes);
+    m.indices = malloc(ibytes);
+    if (!m.positions || !m.normals || !m.indices) {
+        free(m.positions);
+        free(m.normals);
+        free(m.indices);
+        return TW_ERR_NOMEM;
+    }
+    memcpy(m.positions, positions, vbytes);
+    memcpy(m.indices, indices, ibytes);
+    if (normals)
+        memcpy(m.normals, normals, vbytes);
+    else
+        compute_normals(m.normals, positions, vertex_count, indices, triangle_count);
+    m.vertex_count = vertex_count;
+    m.triangle_count = triangle_count;
+    m.box = tw_box_empty();
+    for (uint32_t v = 0; v < vertex_count; v++)
+        tw_box_add_point(&m.box, positions + 3 * v);
+    ts->meshes[ts->mesh_count] = m;
+    return (int)ts->mesh_count++;
+}
+
+int tw_tileset_add_prototype(struct tw_tileset *ts, const char *name, float weight)
+{
+    if (!ts || ts->finished || !isfinite(weight) || !(weight > 0.0f))
+        return TW_ERR_INVALID;
+    int err = grow((void **)&ts->prototypes, &ts->prototype_cap, ts->prototype_count + 1,
+                   sizeof(*ts->prototypes));
+    if (err)
+        return err;
+    struct tw_prototype *p = &ts->prototypes[ts->prototype_count];
+    memset(p, 0, sizeof(*p));
+    if (name)
+        strncpy(p->name, name, sizeof(p->name) - 1);
+    p->weight = weight;
+    p->box = tw_box_empty();
+    return (int)ts->prototype_count++;
+}
+
+int tw_tileset_add_instance(struct tw_tileset *ts, uint32_t proto, uint32_t mesh,
+                            uint32_t material, const float transform[12])
+{
+    static const float identity[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+    if (!ts || ts->finished || proto >= ts->prototype_count || mesh >= ts->mesh_count ||
+        material >= ts->material_count)
+        return TW_ERR_INVALID;
+    if (!transform)
+        transform = identity;
+    for (int k = 0; k < 12; k++)
+        if (!isfinite(transform[k]))
+            return TW_ERR_INVALID;
+    struct tw_prototype *p = &ts->prototypes[proto];
+    int err = grow((void **)&p->instances, &p->instance_cap, p->instance_count + 1,
+                   sizeof(*p->instances));
+    if (err)
+        return err;
+    struct tw_instance *in = &p->instances[p->instance_count];
+    in->mesh = mesh;
+    in->material = material;
+    memcpy(in->transform, transform, sizeof(in->transform));
+    in->box = tw_box_empty();
+    return (int)p->instance_count++;
+}
+
+/* ---- finishing: clusters and boxes ------------------------------------------------ */
+
+struct keyed_triangle {
+    float key;
+    uint32_t triangle;
+};
+
+static int compare_keyed(const void *a, const void *b)
+{
+    const struct keyed_triangle *x = a, *y = b;
+    if (x->key != y->key)
+        return x->key < y->key ? -1 : 1;
+    return (x->triangle > y->triangle) - (x->triangle < y->triangle);
+}
+
+static void triangle_centroid(const struct tw_mesh *m, uint32_t t, float c[3])
+{
+    const uint32_t *i = m->indices + 3 * t;
+    for (int k = 0; k < 3; k++)
+        c[k] = (m->positions[3 * i[0] + k] + m->positions[3 * i[1] + k] +
+                m->positions[3 * i[2] + k]) / 3.0f;
+}
+
+static struct tw_box triangles_box(const struct tw_mesh *m, uint32_t first, uint32_t count,
+                                   const float *transform)
+{
+    struct tw_box b = tw_box_empty();
+    for (uint32_t t = first; t < first + count; t++) {
+        for (int v = 0; v < 3; v++) {
+            const float *p = m->positions + 3 * m->indices[3 * t + v];
+            if (transform) {
+                const float *x = transform;
+                const float q[3] = {
+                    x[0] * p[0] + x[1] * p[1] + x[2] * p[2] + x[3],
+                    x[4] * p[0] + x[5] * p[1] + x[6] * p[2] + x[7],
+                    x[8] * p[0] + x[9] * p[1] + x[10] * p[2] + x[11],
+                };
+                tw_box_add_point(&b, q);
+            } else {
+                tw_box_add_point(&b, p);
+            }
+        }
+    }
+    return b;
+}
+
+/* Reorders a mesh's triangles so that ranges of at most max_tris triangles
+ * are spatially coherent: recursive median splits of the centroids along
+ * their longest axis. Appends one part per range to ts->parts. */
+static int split_mesh(struct tw_tileset *ts, uint32_t mesh_index, uint32_t max_tris,
+                      uint32_t *part_cap)
+{
+    struct tw_mesh *m = &ts->meshes[mesh_index];
+    const uint32_t nt = m->triangle_count;
+    m->first_part = ts->part_count;
+    m->part_count = 0;
+
+    struct keyed_triangle *order = malloc(sizeof(*order) * nt);
+    uint32_t *new_indices = malloc(sizeof(uint32_t) * 3 * (size_t)nt);
+    /* A stack of [first, count) ranges; depth is at most log2(nt) + 1 per level
+     * of pending siblings, so 2 * 64 entries are plenty. */
+    uint32_t stack[128][2];
+    int err = TW_OK;
+    if (!order || !new_indices) {
+        err = TW_ERR_NOMEM;
+        goto out;
+    }
+    for (uint32_t t = 0; t < nt; t++)
+        order[t].triangle = t;
+
+    int top = 0;
+    stack[top][0] = 0;
+    stack[top][1] = nt;
+    top++;
+    /* Ranges are emitted in stack order; parts are sorted by first afterwards. */
+    while (top > 0) {
+        top--;
+        const uint32_t first = stack[top][0], count = stack[top][1];
+        if (max_tris == 0 || count <= max_tris) {
+            err = grow((void **)&ts->parts, part_cap, ts->part_count + 1, sizeof(*ts->parts));
+            if (err)
+                goto out;
+            struct tw_mesh_part *part = &ts->parts[ts->part_count++];
+            part->mesh = mesh_index;
+            part->first_triangle = first;
+            part->triangle_count = count;
+            m->part_count++;
+            continue;
+        }
+        struct tw_box cb = tw_box_empty();
+        for (uint32_t k = first; k < first + count; k++) {
+            float c[3];
+            triangle_centroid(m, order[k].triangle, c);
+            tw_box_add_point(&cb, c);
+        }
+        int axis = 0;
+        for (int k = 1; k < 3; k++)
+            if (cb.max[k] - cb.min[k] > cb.max[axis] - cb.min[axis])
+                axis = k;
+        for (uint32_t k = first; k < first + count; k++) {
+            float c[3];
+            triangle_centroid(m, order[k].triangle, c);
+            order[k].key = c[axis];
+        }
+        qsort(order + first, count, sizeof(*order), compare_keyed);
+        const uint32_t half = count / 2;
+        if (top + 2 > 128) {
+            err = TW_ERR_LIMIT;
+            goto out;
+        }
+        /* Push the right half first so the left one is emitted first. */
+        stack[top][0] = first + half;
+        stack[top][1] = count - half;
+        top++;
+        stack[top][0] = first;
+        stack[top][1] = half;
+        top++;
+    }
+    for (uint32_t t = 0; t < nt; t++)
+        memcpy(new_indices + 3 * t, m->indices + 3 * order[t].triangle, sizeof(uint32_t) * 3);
+    free(m->indices);
+    m->indices = new_indices;
+    new_indices = NULL;
+    for (uint32_t k = m->first_part; k < m->first_part + m->part_count; k++)
+        ts->parts[k].box = triangles_box(m, ts->parts[k].first_triangle,
+                                         ts->parts[k].triangle_count, NULL);
+out:
+    free(order);
+    free(new_indices);
+    return err;
+}
+
+int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
+{
+    if (!ts || ts->finished || ts->prototype_count == 0)
+        return TW_ERR_INVALID;
+    for (uint32_t p = 0; p < ts->prototype_count; p++)
+        if (ts->prototypes[p].instance_count == 0)
+            return TW_ERR_INVALID;
+
+    uint32_t part_cap = 0;
+    int err = TW_OK;
+    for (uint32_t k = 0; k < ts->mesh_count; k++) {
+        err = split_mesh(ts, k, max_cluster_triangles, &part_cap);
+        if (err)
+            return err;
+    }
+
+    ts->common_box = tw_box_empty();
+    for (uint32_t p = 0; p < ts->prototype_count; p++) {
+        struct tw_prototype *proto = &ts->prototypes[p];
+        uint64_t clusters = 0;
+        for (uint32_t k = 0; k < proto->instance_count; k++)
+            clusters += ts->meshes[proto->instances[k].mesh].part_count;
+        if (clusters > UINT32_MAX)
+            return TW_ERR_LIMIT;
+        proto->clusters = malloc(sizeof(*proto->clusters) * clusters);
+        if (!proto->clusters)
+            return TW_ERR_NOMEM;
+        proto->cluster_count = 0;
+        proto->triangle_count = 0;
+        proto->box = tw_box_empty();
+        for (uint32_t k = 0; k < proto->instance_count; k++) {
+            struct tw_instance *in = &proto->instances[k];
+            const struct tw_mesh *m = &ts->meshes[in->mesh];
+            in->box = tw_box_empty();
+            for (uint32_t q = m->first_part; q < m->first_part + m->part_count; q++) {
+                const struct tw_mesh_part *part = &ts->parts[q];
+                struct tw_cluster *c = &proto->clusters[proto->cluster_count++];
+                c->instance = k;
+                c->part = q;
+                c->triangle_count = part->triangle_count;
+                /* Transformed vertices, not a transformed box: rotated
+                 * instances keep tight cluster boxes. */
+                c->box = triangles_box(m, part->first_triangle, part->triangle_count,
+                                       in->transform);
+                tw_box_add_box(&in->box, &c->box);
+            }
+            proto->triangle_count += m->triangle_count;
+            tw_box_add_box(&proto->box, &in->box);
+        }
+        tw_box_add_box(&ts->common_box, &proto->box);
+    }
+    ts->max_cluster_triangles = max_cluster_triangles;
+    ts->finished = true;
+    return TW_OK;
+}
+
+uint64_t tw_tileset_geometry_bytes(const struct tw_tileset *ts)
+{
+    uint64_t bytes = 0;
+    for (uint32_t k = 0; k < ts->mesh_count; k++)
+        bytes += (uint64_t)ts->meshes[k].vertex_count * 24u +
+                 (uint64_t)ts->meshes[k].triangle_count * 12u;
+    return bytes;
+}
