@@ -224,6 +224,52 @@ const struct tw_chc_stats *tw_chc_stats(const struct tw_chc *chc);
 /* Heap bytes held by the engine. */
 size_t tw_chc_bytes(const struct tw_chc *chc);
 
+/* ---- tile-query propagation (DESIGN §4) ------------------------------------------- */
+
+struct tw_tilequery_settings {
+    uint32_t neighbours;        /* 4 (edge neighbours) or 8 (and diagonals); default 4 */
+    uint32_t threshold;         /* a cell is visible when its query passes > threshold samples */
+};
+
+void tw_tilequery_default_settings(struct tw_tilequery_settings *s);
+
+/* Counters of one frame. */
+struct tw_tilequery_stats {
+    uint32_t tiles_queried;     /* cells whose common box was queried */
+    uint32_t tiles_visible;     /* cells rendered */
+    uint32_t tiles_free;        /* cells found visible without a query (near-plane rule, start) */
+    uint32_t postponed;         /* cells rendered on last frame's word, result pending */
+    uint32_t predict_fail;      /* predictions that a read result contradicted */
+    uint32_t waits;             /* blocking waits on tile queries */
+};
+
+/* Renders the tile at cell, placed at offset (view-relative), with the local
+ * method, before its neighbours are queried. */
+typedef void (*tw_tilequery_render_fn)(void *user, struct tw_cell cell, const float offset[3]);
+
+/* The propagation engine: the pending and postponed queues, which cells
+ * were visible last frame, scratch space. No allocation per frame once warm. */
+struct tw_tilequery;
+
+int tw_tilequery_create(const struct tw_tilequery_settings *s, struct tw_tilequery **out);
+/* Accepts NULL. Queries still in flight are abandoned unread. */
+void tw_tilequery_destroy(struct tw_tilequery *tq);
+
+/* Runs one frame (v->frame, increasing by one each call): spreads visibility
+ * from the camera across the grid of footprint w x d, front to back,
+ * querying common_box (tile-local) placed at each candidate cell, and calls
+ * render for every cell found visible. */
+int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
+                       const struct tw_query_backend *be, const struct tw_box *common_box,
+                       float w, float d, tw_tilequery_render_fn render, void *user,
+                       struct tw_tilequery_stats *stats);
+
+/* True if cell was found visible in frame (only the last two frames are kept). */
+bool tw_tilequery_was_visible(const struct tw_tilequery *tq, struct tw_cell cell, uint64_t frame);
+
+/* Heap bytes held. */
+size_t tw_tilequery_bytes(const struct tw_tilequery *tq);
+
 #ifdef __cplusplus
 }
 #endif

@@ -1,0 +1,346 @@
+/* The cell map and the tile cache (tiles.h). */
+#include "tiles/tiles.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- cell map ------------------------------------------------------------------ */
+
+struct cell_entry {
+    struct tw_cell cell;
+    uint64_t value;
+    bool used;
+};
+
+struct tw_cell_map {
+    struct cell_entry *entries;
+    size_t cap;      /* a power of two, or 0 */
+    size_t count;
+};
+
+static size_t cell_hash(struct tw_cell c)
+{
+    return (size_t)tw_tiles_hash(0x7ce11, c.i, c.j);
+}
+
+int tw_cell_map_create(struct tw_cell_map **out)
+{
+    struct tw_cell_map *m = calloc(1, sizeof(*m));
+    if (!m)
+        return TW_ERR_NOMEM;
+    *out = m;
+    return TW_OK;
+}
+
+void tw_cell_map_destroy(struct tw_cell_map *m)
+{
+    if (!m)
+        return;
+    free(m->entries);
+    free(m);
+}
+
+static bool same_cell(struct tw_cell a, struct tw_cell b)
+{
+    return a.i == b.i && a.j == b.j;
+}
+
+uint64_t *tw_cell_map_find(const struct tw_cell_map *m, struct tw_cell cell)
+{
+    if (m->count == 0)
+        return NULL;
+    const size_t mask = m->cap - 1;
+    for (size_t k = cell_hash(cell) & mask;; k = (k + 1) & mask) {
+        struct cell_entry *e = &m->entries[k];
+        if (!e->used)
+            return NULL;
+        if (same_cell(e->cell, cell))
+            return &e->value;
+    }
+}
+
+static void place(struct cell_entry *entries, size_t cap, struct tw_cell cell, uint64_t value)
+{
+    const size_t mask = cap - 1;
+    size_t k = cell_hash(cell) & mask;
+    while (entries[k].used)
+        k = (k + 1) & mask;
+    entries[k].cell = cell;
+    entries[k].value = value;
+    entries[k].used = true;
+}
+
+static int rehash(struct tw_cell_map *m, size_t cap)
+{
+    struct cell_entry *entries = calloc(cap, sizeof(*entries));
+    if (!entries)
+        return TW_ERR_NOMEM;
+    for (size_t k = 0; k < m->cap; k++)
+        if (m->entries[k].used)
+            place(entries, cap, m->entries[k].cell, m->entries[k].value);
+    free(m->entries);
+    m->entries = entries;
+    m->cap = cap;
+    return TW_OK;
+}
+
+int tw_cell_map_set(struct tw_cell_map *m, struct tw_cell cell, uint64_t value)
+{
+    uint64_t *v = tw_cell_map_find(m, cell);
+    if (v) {
+        *v = value;
+        return TW_OK;
+    }
+    /* Keep the load under one half: probes stay short. */
+    if (2 * (m->count + 1) > m->cap) {
+        int err = rehash(m, m->cap ? 2 * m->cap : 64);
+        if (err)
+            return err;
+    }
+    place(m->entries, m->cap, cell, value);
+    m->count++;
+    return TW_OK;
+}
+
+/* Backward-shift deletion: no tombstones, so lookups never slow down as
+ * cells come and go. */
+static void remove_at(struct tw_cell_map *m, size_t hole)
+{
+    const size_t mask = m->cap - 1;
+    m->entries[hole].used = false;
+    for (size_t k = (hole + 1) & mask; m->entries[k].used; k = (k + 1) & mask) {
+        const size_t home = cell_hash(m->entries[k].cell) & mask;
+        /* Move the entry into the hole if its home does not lie in (hole, k]. */
+        const bool home_between = hole <= k ? (home > hole && home <= k) : (home > hole || home <= k);
+        if (!home_between) {
+            m->entries[hole] = m->entries[k];
+            m->entries[k].used = false;
+            hole = k;
+        }
+    }
+    m->count--;
+}
+
+bool tw_cell_map_remove(struct tw_cell_map *m, struct tw_cell cell)
+{
+    if (m->count == 0)
+        return false;
+    const size_t mask = m->cap - 1;
+    for (size_t k = cell_hash(cell) & mask;; k = (k + 1) & mask) {
+        if (!m->entries[k].used)
+            return false;
+        if (same_cell(m->entries[k].cell, cell)) {
+            remove_at(m, k);
+            return true;
+        }
+    }
+}
+
+void tw_cell_map_clear(struct tw_cell_map *m)
+{
+    if (m->cap)
+        memset(m->entries, 0, sizeof(*m->entries) * m->cap);
+    m->count = 0;
+}
+
+size_t tw_cell_map_count(const struct tw_cell_map *m)
+{
+    return m->count;
+}
+
+size_t tw_cell_map_bytes(const struct tw_cell_map *m)
+{
+    return sizeof(*m) + sizeof(*m->entries) * m->cap;
+}
+
+void tw_cell_map_filter(struct tw_cell_map *m,
+                        bool (*fn)(void *user, struct tw_cell cell, uint64_t value), void *user)
+{
+    /* Removal shifts later entries back into the hole, so re-examine the
+     * same index after a removal; a shift can also wrap an entry from the
+     * table's start to its end, which is then visited twice: harmless for a
+     * predicate that depends only on the entry. */
+    for (size_t k = 0; k < m->cap;) {
+        struct cell_entry *e = &m->entries[k];
+        if (e->used && fn(user, e->cell, e->value))
+            remove_at(m, k);
+        else
+            k++;
+    }
+}
+
+/* ---- tile cache ---------------------------------------------------------------- */
+
+struct slot {
+    struct tw_tile_info info;
+    void *state;
+    uint32_t generation;   /* odd while alive: a handle matches only its own life */
+    uint32_t next_free;
+};
+
+struct tw_tile_cache {
+    uint32_t evict_after;
+    struct slot *slots;
+    uint32_t slot_count, slot_cap;
+    uint32_t free_head;    /* UINT32_MAX: none */
+    uint32_t live;
+    uint64_t state_bytes;
+    struct tw_cell_map *by_cell;   /* cell -> slot */
+};
+
+int tw_tile_cache_create(uint32_t evict_after, struct tw_tile_cache **out)
+{
+    struct tw_tile_cache *c = calloc(1, sizeof(*c));
+    if (!c)
+        return TW_ERR_NOMEM;
+    c->evict_after = evict_after;
+    c->free_head = UINT32_MAX;
+    int err = tw_cell_map_create(&c->by_cell);
+    if (err) {
+        free(c);
+        return err;
+    }
+    *out = c;
+    return TW_OK;
+}
+
+void tw_tile_cache_destroy(struct tw_tile_cache *c)
+{
+    if (!c)
+        return;
+    for (uint32_t k = 0; k < c->slot_count; k++)
+        free(c->slots[k].state);
+    free(c->slots);
+    tw_cell_map_destroy(c->by_cell);
+    free(c);
+}
+
+static struct slot *live_slot(const struct tw_tile_cache *c, struct tw_tile_handle h)
+{
+    if (h.slot >= c->slot_count || (h.generation & 1u) == 0)
+        return NULL;
+    struct slot *s = &c->slots[h.slot];
+    return s->generation == h.generation ? s : NULL;
+}
+
+bool tw_tile_cache_find(const struct tw_tile_cache *c, struct tw_cell cell,
+                        struct tw_tile_handle *out)
+{
+    const uint64_t *v = tw_cell_map_find(c->by_cell, cell);
+    if (!v)
+        return false;
+    out->slot = (uint32_t)*v;
+    out->generation = c->slots[*v].generation;
+    return true;
+}
+
+int tw_tile_cache_acquire(struct tw_tile_cache *c, struct tw_cell cell, uint32_t prototype,
+                          size_t state_bytes, uint64_t frame, struct tw_tile_handle *out,
+                          bool *created)
+{
+    if (tw_tile_cache_find(c, cell, out)) {
+        struct slot *s = &c->slots[out->slot];
+        s->info.visible_frame = frame;
+        *created = false;
+        return TW_OK;
+    }
+    uint32_t index;
+    if (c->free_head != UINT32_MAX) {
+        index = c->free_head;
+        c->free_head = c->slots[index].next_free;
+    } else {
+        if (c->slot_count == c->slot_cap) {
+            const uint32_t cap = c->slot_cap ? 2 * c->slot_cap : 64;
+            struct slot *s = realloc(c->slots, sizeof(*s) * cap);
+            if (!s)
+                return TW_ERR_NOMEM;
+            c->slots = s;
+            c->slot_cap = cap;
+        }
+        index = c->slot_count++;
+        c->slots[index].generation = 0;
+    }
+    struct slot *s = &c->slots[index];
+    s->state = state_bytes ? calloc(1, state_bytes) : NULL;
+    int err = (state_bytes && !s->state) ? TW_ERR_NOMEM
+                                         : tw_cell_map_set(c->by_cell, cell, index);
+    if (err) {
+        free(s->state);
+        s->state = NULL;
+        s->next_free = c->free_head;
+        c->free_head = index;
+        return err;
+    }
+    s->generation++;            /* even (free) -> odd (alive) */
+    s->info.cell = cell;
+    s->info.prototype = prototype;
+    s->info.created_frame = frame;
+    s->info.visible_frame = frame;
+    s->info.state_bytes = state_bytes;
+    c->state_bytes += state_bytes;
+    c->live++;
+    out->slot = index;
+    out->generation = s->generation;
+    *created = true;
+    return TW_OK;
+}
+
+void *tw_tile_cache_state(const struct tw_tile_cache *c, struct tw_tile_handle h)
+{
+    struct slot *s = live_slot(c, h);
+    return s ? s->state : NULL;
+}
+
+const struct tw_tile_info *tw_tile_cache_info(const struct tw_tile_cache *c,
+                                              struct tw_tile_handle h)
+{
+    struct slot *s = live_slot(c, h);
+    return s ? &s->info : NULL;
+}
+
+bool tw_tile_cache_alive(const struct tw_tile_cache *c, struct tw_tile_handle h)
+{
+    return live_slot(c, h) != NULL;
+}
+
+uint64_t tw_tile_handle_pack(struct tw_tile_handle h)
+{
+    return ((uint64_t)h.generation << 32) | h.slot;
+}
+
+struct tw_tile_handle tw_tile_handle_unpack(uint64_t packed)
+{
+    struct tw_tile_handle h = {(uint32_t)packed, (uint32_t)(packed >> 32)};
+    return h;
+}
+
+uint32_t tw_tile_cache_evict(struct tw_tile_cache *c, uint64_t frame)
+{
+    uint32_t evicted = 0;
+    for (uint32_t k = 0; k < c->slot_count; k++) {
+        struct slot *s = &c->slots[k];
+        if ((s->generation & 1u) == 0 || s->info.visible_frame + c->evict_after >= frame)
+            continue;
+        tw_cell_map_remove(c->by_cell, s->info.cell);
+        free(s->state);
+        s->state = NULL;
+        c->state_bytes -= s->info.state_bytes;
+        s->generation++;        /* odd (alive) -> even (free): old handles go stale */
+        s->next_free = c->free_head;
+        c->free_head = k;
+        c->live--;
+        evicted++;
+    }
+    return evicted;
+}
+
+uint32_t tw_tile_cache_count(const struct tw_tile_cache *c)
+{
+    return c->live;
+}
+
+uint64_t tw_tile_cache_bytes(const struct tw_tile_cache *c)
+{
+    return sizeof(*c) + (uint64_t)sizeof(*c->slots) * c->slot_cap + tw_cell_map_bytes(c->by_cell) +
+           c->state_bytes;
+}

@@ -262,6 +262,85 @@ uint32_t tw_tiles_select(const struct tw_tileset *ts,
  * generators that want the same stream. */
 uint64_t tw_tiles_hash(uint64_t seed, int64_t i, int64_t j);
 
+/* ---- a hash map from cells to 64-bit values -------------------------------------- */
+
+/* Open addressing with linear probing; grows, never shrinks (its size follows
+ * the peak number of cells held, not how far the camera travelled). */
+struct tw_cell_map;
+
+int tw_cell_map_create(struct tw_cell_map **out);
+void tw_cell_map_destroy(struct tw_cell_map *m);
+/* The value stored for cell, or NULL. The pointer is valid until the next
+ * insert or remove. */
+uint64_t *tw_cell_map_find(const struct tw_cell_map *m, struct tw_cell cell);
+/* Inserts or overwrites. */
+int tw_cell_map_set(struct tw_cell_map *m, struct tw_cell cell, uint64_t value);
+/* Removes cell; returns whether it was there. */
+bool tw_cell_map_remove(struct tw_cell_map *m, struct tw_cell cell);
+void tw_cell_map_clear(struct tw_cell_map *m);
+size_t tw_cell_map_count(const struct tw_cell_map *m);
+/* Heap bytes held. */
+size_t tw_cell_map_bytes(const struct tw_cell_map *m);
+/* Calls fn for every entry; fn returns true to remove the entry. */
+void tw_cell_map_filter(struct tw_cell_map *m,
+                        bool (*fn)(void *user, struct tw_cell cell, uint64_t value),
+                        void *user);
+
+/* ---- the tile cache (DESIGN §1, tile instances) --------------------------------- */
+
+/* Names a tile instance across frames. Eviction frees the instance and
+ * bumps its slot's generation, so a kept handle reads as stale, never as
+ * another tile. The zero handle is never valid. */
+struct tw_tile_handle {
+    uint32_t slot;
+    uint32_t generation;
+};
+
+/* What the cache knows of an instance. */
+struct tw_tile_info {
+    struct tw_cell cell;
+    uint32_t prototype;
+    uint64_t created_frame;
+    uint64_t visible_frame;   /* last frame it was found visible */
+    size_t state_bytes;
+};
+
+/* Tile instances: created the first time a cell is found visible, kept while
+ * it keeps being visible, evicted once it has not been visible for more than
+ * evict_after frames. An instance owns a zeroed block of per-view state
+ * (its culling state, e.g. CHC++ per-node visibility), never geometry. */
+struct tw_tile_cache;
+
+int tw_tile_cache_create(uint32_t evict_after, struct tw_tile_cache **out);
+/* Frees every instance; accepts NULL. */
+void tw_tile_cache_destroy(struct tw_tile_cache *c);
+
+/* Finds the instance at cell; false if there is none. */
+bool tw_tile_cache_find(const struct tw_tile_cache *c, struct tw_cell cell,
+                        struct tw_tile_handle *out);
+/* Finds the instance at cell or creates it with state_bytes zeroed bytes of
+ * state, and marks it visible at frame. *created tells which happened. */
+int tw_tile_cache_acquire(struct tw_tile_cache *c, struct tw_cell cell, uint32_t prototype,
+                          size_t state_bytes, uint64_t frame, struct tw_tile_handle *out,
+                          bool *created);
+/* The instance's state block, or NULL if the handle is stale. Valid until
+ * the instance is evicted. */
+void *tw_tile_cache_state(const struct tw_tile_cache *c, struct tw_tile_handle h);
+/* The instance's description, or NULL if the handle is stale. */
+const struct tw_tile_info *tw_tile_cache_info(const struct tw_tile_cache *c,
+                                              struct tw_tile_handle h);
+bool tw_tile_cache_alive(const struct tw_tile_cache *c, struct tw_tile_handle h);
+/* Packs a handle into 64 bits and back (e.g. as a CHC++ tile tag). */
+uint64_t tw_tile_handle_pack(struct tw_tile_handle h);
+struct tw_tile_handle tw_tile_handle_unpack(uint64_t packed);
+
+/* Evicts every instance not visible since frame - evict_after; returns how
+ * many went. */
+uint32_t tw_tile_cache_evict(struct tw_tile_cache *c, uint64_t frame);
+uint32_t tw_tile_cache_count(const struct tw_tile_cache *c);
+/* Exact heap bytes held by the cache: its tables and every state block. */
+uint64_t tw_tile_cache_bytes(const struct tw_tile_cache *c);
+
 #ifdef __cplusplus
 }
 #endif

@@ -1,0 +1,309 @@
+/* Tile-query propagation with pending and postponed queues (DESIGN §4). */
+#include "cull/cull.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+struct pending {
+    uint32_t query;          /* 0: visible without a query */
+    bool predicted;          /* visible last frame */
+    struct tw_cell cell;
+};
+
+struct tw_tilequery {
+    struct tw_tilequery_settings s;
+    struct tw_cell_map *visible;   /* cell -> last frame found visible */
+    struct tw_cell_map *queried;   /* cell -> last frame queried or reached */
+    struct pending *queue;         /* pending queue Q: [head, tail) */
+    uint32_t head, tail, queue_cap;
+    struct pending *postponed;     /* postponed queue P */
+    uint32_t postponed_count, postponed_cap;
+    uint32_t *stale;               /* unread queries of last frame, drained next frame */
+    uint32_t stale_count, stale_cap;
+    struct tw_cull_cell *cells;    /* scratch for finding the start cell */
+    size_t cell_cap;
+    uint64_t last_prune;
+};
+
+void tw_tilequery_default_settings(struct tw_tilequery_settings *s)
+{
+    if (s->neighbours != 8)
+        s->neighbours = 4;
+}
+
+int tw_tilequery_create(const struct tw_tilequery_settings *settings, struct tw_tilequery **out)
+{
+    struct tw_tilequery *tq = calloc(1, sizeof(*tq));
+    if (!tq)
+        return TW_ERR_NOMEM;
+    if (settings)
+        tq->s = *settings;
+    tw_tilequery_default_settings(&tq->s);
+    int err = tw_cell_map_create(&tq->visible);
+    if (!err)
+        err = tw_cell_map_create(&tq->queried);
+    if (err) {
+        tw_tilequery_destroy(tq);
+        return err;
+    }
+    *out = tq;
+    return TW_OK;
+}
+
+void tw_tilequery_destroy(struct tw_tilequery *tq)
+{
+    if (!tq)
+        return;
+    tw_cell_map_destroy(tq->visible);
+    tw_cell_map_destroy(tq->queried);
+    free(tq->queue);
+    free(tq->postponed);
+    free(tq->stale);
+    free(tq->cells);
+    free(tq);
+}
+
+static int grow(void **array, uint32_t *cap, uint32_t need, size_t elem)
+{
+    if (need <= *cap)
+        return TW_OK;
+    uint32_t n = *cap ? *cap : 64;
+    while (n < need)
+        n *= 2;
+    void *p = realloc(*array, (size_t)n * elem);
+    if (!p)
+        return TW_ERR_NOMEM;
+    *array = p;
+    *cap = n;
+    return TW_OK;
+}
+
+static bool prune_old(void *user, struct tw_cell cell, uint64_t value)
+{
+    (void)cell;
+    return value + 1 < *(const uint64_t *)user;
+}
+
+bool tw_tilequery_was_visible(const struct tw_tilequery *tq, struct tw_cell cell, uint64_t frame)
+{
+    const uint64_t *v = tw_cell_map_find(tq->visible, cell);
+    return v && *v == frame;
+}
+
+size_t tw_tilequery_bytes(const struct tw_tilequery *tq)
+{
+    return sizeof(*tq) + tw_cell_map_bytes(tq->visible) + tw_cell_map_bytes(tq->queried) +
+           sizeof(*tq->queue) * tq->queue_cap + sizeof(*tq->postponed) * tq->postponed_cap +
+           sizeof(*tq->stale) * tq->stale_cap + sizeof(*tq->cells) * tq->cell_cap;
+}
+
+struct frame_ctx {
+    struct tw_tilequery *tq;
+    const struct tw_view *v;
+    const struct tw_query_backend *be;
+    const struct tw_box *common_box;
+    float w, d;
+    tw_tilequery_render_fn render;
+    void *user;
+    struct tw_tilequery_stats *st;
+    int err;
+};
+
+static void offset_of(const struct frame_ctx *fc, struct tw_cell cell, float out[3])
+{
+    tw_tiles_cell_offset(cell, fc->v->cell, fc->w, fc->d, out);
+}
+
+/* Cell c is a candidate: its common box meets the frustum within view distance. */
+static bool in_view(const struct frame_ctx *fc, struct tw_cell cell, float *distance)
+{
+    float off[3];
+    offset_of(fc, cell, off);
+    *distance = tw_cull_box_distance(fc->v, fc->common_box, off);
+    if (*distance > fc->v->view_distance)
+        return false;
+    return tw_cull_frustum_box(&fc->v->frustum, fc->common_box, off) != TW_CULL_OUTSIDE;
+}
+
+/* Step 3: query the neighbours of a rendered cell, nearest first. */
+static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell)
+{
+    static const int8_t di[8] = {1, -1, 0, 0, 1, 1, -1, -1};
+    static const int8_t dj[8] = {0, 0, 1, -1, 1, -1, 1, -1};
+    struct tw_tilequery *tq = fc->tq;
+    const uint64_t f = fc->v->frame;
+    struct {
+        struct tw_cell cell;
+        float distance;
+    } todo[8];
+    uint32_t n = 0;
+    for (uint32_t k = 0; k < tq->s.neighbours; k++) {
+        const struct tw_cell c = {(int64_t)((uint64_t)cell.i + (uint64_t)(int64_t)di[k]),
+                                  (int64_t)((uint64_t)cell.j + (uint64_t)(int64_t)dj[k])};
+        const uint64_t *q = tw_cell_map_find(tq->queried, c);
+        if (q && *q == f)
+            continue;
+        if (tw_cell_map_set(tq->queried, c, f)) {
+            fc->err = TW_ERR_NOMEM;
+            return;
+        }
+        float dist;
+        if (!in_view(fc, c, &dist))
+            continue;
+        /* Insertion sort by distance: at most eight entries. */
+        uint32_t at = n++;
+        while (at > 0 && todo[at - 1].distance > dist) {
+            todo[at] = todo[at - 1];
+            at--;
+        }
+        todo[at].cell = c;
+        todo[at].distance = dist;
+    }
+    if (n == 0)
+        return;
+    if (grow((void **)&tq->queue, &tq->queue_cap, tq->tail + n, sizeof(*tq->queue))) {
+        fc->err = TW_ERR_NOMEM;
+        return;
+    }
+    bool issued = false;
+    for (uint32_t k = 0; k < n; k++) {
+        struct pending *p = &tq->queue[tq->tail++];
+        const uint64_t *vis = tw_cell_map_find(tq->visible, todo[k].cell);
+        p->cell = todo[k].cell;
+        p->predicted = vis && *vis + 1 == f;
+        float off[3];
+        offset_of(fc, todo[k].cell, off);
+        if (tw_cull_near_box(fc->v, fc->common_box, off)) {
+            /* The near plane may cut this box: a query could lie. */
+            p->query = 0;
+            fc->st->tiles_free++;
+        } else {
+            p->query = fc->be->issue(fc->be->ctx, fc->common_box, 1, off);
+            fc->st->tiles_queried++;
+            issued = true;
+        }
+    }
+    if (issued)
+        fc->be->flush(fc->be->ctx);
+}
+
+/* Step 2 then 3: render a visible cell, then query its neighbours. */
+static void visit(struct frame_ctx *fc, struct tw_cell cell)
+{
+    float off[3];
+    offset_of(fc, cell, off);
+    if (tw_cell_map_set(fc->tq->visible, cell, fc->v->frame)) {
+        fc->err = TW_ERR_NOMEM;
+        return;
+    }
+    fc->render(fc->user, cell, off);
+    fc->st->tiles_visible++;
+    query_neighbours(fc, cell);
+}
+
+/* Step 1: the camera's cell if its common box meets the frustum, else the
+ * nearest cell whose common box does. */
+static bool find_start(struct frame_ctx *fc, struct tw_cell *start)
+{
+    float dist;
+    if (in_view(fc, fc->v->cell, &dist)) {
+        *start = fc->v->cell;
+        return true;
+    }
+    struct tw_tilequery *tq = fc->tq;
+    for (;;) {
+        const size_t n = tw_cull_cells_in_view(fc->v, fc->common_box, fc->w, fc->d, tq->cells,
+                                               tq->cell_cap);
+        if (n == 0)
+            return false;
+        if (n <= tq->cell_cap) {
+            *start = tq->cells[0].cell;
+            return true;
+        }
+        struct tw_cull_cell *c = realloc(tq->cells, sizeof(*c) * n);
+        if (!c) {
+            fc->err = TW_ERR_NOMEM;
+            return false;
+        }
+        tq->cells = c;
+        tq->cell_cap = n;
+    }
+}
+
+int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
+                       const struct tw_query_backend *be, const struct tw_box *common_box,
+                       float w, float d, tw_tilequery_render_fn render, void *user,
+                       struct tw_tilequery_stats *stats)
+{
+    struct tw_tilequery_stats st = {0};
+    struct frame_ctx fc = {tq, v, be, common_box, w, d, render, user, &st, TW_OK};
+    const uint64_t f = v->frame;
+
+    /* Last frame's unresolved postponed queries: read and dropped (their
+     * cells were already marked invisible for this frame). */
+    for (uint32_t k = 0; k < tq->stale_count; k++)
+        be->wait(be->ctx, tq->stale[k]);
+    tq->stale_count = 0;
+    tq->head = tq->tail = 0;
+    tq->postponed_count = 0;
+
+    /* Keep the maps to the cells of the last two frames. */
+    if (f >= tq->last_prune + 16) {
+        tw_cell_map_filter(tq->queried, prune_old, (void *)&f);
+        tw_cell_map_filter(tq->visible, prune_old, (void *)&f);
+        tq->last_prune = f;
+    }
+
+    struct tw_cell start;
+    if (find_start(&fc, &start)) {
+        tw_cell_map_set(tq->queried, start, f);
+        st.tiles_free++;
+        visit(&fc, start);
+    }
+    /* Step 4: pop the pending queue in issue order. */
+    while (tq->head < tq->tail && fc.err == TW_OK) {
+        const struct pending p = tq->queue[tq->head++];
+        if (p.query == 0) {
+            visit(&fc, p.cell);
+            continue;
+        }
+        if (p.predicted && !be->ready(be->ctx, p.query)) {
+            /* Trust last frame: render now, read the answer at the end. */
+            if (grow((void **)&tq->postponed, &tq->postponed_cap, tq->postponed_count + 1,
+                     sizeof(*tq->postponed))) {
+                fc.err = TW_ERR_NOMEM;
+                break;
+            }
+            tq->postponed[tq->postponed_count++] = p;
+            st.postponed++;
+            visit(&fc, p.cell);
+            continue;
+        }
+        st.waits++;
+        const bool visible = be->wait(be->ctx, p.query) > tq->s.threshold;
+        if (visible != p.predicted)
+            st.predict_fail++;
+        if (visible)
+            visit(&fc, p.cell);
+    }
+    /* Step 6: postponed queries decide the next frame. */
+    for (uint32_t k = 0; k < tq->postponed_count && fc.err == TW_OK; k++) {
+        const struct pending *p = &tq->postponed[k];
+        if (be->ready(be->ctx, p->query)) {
+            if (be->wait(be->ctx, p->query) > tq->s.threshold)
+                continue;
+            st.predict_fail++;
+        } else {
+            if (grow((void **)&tq->stale, &tq->stale_cap, tq->stale_count + 1, sizeof(*tq->stale))) {
+                fc.err = TW_ERR_NOMEM;
+                break;
+            }
+            tq->stale[tq->stale_count++] = p->query;
+        }
+        /* Invisible next frame: it will be queried and waited on before it is drawn. */
+        tw_cell_map_set(tq->visible, p->cell, 0);
+    }
+    if (stats)
+        *stats = st;
+    return fc.err;
+}
