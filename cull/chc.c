@@ -1,0 +1,776 @@
+/*
+ * CHC++ inside one tile (DESIGN.md §7, after Mattausch, Bittner, Wimmer 2008,
+ * "CHC++: Coherent Hierarchical Culling Revisited").
+ *
+ * One engine serves every tile of a frame. Per-node state lives with the tile
+ * instance (struct tw_chc_node_state); the engine only holds queues and
+ * scratch arrays, reserved once per traversal from the BVH's size so that the
+ * traversal itself never allocates, and kept (grown geometrically) so that a
+ * warm engine does not allocate at all.
+ *
+ * Queues, as in the paper:
+ *   heap      the traversal queue, front to back (distance to the node box);
+ *   iqueue    previously invisible nodes waiting to be issued as a batch;
+ *   vqueue    previously visible leaves due for a re-query, issued while
+ *             waiting or when the tile is done;
+ *   iqueries  issued I-queries (single or multi), read in issue order;
+ *   vqueries  issued V-queries, read when ready or deferred to the next frame;
+ *   render    clusters to draw, flushed before every query batch.
+ */
+#include "cull/cull.h"
+
+#include <assert.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define DEFAULT_BATCH_SIZE 50
+#define DEFAULT_ASSUMED_VISIBLE 8
+
+struct heap_entry {
+    float distance;
+    uint32_t node;
+};
+
+/* A previously invisible node waiting in the I-queue; seq keeps the front-to-
+ * back order among nodes of equal probability, so that sorting is total and
+ * deterministic. */
+struct iqueue_item {
+    uint32_t node;
+    uint32_t invisible_frames;
+    uint32_t seq;
+};
+
+/* An issued I-query: count nodes starting at query_nodes[first]. */
+struct iquery {
+    uint32_t handle;
+    uint32_t count;
+    size_t first;
+};
+
+struct vquery {
+    uint32_t handle;
+    uint32_t node;
+};
+
+/* A V-query left in flight when its tile's traversal ended. */
+struct deferred_vquery {
+    uint64_t tag;
+    uint64_t frame;
+    uint32_t node;
+    uint32_t handle;
+};
+
+struct tw_chc {
+    struct tw_chc_settings settings;
+    uint64_t rng;
+    struct tw_chc_stats stats;
+
+    struct heap_entry *heap;
+    size_t heap_count, heap_cap;
+    struct iqueue_item *iqueue;
+    size_t iqueue_count, iqueue_cap;
+    uint32_t *vqueue;
+    size_t vqueue_head, vqueue_count, vqueue_cap;
+    struct iquery *iqueries;
+    size_t iq_head, iq_count, iq_cap;
+    uint32_t *query_nodes;
+    size_t query_node_count, query_node_cap;
+    struct vquery *vqueries;
+    size_t vq_head, vq_count, vq_cap;
+    uint32_t *render;
+    size_t render_count, render_cap;
+    uint32_t *cluster_stamp;    /* == stamp: cluster already queued this traversal */
+    size_t stamp_cap;
+    uint32_t stamp;
+    struct tw_box *boxes;
+    size_t box_cap;
+    struct deferred_vquery *deferred;
+    size_t deferred_count, deferred_cap;
+};
+
+/* One traversal of one tile. */
+struct pass {
+    struct tw_chc *chc;
+    const struct tw_view *v;
+    const struct tw_query_backend *be;
+    const struct tw_chc_tile *tile;
+    const struct tw_bvh *bvh;
+    const struct tw_bvh_node *nodes;
+    struct tw_chc_node_state *state;
+    uint64_t frame;
+    uint32_t iqueue_seq;
+};
+
+void tw_chc_default_settings(struct tw_chc_settings *s)
+{
+    if (!s)
+        return;
+    if (s->batch_size == 0)
+        s->batch_size = DEFAULT_BATCH_SIZE;
+    if (s->assumed_visible == 0)
+        s->assumed_visible = DEFAULT_ASSUMED_VISIBLE;
+}
+
+size_t tw_chc_state_bytes(const struct tw_bvh *bvh)
+{
+    return bvh ? (size_t)bvh->node_count * sizeof(struct tw_chc_node_state) : 0;
+}
+
+void tw_chc_state_init(struct tw_chc_node_state *state, const struct tw_bvh *bvh,
+                       uint64_t frame)
+{
+    if (!state || !bvh)
+        return;
+    for (uint32_t n = 0; n < bvh->node_count; n++) {
+        /* Visible last frame and due now; next_query_frame 0 also marks "not
+         * scheduled yet", so the first positive query spreads the leaf's
+         * re-queries with a random offset. */
+        state[n].visible_frame = frame > 0 ? frame - 1 : 0;
+        state[n].next_query_frame = 0;
+        state[n].invisible_frames = 0;
+        state[n].pending_query = 0;
+    }
+}
+
+int tw_chc_create(const struct tw_chc_settings *settings, struct tw_chc **out)
+{
+    if (!out)
+        return TW_ERR_INVALID;
+    *out = NULL;
+    struct tw_chc *chc = calloc(1, sizeof(*chc));
+    if (!chc)
+        return TW_ERR_NOMEM;
+    if (settings)
+        chc->settings = *settings;
+    tw_chc_default_settings(&chc->settings);
+    chc->rng = chc->settings.seed;
+    *out = chc;
+    return TW_OK;
+}
+
+void tw_chc_destroy(struct tw_chc *chc)
+{
+    if (!chc)
+        return;
+    free(chc->heap);
+    free(chc->iqueue);
+    free(chc->vqueue);
+    free(chc->iqueries);
+    free(chc->query_nodes);
+    free(chc->vqueries);
+    free(chc->render);
+    free(chc->cluster_stamp);
+    free(chc->boxes);
+    free(chc->deferred);
+    free(chc);
+}
+
+const struct tw_chc_stats *tw_chc_stats(const struct tw_chc *chc)
+{
+    return &chc->stats;
+}
+
+size_t tw_chc_bytes(const struct tw_chc *chc)
+{
+    if (!chc)
+        return 0;
+    return sizeof(*chc) + chc->heap_cap * sizeof(*chc->heap) +
+           chc->iqueue_cap * sizeof(*chc->iqueue) + chc->vqueue_cap * sizeof(*chc->vqueue) +
+           chc->iq_cap * sizeof(*chc->iqueries) +
+           chc->query_node_cap * sizeof(*chc->query_nodes) +
+           chc->vq_cap * sizeof(*chc->vqueries) + chc->render_cap * sizeof(*chc->render) +
+           chc->stamp_cap * sizeof(*chc->cluster_stamp) + chc->box_cap * sizeof(*chc->boxes) +
+           chc->deferred_cap * sizeof(*chc->deferred);
+}
+
+/* ---- small helpers ------------------------------------------------------------ */
+
+/* Grows *p to hold at least need elements (geometrically; never shrinks).
+ * New elements are zeroed. */
+static bool reserve(void **p, size_t *cap, size_t need, size_t elem)
+{
+    if (need <= *cap)
+        return true;
+    size_t n = *cap ? *cap : 16;
+    while (n < need) {
+        if (n > SIZE_MAX / 2 / elem)
+            return false;
+        n *= 2;
+    }
+    void *q = realloc(*p, n * elem);
+    if (!q)
+        return false;
+    memset((char *)q + *cap * elem, 0, (n - *cap) * elem);
+    *p = q;
+    *cap = n;
+    return true;
+}
+
+/* splitmix64: the engine's own stream, so that two engines never interfere and
+ * a run is reproducible from settings.seed. */
+static uint64_t next_random(struct tw_chc *chc)
+{
+    uint64_t z = (chc->rng += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+}
+
+/* Chance that a node found invisible for i frames in a row stays invisible. */
+static double keep_probability(uint32_t invisible_frames)
+{
+    return 0.99 - 0.7 * exp(-(double)invisible_frames);
+}
+
+static bool is_leaf(const struct tw_bvh_node *n)
+{
+    return n->child[0] == TW_BVH_NONE;
+}
+
+/* Visible last frame. visible_frame == frame counts too (already visible this
+ * frame): such a node is treated as known visible, never re-queried. At frame
+ * 1 a zeroed state reads as visible at frame 0, i.e. first sight: conservative. */
+static bool was_visible(const struct tw_chc_node_state *s, uint64_t frame)
+{
+    return s->visible_frame + 1 >= frame;
+}
+
+/* Marks node and its ancestors visible in frame, up to the first ancestor that
+ * already is. */
+static void pull_up(struct tw_chc_node_state *state, const struct tw_bvh_node *nodes,
+                    uint32_t node, uint64_t frame)
+{
+    while (node != TW_BVH_NONE && state[node].visible_frame < frame) {
+        state[node].visible_frame = frame;
+        state[node].invisible_frames = 0;
+        node = nodes[node].parent;
+    }
+}
+
+/* The result of a V-query (a leaf drawn because it was visible before),
+ * applied as the result of frame. */
+static void apply_vquery(struct tw_chc *chc, struct tw_chc_node_state *state,
+                         const struct tw_bvh_node *nodes, uint32_t node, bool visible,
+                         uint64_t frame)
+{
+    struct tw_chc_node_state *s = &state[node];
+    if (!visible) {
+        s->invisible_frames = 1;
+        return;
+    }
+    const uint64_t n_av = chc->settings.assumed_visible;
+    /* next_query_frame 0: first sight, never scheduled: spread the re-queries
+     * of a new tile's leaves over frames instead of repeating them all at once. */
+    if (s->next_query_frame == 0)
+        s->next_query_frame = frame + 1 + next_random(chc) % (n_av + 1);
+    else
+        s->next_query_frame = frame + 1 + n_av;
+    pull_up(state, nodes, node, frame);
+}
+
+/* ---- traversal queue ---------------------------------------------------------- */
+
+static bool heap_less(const struct heap_entry *a, const struct heap_entry *b)
+{
+    if (a->distance != b->distance)
+        return a->distance < b->distance;
+    return a->node < b->node;
+}
+
+static void heap_push(struct tw_chc *chc, float distance, uint32_t node)
+{
+    assert(chc->heap_count < chc->heap_cap);
+    struct heap_entry *h = chc->heap;
+    const struct heap_entry e = {distance, node};
+    size_t i = chc->heap_count++;
+    while (i > 0) {
+        const size_t parent = (i - 1) / 2;
+        if (!heap_less(&e, &h[parent]))
+            break;
+        h[i] = h[parent];
+        i = parent;
+    }
+    h[i] = e;
+}
+
+static uint32_t heap_pop(struct tw_chc *chc)
+{
+    struct heap_entry *h = chc->heap;
+    const uint32_t top = h[0].node;
+    const struct heap_entry last = h[--chc->heap_count];
+    const size_t n = chc->heap_count;
+    size_t i = 0;
+    for (;;) {
+        size_t c = 2 * i + 1;
+        if (c >= n)
+            break;
+        if (c + 1 < n && heap_less(&h[c + 1], &h[c]))
+            c++;
+        if (!heap_less(&h[c], &last))
+            break;
+        h[i] = h[c];
+        i = c;
+    }
+    if (n > 0)
+        h[i] = last;
+    return top;
+}
+
+/* Queues node for traversal unless it is outside the frustum or beyond the
+ * view distance: such nodes are neither drawn nor queried. */
+static void push_node(struct pass *p, uint32_t node)
+{
+    const struct tw_box *b = &p->nodes[node].box;
+    const float d = tw_cull_box_distance(p->v, b, p->tile->offset);
+    if (!(d <= p->v->view_distance))
+        return;
+    if (tw_cull_frustum_box(&p->v->frustum, b, p->tile->offset) == TW_CULL_OUTSIDE)
+        return;
+    heap_push(p->chc, d, node);
+}
+
+static void push_children(struct pass *p, uint32_t node)
+{
+    for (int k = 0; k < 2; k++)
+        if (p->nodes[node].child[k] != TW_BVH_NONE)
+            push_node(p, p->nodes[node].child[k]);
+}
+
+/* ---- rendering ------------------------------------------------------------------ */
+
+/* Queues the leaf's clusters, skipping those already queued in this traversal
+ * (a cluster may be referenced by several leaves). */
+static void draw_leaf(struct pass *p, uint32_t node)
+{
+    struct tw_chc *chc = p->chc;
+    const struct tw_bvh_node *n = &p->nodes[node];
+    for (uint32_t k = 0; k < n->cluster_count; k++) {
+        const uint32_t c = p->bvh->cluster_order[n->first_cluster + k];
+        assert(c < chc->stamp_cap);
+        if (c >= chc->stamp_cap || chc->cluster_stamp[c] == chc->stamp)
+            continue;
+        chc->cluster_stamp[c] = chc->stamp;
+        chc->render[chc->render_count++] = c;
+        chc->stats.clusters_drawn++;
+    }
+}
+
+static void flush_render(struct pass *p)
+{
+    struct tw_chc *chc = p->chc;
+    if (chc->render_count == 0)
+        return;
+    p->be->draw(p->be->ctx, p->tile->cell, p->tile->prototype, p->tile->offset, chc->render,
+                (uint32_t)chc->render_count);
+    chc->render_count = 0;
+}
+
+/* ---- issuing queries ------------------------------------------------------------ */
+
+/* The node's tight boxes, or NULL when its own box is to be drawn. */
+static const struct tw_box *tight_boxes(const struct pass *p, uint32_t node, uint32_t *count)
+{
+    const struct tw_bvh_node *n = &p->nodes[node];
+    if (p->chc->settings.no_tight_boxes || n->tight_count <= 1 || !p->bvh->tight_boxes ||
+        n->first_tight > p->bvh->tight_box_count ||
+        n->tight_count > p->bvh->tight_box_count - n->first_tight)
+        return NULL;
+    *count = n->tight_count;
+    return &p->bvh->tight_boxes[n->first_tight];
+}
+
+/* Issues one query drawing the boxes of count nodes (a multiquery if more
+ * than one) and returns its handle. */
+static uint32_t issue_nodes(struct pass *p, const uint32_t *list, uint32_t count)
+{
+    struct tw_chc *chc = p->chc;
+    size_t need = 0;
+    for (uint32_t k = 0; k < count; k++) {
+        uint32_t tc = 1;
+        tight_boxes(p, list[k], &tc);
+        need += tc;
+    }
+    /* Room for one box per node is reserved before the traversal; if tight
+     * lists do not fit and cannot grow, node boxes still give a correct query. */
+    const bool tight = reserve((void **)&chc->boxes, &chc->box_cap, need, sizeof(*chc->boxes));
+    size_t nb = 0;
+    for (uint32_t k = 0; k < count; k++) {
+        uint32_t tc = 1;
+        const struct tw_box *tb = tight ? tight_boxes(p, list[k], &tc) : NULL;
+        if (tb) {
+            memcpy(&chc->boxes[nb], tb, tc * sizeof(*tb));
+            nb += tc;
+        } else {
+            chc->boxes[nb++] = p->nodes[list[k]].box;
+        }
+    }
+    const uint32_t handle = p->be->issue(p->be->ctx, chc->boxes, (uint32_t)nb, p->tile->offset);
+    assert(handle != 0);
+    for (uint32_t k = 0; k < count; k++)
+        p->state[list[k]].pending_query = handle;
+    chc->stats.queries++;
+    chc->stats.nodes_queried += count;
+    if (count > 1)
+        chc->stats.multiqueries++;
+    return handle;
+}
+
+static void issue_iquery(struct pass *p, size_t first, uint32_t count)
+{
+    struct tw_chc *chc = p->chc;
+    const uint32_t handle = issue_nodes(p, &chc->query_nodes[first], count);
+    assert(chc->iq_head + chc->iq_count < chc->iq_cap);
+    chc->iqueries[chc->iq_head + chc->iq_count++] = (struct iquery){handle, count, first};
+}
+
+static bool iqueue_before(const struct iqueue_item *a, const struct iqueue_item *b)
+{
+    /* p is increasing in invisible_frames: sort by p descending. */
+    if (a->invisible_frames != b->invisible_frames)
+        return a->invisible_frames > b->invisible_frames;
+    return a->seq < b->seq;
+}
+
+/* Heapsort (no allocation; keys are unique thanks to seq). */
+static void sort_iqueue(struct iqueue_item *a, size_t n)
+{
+    for (size_t start = n / 2; n > 1;) {
+        size_t end = n;
+        if (start > 0) {
+            start--;
+        } else {
+            end = --n;
+            const struct iqueue_item t = a[0];
+            a[0] = a[n];
+            a[n] = t;
+        }
+        /* Sift down within [0, end): the heap's top is the item that comes
+         * last, so swapping tops to the back leaves the array in order. */
+        size_t i = start;
+        for (;;) {
+            size_t c = 2 * i + 1;
+            if (c >= end)
+                break;
+            if (c + 1 < end && iqueue_before(&a[c], &a[c + 1]))
+                c++;
+            if (!iqueue_before(&a[i], &a[c]))
+                break;
+            const struct iqueue_item t = a[i];
+            a[i] = a[c];
+            a[c] = t;
+            i = c;
+        }
+    }
+}
+
+/* End (exclusive) of the multiquery group that starts at items[i]: grow it
+ * while |M| / cost(M) does not fall, with cost(M) = 1 + (1 - prod p) |M| for
+ * |M| >= 2. A lone node costs exactly one query (its result is final, no
+ * re-query can follow), which keeps nodes likely to turn visible out of groups. */
+static size_t group_end(const struct tw_chc *chc, const struct iqueue_item *items, size_t i,
+                        size_t n)
+{
+    if (chc->settings.no_multiqueries)
+        return i + 1;
+    double keep = keep_probability(items[i].invisible_frames);
+    double value = 1.0;
+    size_t j = i + 1;
+    while (j < n) {
+        const double k = keep * keep_probability(items[j].invisible_frames);
+        const double m = (double)(j - i + 1);
+        const double v = m / (1.0 + (1.0 - k) * m);
+        if (v < value)
+            break;
+        keep = k;
+        value = v;
+        j++;
+    }
+    return j;
+}
+
+/* Issues the I-queue as multiqueries. */
+static void issue_iqueue(struct pass *p)
+{
+    struct tw_chc *chc = p->chc;
+    const size_t n = chc->iqueue_count;
+    if (n == 0)
+        return;
+    flush_render(p);
+    sort_iqueue(chc->iqueue, n);
+    for (size_t i = 0; i < n;) {
+        const size_t j = group_end(chc, chc->iqueue, i, n);
+        const size_t first = chc->query_node_count;
+        assert(first + (j - i) <= chc->query_node_cap);
+        for (size_t k = i; k < j; k++)
+            chc->query_nodes[chc->query_node_count++] = chc->iqueue[k].node;
+        issue_iquery(p, first, (uint32_t)(j - i));
+        i = j;
+    }
+    chc->iqueue_count = 0;
+    p->be->flush(p->be->ctx);
+}
+
+static void issue_vquery(struct pass *p, uint32_t node)
+{
+    struct tw_chc *chc = p->chc;
+    flush_render(p);
+    const uint32_t handle = issue_nodes(p, &node, 1);
+    assert(chc->vq_head + chc->vq_count < chc->vq_cap);
+    chc->vqueries[chc->vq_head + chc->vq_count++] = (struct vquery){handle, node};
+}
+
+/* ---- reading results ------------------------------------------------------------ */
+
+static void handle_iquery(struct pass *p, const struct iquery *q, uint32_t samples)
+{
+    struct tw_chc *chc = p->chc;
+    const bool visible = samples > chc->settings.threshold;
+    if (visible && q->count > 1) {
+        /* A failed multiquery: some of its nodes are visible, find out which. */
+        flush_render(p);
+        for (uint32_t k = 0; k < q->count; k++) {
+            const size_t first = chc->query_node_count;
+            assert(first < chc->query_node_cap);
+            chc->query_nodes[chc->query_node_count++] = chc->query_nodes[q->first + k];
+            issue_iquery(p, first, 1);
+            chc->stats.requeries++;
+        }
+        p->be->flush(p->be->ctx);
+        return;
+    }
+    for (uint32_t k = 0; k < q->count; k++) {
+        const uint32_t node = chc->query_nodes[q->first + k];
+        struct tw_chc_node_state *s = &p->state[node];
+        if (s->pending_query == q->handle)
+            s->pending_query = 0;
+        if (!visible) {
+            if (s->invisible_frames < UINT32_MAX)
+                s->invisible_frames++;
+            continue;
+        }
+        /* Previously invisible, now visible: traverse it this frame. */
+        if (is_leaf(&p->nodes[node])) {
+            const uint64_t n_av = chc->settings.assumed_visible;
+            s->next_query_frame = p->frame + 1 + next_random(chc) % (n_av + 1);
+            draw_leaf(p, node);
+        } else {
+            push_children(p, node);
+        }
+        pull_up(p->state, p->nodes, node, p->frame);
+    }
+}
+
+static void read_vquery(struct pass *p)
+{
+    struct tw_chc *chc = p->chc;
+    const struct vquery q = chc->vqueries[chc->vq_head++];
+    chc->vq_count--;
+    const uint32_t samples = p->be->wait(p->be->ctx, q.handle);
+    struct tw_chc_node_state *s = &p->state[q.node];
+    if (s->pending_query != q.handle)
+        return;
+    s->pending_query = 0;
+    apply_vquery(chc, p->state, p->nodes, q.node, samples > chc->settings.threshold, p->frame);
+}
+
+/* Reads the V-queries whose results are in, in issue order, never blocking. */
+static void poll_vqueries(struct pass *p)
+{
+    struct tw_chc *chc = p->chc;
+    while (chc->vq_count > 0 && p->be->ready(p->be->ctx, chc->vqueries[chc->vq_head].handle))
+        read_vquery(p);
+}
+
+/* ---- traversal ------------------------------------------------------------------ */
+
+static void process_node(struct pass *p, uint32_t node)
+{
+    struct tw_chc *chc = p->chc;
+    const struct tw_bvh_node *n = &p->nodes[node];
+    struct tw_chc_node_state *s = &p->state[node];
+    const bool leaf = is_leaf(n);
+
+    /* A box the near plane may cut can answer 0 samples and lie: never query
+     * it, treat it as visible. */
+    if (tw_cull_near_box(p->v, &n->box, p->tile->offset)) {
+        if (leaf) {
+            draw_leaf(p, node);
+            pull_up(p->state, p->nodes, node, p->frame);
+        } else {
+            push_children(p, node);
+        }
+        return;
+    }
+    if (was_visible(s, p->frame)) {
+        if (!leaf) {
+            push_children(p, node);
+            return;
+        }
+        draw_leaf(p, node);
+        if (s->pending_query == 0 && s->next_query_frame <= p->frame)
+            chc->vqueue[chc->vqueue_head + chc->vqueue_count++] = node;
+        else
+            pull_up(p->state, p->nodes, node, p->frame);
+        return;
+    }
+    chc->iqueue[chc->iqueue_count++] =
+        (struct iqueue_item){node, s->invisible_frames, p->iqueue_seq++};
+    if (chc->iqueue_count >= chc->settings.batch_size)
+        issue_iqueue(p);
+}
+
+/* Reserves every queue for the worst case of this BVH, so that the traversal
+ * cannot fail half way: each node is pushed once, issued at most once as an
+ * I-query plus once as a re-query, or once as a V-query. */
+static bool reserve_pass(struct tw_chc *chc, const struct tw_chc_tile *tile)
+{
+    const size_t nodes = tile->bvh->node_count;
+    size_t clusters = tile->bvh->cluster_count;
+    if (tile->proto && tile->proto->cluster_count > clusters)
+        clusters = tile->proto->cluster_count;
+    const bool ok =
+        reserve((void **)&chc->heap, &chc->heap_cap, nodes, sizeof(*chc->heap)) &&
+        reserve((void **)&chc->iqueue, &chc->iqueue_cap, nodes, sizeof(*chc->iqueue)) &&
+        reserve((void **)&chc->vqueue, &chc->vqueue_cap, nodes, sizeof(*chc->vqueue)) &&
+        reserve((void **)&chc->iqueries, &chc->iq_cap, 2 * nodes, sizeof(*chc->iqueries)) &&
+        reserve((void **)&chc->query_nodes, &chc->query_node_cap, 2 * nodes,
+                sizeof(*chc->query_nodes)) &&
+        reserve((void **)&chc->vqueries, &chc->vq_cap, nodes, sizeof(*chc->vqueries)) &&
+        reserve((void **)&chc->render, &chc->render_cap, clusters, sizeof(*chc->render)) &&
+        reserve((void **)&chc->cluster_stamp, &chc->stamp_cap, clusters,
+                sizeof(*chc->cluster_stamp)) &&
+        reserve((void **)&chc->boxes, &chc->box_cap, nodes, sizeof(*chc->boxes)) &&
+        reserve((void **)&chc->deferred, &chc->deferred_cap, chc->deferred_count + nodes,
+                sizeof(*chc->deferred));
+    if (!ok)
+        return false;
+    chc->heap_count = 0;
+    chc->iqueue_count = 0;
+    chc->vqueue_head = chc->vqueue_count = 0;
+    chc->iq_head = chc->iq_count = 0;
+    chc->query_node_count = 0;
+    chc->vq_head = chc->vq_count = 0;
+    chc->render_count = 0;
+    if (++chc->stamp == 0) {
+        memset(chc->cluster_stamp, 0, chc->stamp_cap * sizeof(*chc->cluster_stamp));
+        chc->stamp = 1;
+    }
+    return true;
+}
+
+/* Out of memory: draw every leaf in view, no queries, state untouched.
+ * Conservative, slow, and never taken by a warm engine. */
+static void draw_everything(const struct pass *p)
+{
+    for (uint32_t i = 0; i < p->bvh->node_count; i++) {
+        const struct tw_bvh_node *n = &p->nodes[i];
+        if (!is_leaf(n) || n->cluster_count == 0)
+            continue;
+        if (!(tw_cull_box_distance(p->v, &n->box, p->tile->offset) <= p->v->view_distance) ||
+            tw_cull_frustum_box(&p->v->frustum, &n->box, p->tile->offset) == TW_CULL_OUTSIDE)
+            continue;
+        p->be->draw(p->be->ctx, p->tile->cell, p->tile->prototype, p->tile->offset,
+                    &p->bvh->cluster_order[n->first_cluster], n->cluster_count);
+        p->chc->stats.clusters_drawn += n->cluster_count;
+    }
+}
+
+void tw_chc_traverse(struct tw_chc *chc, const struct tw_view *v,
+                     const struct tw_query_backend *be, const struct tw_chc_tile *tile)
+{
+    if (!chc || !v || !be || !tile || !tile->bvh || !tile->state || tile->bvh->node_count == 0)
+        return;
+    struct pass p = {
+        .chc = chc, .v = v, .be = be, .tile = tile, .bvh = tile->bvh,
+        .nodes = tile->bvh->nodes, .state = tile->state, .frame = v->frame,
+    };
+    if (!reserve_pass(chc, tile)) {
+        draw_everything(&p);
+        return;
+    }
+
+    push_node(&p, 0);
+    while (chc->heap_count > 0 || chc->iqueue_count > 0 || chc->iq_count > 0) {
+        /* Read the I-queries whose results are in; block only when there is
+         * nothing left to traverse, and spend that time on V-queries first. */
+        while (chc->iq_count > 0) {
+            const struct iquery q = chc->iqueries[chc->iq_head];
+            if (!be->ready(be->ctx, q.handle)) {
+                if (chc->heap_count > 0)
+                    break;
+                if (chc->iqueue_count > 0) {
+                    issue_iqueue(&p);
+                    continue;
+                }
+                if (chc->vqueue_count > 0) {
+                    chc->vqueue_count--;
+                    issue_vquery(&p, chc->vqueue[chc->vqueue_head++]);
+                    be->flush(be->ctx);
+                    continue;
+                }
+                /* Give the GPU what was traversed before blocking on it. */
+                flush_render(&p);
+                be->flush(be->ctx);
+                chc->stats.waits++;
+            }
+            chc->iq_head++;
+            chc->iq_count--;
+            handle_iquery(&p, &q, be->wait(be->ctx, q.handle));
+        }
+        poll_vqueries(&p);
+
+        if (chc->heap_count > 0)
+            process_node(&p, heap_pop(chc));
+        if (chc->heap_count == 0 && chc->iqueue_count > 0)
+            issue_iqueue(&p);
+    }
+
+    flush_render(&p);
+    if (chc->vqueue_count > 0) {
+        while (chc->vqueue_count > 0) {
+            chc->vqueue_count--;
+            issue_vquery(&p, chc->vqueue[chc->vqueue_head++]);
+        }
+        be->flush(be->ctx);
+    }
+    poll_vqueries(&p);
+    /* The rest is read by the next frame's tw_chc_begin_frame(). */
+    for (size_t k = 0; k < chc->vq_count; k++) {
+        const struct vquery *q = &chc->vqueries[chc->vq_head + k];
+        assert(chc->deferred_count < chc->deferred_cap);
+        chc->deferred[chc->deferred_count++] =
+            (struct deferred_vquery){tile->tag, p.frame, q->node, q->handle};
+    }
+    chc->vq_head = chc->vq_count = 0;
+}
+
+void tw_chc_begin_frame(struct tw_chc *chc, const struct tw_view *v,
+                        const struct tw_query_backend *be, tw_chc_resolve_fn resolve,
+                        void *resolve_user)
+{
+    if (!chc)
+        return;
+    memset(&chc->stats, 0, sizeof(chc->stats));
+    if (!be) {
+        chc->deferred_count = 0;
+        return;
+    }
+    (void)v;
+    for (size_t k = 0; k < chc->deferred_count; k++) {
+        const struct deferred_vquery *d = &chc->deferred[k];
+        /* Every query is read exactly once, even if its tile is gone. */
+        if (!be->ready(be->ctx, d->handle))
+            chc->stats.waits++;
+        const uint32_t samples = be->wait(be->ctx, d->handle);
+        const struct tw_bvh *bvh = NULL;
+        struct tw_chc_node_state *state = resolve ? resolve(resolve_user, d->tag, &bvh) : NULL;
+        if (!state || !bvh || d->node >= bvh->node_count ||
+            state[d->node].pending_query != d->handle)
+            continue;
+        state[d->node].pending_query = 0;
+        apply_vquery(chc, state, bvh->nodes, d->node, samples > chc->settings.threshold,
+                     d->frame);
+    }
+    chc->deferred_count = 0;
+}

@@ -34,6 +34,10 @@ struct tw_renderer {
 
     enum mode mode;
     struct tw_render_counters counters;
+
+    bool recording;
+    struct tw_drawn_cluster *drawn;
+    size_t drawn_count, drawn_cap;
 };
 
 double tw_renderer_now_ms(void)
@@ -323,6 +327,7 @@ void tw_renderer_destroy(struct tw_renderer *r)
         if (r->box_program)
             gl->DeleteProgram(r->box_program);
     }
+    free(r->drawn);
     free(r->queries);
     free(r->free_queries);
     free(r->mesh_base_vertex);
@@ -334,6 +339,7 @@ void tw_renderer_begin_frame(struct tw_renderer *r, const struct tw_view *v)
 {
     const struct tw_gl *gl = &r->gl;
     memset(&r->counters, 0, sizeof(r->counters));
+    r->drawn_count = 0;
     gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
     gl->Viewport(0, 0, (GLsizei)r->width, (GLsizei)r->height);
     gl->DepthMask(GL_TRUE);
@@ -386,10 +392,28 @@ static void enter_query_mode(struct tw_renderer *r)
     r->mode = MODE_QUERY;
 }
 
+static void record(struct tw_renderer *r, struct tw_cell cell, uint32_t prototype,
+                   const uint32_t *clusters, uint32_t count)
+{
+    if (r->drawn_count + count > r->drawn_cap) {
+        size_t cap = r->drawn_cap ? r->drawn_cap : 4096;
+        while (cap < r->drawn_count + count)
+            cap *= 2;
+        struct tw_drawn_cluster *d = realloc(r->drawn, sizeof(*d) * cap);
+        if (!d) {
+            tw_log_printf(&r->log, TW_LOG_ERROR, "out of memory recording draws");
+            return;
+        }
+        r->drawn = d;
+        r->drawn_cap = cap;
+    }
+    for (uint32_t k = 0; k < count; k++)
+        r->drawn[r->drawn_count++] = (struct tw_drawn_cluster){cell, prototype, clusters[k]};
+}
+
 static void backend_draw(void *ctx, struct tw_cell cell, uint32_t prototype,
                          const float offset[3], const uint32_t *clusters, uint32_t count)
 {
-    (void)cell;
     struct tw_renderer *r = ctx;
     if (count == 0)
         return;
@@ -399,6 +423,8 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t prototype,
     const struct tw_prototype *proto = &ts->prototypes[prototype];
     enter_draw_mode(r);
     gl->Uniform3fv(r->u_offset, 1, offset);
+    if (r->recording)
+        record(r, cell, prototype, clusters, count);
     uint32_t last_instance = UINT32_MAX, last_material = UINT32_MAX;
     for (uint32_t k = 0; k < count; k++) {
         const struct tw_cluster *c = &proto->clusters[clusters[k]];
@@ -508,6 +534,17 @@ struct tw_query_backend tw_renderer_backend(struct tw_renderer *r)
 const struct tw_render_counters *tw_renderer_counters(const struct tw_renderer *r)
 {
     return &r->counters;
+}
+
+void tw_renderer_record_draws(struct tw_renderer *r, bool on)
+{
+    r->recording = on;
+}
+
+const struct tw_drawn_cluster *tw_renderer_drawn(const struct tw_renderer *r, size_t *count)
+{
+    *count = r->drawn_count;
+    return r->drawn;
 }
 
 int tw_renderer_read_rgb(struct tw_renderer *r, uint8_t *rgb)

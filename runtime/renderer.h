@@ -39,6 +39,10 @@ struct tw_query_backend tw_renderer_backend(struct tw_renderer *r);
 
 const struct tw_render_counters *tw_renderer_counters(const struct tw_renderer *r);
 
+/* Recording of drawn clusters (reset by tw_renderer_begin_frame). */
+void tw_renderer_record_draws(struct tw_renderer *r, bool on);
+const struct tw_drawn_cluster *tw_renderer_drawn(const struct tw_renderer *r, size_t *count);
+
 /* Reads the colour buffer as RGB8, top row first. */
 int tw_renderer_read_rgb(struct tw_renderer *r, uint8_t *rgb);
 

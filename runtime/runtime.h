@@ -85,6 +85,7 @@ struct tw_world_settings {
     float view_distance;               /* metres; default 600 */
     uint32_t evict_after_frames;       /* tile cache; default 60 */
     struct tw_chc_settings chc;
+    struct tw_tilequery_settings tilequery;
     struct tw_bvh_settings bvh;
     tw_gl_get_proc_fn get_proc;        /* loader of the current context; required */
     struct tw_log log;                 /* copied; zeroed: silent */
@@ -135,6 +136,20 @@ int tw_world_frame(struct tw_world *w, const struct tw_camera *cam,
 /* Copies the last frame's image as RGB8, top row first, into rgb
  * (width * height * 3 bytes, owned by the caller). */
 int tw_world_read_rgb(struct tw_world *w, uint8_t *rgb);
+
+/* One drawn cluster: which tile, which cluster of its prototype. */
+struct tw_drawn_cluster {
+    struct tw_cell cell;
+    uint32_t prototype;
+    uint32_t cluster;
+};
+
+/* Turns on or off the recording of every cluster drawn in a frame (for the
+ * accuracy oracle and tests; off by default: it costs time). */
+void tw_world_record_draws(struct tw_world *w, bool on);
+/* The clusters drawn by the last frame, in draw order, while recording is
+ * on. The array belongs to the world and lives until the next frame. */
+const struct tw_drawn_cluster *tw_world_drawn(const struct tw_world *w, size_t *count);
 
 /* The world's resolved settings. */
 const struct tw_world_settings *tw_world_settings(const struct tw_world *w);

@@ -31,13 +31,29 @@ int tw_method_from_name(const char *name, enum tw_method *out)
 
 bool tw_method_available(enum tw_method m)
 {
-    return m == TW_METHOD_VFC;
+    return m == TW_METHOD_VFC || m == TW_METHOD_CHC || m == TW_METHOD_TILEQUERY ||
+           m == TW_METHOD_TILEQUERY_CHC;
 }
 
 /* Temporal state of one method; methods alternate in a bench run, so each
- * keeps its own. */
+ * keeps its own cache, CHC++ engine and propagation state. */
 struct method_state {
+    bool ready;
     uint64_t frame;
+    struct tw_tile_cache *cache;
+    struct tw_chc *chc;
+    struct tw_tilequery *tq;
+};
+
+/* What the per-tile callbacks need during one frame. */
+struct frame_ctx {
+    struct tw_world *w;
+    struct method_state *ms;
+    const struct tw_view *v;
+    const struct tw_query_backend *be;
+    struct tw_frame_stats *st;
+    uint32_t tiles_drawn;
+    int err;
 };
 
 struct tw_world {
@@ -66,6 +82,7 @@ void tw_world_default_settings(struct tw_world_settings *s)
     if (s->evict_after_frames == 0)
         s->evict_after_frames = 60;
     tw_chc_default_settings(&s->chc);
+    tw_tilequery_default_settings(&s->tilequery);
     tw_bvh_default_settings(&s->bvh);
 }
 
@@ -128,6 +145,11 @@ void tw_world_destroy(struct tw_world *w)
 {
     if (!w)
         return;
+    for (int m = 0; m < TW_METHOD_COUNT; m++) {
+        tw_tile_cache_destroy(w->methods[m].cache);
+        tw_chc_destroy(w->methods[m].chc);
+        tw_tilequery_destroy(w->methods[m].tq);
+    }
     if (w->bvhs)
         for (uint32_t p = 0; p < w->s.tileset->prototype_count; p++)
             tw_bvh_destroy(w->bvhs[p]);
@@ -146,6 +168,18 @@ int tw_world_set_method(struct tw_world *w, enum tw_method m)
         tw_log_printf(&w->s.log, TW_LOG_ERROR, "method '%s' is not implemented yet",
                       tw_method_name(m));
         return TW_ERR_INVALID;
+    }
+    struct method_state *ms = &w->methods[m];
+    if (!ms->ready) {
+        /* vfc keeps no tile instances: it has no per-tile state. */
+        int err = m == TW_METHOD_VFC ? TW_OK : tw_tile_cache_create(w->s.evict_after_frames, &ms->cache);
+        if (!err && (m == TW_METHOD_CHC || m == TW_METHOD_TILEQUERY_CHC))
+            err = tw_chc_create(&w->s.chc, &ms->chc);
+        if (!err && (m == TW_METHOD_TILEQUERY || m == TW_METHOD_TILEQUERY_CHC))
+            err = tw_tilequery_create(&w->s.tilequery, &ms->tq);
+        if (err)
+            return err;
+        ms->ready = true;
     }
     w->method = m;
     w->s.method = m;
@@ -181,26 +215,124 @@ static int gather_cells(struct tw_world *w, const struct tw_view *v, size_t *cou
     }
 }
 
-static int frame_vfc(struct tw_world *w, const struct tw_view *v,
-                     const struct tw_query_backend *be, struct tw_frame_stats *st)
+static int frame_vfc(struct frame_ctx *fc)
 {
+    struct tw_world *w = fc->w;
     const struct tw_tileset *ts = w->s.tileset;
     size_t n = 0;
-    int err = gather_cells(w, v, &n);
+    int err = gather_cells(w, fc->v, &n);
     if (err)
         return err;
     for (size_t k = 0; k < n; k++) {
         const struct tw_cell cell = w->cells[k].cell;
         const uint32_t p = tw_tiles_select(ts, &w->s.selection, cell);
         float offset[3];
-        tw_tiles_cell_offset(cell, v->cell, ts->footprint[0], ts->footprint[1], offset);
-        const uint32_t count = tw_cull_vfc_tile(v, &ts->prototypes[p], offset, w->cluster_scratch);
+        tw_tiles_cell_offset(cell, fc->v->cell, ts->footprint[0], ts->footprint[1], offset);
+        const uint32_t count = tw_cull_vfc_tile(fc->v, &ts->prototypes[p], offset, w->cluster_scratch);
         if (count > 0) {
-            be->draw(be->ctx, cell, p, offset, w->cluster_scratch, count);
-            st->tiles_visible++;
+            fc->be->draw(fc->be->ctx, cell, p, offset, w->cluster_scratch, count);
+            fc->tiles_drawn++;
         }
     }
     return TW_OK;
+}
+
+/* The tile instance of a cell found visible: created on first sight. */
+static void *instance_state(struct frame_ctx *fc, struct tw_cell cell, uint32_t p, size_t bytes,
+                            struct tw_tile_handle *h)
+{
+    bool created = false;
+    if (tw_tile_cache_acquire(fc->ms->cache, cell, p, bytes, fc->v->frame, h, &created)) {
+        fc->err = TW_ERR_NOMEM;
+        return NULL;
+    }
+    void *state = tw_tile_cache_state(fc->ms->cache, *h);
+    if (created) {
+        fc->st->tiles_new++;
+        if (fc->ms->chc)
+            tw_chc_state_init(state, fc->w->bvhs[p], fc->v->frame);
+    }
+    return state;
+}
+
+/* Local method of tilequery: the visible tile drawn whole, frustum-culled. */
+static void render_tile_vfc(void *user, struct tw_cell cell, const float offset[3])
+{
+    struct frame_ctx *fc = user;
+    struct tw_world *w = fc->w;
+    const uint32_t p = tw_tiles_select(w->s.tileset, &w->s.selection, cell);
+    struct tw_tile_handle h;
+    instance_state(fc, cell, p, 0, &h);
+    const uint32_t count = tw_cull_vfc_tile(fc->v, &w->s.tileset->prototypes[p], offset,
+                                            w->cluster_scratch);
+    if (count > 0)
+        fc->be->draw(fc->be->ctx, cell, p, offset, w->cluster_scratch, count);
+}
+
+/* Local method of chc and tilequery+chc: CHC++ over the shared tile BVH. */
+static void render_tile_chc(void *user, struct tw_cell cell, const float offset[3])
+{
+    struct frame_ctx *fc = user;
+    struct tw_world *w = fc->w;
+    const uint32_t p = tw_tiles_select(w->s.tileset, &w->s.selection, cell);
+    const struct tw_bvh *bvh = w->bvhs[p];
+    struct tw_tile_handle h;
+    struct tw_chc_node_state *state = instance_state(fc, cell, p, tw_chc_state_bytes(bvh), &h);
+    if (!state)
+        return;
+    struct tw_chc_tile tile = {
+        .cell = cell,
+        .prototype = p,
+        .proto = &w->s.tileset->prototypes[p],
+        .bvh = bvh,
+        .state = state,
+        .tag = tw_tile_handle_pack(h),
+    };
+    memcpy(tile.offset, offset, sizeof(tile.offset));
+    tw_chc_traverse(fc->ms->chc, fc->v, fc->be, &tile);
+}
+
+static struct tw_chc_node_state *resolve_tag(void *user, uint64_t tag, const struct tw_bvh **bvh)
+{
+    struct frame_ctx *fc = user;
+    const struct tw_tile_handle h = tw_tile_handle_unpack(tag);
+    const struct tw_tile_info *info = tw_tile_cache_info(fc->ms->cache, h);
+    if (!info)
+        return NULL;
+    *bvh = fc->w->bvhs[info->prototype];
+    return tw_tile_cache_state(fc->ms->cache, h);
+}
+
+/* Per-tile CHC++ over every tile in the frustum, front to back. */
+static int frame_chc(struct frame_ctx *fc)
+{
+    struct tw_world *w = fc->w;
+    const struct tw_tileset *ts = w->s.tileset;
+    size_t n = 0;
+    int err = gather_cells(w, fc->v, &n);
+    if (err)
+        return err;
+    for (size_t k = 0; k < n && !fc->err; k++) {
+        const struct tw_cell cell = w->cells[k].cell;
+        float offset[3];
+        tw_tiles_cell_offset(cell, fc->v->cell, ts->footprint[0], ts->footprint[1], offset);
+        const uint32_t before = tw_chc_stats(fc->ms->chc)->clusters_drawn;
+        render_tile_chc(fc, cell, offset);
+        fc->tiles_drawn += tw_chc_stats(fc->ms->chc)->clusters_drawn > before;
+    }
+    return fc->err;
+}
+
+static int frame_tilequery(struct frame_ctx *fc, tw_tilequery_render_fn render)
+{
+    const struct tw_tileset *ts = fc->w->s.tileset;
+    struct tw_tilequery_stats tq;
+    int err = tw_tilequery_frame(fc->ms->tq, fc->v, fc->be, &ts->common_box, ts->footprint[0],
+                                 ts->footprint[1], render, fc, &tq);
+    fc->st->tiles_queried = tq.tiles_queried;
+    fc->st->predict_fail = tq.predict_fail;
+    fc->tiles_drawn = tq.tiles_visible;
+    return err ? err : fc->err;
 }
 
 static bool camera_valid(const struct tw_camera *cam)
@@ -247,13 +379,31 @@ int tw_world_frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fr
 
     tw_renderer_begin_frame(w->renderer, &v);
     const struct tw_query_backend be = tw_renderer_backend(w->renderer);
+    struct frame_ctx fc = {w, ms, &v, &be, &st, 0, TW_OK};
+    if (ms->chc)
+        tw_chc_begin_frame(ms->chc, &v, &be, resolve_tag, &fc);
     switch (w->method) {
     case TW_METHOD_VFC:
-        err = frame_vfc(w, &v, &be, &st);
+        err = frame_vfc(&fc);
+        break;
+    case TW_METHOD_CHC:
+        err = frame_chc(&fc);
+        break;
+    case TW_METHOD_TILEQUERY:
+        err = frame_tilequery(&fc, render_tile_vfc);
+        break;
+    case TW_METHOD_TILEQUERY_CHC:
+        err = frame_tilequery(&fc, render_tile_chc);
         break;
     default:
         err = TW_ERR_INVALID;
         break;
+    }
+    st.tiles_visible = fc.tiles_drawn;
+    if (ms->cache) {
+        tw_tile_cache_evict(ms->cache, st.frame);
+        st.tiles_cached = tw_tile_cache_count(ms->cache);
+        st.cache_bytes = tw_tile_cache_bytes(ms->cache);
     }
     const double t1 = tw_renderer_now_ms();
     tw_renderer_end_frame(w->renderer);
@@ -281,4 +431,14 @@ int tw_world_read_rgb(struct tw_world *w, uint8_t *rgb)
     if (!w || !rgb)
         return TW_ERR_INVALID;
     return tw_renderer_read_rgb(w->renderer, rgb);
+}
+
+void tw_world_record_draws(struct tw_world *w, bool on)
+{
+    tw_renderer_record_draws(w->renderer, on);
+}
+
+const struct tw_drawn_cluster *tw_world_drawn(const struct tw_world *w, size_t *count)
+{
+    return tw_renderer_drawn(w->renderer, count);
 }

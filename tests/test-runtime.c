@@ -62,6 +62,92 @@ static bool is_sky(const uint8_t *p)
     return abs(p[0] - 179) <= 1 && abs(p[1] - 204) <= 1 && abs(p[2] - 235) <= 1;
 }
 
+
+static int compare_drawn(const void *a, const void *b)
+{
+    const struct tw_drawn_cluster *x = a, *y = b;
+    if (x->cell.i != y->cell.i) return x->cell.i < y->cell.i ? -1 : 1;
+    if (x->cell.j != y->cell.j) return x->cell.j < y->cell.j ? -1 : 1;
+    return (x->cluster > y->cluster) - (x->cluster < y->cluster);
+}
+
+static struct tw_drawn_cluster *copy_drawn(struct tw_world *w, size_t *n)
+{
+    const struct tw_drawn_cluster *d = tw_world_drawn(w, n);
+    struct tw_drawn_cluster *c = malloc(sizeof(*c) * (*n ? *n : 1));
+    memcpy(c, d, sizeof(*c) * *n);
+    qsort(c, *n, sizeof(*c), compare_drawn);
+    return c;
+}
+
+/* sub is a subset of all (both sorted), and sub has no duplicates. */
+static bool is_subset(const struct tw_drawn_cluster *sub, size_t ns,
+                      const struct tw_drawn_cluster *all, size_t na)
+{
+    size_t k = 0;
+    for (size_t q = 0; q < ns; q++) {
+        if (q > 0 && compare_drawn(&sub[q - 1], &sub[q]) == 0)
+            return false;
+        while (k < na && compare_drawn(&all[k], &sub[q]) < 0)
+            k++;
+        if (k == na || compare_drawn(&all[k], &sub[q]) != 0)
+            return false;
+    }
+    return true;
+}
+
+/* On fixed city views, every occlusion-culling method gives the image of
+ * vfc, pixel for pixel, while drawing a subset of vfc's clusters; chc and
+ * tilequery+chc draw strictly fewer once warm. */
+static void test_methods_match_vfc(struct tw_context *ctx, const struct tw_tileset *ts)
+{
+    struct tw_world *w = make_world(ctx, ts, 0);
+    CHECK(w != NULL);
+    if (!w)
+        return;
+    tw_world_record_draws(w, true);
+    const struct tw_camera views[] = {
+        {{{0, 0}, {0.0f, 1.7f, 2.0f}}, 10.0f, 3.0f},
+        {{{3, -2}, {0.5f, 1.7f, 40.0f}}, 180.0f, 0.0f},
+        {{{-5, 7}, {30.0f, 1.7f, 0.2f}}, 95.0f, 5.0f},
+        {{{1, 1}, {10.0f, 45.0f, 10.0f}}, 40.0f, -12.0f},
+        {{{2, 2}, {0.1f, 1.7f, 0.1f}}, 225.0f, 1.0f},
+    };
+    const enum tw_method methods[] = {TW_METHOD_CHC, TW_METHOD_TILEQUERY, TW_METHOD_TILEQUERY_CHC};
+    uint8_t *ref = malloc(W * H * 3), *img = malloc(W * H * 3);
+    for (size_t v = 0; v < sizeof(views) / sizeof(views[0]); v++) {
+        CHECK(tw_world_set_method(w, TW_METHOD_VFC) == TW_OK);
+        struct tw_frame_stats vst;
+        CHECK(render(w, &views[v], ref, &vst) == TW_OK);
+        size_t nv;
+        struct tw_drawn_cluster *dv = copy_drawn(w, &nv);
+        CHECK(nv == vst.clusters);
+        for (size_t m = 0; m < sizeof(methods) / sizeof(methods[0]); m++) {
+            CHECK(tw_world_set_method(w, methods[m]) == TW_OK);
+            for (int f = 0; f < 4; f++) {
+                struct tw_frame_stats st;
+                CHECK(render(w, &views[v], img, &st) == TW_OK);
+                size_t n;
+                struct tw_drawn_cluster *d = copy_drawn(w, &n);
+                const bool same = memcmp(ref, img, W * H * 3) == 0;
+                CHECK(same);
+                CHECK(is_subset(d, n, dv, nv));
+                if (f >= 2 && methods[m] != TW_METHOD_TILEQUERY && views[v].pos.local[1] < 10.0f)
+                    CHECK(n < nv);
+                if (!same || f == 3)
+                    printf("view %zu %-13s frame %d: %zu of vfc's %zu clusters, %u queries%s\n", v,
+                           tw_method_name(methods[m]), f, n, nv, st.queries,
+                           same ? "" : "  IMAGE DIFFERS");
+                free(d);
+            }
+        }
+        free(dv);
+    }
+    free(ref);
+    free(img);
+    tw_world_destroy(w);
+}
+
 int main(void)
 {
     struct tw_context *ctx = NULL;
@@ -144,6 +230,7 @@ int main(void)
         }
         tw_world_destroy(w);
     }
+    test_methods_match_vfc(ctx, ts);
     free(a);
     free(b);
     tw_tileset_destroy(ts);
