@@ -60,7 +60,9 @@ enum tw_cull_test tw_cull_frustum_box(const struct tw_frustum *f,
 struct tw_view {
     struct tw_cell cell;        /* the camera's cell: origin of view-relative space */
     float eye[3];               /* camera position, view-relative (= its local offset) */
-    float view_proj[16];        /* column-major, view-relative world -> clip */
+    float view_proj[16];        /* column-major, view-relative world -> clip (GL, z in [-w, w]) */
+    float view_proj_rz[16];     /* the same with reversed depth, z in [0, w], near -> w: for a
+                                   float depth buffer with glClipControl(ZERO_TO_ONE) */
     struct tw_frustum frustum;
     float near_plane;           /* metres */
     float near_radius;          /* eye to the near plane's corners, metres */

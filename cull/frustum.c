@@ -94,9 +94,19 @@ void tw_cull_view_setup(struct tw_view *v, struct tw_cell cell, const float eye[
         0, 0, (fa + n) / (n - fa), -1,
         0, 0, 2 * fa * n / (n - fa), 0,
     };
+    /* Reversed depth: near -> 1, far -> 0. With a float depth buffer the
+     * precision is then nearly uniform in relative terms, so surfaces a few
+     * centimetres apart far away still resolve, whatever the draw order. */
+    const float proj_rz[16] = {
+        t / aspect, 0, 0, 0,
+        0, t, 0, 0,
+        0, 0, n / (fa - n), -1,
+        0, 0, fa * n / (fa - n), 0,
+    };
     v->cell = cell;
     memcpy(v->eye, eye, sizeof(v->eye));
     mat4_mul(proj, view, v->view_proj);
+    mat4_mul(proj_rz, view, v->view_proj_rz);
     tw_cull_frustum_from_matrix(v->view_proj, &v->frustum);
     v->near_plane = near_plane;
     /* The near plane's corners lie up to n * sqrt(1 + tx^2 + ty^2) from the

@@ -76,7 +76,8 @@
     X(PFNGLDRAWBUFFERSPROC, DrawBuffers) \
     X(PFNGLREADBUFFERPROC, ReadBuffer) \
     X(PFNGLCLEARBUFFERUIVPROC, ClearBufferuiv) \
-    X(PFNGLCLEARBUFFERFVPROC, ClearBufferfv)
+    X(PFNGLCLEARBUFFERFVPROC, ClearBufferfv) \
+    X(PFNGLCLIPCONTROLPROC, ClipControl)
 
 struct tw_gl {
 #define TW_GL_MEMBER(type, name) type name;

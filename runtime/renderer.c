@@ -26,6 +26,10 @@ struct tw_renderer {
 
     GLuint fbo, color_rb, depth_rb;
 
+    GLuint id_program;
+    GLint ui_view_proj, ui_model, ui_offset, ui_id;
+    GLuint id_fbo, id_rb, id_depth_rb;
+
     /* Query objects: handle h (> 0) names queries[h - 1]; released handles
      * go on a free list and are reused. */
     GLuint *queries;
@@ -56,6 +60,7 @@ static const char *const scene_vs =
     "uniform vec3 u_offset;\n"
     "out vec3 v_normal;\n"
     "out vec3 v_pos;\n"
+    "invariant gl_Position;\n"
     "void main() {\n"
     "    vec4 p = vec4(a_pos, 1.0);\n"
     "    vec3 w = vec3(dot(u_model[0], p), dot(u_model[1], p), dot(u_model[2], p)) + u_offset;\n"
@@ -81,6 +86,14 @@ static const char *const scene_fs =
     "    float f = clamp((distance(v_pos, u_eye) - u_fog.x) / u_fog.y, 0.0, 0.85);\n"
     "    o_color = vec4(mix(c, vec3(0.70, 0.80, 0.92), f), 1.0);\n"
     "}\n";
+
+/* The ID pass shares scene_vs, whose position is invariant: a cluster covers
+ * the same pixels at the same depth in both passes. */
+static const char *const id_fs =
+    "#version 330 core\n"
+    "uniform uint u_id;\n"
+    "out uint o_id;\n"
+    "void main() { o_id = u_id; }\n";
 
 static const char *const box_vs =
     "#version 330 core\n"
@@ -235,7 +248,7 @@ static int create_framebuffer(struct tw_renderer *r)
                                 r->color_rb);
     gl->GenRenderbuffers(1, &r->depth_rb);
     gl->BindRenderbuffer(GL_RENDERBUFFER, r->depth_rb);
-    gl->RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, (GLsizei)r->width,
+    gl->RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, (GLsizei)r->width,
                             (GLsizei)r->height);
     gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER,
                                 r->depth_rb);
@@ -243,6 +256,24 @@ static int create_framebuffer(struct tw_renderer *r)
         tw_log_printf(&r->log, TW_LOG_ERROR, "the offscreen framebuffer is incomplete");
         return TW_ERR_GL;
     }
+    /* The oracle's object-ID buffer: one uint per pixel, its own depth. */
+    gl->GenFramebuffers(1, &r->id_fbo);
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->id_fbo);
+    gl->GenRenderbuffers(1, &r->id_rb);
+    gl->BindRenderbuffer(GL_RENDERBUFFER, r->id_rb);
+    gl->RenderbufferStorage(GL_RENDERBUFFER, GL_R32UI, (GLsizei)r->width, (GLsizei)r->height);
+    gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, r->id_rb);
+    gl->GenRenderbuffers(1, &r->id_depth_rb);
+    gl->BindRenderbuffer(GL_RENDERBUFFER, r->id_depth_rb);
+    gl->RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, (GLsizei)r->width,
+                            (GLsizei)r->height);
+    gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER,
+                                r->id_depth_rb);
+    if (gl->CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+        tw_log_printf(&r->log, TW_LOG_ERROR, "the object-ID framebuffer is incomplete");
+        return TW_ERR_GL;
+    }
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
     return TW_OK;
 }
 
@@ -270,9 +301,12 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
         err = TW_ERR_GL;
         goto fail;
     }
+    /* Reversed depth needs [0, 1] clip depth: core since 4.5. */
+    gl->ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
     r->program = link_program(r, scene_vs, scene_fs);
     r->box_program = link_program(r, box_vs, box_fs);
-    if (!r->program || !r->box_program) {
+    r->id_program = link_program(r, scene_vs, id_fs);
+    if (!r->program || !r->box_program || !r->id_program) {
         err = TW_ERR_GL;
         goto fail;
     }
@@ -282,6 +316,10 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
     r->u_color = gl->GetUniformLocation(r->program, "u_color");
     r->u_eye = gl->GetUniformLocation(r->program, "u_eye");
     r->u_fog = gl->GetUniformLocation(r->program, "u_fog");
+    r->ui_view_proj = gl->GetUniformLocation(r->id_program, "u_view_proj");
+    r->ui_model = gl->GetUniformLocation(r->id_program, "u_model");
+    r->ui_offset = gl->GetUniformLocation(r->id_program, "u_offset");
+    r->ui_id = gl->GetUniformLocation(r->id_program, "u_id");
     r->ub_view_proj = gl->GetUniformLocation(r->box_program, "u_view_proj");
     r->ub_min = gl->GetUniformLocation(r->box_program, "u_min");
     r->ub_max = gl->GetUniformLocation(r->box_program, "u_max");
@@ -322,6 +360,11 @@ void tw_renderer_destroy(struct tw_renderer *r)
         gl->DeleteRenderbuffers(1, &r->color_rb);
         gl->DeleteRenderbuffers(1, &r->depth_rb);
         gl->DeleteFramebuffers(1, &r->fbo);
+        gl->DeleteRenderbuffers(1, &r->id_rb);
+        gl->DeleteRenderbuffers(1, &r->id_depth_rb);
+        gl->DeleteFramebuffers(1, &r->id_fbo);
+        if (r->id_program)
+            gl->DeleteProgram(r->id_program);
         if (r->program)
             gl->DeleteProgram(r->program);
         if (r->box_program)
@@ -345,14 +388,14 @@ void tw_renderer_begin_frame(struct tw_renderer *r, const struct tw_view *v)
     gl->DepthMask(GL_TRUE);
     gl->ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
     gl->ClearColor(0.70f, 0.80f, 0.92f, 1.0f);
-    gl->ClearDepth(1.0);
+    gl->ClearDepth(0.0);
     gl->Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     gl->Enable(GL_DEPTH_TEST);
-    gl->DepthFunc(GL_LEQUAL);
+    gl->DepthFunc(GL_GEQUAL);
     gl->UseProgram(r->box_program);
-    gl->UniformMatrix4fv(r->ub_view_proj, 1, GL_FALSE, v->view_proj);
+    gl->UniformMatrix4fv(r->ub_view_proj, 1, GL_FALSE, v->view_proj_rz);
     gl->UseProgram(r->program);
-    gl->UniformMatrix4fv(r->u_view_proj, 1, GL_FALSE, v->view_proj);
+    gl->UniformMatrix4fv(r->u_view_proj, 1, GL_FALSE, v->view_proj_rz);
     gl->Uniform3fv(r->u_eye, 1, v->eye);
     const float fog[2] = {0.45f * v->view_distance, 0.9f * v->view_distance};
     gl->Uniform2fv(r->u_fog, 1, fog);
@@ -569,4 +612,61 @@ int tw_renderer_read_rgb(struct tw_renderer *r, uint8_t *rgb)
     }
     free(rgba);
     return TW_OK;
+}
+
+/* ---- the oracle's object-ID pass -------------------------------------------------- */
+
+void tw_renderer_id_begin(struct tw_renderer *r, const struct tw_view *v)
+{
+    const struct tw_gl *gl = &r->gl;
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->id_fbo);
+    gl->Viewport(0, 0, (GLsizei)r->width, (GLsizei)r->height);
+    gl->ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    gl->DepthMask(GL_TRUE);
+    const GLuint none[4] = {TW_RENDERER_NO_ID, 0, 0, 0};
+    gl->ClearBufferuiv(GL_COLOR, 0, none);
+    const GLfloat far_depth = 0.0f;     /* reversed depth: far is 0 */
+    gl->ClearBufferfv(GL_DEPTH, 0, &far_depth);
+    gl->Enable(GL_DEPTH_TEST);
+    gl->DepthFunc(GL_GEQUAL);
+    gl->Enable(GL_CULL_FACE);
+    gl->CullFace(GL_BACK);
+    gl->UseProgram(r->id_program);
+    gl->UniformMatrix4fv(r->ui_view_proj, 1, GL_FALSE, v->view_proj_rz);
+    gl->BindVertexArray(r->vao);
+    r->mode = MODE_NONE;
+}
+
+void tw_renderer_id_draw(struct tw_renderer *r, uint32_t prototype, const float offset[3],
+                         const uint32_t *clusters, uint32_t count, uint32_t first_id)
+{
+    const struct tw_gl *gl = &r->gl;
+    const struct tw_tileset *ts = r->ts;
+    const struct tw_prototype *proto = &ts->prototypes[prototype];
+    gl->Uniform3fv(r->ui_offset, 1, offset);
+    uint32_t last_instance = UINT32_MAX;
+    for (uint32_t k = 0; k < count; k++) {
+        const struct tw_cluster *c = &proto->clusters[clusters[k]];
+        if (c->instance != last_instance) {
+            gl->Uniform4fv(r->ui_model, 3, proto->instances[c->instance].transform);
+            last_instance = c->instance;
+        }
+        gl->Uniform1ui(r->ui_id, first_id + k);
+        const struct tw_mesh_part *part = &ts->parts[c->part];
+        const size_t first = (size_t)r->mesh_first_index[part->mesh] + 3u * part->first_triangle;
+        gl->DrawElementsBaseVertex(GL_TRIANGLES, (GLsizei)(3u * part->triangle_count),
+                                   GL_UNSIGNED_INT, (const void *)(first * sizeof(uint32_t)),
+                                   (GLint)r->mesh_base_vertex[part->mesh]);
+    }
+}
+
+void tw_renderer_id_read(struct tw_renderer *r, uint32_t *ids)
+{
+    const struct tw_gl *gl = &r->gl;
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->id_fbo);
+    gl->ReadBuffer(GL_COLOR_ATTACHMENT0);
+    gl->PixelStorei(GL_PACK_ALIGNMENT, 4);
+    gl->ReadPixels(0, 0, (GLsizei)r->width, (GLsizei)r->height, GL_RED_INTEGER, GL_UNSIGNED_INT,
+                   ids);
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
 }

@@ -43,6 +43,16 @@ const struct tw_render_counters *tw_renderer_counters(const struct tw_renderer *
 void tw_renderer_record_draws(struct tw_renderer *r, bool on);
 const struct tw_drawn_cluster *tw_renderer_drawn(const struct tw_renderer *r, size_t *count);
 
+/* The oracle's object-ID pass (DESIGN §8), into its own R32UI buffer:
+ * begin clears it to TW_RENDERER_NO_ID; draw renders clusters with ids
+ * first_id, first_id + 1, ...; read copies width * height ids (bottom row
+ * first). Not counted in the frame's counters. */
+#define TW_RENDERER_NO_ID UINT32_MAX
+void tw_renderer_id_begin(struct tw_renderer *r, const struct tw_view *v);
+void tw_renderer_id_draw(struct tw_renderer *r, uint32_t prototype, const float offset[3],
+                         const uint32_t *clusters, uint32_t count, uint32_t first_id);
+void tw_renderer_id_read(struct tw_renderer *r, uint32_t *ids);
+
 /* Reads the colour buffer as RGB8, top row first. */
 int tw_renderer_read_rgb(struct tw_renderer *r, uint8_t *rgb);
 

@@ -62,6 +62,9 @@ const char *tw_method_name(enum tw_method m);
 int tw_method_from_name(const char *name, enum tw_method *out);
 /* True if the method is implemented in this build. */
 bool tw_method_available(enum tw_method m);
+/* True for methods that must never miss a visible pixel (all but an
+ * aggressive threshold T > 0). */
+bool tw_method_conservative(enum tw_method m);
 
 /* ---- the world ------------------------------------------------------------------ */
 
@@ -84,6 +87,7 @@ struct tw_world_settings {
     float near_plane;                  /* metres; default 0.2 */
     float view_distance;               /* metres; default 600 */
     uint32_t evict_after_frames;       /* tile cache; default 60 */
+    bool verify;                       /* run the oracle's ID pass every frame (untimed) */
     struct tw_chc_settings chc;
     struct tw_tilequery_settings tilequery;
     struct tw_bvh_settings bvh;

@@ -187,7 +187,7 @@ static void parse_options(int argc, char **argv, struct options *o)
     o->seed = 1;
     o->width = 640;
     o->height = 360;
-    o->method = TW_METHOD_VFC;
+    o->method = TW_METHOD_TILEQUERY_CHC;
     o->png_every = 50;
     o->view_distance = 600.0f;
     o->command = argv[1];
@@ -196,7 +196,8 @@ static void parse_options(int argc, char **argv, struct options *o)
         const char *v = k + 1 < argc ? argv[k + 1] : NULL;
         bool takes = true;
         if (strcmp(a, "--verify") == 0) {
-            fail_usage(a, "%s needs the accuracy oracle, which is not implemented yet", a);
+            o->verify = true;
+            takes = false;
         } else if (strcmp(a, "--quiet") == 0) {
             o->quiet = true;
             takes = false;
@@ -352,6 +353,7 @@ static int run(const struct options *o, bool bench)
     ws.width = opt.width;
     ws.height = opt.height;
     ws.view_distance = opt.view_distance;
+    ws.verify = opt.verify;
     ws.get_proc = tw_context_get_proc(ctx);
     ws.log = log;
     err = tw_world_create(&ws, &world);
@@ -473,7 +475,8 @@ static int info(const struct options *o)
 int main(int argc, char **argv)
 {
     if (argc < 2) {
-        usage(stderr);
+        fprintf(stderr, "tileworld: no command given (walk, bench, info, view, import; "
+                        "tileworld --help for the options)\n");
         return EXIT_USAGE;
     }
     if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0 ||

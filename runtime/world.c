@@ -31,8 +31,12 @@ int tw_method_from_name(const char *name, enum tw_method *out)
 
 bool tw_method_available(enum tw_method m)
 {
-    return m == TW_METHOD_VFC || m == TW_METHOD_CHC || m == TW_METHOD_TILEQUERY ||
-           m == TW_METHOD_TILEQUERY_CHC;
+    return (unsigned)m < TW_METHOD_COUNT;
+}
+
+bool tw_method_conservative(enum tw_method m)
+{
+    return (unsigned)m < TW_METHOD_COUNT;
 }
 
 /* Temporal state of one method; methods alternate in a bench run, so each
@@ -56,8 +60,22 @@ struct frame_ctx {
     int err;
 };
 
+/* The accuracy oracle (DESIGN §8): every cluster vfc would draw, rendered
+ * into an object-ID buffer; id k names entries[k]. */
+struct oracle {
+    struct tw_drawn_cluster *entries;
+    size_t count, cap;
+    uint32_t *pixels;              /* visible pixels per id */
+    uint8_t *drawn;                /* per id: drawn by the method */
+    size_t per_id_cap;
+    uint32_t *ids;                 /* the ID buffer, width * height */
+    struct tw_cell_map *tiles;     /* cell -> first id << 32 | cluster count */
+};
+
 struct tw_world {
     struct tw_world_settings s;
+    struct oracle oracle;
+    bool record_draws;
     struct tw_renderer *renderer;
     struct tw_bvh **bvhs;
     struct tw_cull_cell *cells;
@@ -131,6 +149,10 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
     tw_bvh_builder_destroy(builder);
     if (err)
         goto fail;
+    w->oracle.ids = malloc(sizeof(uint32_t) * w->s.width * w->s.height);
+    err = w->oracle.ids ? tw_cell_map_create(&w->oracle.tiles) : TW_ERR_NOMEM;
+    if (err)
+        goto fail;
     err = tw_world_set_method(w, w->s.method);
     if (err)
         goto fail;
@@ -154,6 +176,11 @@ void tw_world_destroy(struct tw_world *w)
         for (uint32_t p = 0; p < w->s.tileset->prototype_count; p++)
             tw_bvh_destroy(w->bvhs[p]);
     free(w->bvhs);
+    free(w->oracle.entries);
+    free(w->oracle.pixels);
+    free(w->oracle.drawn);
+    free(w->oracle.ids);
+    tw_cell_map_destroy(w->oracle.tiles);
     free(w->cells);
     free(w->cluster_scratch);
     tw_renderer_destroy(w->renderer);
@@ -335,6 +362,126 @@ static int frame_tilequery(struct frame_ctx *fc, tw_tilequery_render_fn render)
     return err ? err : fc->err;
 }
 
+/* The ID pass: renders every cluster vfc would draw with its id, then
+ * counts each id's visible pixels. Untimed. */
+static int oracle_pass(struct tw_world *w, const struct tw_view *v)
+{
+    struct oracle *o = &w->oracle;
+    const struct tw_tileset *ts = w->s.tileset;
+    size_t n = 0;
+    int err = gather_cells(w, v, &n);
+    if (err)
+        return err;
+    o->count = 0;
+    tw_cell_map_clear(o->tiles);
+    tw_renderer_id_begin(w->renderer, v);
+    for (size_t k = 0; k < n; k++) {
+        const struct tw_cell cell = w->cells[k].cell;
+        const uint32_t p = tw_tiles_select(ts, &w->s.selection, cell);
+        float offset[3];
+        tw_tiles_cell_offset(cell, v->cell, ts->footprint[0], ts->footprint[1], offset);
+        const uint32_t count = tw_cull_vfc_tile(v, &ts->prototypes[p], offset, w->cluster_scratch);
+        if (count == 0)
+            continue;
+        if (o->count + count > o->cap) {
+            size_t cap = o->cap ? o->cap : 4096;
+            while (cap < o->count + count)
+                cap *= 2;
+            struct tw_drawn_cluster *e = realloc(o->entries, sizeof(*e) * cap);
+            if (!e)
+                return TW_ERR_NOMEM;
+            o->entries = e;
+            o->cap = cap;
+        }
+        if (tw_cell_map_set(o->tiles, cell, ((uint64_t)o->count << 32) | count))
+            return TW_ERR_NOMEM;
+        tw_renderer_id_draw(w->renderer, p, offset, w->cluster_scratch, count, (uint32_t)o->count);
+        for (uint32_t c = 0; c < count; c++)
+            o->entries[o->count++] = (struct tw_drawn_cluster){cell, p, w->cluster_scratch[c]};
+    }
+    if (o->count > o->per_id_cap) {
+        free(o->pixels);
+        free(o->drawn);
+        o->pixels = malloc(sizeof(*o->pixels) * o->count);
+        o->drawn = malloc(o->count);
+        o->per_id_cap = o->pixels && o->drawn ? o->count : 0;
+        if (!o->per_id_cap)
+            return TW_ERR_NOMEM;
+    }
+    memset(o->pixels, 0, sizeof(*o->pixels) * o->count);
+    tw_renderer_id_read(w->renderer, o->ids);
+    const size_t npix = (size_t)w->s.width * w->s.height;
+    for (size_t k = 0; k < npix; k++)
+        if (o->ids[k] < o->count)
+            o->pixels[o->ids[k]]++;
+    return TW_OK;
+}
+
+/* Compares what the method drew with the oracle's ID buffer. */
+static void oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
+{
+    struct oracle *o = &w->oracle;
+    const struct tw_tileset *ts = w->s.tileset;
+    memset(o->drawn, 0, o->count);
+    size_t n = 0;
+    const struct tw_drawn_cluster *d = tw_world_drawn(w, &n);
+    for (size_t k = 0; k < n; k++) {
+        const uint64_t *range = tw_cell_map_find(o->tiles, d[k].cell);
+        const struct tw_cluster *cl = &ts->prototypes[d[k].prototype].clusters[d[k].cluster];
+        if (!range) {
+            /* Drawn where vfc would draw nothing: wasted. */
+            st->overdraw_triangles += cl->triangle_count;
+            continue;
+        }
+        /* Ids of a tile are its clusters in ascending order: binary search. */
+        uint32_t lo = (uint32_t)(*range >> 32), hi = lo + (uint32_t)*range;
+        while (lo < hi) {
+            const uint32_t mid = lo + (hi - lo) / 2;
+            if (o->entries[mid].cluster < d[k].cluster)
+                lo = mid + 1;
+            else
+                hi = mid;
+        }
+        if (lo < (uint32_t)(*range >> 32) + (uint32_t)*range && o->entries[lo].cluster == d[k].cluster) {
+            if (!o->drawn[lo] && o->pixels[lo] == 0)
+                st->overdraw_triangles += cl->triangle_count;
+            o->drawn[lo] = 1;
+        } else {
+            st->overdraw_triangles += cl->triangle_count;
+        }
+    }
+    for (size_t id = 0; id < o->count; id++) {
+        if (o->drawn[id] || o->pixels[id] == 0)
+            continue;
+        st->missed_pixels += o->pixels[id];
+        st->missed_clusters++;
+    }
+}
+
+/* The oracle method's timed part: exactly the clusters the ID pass saw. */
+static int frame_oracle(struct frame_ctx *fc)
+{
+    struct tw_world *w = fc->w;
+    const struct oracle *o = &w->oracle;
+    const struct tw_tileset *ts = w->s.tileset;
+    size_t k = 0;
+    while (k < o->count) {
+        const struct tw_cell cell = o->entries[k].cell;
+        const uint32_t p = o->entries[k].prototype;
+        uint32_t n = 0;
+        for (; k < o->count && o->entries[k].cell.i == cell.i && o->entries[k].cell.j == cell.j; k++)
+            if (o->pixels[k] > 0)
+                w->cluster_scratch[n++] = o->entries[k].cluster;
+        if (n == 0)
+            continue;
+        float offset[3];
+        tw_tiles_cell_offset(cell, fc->v->cell, ts->footprint[0], ts->footprint[1], offset);
+        fc->be->draw(fc->be->ctx, cell, p, offset, w->cluster_scratch, n);
+        fc->tiles_drawn++;
+    }
+    return TW_OK;
+}
+
 static bool camera_valid(const struct tw_camera *cam)
 {
     return isfinite(cam->pos.local[0]) && isfinite(cam->pos.local[1]) &&
@@ -363,7 +510,6 @@ int tw_world_frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fr
     st.frame = ++ms->frame;
     st.method = w->method;
 
-    const double t0 = tw_renderer_now_ms();
     struct tw_view v;
     const struct tw_box *cb = &ts->common_box;
     const float diag = sqrtf((cb->max[0] - cb->min[0]) * (cb->max[0] - cb->min[0]) +
@@ -377,6 +523,15 @@ int tw_world_frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fr
     v.view_distance = w->s.view_distance;
     v.frame = st.frame;
 
+    const bool verify = w->s.verify;
+    tw_renderer_record_draws(w->renderer, verify || w->record_draws);
+    if (w->method == TW_METHOD_ORACLE) {
+        /* The ID pass is the oracle's knowledge, not its work: untimed. */
+        err = oracle_pass(w, &v);
+        if (err)
+            return err;
+    }
+    const double t0 = tw_renderer_now_ms();
     tw_renderer_begin_frame(w->renderer, &v);
     const struct tw_query_backend be = tw_renderer_backend(w->renderer);
     struct frame_ctx fc = {w, ms, &v, &be, &st, 0, TW_OK};
@@ -395,6 +550,9 @@ int tw_world_frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fr
     case TW_METHOD_TILEQUERY_CHC:
         err = frame_tilequery(&fc, render_tile_chc);
         break;
+    case TW_METHOD_ORACLE:
+        err = frame_oracle(&fc);
+        break;
     default:
         err = TW_ERR_INVALID;
         break;
@@ -410,6 +568,14 @@ int tw_world_frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fr
     const double t2 = tw_renderer_now_ms();
     if (err)
         return err;
+
+    if (verify) {
+        if (w->method != TW_METHOD_ORACLE)
+            err = oracle_pass(w, &v);
+        if (err)
+            return err;
+        oracle_compare(w, &st);
+    }
 
     const struct tw_render_counters *rc = tw_renderer_counters(w->renderer);
     st.ms_frame = t2 - t0;
@@ -435,7 +601,7 @@ int tw_world_read_rgb(struct tw_world *w, uint8_t *rgb)
 
 void tw_world_record_draws(struct tw_world *w, bool on)
 {
-    tw_renderer_record_draws(w->renderer, on);
+    w->record_draws = on;
 }
 
 const struct tw_drawn_cluster *tw_world_drawn(const struct tw_world *w, size_t *count)

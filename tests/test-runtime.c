@@ -38,6 +38,7 @@ static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tiles
     s.width = W;
     s.height = H;
     s.view_distance = 400.0f;
+    s.verify = true;
     s.get_proc = tw_context_get_proc(ctx);
     s.log = test_log;
     struct tw_world *w = NULL;
@@ -62,6 +63,14 @@ static bool is_sky(const uint8_t *p)
     return abs(p[0] - 179) <= 1 && abs(p[1] - 204) <= 1 && abs(p[2] - 235) <= 1;
 }
 
+
+static uint32_t count_differing(const uint8_t *a, const uint8_t *b)
+{
+    uint32_t n = 0;
+    for (uint32_t k = 0; k < W * H; k++)
+        n += memcmp(a + 3 * k, b + 3 * k, 3) != 0;
+    return n;
+}
 
 static int compare_drawn(const void *a, const void *b)
 {
@@ -97,8 +106,13 @@ static bool is_subset(const struct tw_drawn_cluster *sub, size_t ns,
 }
 
 /* On fixed city views, every occlusion-culling method gives the image of
- * vfc, pixel for pixel, while drawing a subset of vfc's clusters; chc and
- * tilequery+chc draw strictly fewer once warm. */
+ * vfc while drawing a subset of vfc's clusters, and misses no visible
+ * cluster by the oracle; chc and tilequery+chc draw strictly fewer once warm.
+ * "The image of vfc": equal up to depth ties. Where two clusters' surfaces
+ * meet (a ledge entering a wall, two buildings touching) a pixel centre can
+ * land exactly on the contact line, both fragments have the same depth and
+ * the one drawn last wins, so draw order decides that pixel. Such pixels are
+ * rare (a handful per million); more than 1 in 10 000 fails the test. */
 static void test_methods_match_vfc(struct tw_context *ctx, const struct tw_tileset *ts)
 {
     struct tw_world *w = make_world(ctx, ts, 0);
@@ -129,15 +143,18 @@ static void test_methods_match_vfc(struct tw_context *ctx, const struct tw_tiles
                 CHECK(render(w, &views[v], img, &st) == TW_OK);
                 size_t n;
                 struct tw_drawn_cluster *d = copy_drawn(w, &n);
-                const bool same = memcmp(ref, img, W * H * 3) == 0;
+                const uint32_t differing = count_differing(ref, img);
+                const bool same = differing <= W * H / 10000;
                 CHECK(same);
+                CHECK(st.missed_pixels == 0 && st.missed_clusters == 0);
                 CHECK(is_subset(d, n, dv, nv));
                 if (f >= 2 && methods[m] != TW_METHOD_TILEQUERY && views[v].pos.local[1] < 10.0f)
                     CHECK(n < nv);
-                if (!same || f == 3)
-                    printf("view %zu %-13s frame %d: %zu of vfc's %zu clusters, %u queries%s\n", v,
-                           tw_method_name(methods[m]), f, n, nv, st.queries,
-                           same ? "" : "  IMAGE DIFFERS");
+                if (!same || f == 3 || differing)
+                    printf("view %zu %-13s frame %d: %zu of vfc's %zu clusters, %u queries, "
+                           "%u pixels differ (depth ties), overdraw %llu triangles\n", v,
+                           tw_method_name(methods[m]), f, n, nv, st.queries, differing,
+                           (unsigned long long)st.overdraw_triangles);
                 free(d);
             }
         }
@@ -214,7 +231,9 @@ int main(void)
         const int64_t far = (int64_t)1 << 40;
         const float yaws[3] = {10.0f, 135.0f, 250.0f};
         for (int k = 0; k < 3; k++) {
-            struct tw_camera near_cam = {{{0, 0}, {0.3f, 1.7f, 31.25f}}, yaws[k], 2.0f};
+            /* Offsets exactly representable in float, so that the shifted
+             * camera below normalises to the very same local offset. */
+            struct tw_camera near_cam = {{{0, 0}, {0.25f, 1.75f, 31.25f}}, yaws[k], 2.0f};
             struct tw_camera far_cam = near_cam;
             far_cam.pos.cell.i = far;
             far_cam.pos.cell.j = far;

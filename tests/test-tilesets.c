@@ -1,0 +1,381 @@
+/* Tests of the tilesets module: the procedural city and the built-in
+ * registry. Plain C: main returns 0 when every check holds. */
+#include "tilesets/tilesets.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+static int failures;
+
+#define CHECK(cond, ...)                                                        \
+    do {                                                                        \
+        if (!(cond)) {                                                          \
+            fprintf(stderr, "%s:%d: check failed: %s: ", __FILE__, __LINE__, #cond); \
+            fprintf(stderr, __VA_ARGS__);                                       \
+            fputc('\n', stderr);                                                \
+            failures++;                                                         \
+        }                                                                       \
+    } while (0)
+
+/* A logger that keeps the last error message. */
+struct captured_log {
+    char last[1024];
+    int errors;
+};
+
+static void capture(void *user, enum tw_log_level level, const char *msg)
+{
+    struct captured_log *c = user;
+    if (level == TW_LOG_ERROR) {
+        c->errors++;
+        snprintf(c->last, sizeof(c->last), "%s", msg);
+    }
+}
+
+static double now_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void transform_point(const float m[12], const float p[3], float out[3])
+{
+    for (int r = 0; r < 3; r++)
+        out[r] = m[4 * r] * p[0] + m[4 * r + 1] * p[1] + m[4 * r + 2] * p[2] + m[4 * r + 3];
+}
+
+static bool box_contains(const struct tw_box *outer, const struct tw_box *inner)
+{
+    for (int k = 0; k < 3; k++)
+        if (inner->min[k] < outer->min[k] || inner->max[k] > outer->max[k])
+            return false;
+    return true;
+}
+
+/* Bit-for-bit equality of everything a generator writes. */
+static bool tilesets_identical(const struct tw_tileset *a, const struct tw_tileset *b)
+{
+    if (a->prototype_count != b->prototype_count || a->mesh_count != b->mesh_count ||
+        a->material_count != b->material_count || a->part_count != b->part_count ||
+        memcmp(a->footprint, b->footprint, sizeof(a->footprint)) != 0 ||
+        memcmp(&a->common_box, &b->common_box, sizeof(a->common_box)) != 0)
+        return false;
+    for (uint32_t k = 0; k < a->material_count; k++)
+        if (memcmp(&a->materials[k], &b->materials[k], sizeof(a->materials[k])) != 0)
+            return false;
+    for (uint32_t k = 0; k < a->mesh_count; k++) {
+        const struct tw_mesh *x = &a->meshes[k], *y = &b->meshes[k];
+        if (x->vertex_count != y->vertex_count || x->triangle_count != y->triangle_count ||
+            memcmp(x->positions, y->positions, sizeof(float) * 3 * x->vertex_count) != 0 ||
+            memcmp(x->normals, y->normals, sizeof(float) * 3 * x->vertex_count) != 0 ||
+            memcmp(x->indices, y->indices, sizeof(uint32_t) * 3 * x->triangle_count) != 0)
+            return false;
+    }
+    for (uint32_t p = 0; p < a->prototype_count; p++) {
+        const struct tw_prototype *x = &a->prototypes[p], *y = &b->prototypes[p];
+        if (strcmp(x->name, y->name) != 0 || x->weight != y->weight ||
+            x->instance_count != y->instance_count || x->cluster_count != y->cluster_count ||
+            x->triangle_count != y->triangle_count ||
+            memcmp(&x->box, &y->box, sizeof(x->box)) != 0)
+            return false;
+        for (uint32_t k = 0; k < x->instance_count; k++) {
+            const struct tw_instance *i = &x->instances[k], *j = &y->instances[k];
+            if (i->mesh != j->mesh || i->material != j->material ||
+                memcmp(i->transform, j->transform, sizeof(i->transform)) != 0 ||
+                memcmp(&i->box, &j->box, sizeof(i->box)) != 0)
+                return false;
+        }
+    }
+    return true;
+}
+
+/* Nothing above the kerb within street_width / 2 - 1 m of a border: a
+ * triangle whose horizontal extent reaches into that band must lie below
+ * kerb_max. Conservative: the triangle's bounding rectangle is tested. */
+static uint64_t street_band_violations(const struct tw_tileset *ts, float band,
+                                       const char **where)
+{
+    const float w = ts->footprint[0], d = ts->footprint[1], kerb_max = 0.2f;
+    uint64_t bad = 0;
+    for (uint32_t p = 0; p < ts->prototype_count; p++) {
+        const struct tw_prototype *proto = &ts->prototypes[p];
+        for (uint32_t k = 0; k < proto->instance_count; k++) {
+            const struct tw_instance *in = &proto->instances[k];
+            const struct tw_mesh *m = &ts->meshes[in->mesh];
+            for (uint32_t t = 0; t < m->triangle_count; t++) {
+                float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
+                for (int v = 0; v < 3; v++) {
+                    float q[3];
+                    transform_point(in->transform, m->positions + 3 * m->indices[3 * t + v], q);
+                    for (int a = 0; a < 3; a++) {
+                        lo[a] = fminf(lo[a], q[a]);
+                        hi[a] = fmaxf(hi[a], q[a]);
+                    }
+                }
+                const bool in_band = lo[0] < band || hi[0] > w - band || lo[2] < band ||
+                                     hi[2] > d - band;
+                if (in_band && hi[1] > kerb_max) {
+                    if (!bad)
+                        *where = proto->name;
+                    bad++;
+                }
+            }
+        }
+    }
+    return bad;
+}
+
+/* Every triangle is flat shaded (its three normals equal the unit face
+ * normal) and wound counter-clockwise seen from the side its normal points
+ * to: the renderer culls back faces. */
+static uint64_t shading_violations(const struct tw_tileset *ts)
+{
+    uint64_t bad = 0;
+    for (uint32_t k = 0; k < ts->mesh_count; k++) {
+        const struct tw_mesh *m = &ts->meshes[k];
+        for (uint32_t t = 0; t < m->triangle_count; t++) {
+            const uint32_t *i = m->indices + 3 * t;
+            const float *a = m->positions + 3 * i[0], *b = m->positions + 3 * i[1],
+                        *c = m->positions + 3 * i[2];
+            const float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+            const float e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+            float n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                          e1[0] * e2[1] - e1[1] * e2[0]};
+            const float len = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+            if (!(len > 0.0f)) {
+                bad++;
+                continue;
+            }
+            for (int v = 0; v < 3; v++) {
+                const float *vn = m->normals + 3 * i[v];
+                const float dot = (vn[0] * n[0] + vn[1] * n[1] + vn[2] * n[2]) / len;
+                if (dot < 0.999f) {
+                    bad++;
+                    break;
+                }
+            }
+        }
+    }
+    return bad;
+}
+
+static void test_city(void)
+{
+    struct tw_city_settings set = {0};
+    tw_tilesets_city_default_settings(&set);
+    CHECK(set.prototypes == 12 && set.footprint == 80.0f && set.street_width == 14.0f &&
+          set.max_height == 90.0f && set.max_cluster_triangles == 2048,
+          "unexpected defaults");
+
+    struct captured_log captured = {0};
+    const struct tw_log log = {capture, &captured};
+    struct tw_tileset *a = NULL, *b = NULL, *other = NULL;
+
+    const double t0 = now_seconds();
+    int err = tw_tilesets_city(1, NULL, &log, &a);
+    const double t1 = now_seconds();
+    CHECK(err == 0 && a, "city(seed 1) failed: %s", tw_error_to_str(err));
+    if (err || !a)
+        return;
+    printf("city seed 1: generated in %.3f s, %u meshes, %u parts, %.1f MB geometry\n",
+           t1 - t0, a->mesh_count, a->part_count, (double)tw_tileset_geometry_bytes(a) / 1e6);
+
+    err = tw_tilesets_city(1, &set, &log, &b);
+    CHECK(err == 0 && b, "city(seed 1) again failed: %s", tw_error_to_str(err));
+    err = tw_tilesets_city(2, &set, &log, &other);
+    CHECK(err == 0 && other, "city(seed 2) failed: %s", tw_error_to_str(err));
+    CHECK(captured.errors == 0, "unexpected error message: %s", captured.last);
+    if (b)
+        CHECK(tilesets_identical(a, b), "the same seed gave different tilesets");
+    if (other)
+        CHECK(!tilesets_identical(a, other), "seeds 1 and 2 gave identical tilesets");
+
+    CHECK(a->finished, "tileset not finished");
+    CHECK(a->footprint[0] == 80.0f && a->footprint[1] == 80.0f, "footprint %g x %g",
+          (double)a->footprint[0], (double)a->footprint[1]);
+    CHECK(a->prototype_count == 12, "prototype_count = %u", a->prototype_count);
+    CHECK(a->material_count >= 5, "only %u materials", a->material_count);
+    CHECK(a->max_cluster_triangles == 2048, "max_cluster_triangles = %u",
+          a->max_cluster_triangles);
+
+    const float w = a->footprint[0], d = a->footprint[1], eps = 1e-4f;
+    float tallest = 0.0f;
+    uint64_t total = 0;
+    bool *material_used = calloc(a->material_count, sizeof(bool));
+    printf("  %-18s %9s %9s %9s %8s\n", "prototype", "triangles", "instances", "clusters",
+           "height");
+    for (uint32_t p = 0; p < a->prototype_count; p++) {
+        const struct tw_prototype *proto = &a->prototypes[p];
+        printf("  %-18s %9llu %9u %9u %8.1f\n", proto->name,
+               (unsigned long long)proto->triangle_count, proto->instance_count,
+               proto->cluster_count, (double)proto->box.max[1]);
+        total += proto->triangle_count;
+        CHECK(proto->triangle_count >= 10000 && proto->triangle_count <= 100000,
+              "%s: %llu triangles", proto->name, (unsigned long long)proto->triangle_count);
+        CHECK(proto->instance_count >= 8 && proto->instance_count <= 100, "%s: %u instances",
+              proto->name, proto->instance_count);
+        CHECK(proto->weight > 0.0f, "%s: weight %g", proto->name, (double)proto->weight);
+        CHECK(proto->box.min[0] >= -eps && proto->box.max[0] <= w + eps &&
+              proto->box.min[2] >= -eps && proto->box.max[2] <= d + eps,
+              "%s: box x [%g, %g] z [%g, %g] leaves the footprint", proto->name,
+              (double)proto->box.min[0], (double)proto->box.max[0],
+              (double)proto->box.min[2], (double)proto->box.max[2]);
+        CHECK(proto->box.max[1] > 0.0f && proto->box.min[1] >= -eps, "%s: box y [%g, %g]",
+              proto->name, (double)proto->box.min[1], (double)proto->box.max[1]);
+        CHECK(proto->box.max[1] <= set.max_height + 1e-3f, "%s: %g m is above max_height",
+              proto->name, (double)proto->box.max[1]);
+        CHECK(box_contains(&a->common_box, &proto->box), "%s: not inside the common box",
+              proto->name);
+        uint64_t cluster_triangles = 0;
+        for (uint32_t k = 0; k < proto->cluster_count; k++) {
+            CHECK(proto->clusters[k].triangle_count <= a->max_cluster_triangles,
+                  "%s: cluster of %u triangles", proto->name, proto->clusters[k].triangle_count);
+            cluster_triangles += proto->clusters[k].triangle_count;
+        }
+        CHECK(cluster_triangles == proto->triangle_count, "%s: clusters hold %llu triangles",
+              proto->name, (unsigned long long)cluster_triangles);
+        for (uint32_t k = 0; k < proto->instance_count; k++)
+            if (material_used && proto->instances[k].material < a->material_count)
+                material_used[proto->instances[k].material] = true;
+        if (proto->box.max[1] > tallest)
+            tallest = proto->box.max[1];
+    }
+    printf("  average %.0f triangles per prototype, tallest %.1f m\n",
+           (double)total / a->prototype_count, (double)tallest);
+    CHECK(tallest > 40.0f, "no prototype taller than 40 m (tallest %g m)", (double)tallest);
+    for (uint32_t k = 0; material_used && k < a->material_count; k++)
+        CHECK(material_used[k], "material %u is never used", k);
+    free(material_used);
+
+    const char *where = "";
+    const uint64_t band_bad = street_band_violations(a, 0.5f * set.street_width - 1.0f, &where);
+    CHECK(band_bad == 0, "%llu triangles above the kerb in the street band (first in %s)",
+          (unsigned long long)band_bad, where);
+    const uint64_t shading_bad = shading_violations(a);
+    CHECK(shading_bad == 0, "%llu triangles not flat shaded or wound clockwise",
+          (unsigned long long)shading_bad);
+
+    /* The band check itself must be able to fail: a band that reaches the
+     * lot line contains building walls. */
+    CHECK(street_band_violations(a, 0.5f * set.street_width + 0.5f, &where) > 0,
+          "band check does not see buildings at the lot line");
+
+    tw_tileset_destroy(a);
+    tw_tileset_destroy(b);
+    tw_tileset_destroy(other);
+}
+
+static void test_city_settings(void)
+{
+    struct captured_log captured = {0};
+    const struct tw_log log = {capture, &captured};
+    struct tw_tileset *ts = NULL;
+
+    struct tw_city_settings set = {0};
+    set.prototypes = 3;
+    int err = tw_tilesets_city(1, &set, &log, &ts);
+    CHECK(err == TW_ERR_INVALID && !ts, "3 prototypes: %s", tw_error_to_str(err));
+    CHECK(captured.errors > 0 && strstr(captured.last, "prototypes"),
+          "no message about prototypes: \"%s\"", captured.last);
+
+    set = (struct tw_city_settings){0};
+    set.street_width = 70.0f;
+    err = tw_tilesets_city(1, &set, &log, &ts);
+    CHECK(err == TW_ERR_INVALID && !ts, "street_width 70: %s", tw_error_to_str(err));
+
+    err = tw_tilesets_city(1, NULL, &log, NULL);
+    CHECK(err == TW_ERR_INVALID, "NULL out: %s", tw_error_to_str(err));
+
+    /* Other settings are honoured: more prototypes, a wider tile, a lower
+     * skyline, a different cluster size. */
+    set = (struct tw_city_settings){0};
+    set.prototypes = 9;
+    set.footprint = 100.0f;
+    set.street_width = 16.0f;
+    set.max_height = 50.0f;
+    set.max_cluster_triangles = 700;
+    err = tw_tilesets_city(7, &set, NULL, &ts);
+    CHECK(err == 0 && ts, "custom settings: %s", tw_error_to_str(err));
+    if (ts) {
+        CHECK(ts->prototype_count == 9, "prototype_count = %u", ts->prototype_count);
+        CHECK(ts->footprint[0] == 100.0f, "footprint %g", (double)ts->footprint[0]);
+        CHECK(ts->max_cluster_triangles == 700, "max_cluster_triangles = %u",
+              ts->max_cluster_triangles);
+        CHECK(ts->common_box.max[1] <= 50.0f + 1e-3f, "common box top %g m",
+              (double)ts->common_box.max[1]);
+        CHECK(ts->common_box.min[0] >= -1e-4f && ts->common_box.max[0] <= 100.0f + 1e-4f,
+              "common box x [%g, %g]", (double)ts->common_box.min[0],
+              (double)ts->common_box.max[0]);
+        const char *where = "";
+        const uint64_t bad = street_band_violations(ts, 7.0f, &where);
+        CHECK(bad == 0, "custom settings: %llu triangles in the street band (first in %s)",
+              (unsigned long long)bad, where);
+        for (uint32_t p = 0; p < ts->prototype_count; p++)
+            CHECK(ts->prototypes[p].triangle_count >= 10000 &&
+                  ts->prototypes[p].triangle_count <= 100000, "%s: %llu triangles",
+                  ts->prototypes[p].name,
+                  (unsigned long long)ts->prototypes[p].triangle_count);
+        tw_tileset_destroy(ts);
+        ts = NULL;
+    }
+}
+
+static void test_builtin(void)
+{
+    struct captured_log captured = {0};
+    const struct tw_log log = {capture, &captured};
+
+    bool has_city = false;
+    for (const char *const *n = tw_tilesets_builtin_names; *n; n++)
+        has_city |= strcmp(*n, "city") == 0;
+    CHECK(has_city, "\"city\" is not among the built-in names");
+
+    struct tw_tileset *ts = NULL, *direct = NULL;
+    int err = tw_tilesets_builtin("city", 5, 0, &log, &ts);
+    CHECK(err == 0 && ts, "builtin(city): %s", tw_error_to_str(err));
+    err = tw_tilesets_city(5, NULL, NULL, &direct);
+    CHECK(err == 0 && direct, "city(5): %s", tw_error_to_str(err));
+    if (ts && direct) {
+        CHECK(ts->max_cluster_triangles == 2048, "default cluster size %u",
+              ts->max_cluster_triangles);
+        CHECK(tilesets_identical(ts, direct), "builtin(city) differs from city()");
+    }
+    tw_tileset_destroy(ts);
+    tw_tileset_destroy(direct);
+
+    ts = NULL;
+    err = tw_tilesets_builtin("city", 5, 512, &log, &ts);
+    CHECK(err == 0 && ts && ts->max_cluster_triangles == 512, "builtin(city, 512): %s",
+          tw_error_to_str(err));
+    tw_tileset_destroy(ts);
+
+    ts = NULL;
+    captured.errors = 0;
+    err = tw_tilesets_builtin("nope", 5, 0, &log, &ts);
+    CHECK(err == TW_ERR_INVALID, "builtin(nope) returned %d", err);
+    CHECK(ts == NULL, "builtin(nope) produced a tileset");
+    CHECK(captured.errors == 1 && strstr(captured.last, "nope"),
+          "no error naming \"nope\": \"%s\"", captured.last);
+
+    err = tw_tilesets_builtin("nope", 5, 0, NULL, &ts);
+    CHECK(err == TW_ERR_INVALID, "builtin(nope) without a logger returned %d", err);
+    err = tw_tilesets_builtin(NULL, 5, 0, NULL, &ts);
+    CHECK(err == TW_ERR_INVALID, "builtin(NULL) returned %d", err);
+}
+
+int main(void)
+{
+    test_city();
+    test_city_settings();
+    test_builtin();
+    if (failures) {
+        fprintf(stderr, "test-tilesets: %d check(s) failed\n", failures);
+        return 1;
+    }
+    printf("test-tilesets: all checks passed\n");
+    return 0;
+}

@@ -1,0 +1,28 @@
+/* The registry of built-in tilesets (tilesets.h). */
+#include "tilesets/tilesets.h"
+
+#include <string.h>
+
+const char *const tw_tilesets_builtin_names[] = {"city", NULL};
+
+int tw_tilesets_builtin(const char *name, uint64_t seed, uint32_t max_cluster_triangles,
+                        const struct tw_log *log, struct tw_tileset **out)
+{
+    if (!out) {
+        tw_log_printf(log, TW_LOG_ERROR, "tilesets: builtin: out is NULL (caller's bug)");
+        return TW_ERR_INVALID;
+    }
+    *out = NULL;
+    if (!name) {
+        tw_log_printf(log, TW_LOG_ERROR, "tilesets: builtin: no tileset name given");
+        return TW_ERR_INVALID;
+    }
+    if (strcmp(name, "city") == 0) {
+        struct tw_city_settings settings = {0};
+        settings.max_cluster_triangles = max_cluster_triangles;
+        return tw_tilesets_city(seed, &settings, log, out);
+    }
+    tw_log_printf(log, TW_LOG_ERROR,
+                  "tilesets: builtin: unknown tileset \"%s\" (known: city)", name);
+    return TW_ERR_INVALID;
+}
