@@ -241,7 +241,10 @@ struct tw_tilequery_stats {
     uint32_t tiles_visible;     /* cells rendered */
     uint32_t tiles_free;        /* cells found visible without a query (near-plane rule, start) */
     uint32_t postponed;         /* cells rendered on last frame's word, result pending */
-    uint32_t predict_fail;      /* predictions that a read result contradicted */
+    uint32_t predict_fail;      /* predictions that a read result contradicted: visible last
+                                   frame and found hidden, or considered last frame, found
+                                   hidden then, and visible now; a cell with no verdict in
+                                   the previous frame has no prediction to fail */
     uint32_t waits;             /* blocking waits on tile queries */
 };
 

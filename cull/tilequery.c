@@ -7,6 +7,7 @@
 struct pending {
     uint32_t query;          /* 0: visible without a query */
     bool predicted;          /* visible last frame */
+    bool known;              /* last frame had a verdict on the cell (a prediction exists) */
     struct tw_cell cell;
 };
 
@@ -135,6 +136,7 @@ static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell)
     struct {
         struct tw_cell cell;
         float distance;
+        bool known;
     } todo[8];
     uint32_t n = 0;
     for (uint32_t k = 0; k < tq->s.neighbours; k++) {
@@ -143,6 +145,7 @@ static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell)
         const uint64_t *q = tw_cell_map_find(tq->queried, c);
         if (q && *q == f)
             continue;
+        const bool known = q && *q + 1 == f;
         if (tw_cell_map_set(tq->queried, c, f)) {
             fc->err = TW_ERR_NOMEM;
             return;
@@ -158,6 +161,7 @@ static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell)
         }
         todo[at].cell = c;
         todo[at].distance = dist;
+        todo[at].known = known;
     }
     if (n == 0)
         return;
@@ -171,6 +175,7 @@ static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell)
         const uint64_t *vis = tw_cell_map_find(tq->visible, todo[k].cell);
         p->cell = todo[k].cell;
         p->predicted = vis && *vis + 1 == f;
+        p->known = todo[k].known || p->predicted;
         float off[3];
         offset_of(fc, todo[k].cell, off);
         if (tw_cull_near_box(fc->v, fc->common_box, off)) {
@@ -281,7 +286,7 @@ int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
         }
         st.waits++;
         const bool visible = be->wait(be->ctx, p.query) > tq->s.threshold;
-        if (visible != p.predicted)
+        if (visible != p.predicted && p.known)
             st.predict_fail++;
         if (visible)
             visit(&fc, p.cell);

@@ -136,9 +136,12 @@ static void summarise(struct tw_method_summary *m, struct row *out)
     out->queries = m->frames ? m->queries / m->frames : 0.0;
 }
 
-static double round3(double v)
+/* A number written as it reads: json-c would print 17 significant digits. */
+static json_object *number(double v, int decimals)
 {
-    return round(v * 1000.0) / 1000.0;
+    char text[64];
+    snprintf(text, sizeof(text), "%.*f", decimals, v);
+    return json_object_new_double_s(v, text);
 }
 
 int tw_report_close(struct tw_report *r, bool markdown, char *err, size_t err_size)
@@ -164,12 +167,12 @@ int tw_report_close(struct tw_report *r, bool markdown, char *err, size_t err_si
         summarise(m, row);
         json_object *o = json_object_new_object();
         json_object_object_add(o, "frames", json_object_new_int64(m->frames));
-        json_object_object_add(o, "mean_ms", json_object_new_double(round3(row->mean)));
-        json_object_object_add(o, "median_ms", json_object_new_double(round3(row->median)));
-        json_object_object_add(o, "p95_ms", json_object_new_double(round3(row->p95)));
-        json_object_object_add(o, "p99_ms", json_object_new_double(round3(row->p99)));
-        json_object_object_add(o, "mean_triangles", json_object_new_double(round3(row->triangles)));
-        json_object_object_add(o, "mean_queries", json_object_new_double(round3(row->queries)));
+        json_object_object_add(o, "mean_ms", number(row->mean, 3));
+        json_object_object_add(o, "median_ms", number(row->median, 3));
+        json_object_object_add(o, "p95_ms", number(row->p95, 3));
+        json_object_object_add(o, "p99_ms", number(row->p99, 3));
+        json_object_object_add(o, "mean_triangles", number(row->triangles, 3));
+        json_object_object_add(o, "mean_queries", number(row->queries, 3));
         json_object_object_add(o, "missed_pixels_total",
                                json_object_new_int64((int64_t)m->missed_pixels_total));
         json_object_object_add(o, "frames_with_missed_pixels",
@@ -178,13 +181,12 @@ int tw_report_close(struct tw_report *r, bool markdown, char *err, size_t err_si
         json_object_object_add(o, "peak_cache_bytes",
                                json_object_new_int64((int64_t)m->peak_cache_bytes));
         json_object_object_add(o, "predict_fail_rate",
-                               json_object_new_double(m->tiles_queried
-                                   ? round(1e6 * (double)m->predict_fail / (double)m->tiles_queried) / 1e6
-                                   : 0.0));
+                               number(m->tiles_queried ? (double)m->predict_fail /
+                                                             (double)m->tiles_queried : 0.0, 6));
         json_object_object_add(o, "mean_tiles_visible",
-                               json_object_new_double(round3(m->frames ? (double)m->tiles_visible / m->frames : 0.0)));
+                               number(m->frames ? (double)m->tiles_visible / m->frames : 0.0, 3));
         json_object_object_add(o, "mean_ms_wait",
-                               json_object_new_double(round3(m->frames ? m->ms_wait / m->frames : 0.0)));
+                               number(m->frames ? m->ms_wait / m->frames : 0.0, 3));
         json_object_object_add(methods, row->name, o);
     }
     json_object_object_add(root, "methods", methods);
