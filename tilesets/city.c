@@ -480,6 +480,13 @@ static float min_bay(uint32_t style)
     return style == STYLE_RIBBON ? 1.1f : style == STYLE_CLASSIC ? 1.9f : 1.7f;
 }
 
+/* Party walls are blank only on buildings low enough to be hidden by their
+ * neighbours; a tower's would show as a huge blank face. */
+static uint32_t party_walls(float height, uint32_t blank_mask)
+{
+    return height <= 32.0f ? blank_mask : 0u;
+}
+
 /* Draws a building of footprint w x d whose top (roof clutter included)
  * stays at or below height. */
 static void spec_init(struct building_spec *sp, struct rng *r, float w, float d, float height,
@@ -489,7 +496,7 @@ static void spec_init(struct building_spec *sp, struct rng *r, float w, float d,
     sp->w = w;
     sp->d = d;
     sp->style = style;
-    sp->blank_mask = blank_mask;
+    sp->blank_mask = party_walls(height, blank_mask);
     sp->floor_h = quantize(rng_range(r, 3.1f, 3.6f), 0.1f);
     sp->ground_h = quantize(rng_range(r, 3.9f, 4.8f), 0.1f);
     sp->parapet_h = quantize(rng_range(r, 0.6f, 1.2f), 0.1f);
@@ -743,11 +750,12 @@ static void emit_building(struct mesh_builder *wall, struct mesh_builder *glass,
 
 /* ---- the generator's state ---------------------------------------------------- */
 
-enum { FACADE_COLOURS = 6, NO_MESH = UINT32_MAX };
+enum { FACADE_COLOURS = 6 };
+static const uint32_t no_mesh = UINT32_MAX;
 
 struct cached_building {
     struct building_spec spec;
-    uint32_t mesh[3];       /* wall, glass, roof; NO_MESH when empty */
+    uint32_t mesh[3];       /* wall, glass, roof; no_mesh when empty */
 };
 
 /* A building waiting for its final window spacing. */
@@ -759,7 +767,6 @@ struct lot {
 
 struct city {
     struct tw_tileset *ts;
-    const struct tw_log *log;
     struct tw_city_settings set;
     float w;                /* tile side */
     float half_street;      /* s: the block's lots start here */
@@ -786,7 +793,7 @@ static int add_mesh_from(struct city *c, struct mesh_builder *b, uint32_t *mesh)
     if (b->err)
         return b->err;
     if (b->triangle_count == 0) {
-        *mesh = NO_MESH;
+        *mesh = no_mesh;
         return TW_OK;
     }
     const int index = tw_tileset_add_mesh(c->ts, b->positions, b->normals, b->vertex_count,
@@ -984,8 +991,8 @@ static int layout_side(struct city *c, struct rng *r, const struct block_params 
         const uint32_t mat_b = rng_chance(r, 0.5f) ? c->mat_facade[rng_below(r, FACADE_COLOURS)] : mat_a;
         for (uint32_t i = 0; i < n && !err; i++) {
             struct building_spec sp = base;
-            sp.blank_mask = ((i > 0 || corner_before) ? 1u << 3 : 0u) |
-                            ((i + 1 < n || corner_after) ? 1u << 1 : 0u);
+            sp.blank_mask = party_walls(h, ((i > 0 || corner_before) ? 1u << 3 : 0u) |
+                                               ((i + 1 < n || corner_after) ? 1u << 1 : 0u));
             float m[12];
             side_transform(c, k, start + lw * (float)i, m);
             err = push_lot(c, &sp, m, i % 2 ? mat_b : mat_a);
@@ -1087,7 +1094,7 @@ static int layout_perimeter(struct city *c, struct rng *r, const struct block_pa
 static int add_instance(struct city *c, uint32_t proto, uint32_t mesh, uint32_t material,
                         const float m[12])
 {
-    if (mesh == NO_MESH)
+    if (mesh == no_mesh)
         return TW_OK;
     const int k = tw_tileset_add_instance(c->ts, proto, mesh, material, m);
     return k < 0 ? k : TW_OK;
@@ -1183,8 +1190,8 @@ static int build_dense(struct city *c, uint32_t proto, struct rng *r, bool talle
     bp.depth = quantize(clampf(k * rng_range(r, 13.0f, 20.0f), 6.0f, block * 0.3f), 0.5f);
     bp.share_corners = rng_chance(r, 0.35f);
     const float shared_size = quantize(bp.depth + k * rng_range(r, 0.0f, 5.0f), 0.5f);
-    for (int k = 0; k < 4; k++)
-        bp.corner_size[k] = bp.share_corners ? shared_size
+    for (int i = 0; i < 4; i++)
+        bp.corner_size[i] = bp.share_corners ? shared_size
                                              : quantize(bp.depth + k * rng_range(r, 0.0f, 5.0f), 0.5f);
     bp.lot_min = 8.0f * k;
     bp.lot_max = 17.0f * k;
@@ -1290,11 +1297,16 @@ static int build_park(struct city *c, uint32_t proto, struct rng *r)
     const float centre = 0.5f * c->w, step = 8.5f * k;
     /* Corner lots reach 3 k m deeper than side lots. */
     const float built = c->half_street + bp.depth + 3.0f * k + 1.0f;
-    uint32_t trees = 0;
-    for (float z = lo; z <= hi && !err; z += step) {
-        for (float x = lo; x <= hi && !err && trees < 12; x += step) {
-            const float tx = clampf(x + rng_range(r, -1.5f, 1.5f), lo, hi);
-            const float tz = clampf(z + rng_range(r, -1.5f, 1.5f), lo, hi);
+    /* Candidates first, then an even subset: the instance count stays
+     * moderate while the trees spread over the whole lawn. */
+    enum { MAX_CANDIDATES = 256, MAX_TREES = 12 };
+    float candidates[MAX_CANDIDATES][4];
+    uint32_t count = 0;
+    const uint32_t steps = (uint32_t)floorf((hi - lo) / step) + 1;
+    for (uint32_t j = 0; j < steps; j++) {
+        for (uint32_t i = 0; i < steps && count < MAX_CANDIDATES; i++) {
+            const float tx = clampf(lo + step * (float)i + rng_range(r, -1.5f, 1.5f), lo, hi);
+            const float tz = clampf(lo + step * (float)j + rng_range(r, -1.5f, 1.5f), lo, hi);
             const float angle = rng_range(r, 0.0f, 6.2831853f);
             const float scale = rng_range(r, 0.8f, 1.2f);
             if (fabsf(tx - centre) < 3.5f || fabsf(tz - centre) < 3.5f)
@@ -1302,17 +1314,20 @@ static int build_park(struct city *c, uint32_t proto, struct rng *r)
             if (((bp.side_mask >> 2 & 1u) && tz > c->w - built) ||
                 ((bp.side_mask >> 3 & 1u) && tx < built))
                 continue;
-            if (rng_chance(r, 0.2f))
-                continue;
-            const float co = scale * cosf(angle), si = scale * sinf(angle);
-            const float m[12] = {co, 0.0f, si, tx, 0.0f, scale, 0.0f, kerb_height,
-                                 -si, 0.0f, co, tz};
-            err = add_instance(c, proto, c->mesh_trunk, c->mat_bark, m);
-            if (!err)
-                err = add_instance(c, proto, c->mesh_canopy, c->mat_foliage, m);
-            fixed += mesh_triangles(c, c->mesh_trunk) + mesh_triangles(c, c->mesh_canopy);
-            trees++;
+            const float cand[4] = {tx, tz, angle, scale};
+            memcpy(candidates[count++], cand, sizeof(cand));
         }
+    }
+    const uint32_t trees = count < MAX_TREES ? count : MAX_TREES;
+    for (uint32_t t = 0; t < trees && !err; t++) {
+        const float *cand = candidates[(uint64_t)t * count / trees];
+        const float co = cand[3] * cosf(cand[2]), si = cand[3] * sinf(cand[2]);
+        const float m[12] = {co, 0.0f, si, cand[0], 0.0f, cand[3], 0.0f, kerb_height,
+                             -si, 0.0f, co, cand[1]};
+        err = add_instance(c, proto, c->mesh_trunk, c->mat_bark, m);
+        if (!err)
+            err = add_instance(c, proto, c->mesh_canopy, c->mat_foliage, m);
+        fixed += mesh_triangles(c, c->mesh_trunk) + mesh_triangles(c, c->mesh_canopy);
     }
     if (!err)
         err = place_lots(c, proto, fixed, rng_range(r, 11500.0f, 16000.0f));
@@ -1658,7 +1673,6 @@ int tw_tilesets_city(uint64_t seed, const struct tw_city_settings *settings,
     *out = NULL;
     struct city c;
     memset(&c, 0, sizeof(c));
-    c.log = log;
     int err = resolve_settings(settings, &c.set, log);
     if (err)
         return err;
