@@ -7,7 +7,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-const char *const tw_path_builtin_names[] = {"street", "flyover", NULL};
+const char *const tw_path_builtin_names[] = {"street", "flyover", "forest", "teleport", "spin",
+                                             NULL};
 
 static const float eye_height = 1.7f;
 
@@ -96,6 +97,59 @@ static int path_flyover(uint64_t seed, struct tw_camera *keys, uint32_t frames, 
     return TW_OK;
 }
 
+/* Eye height, wandering: heading drifts smoothly, not bound to streets. */
+static int path_forest(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d)
+{
+    const double phase = (double)(tw_tiles_hash(seed, 3, 3) % 1000) / 1000.0 * 6.28318530718;
+    double x = 0.37 * w, z = 0.41 * d;
+    for (uint32_t f = 0; f < frames; f++) {
+        const double yaw = 25.0 + 50.0 * sin(f / 90.0 + phase) + 20.0 * sin(f / 23.0);
+        const double pitch = 2.0 * sin(f / 40.0);
+        if (set_key(&keys[f], x, eye_height, z, yaw, pitch, w, d))
+            return TW_ERR_INVALID;
+        const double r = yaw * 3.14159265358979323846 / 180.0;
+        x += sin(r) * 0.8;
+        z += cos(r) * 0.8;
+    }
+    return TW_OK;
+}
+
+/* The street walk, but every 50 frames the camera jumps to an unrelated
+ * place (a hashed cell far away, a random heading): temporal coherence
+ * fails by design. */
+static int path_teleport(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d)
+{
+    const uint32_t leg = 50;
+    int err = path_street(seed, keys, frames, w, d);
+    for (uint32_t f = leg; f < frames && !err; f++) {
+        const uint32_t jump = f / leg;
+        const uint64_t h = tw_tiles_hash(seed, (int64_t)jump, 0x7e1e);
+        const int64_t di = (int64_t)(h % 20001) - 10000;
+        const int64_t dj = (int64_t)((h >> 20) % 20001) - 10000;
+        const float turn = 90.0f * (float)((h >> 40) % 4);
+        keys[f].pos.cell.i += di;
+        keys[f].pos.cell.j += dj;
+        keys[f].yaw = (float)fmod(keys[f].yaw + turn, 360.0);
+    }
+    return err;
+}
+
+/* The street walk, with a 180-degree turn on the spot within 6 frames every
+ * 40 frames. */
+static int path_spin(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d)
+{
+    const uint32_t period = 40, spin = 6;
+    int err = path_street(seed, keys, frames, w, d);
+    double extra = 0.0;
+    for (uint32_t f = 0; f < frames && !err; f++) {
+        const uint32_t t = f % period;
+        if (f >= period && t < spin)
+            extra += 180.0 / spin;
+        keys[f].yaw = (float)fmod(keys[f].yaw + extra, 360.0);
+    }
+    return err;
+}
+
 int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float w, float d,
                     struct tw_path *out)
 {
@@ -106,6 +160,12 @@ int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float w, f
         gen = path_street;
     else if (strcmp(name, "flyover") == 0)
         gen = path_flyover;
+    else if (strcmp(name, "forest") == 0)
+        gen = path_forest;
+    else if (strcmp(name, "teleport") == 0)
+        gen = path_teleport;
+    else if (strcmp(name, "spin") == 0)
+        gen = path_spin;
     else
         return TW_ERR_INVALID;
     memset(out, 0, sizeof(*out));

@@ -9,7 +9,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-static int make_dirs(const char *dir)
+int tw_report_make_dirs(const char *dir)
 {
     char buf[1024];
     if (strlen(dir) >= sizeof(buf))
@@ -47,7 +47,7 @@ int tw_report_open(struct tw_report *r, const char *dir, char *err, size_t err_s
     r->width = keep.width;
     r->height = keep.height;
     r->seed = keep.seed;
-    int e = make_dirs(dir);
+    int e = tw_report_make_dirs(dir);
     if (e) {
         snprintf(err, err_size, "%s: cannot create the output folder: %s", dir, strerror(e));
         return TW_ERR_IO;
@@ -95,7 +95,12 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st)
     m->predict_fail += st->predict_fail;
     m->tiles_queried += st->tiles_queried;
     m->tiles_visible += st->tiles_visible;
+    if (st->tiles_visible > m->max_tiles_visible)
+        m->max_tiles_visible = st->tiles_visible;
     m->ms_wait += st->ms_wait;
+    m->overdraw_triangles += (double)st->overdraw_triangles;
+    if (st->ms_frame > m->ms_max)
+        m->ms_max = st->ms_frame;
     return TW_OK;
 }
 
@@ -144,7 +149,8 @@ static json_object *number(double v, int decimals)
     return json_object_new_double_s(v, text);
 }
 
-int tw_report_close(struct tw_report *r, bool markdown, char *err, size_t err_size)
+int tw_report_close(struct tw_report *r, bool markdown,
+                    struct tw_method_figures figures[TW_METHOD_COUNT], char *err, size_t err_size)
 {
     int rc = TW_OK;
     if (r->frames_csv && fclose(r->frames_csv) != 0) {
@@ -155,6 +161,8 @@ int tw_report_close(struct tw_report *r, bool markdown, char *err, size_t err_si
 
     struct row rows[TW_METHOD_COUNT];
     int nrows = 0;
+    if (figures)
+        memset(figures, 0, sizeof(struct tw_method_figures) * TW_METHOD_COUNT);
     json_object *root = json_object_new_object();
     json_object *methods = json_object_new_object();
     for (int k = 0; k < TW_METHOD_COUNT; k++) {
@@ -187,7 +195,29 @@ int tw_report_close(struct tw_report *r, bool markdown, char *err, size_t err_si
                                number(m->frames ? (double)m->tiles_visible / m->frames : 0.0, 3));
         json_object_object_add(o, "mean_ms_wait",
                                number(m->frames ? m->ms_wait / m->frames : 0.0, 3));
+        json_object_object_add(o, "max_ms", number(m->ms_max, 3));
+        json_object_object_add(o, "mean_overdraw_triangles",
+                               number(m->frames ? m->overdraw_triangles / m->frames : 0.0, 1));
         json_object_object_add(methods, row->name, o);
+        if (figures) {
+            struct tw_method_figures *fg = &figures[k];
+            fg->used = true;
+            fg->frames = m->frames;
+            fg->mean_ms = row->mean;
+            fg->median_ms = row->median;
+            fg->p95_ms = row->p95;
+            fg->p99_ms = row->p99;
+            fg->max_ms = m->ms_max;
+            fg->mean_triangles = row->triangles;
+            fg->mean_queries = row->queries;
+            fg->mean_overdraw_triangles = m->frames ? m->overdraw_triangles / m->frames : 0.0;
+            fg->mean_tiles_visible = m->frames ? (double)m->tiles_visible / m->frames : 0.0;
+            fg->max_tiles_visible = m->max_tiles_visible;
+            fg->missed_pixels_total = m->missed_pixels_total;
+            fg->frames_with_missed_pixels = m->frames_with_missed_pixels;
+            fg->predict_fail_rate = m->tiles_queried ? (double)m->predict_fail / m->tiles_queried : 0.0;
+            fg->peak_cache_bytes = m->peak_cache_bytes;
+        }
     }
     json_object_object_add(root, "methods", methods);
     json_object_object_add(root, "tileset", json_object_new_string(r->tileset));

@@ -22,7 +22,24 @@ struct tw_method_summary {
     uint64_t peak_cache_bytes;
     uint64_t predict_fail, tiles_queried;
     uint64_t tiles_visible;
+    uint32_t max_tiles_visible;
     double ms_wait;
+    double overdraw_triangles;
+    double ms_max;
+};
+
+/* One method's figures over a run. */
+struct tw_method_figures {
+    bool used;
+    uint32_t frames;
+    double mean_ms, median_ms, p95_ms, p99_ms, max_ms;
+    double mean_triangles, mean_queries, mean_overdraw_triangles;
+    double mean_tiles_visible;
+    uint32_t max_tiles_visible;
+    uint64_t missed_pixels_total;
+    uint32_t frames_with_missed_pixels;
+    double predict_fail_rate;
+    uint64_t peak_cache_bytes;
 };
 
 struct tw_report {
@@ -42,10 +59,15 @@ int tw_report_open(struct tw_report *r, const char *dir, char *err, size_t err_s
 /* Appends one frames.csv row and accumulates it. */
 int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st);
 /* Writes summary.json (and summary.md when markdown is true), closes
- * frames.csv and frees everything. */
-int tw_report_close(struct tw_report *r, bool markdown, char *err, size_t err_size);
+ * frames.csv and frees everything. figures (may be NULL) receives each
+ * method's figures, indexed by method. */
+int tw_report_close(struct tw_report *r, bool markdown,
+                    struct tw_method_figures figures[TW_METHOD_COUNT], char *err, size_t err_size);
 /* Frees without writing summaries (after a failure). */
 void tw_report_abort(struct tw_report *r);
+
+/* Creates dir and its parents; returns 0 or an errno value. */
+int tw_report_make_dirs(const char *dir);
 
 /* Writes an RGB8 image (top row first) as PNG. */
 int tw_report_write_png(const char *file, const uint8_t *rgb, uint32_t width, uint32_t height,

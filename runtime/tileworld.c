@@ -12,6 +12,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "runtime/bench.h"
 #include "runtime/report.h"
 #include "runtime/runtime.h"
 #include "tilesets/tilesets.h"
@@ -37,20 +38,34 @@ struct options {
     float view_distance;
     uint32_t cluster_triangles;
     bool quiet;
+    const char *sweep;
+    const char *scenario;
+    uint32_t neighbours;
+    uint32_t evict_after;
+    uint32_t chc_batch;
+    uint32_t chc_nav;
+    uint32_t threshold;
+    bool threshold_given;
 };
 
 static const uint32_t default_frames = 300;
 
 static void usage(FILE *f)
 {
-    fputs("usage: tileworld walk   [--tileset NAME] [--seed N] [--path NAME|FILE.csv] [--frames N]\n"
-          "                        [--method M] [--size WxH] [--start-cell I,J] [--repeat P]\n"
-          "                        [--png-every N] [--view-distance M] [--cluster-triangles N]\n"
-          "                        [--out DIR] [--quiet]\n"
-          "       tileworld bench  [same options] [--methods M1,M2,...]\n"
-          "       tileworld info   [--tileset NAME] [--seed N] [--cluster-triangles N]\n"
-          "tilesets: city; paths: street, flyover, or a CSV file\n"
-          "methods: vfc, tilequery, chc, tilequery+chc, oracle\n",
+    fputs("usage: tileworld walk   [--tileset NAME|FILE.json] [--seed N] [--path NAME|FILE.csv]\n"
+          "                        [--frames N] [--method M] [--size WxH] [--start-cell I,J]\n"
+          "                        [--repeat P] [--verify] [--png-every N] [--out DIR] [--quiet]\n"
+          "                        [--view-distance M] [--cluster-triangles N] [--tile-neighbours 4|8]\n"
+          "                        [--evict-after N] [--chc-batch N] [--chc-nav N] [--threshold T]\n"
+          "       tileworld bench  [same options] [--methods M1,M2,...] [--sweep PARAM=v1,v2,...]\n"
+          "                        [--scenario NAME|all]\n"
+          "       tileworld info   [--tileset NAME|FILE.json] [--seed N] [--cluster-triangles N]\n"
+          "       tileworld import FILE.gltf|FILE.glb\n"
+          "tilesets: city, forest, hybrid, or a manifest; paths: street, flyover, forest, teleport,\n"
+          "spin, or a CSV file; methods: vfc, tilequery, chc, tilequery+chc (default), oracle\n"
+          "sweep parameters: n_av, b, T, cluster_triangles, evict_after, view_distance, neighbours\n"
+          "scenarios: teleport, spin, inside-building, inside-common-box, grazing, far-origin,\n"
+          "no-occluders, all\n",
           f);
 }
 
@@ -232,6 +247,32 @@ static void parse_options(int argc, char **argv, struct options *o)
             o->view_distance = parse_float(a, v, 1.0f, 100000.0f);
         } else if (strcmp(a, "--cluster-triangles") == 0) {
             o->cluster_triangles = (uint32_t)parse_u64(a, v, 16, 1000000);
+        } else if (strcmp(a, "--sweep") == 0) {
+            char why[300];
+            if (tw_run_sweep_check(v, why, sizeof(why)))
+                fail_usage(a, "%s", why + strlen("--sweep: "));
+            o->sweep = v;
+        } else if (strcmp(a, "--scenario") == 0) {
+            bool known = strcmp(v, "all") == 0;
+            for (const char *const *n = tw_scenario_names; *n; n++)
+                known |= strcmp(*n, v) == 0;
+            if (!known)
+                fail_usage(a, "unknown scenario '%s' (all, teleport, spin, inside-building, "
+                              "inside-common-box, grazing, far-origin, no-occluders)", v);
+            o->scenario = v;
+        } else if (strcmp(a, "--tile-neighbours") == 0) {
+            o->neighbours = (uint32_t)parse_u64(a, v, 4, 8);
+            if (o->neighbours != 4 && o->neighbours != 8)
+                fail_usage(a, "'%s' is neither 4 nor 8", v);
+        } else if (strcmp(a, "--evict-after") == 0) {
+            o->evict_after = (uint32_t)parse_u64(a, v, 1, 1000000);
+        } else if (strcmp(a, "--chc-batch") == 0) {
+            o->chc_batch = (uint32_t)parse_u64(a, v, 1, 100000);
+        } else if (strcmp(a, "--chc-nav") == 0) {
+            o->chc_nav = (uint32_t)parse_u64(a, v, 1, 1000);
+        } else if (strcmp(a, "--threshold") == 0) {
+            o->threshold = (uint32_t)parse_u64(a, v, 0, 1000000);
+            o->threshold_given = true;
         } else if (strcmp(a, "--out") == 0) {
             if (*v == '\0')
                 fail_usage(a, "%sthe output folder name is empty", "");
@@ -302,17 +343,22 @@ translate:
     }
 }
 
-static void progress(const struct options *o, uint32_t done, uint32_t total, double mean_ms)
+struct maker {
+    const struct options *o;
+    const struct tw_log *log;
+};
+
+/* The same tileset again with another cluster size (for --sweep). */
+static struct tw_tileset *remake_tileset(void *user, uint32_t cluster_triangles, char *err,
+                                         size_t err_size)
 {
-    if (o->quiet || !isatty(STDERR_FILENO))
-        return;
-    const int width = 30;
-    const int filled = total ? (int)((uint64_t)done * width / total) : width;
-    fprintf(stderr, "\r[%.*s%*s] %u/%u frames, %.1f ms/frame", filled,
-            "##############################", width - filled, "", done, total, mean_ms);
-    if (done == total)
-        fputc('\n', stderr);
-    fflush(stderr);
+    const struct maker *mk = user;
+    struct tw_tileset *ts = NULL;
+    const int rc = tw_tilesets_builtin(mk->o->tileset, mk->o->seed, cluster_triangles, mk->log, &ts);
+    if (rc)
+        snprintf(err, err_size, "--sweep: cluster_triangles needs a built-in tileset (%s)",
+                 tw_error_to_str(rc));
+    return rc ? NULL : ts;
 }
 
 static int run(const struct options *o, bool bench)
@@ -320,101 +366,79 @@ static int run(const struct options *o, bool bench)
     const struct tw_log log = {log_to_stderr, NULL};
     struct tw_tileset *ts = load_tileset(o, &log);
     struct tw_path path = {0};
-    load_path(o, ts, &path);
+    if (!o->scenario)
+        load_path(o, ts, &path);
 
-    struct options opt = *o;
+    struct tw_run r = {0};
+    r.tileset = ts;
+    r.tileset_name = o->tileset;
+    r.path = &path;
+    r.path_name = o->path;
+    r.out = o->out;
+    r.png_every = o->png_every;
+    r.bench = bench;
+    r.quiet = o->quiet;
     if (!bench) {
-        opt.methods[0] = o->method;
-        opt.method_count = 1;
-    } else if (!opt.methods_given) {
-        opt.method_count = 0;
+        r.methods[0] = o->method;
+        r.method_count = 1;
+    } else if (o->methods_given) {
+        memcpy(r.methods, o->methods, sizeof(r.methods));
+        r.method_count = o->method_count;
+    } else {
         for (int m = 0; m < TW_METHOD_COUNT; m++)
-            if (tw_method_available((enum tw_method)m))
-                opt.methods[opt.method_count++] = (enum tw_method)m;
+            r.methods[r.method_count++] = (enum tw_method)m;
+    }
+    struct tw_world_settings *ws = &r.world;
+    ws->selection.seed = o->seed;
+    ws->selection.repeat = o->repeat;
+    ws->width = o->width;
+    ws->height = o->height;
+    ws->view_distance = o->view_distance;
+    ws->verify = o->verify;
+    ws->log = log;
+    ws->tilequery.neighbours = o->neighbours;
+    ws->evict_after_frames = o->evict_after;
+    ws->chc.batch_size = o->chc_batch;
+    ws->chc.assumed_visible = o->chc_nav;
+    if (o->threshold_given) {
+        ws->chc.threshold = o->threshold;
+        ws->tilequery.threshold = o->threshold;
     }
 
     int rc = 1;
-    struct tw_context *ctx = NULL;
-    struct tw_world *world = NULL;
-    uint8_t *rgb = NULL;
-    struct tw_report report = {0};
     char msg[1400];
-    int err = tw_context_create_headless(opt.width, opt.height, &log, &ctx);
+    struct tw_context *ctx = NULL;
+    int err = tw_context_create_headless(o->width, o->height, &log, &ctx);
     if (err) {
         fprintf(stderr, "tileworld: cannot create the headless OpenGL context: %s\n",
                 tw_error_to_str(err));
         goto out;
     }
-    struct tw_world_settings ws = {0};
-    ws.tileset = ts;
-    ws.selection.seed = opt.seed;
-    ws.selection.repeat = opt.repeat;
-    ws.method = opt.methods[0];
-    ws.width = opt.width;
-    ws.height = opt.height;
-    ws.view_distance = opt.view_distance;
-    ws.verify = opt.verify;
-    ws.get_proc = tw_context_get_proc(ctx);
-    ws.log = log;
-    err = tw_world_create(&ws, &world);
+    if (o->scenario) {
+        bool held = false;
+        err = tw_run_scenarios(&r, ctx, o->scenario, &held, msg, sizeof(msg));
+        if (!err && !o->quiet)
+            fprintf(stderr, "tileworld: wrote %s/scenarios.md: %s\n", o->out,
+                    held ? "everything that must hold held" : "SOME CHECKS DID NOT HOLD");
+        if (!err && !held)
+            rc = 3;
+    } else if (o->sweep) {
+        struct maker mk = {o, &log};
+        err = tw_run_sweep(&r, ctx, o->sweep, remake_tileset, &mk, msg, sizeof(msg));
+    } else {
+        err = tw_run_execute(&r, ctx, msg, sizeof(msg));
+    }
     if (err) {
-        fprintf(stderr, "tileworld: cannot create the world: %s\n", tw_error_to_str(err));
-        goto out;
-    }
-    rgb = malloc((size_t)opt.width * opt.height * 3);
-    if (!rgb)
-        goto out;
-    snprintf(report.tileset, sizeof(report.tileset), "%s", o->tileset);
-    snprintf(report.path, sizeof(report.path), "%s", o->path);
-    report.width = opt.width;
-    report.height = opt.height;
-    report.seed = opt.seed;
-    if (tw_report_open(&report, opt.out, msg, sizeof(msg))) {
         fprintf(stderr, "tileworld: %s\n", msg);
-        rc = EXIT_USAGE;
+        rc = err == TW_ERR_IO ? EXIT_USAGE : 1;
         goto out;
     }
-    double total_ms = 0.0;
-    for (uint32_t f = 0; f < path.count; f++) {
-        /* Methods alternate frame by frame, so drift on a shared machine
-         * hits them all alike. */
-        for (uint32_t m = 0; m < opt.method_count; m++) {
-            struct tw_frame_stats st;
-            if (tw_world_set_method(world, opt.methods[m]) ||
-                tw_world_frame(world, &path.keys[f], &st)) {
-                fprintf(stderr, "tileworld: frame %u failed\n", f + 1);
-                goto out;
-            }
-            total_ms += st.ms_frame;
-            if (tw_report_add(&report, &st))
-                goto out;
-            if (opt.png_every > 0 && f % opt.png_every == 0) {
-                char file[1200];
-                if (bench)
-                    snprintf(file, sizeof(file), "%s/frame-%05u-%s.png", opt.out, f,
-                             tw_method_name(opt.methods[m]));
-                else
-                    snprintf(file, sizeof(file), "%s/frame-%05u.png", opt.out, f);
-                if (tw_world_read_rgb(world, rgb) ||
-                    tw_report_write_png(file, rgb, opt.width, opt.height, msg, sizeof(msg))) {
-                    fprintf(stderr, "tileworld: %s\n", msg);
-                    goto out;
-                }
-            }
-        }
-        progress(o, f + 1, path.count, total_ms / ((f + 1) * (double)opt.method_count));
-    }
-    if (tw_report_close(&report, bench, msg, sizeof(msg))) {
-        fprintf(stderr, "tileworld: %s\n", msg);
+    if (rc == 3)
         goto out;
-    }
-    if (!o->quiet)
-        fprintf(stderr, "tileworld: wrote %s/frames.csv and %s/summary.json\n", opt.out, opt.out);
+    if (!o->quiet && !o->scenario)
+        fprintf(stderr, "tileworld: wrote %s/frames.csv and %s/summary.json\n", o->out, o->out);
     rc = 0;
 out:
-    tw_report_abort(&report);
-    free(rgb);
-    tw_world_destroy(world);
     tw_context_destroy(ctx);
     tw_path_finish(&path);
     tw_tileset_destroy(ts);
@@ -498,7 +522,13 @@ int main(int argc, char **argv)
     }
     if (strcmp(o.command, "info") == 0)
         return info(&o);
-    if (o.methods_given && strcmp(o.command, "walk") == 0)
-        fail_usage("--methods", "%s belongs to bench; walk takes --method", "--methods");
+    if (strcmp(o.command, "walk") == 0) {
+        if (o.methods_given)
+            fail_usage("--methods", "%s belongs to bench; walk takes --method", "--methods");
+        if (o.sweep)
+            fail_usage("--sweep", "%s belongs to bench", "--sweep");
+        if (o.scenario)
+            fail_usage("--scenario", "%s belongs to bench", "--scenario");
+    }
     return run(&o, strcmp(o.command, "bench") == 0);
 }

@@ -1,0 +1,631 @@
+/* Runs, sweeps and stability scenarios of the tileworld command (bench.h). */
+#include "runtime/bench.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <json-c/json.h>
+
+#include "runtime/charts.h"
+
+static void progress(const struct tw_run *run, uint32_t done, uint32_t total, double mean_ms)
+{
+    if (run->quiet || !isatty(STDERR_FILENO))
+        return;
+    const int width = 30;
+    const int filled = total ? (int)((uint64_t)done * width / total) : width;
+    fprintf(stderr, "\r%s [%.*s%*s] %u/%u frames, %.1f ms/frame", run->out, filled,
+            "##############################", width - filled, "", done, total, mean_ms);
+    if (done == total)
+        fputc('\n', stderr);
+    fflush(stderr);
+}
+
+int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t err_size)
+{
+    struct tw_world *world = NULL;
+    uint8_t *rgb = NULL;
+    struct tw_report report = {0};
+    int rc = TW_OK;
+    struct tw_world_settings ws = run->world;
+    ws.tileset = run->tileset;
+    ws.method = run->methods[0];
+    ws.get_proc = tw_context_get_proc(ctx);
+    rc = tw_world_create(&ws, &world);
+    if (rc) {
+        snprintf(err, err_size, "cannot create the world: %s", tw_error_to_str(rc));
+        goto out;
+    }
+    rgb = malloc((size_t)ws.width * ws.height * 3);
+    if (!rgb) {
+        rc = TW_ERR_NOMEM;
+        snprintf(err, err_size, "out of memory");
+        goto out;
+    }
+    snprintf(report.tileset, sizeof(report.tileset), "%s", run->tileset_name);
+    snprintf(report.path, sizeof(report.path), "%s", run->path_name);
+    report.width = ws.width;
+    report.height = ws.height;
+    report.seed = ws.selection.seed;
+    rc = tw_report_open(&report, run->out, err, err_size);
+    if (rc)
+        goto out;
+    double total_ms = 0.0;
+    for (uint32_t f = 0; f < run->path->count; f++) {
+        /* Methods alternate frame by frame, so drift on a shared machine
+         * hits them all alike. */
+        for (uint32_t m = 0; m < run->method_count; m++) {
+            struct tw_frame_stats st;
+            rc = tw_world_set_method(world, run->methods[m]);
+            if (!rc)
+                rc = tw_world_frame(world, &run->path->keys[f], &st);
+            if (rc) {
+                snprintf(err, err_size, "frame %u with %s failed: %s", f + 1,
+                         tw_method_name(run->methods[m]), tw_error_to_str(rc));
+                goto out;
+            }
+            total_ms += st.ms_frame;
+            rc = tw_report_add(&report, &st);
+            if (rc) {
+                snprintf(err, err_size, "out of memory");
+                goto out;
+            }
+            if (run->on_frame)
+                run->on_frame(run->on_frame_user, f, world, &st);
+            if (run->png_every > 0 && f % run->png_every == 0) {
+                char file[1200];
+                if (run->bench)
+                    snprintf(file, sizeof(file), "%s/frame-%05u-%s.png", run->out, f,
+                             tw_method_name(run->methods[m]));
+                else
+                    snprintf(file, sizeof(file), "%s/frame-%05u.png", run->out, f);
+                rc = tw_world_read_rgb(world, rgb);
+                if (!rc)
+                    rc = tw_report_write_png(file, rgb, ws.width, ws.height, err, err_size);
+                if (rc)
+                    goto out;
+            }
+        }
+        progress(run, f + 1, run->path->count, total_ms / ((f + 1) * (double)run->method_count));
+    }
+    rc = tw_report_close(&report, run->bench, run->figures, err, err_size);
+    if (rc)
+        goto out;
+    if (run->bench) {
+        char why[512];
+        if (tw_charts_write(run->out, why, sizeof(why)) != TW_OK)
+            fprintf(stderr, "tileworld: warning: no charts: %s\n", why);
+    }
+out:
+    tw_report_abort(&report);
+    free(rgb);
+    tw_world_destroy(world);
+    return rc;
+}
+
+/* ---- sweeps ---------------------------------------------------------------------- */
+
+enum sweep_param { P_NAV, P_B, P_T, P_CLUSTER, P_EVICT, P_DISTANCE, P_NEIGHBOURS, P_COUNT };
+
+static const char *const sweep_names[P_COUNT] = {
+    "n_av", "b", "T", "cluster_triangles", "evict_after", "view_distance", "neighbours",
+};
+
+/* Parses "PARAM=v1,v2,..." into a parameter and up to 32 values. */
+static int parse_sweep(const char *spec, enum sweep_param *param, double *values, uint32_t *count,
+                       char *err, size_t err_size)
+{
+    const char *eq = strchr(spec, '=');
+    if (!eq) {
+        snprintf(err, err_size, "--sweep: '%s' is not of the form PARAM=v1,v2,...", spec);
+        return TW_ERR_INVALID;
+    }
+    const size_t n = (size_t)(eq - spec);
+    int p = -1;
+    for (int k = 0; k < P_COUNT; k++)
+        if (strlen(sweep_names[k]) == n && strncmp(spec, sweep_names[k], n) == 0)
+            p = k;
+    if (p < 0) {
+        snprintf(err, err_size,
+                 "--sweep: unknown parameter '%.*s' (n_av, b, T, cluster_triangles, evict_after, "
+                 "view_distance, neighbours)", (int)n, spec);
+        return TW_ERR_INVALID;
+    }
+    *param = (enum sweep_param)p;
+    *count = 0;
+    const char *s = eq + 1;
+    while (*s) {
+        char *end = NULL;
+        errno = 0;
+        const double v = strtod(s, &end);
+        if (end == s || (*end != ',' && *end != '\0') || !isfinite(v) || errno == ERANGE) {
+            snprintf(err, err_size, "--sweep: '%s' has a value that is not a finite number", spec);
+            return TW_ERR_INVALID;
+        }
+        const bool whole = v == floor(v);
+        bool ok = true;
+        switch (*param) {
+        case P_NAV: ok = whole && v >= 0 && v <= 1000; break;
+        case P_B: ok = whole && v >= 1 && v <= 100000; break;
+        case P_T: ok = whole && v >= 0 && v <= 1e6; break;
+        case P_CLUSTER: ok = whole && v >= 16 && v <= 1e6; break;
+        case P_EVICT: ok = whole && v >= 1 && v <= 1e6; break;
+        case P_DISTANCE: ok = v >= 1 && v <= 100000; break;
+        case P_NEIGHBOURS: ok = v == 4 || v == 8; break;
+        default: break;
+        }
+        if (!ok) {
+            snprintf(err, err_size, "--sweep: %g is not a valid value of %s", v, sweep_names[p]);
+            return TW_ERR_INVALID;
+        }
+        if (*count == 32) {
+            snprintf(err, err_size, "--sweep: more than 32 values");
+            return TW_ERR_INVALID;
+        }
+        values[(*count)++] = v;
+        s = *end == ',' ? end + 1 : end;
+        if (*end == ',' && *s == '\0') {
+            snprintf(err, err_size, "--sweep: '%s' ends with a comma", spec);
+            return TW_ERR_INVALID;
+        }
+    }
+    if (*count == 0) {
+        snprintf(err, err_size, "--sweep: '%s' lists no value", spec);
+        return TW_ERR_INVALID;
+    }
+    return TW_OK;
+}
+
+int tw_run_sweep_check(const char *spec, char *err, size_t err_size)
+{
+    enum sweep_param p;
+    double values[32];
+    uint32_t n;
+    return parse_sweep(spec, &p, values, &n, err, err_size);
+}
+
+static void apply_sweep(struct tw_world_settings *ws, enum sweep_param p, double v)
+{
+    switch (p) {
+    case P_NAV: ws->chc.assumed_visible = (uint32_t)v; break;
+    case P_B: ws->chc.batch_size = (uint32_t)v; break;
+    case P_T:
+        ws->chc.threshold = (uint32_t)v;
+        ws->tilequery.threshold = (uint32_t)v;
+        break;
+    case P_EVICT: ws->evict_after_frames = (uint32_t)v; break;
+    case P_DISTANCE: ws->view_distance = (float)v; break;
+    case P_NEIGHBOURS: ws->tilequery.neighbours = (uint32_t)v; break;
+    default: break;
+    }
+}
+
+int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
+                 tw_tileset_maker_fn make_tileset, void *maker_user, char *err, size_t err_size)
+{
+    enum sweep_param param;
+    double values[32];
+    uint32_t count;
+    int rc = parse_sweep(spec, &param, values, &count, err, err_size);
+    if (rc)
+        return rc;
+    /* The base run: every method with its defaults. */
+    rc = tw_run_execute(run, ctx, err, err_size);
+    if (rc)
+        return rc;
+    char file[1100];
+    snprintf(file, sizeof(file), "%s/sweep.csv", run->out);
+    FILE *csv = fopen(file, "w");
+    if (!csv) {
+        snprintf(err, err_size, "%s: cannot write: %s", file, strerror(errno));
+        return TW_ERR_IO;
+    }
+    fputs("method,param,value,mean_ms,median_ms,p95_ms,mean_triangles,mean_queries,"
+          "missed_pixels_total,mean_overdraw_triangles\n", csv);
+    for (uint32_t k = 0; k < count && !rc; k++) {
+        char dir[1100];
+        snprintf(dir, sizeof(dir), "%s/sweep-%s-%g", run->out, sweep_names[param], values[k]);
+        struct tw_run r = *run;
+        r.out = dir;
+        r.bench = false;
+        r.png_every = 0;
+        struct tw_tileset *own = NULL;
+        if (param == P_CLUSTER) {
+            own = make_tileset(maker_user, (uint32_t)values[k], err, err_size);
+            if (!own) {
+                rc = TW_ERR_INVALID;
+                break;
+            }
+            r.tileset = own;
+        } else {
+            apply_sweep(&r.world, param, values[k]);
+        }
+        rc = tw_run_execute(&r, ctx, err, err_size);
+        tw_tileset_destroy(own);
+        for (uint32_t m = 0; m < r.method_count && !rc; m++) {
+            const struct tw_method_figures *fg = &r.figures[r.methods[m]];
+            fprintf(csv, "%s,%s,%g,%.3f,%.3f,%.3f,%.1f,%.2f,%llu,%.1f\n",
+                    tw_method_name(r.methods[m]), sweep_names[param], values[k], fg->mean_ms,
+                    fg->median_ms, fg->p95_ms, fg->mean_triangles, fg->mean_queries,
+                    (unsigned long long)fg->missed_pixels_total, fg->mean_overdraw_triangles);
+        }
+    }
+    if (fclose(csv) != 0 && !rc) {
+        snprintf(err, err_size, "%s: write error", file);
+        rc = TW_ERR_IO;
+    }
+    if (!rc && run->bench) {
+        char why[512];
+        if (tw_charts_write(run->out, why, sizeof(why)) != TW_OK)
+            fprintf(stderr, "tileworld: warning: no charts: %s\n", why);
+    }
+    return rc;
+}
+
+/* ---- stability scenarios (DESIGN §11) ------------------------------------------- */
+
+const char *const tw_scenario_names[] = {
+    "teleport", "spin", "inside-building", "inside-common-box", "grazing", "far-origin",
+    "no-occluders", NULL,
+};
+
+/* FNV-1a of each frame's image, to compare runs pixel for pixel. */
+struct image_hashes {
+    uint64_t *hash;
+    uint32_t count;
+    uint8_t *rgb;
+};
+
+static void hash_frame(void *user, uint32_t f, struct tw_world *w, const struct tw_frame_stats *st)
+{
+    (void)st;
+    struct image_hashes *h = user;
+    const struct tw_world_settings *s = tw_world_settings(w);
+    if (f >= h->count || tw_world_read_rgb(w, h->rgb))
+        return;
+    uint64_t x = 0xcbf29ce484222325ull;
+    const size_t n = (size_t)s->width * s->height * 3;
+    for (size_t k = 0; k < n; k++)
+        x = (x ^ h->rgb[k]) * 0x100000001b3ull;
+    h->hash[f] = x;
+}
+
+/* The prototype with the lowest box: "tiles with no occluders" everywhere. */
+static uint32_t lowest_prototype(void *user, struct tw_cell cell)
+{
+    (void)cell;
+    return *(const uint32_t *)user;
+}
+
+static int path_alloc(struct tw_path *p, const char *name, uint32_t frames)
+{
+    memset(p, 0, sizeof(*p));
+    p->keys = calloc(frames, sizeof(*p->keys));
+    if (!p->keys)
+        return TW_ERR_NOMEM;
+    p->count = frames;
+    snprintf(p->name, sizeof(p->name), "%s", name);
+    return TW_OK;
+}
+
+/* A camera turning on the spot at position (cell (0,0), local) through a
+ * full circle over the path. */
+static int path_turning(struct tw_path *p, const char *name, uint32_t frames, const float local[3],
+                        float pitch, float w, float d)
+{
+    int rc = path_alloc(p, name, frames);
+    for (uint32_t f = 0; f < frames && !rc; f++) {
+        p->keys[f].pos.local[0] = local[0];
+        p->keys[f].pos.local[1] = local[1];
+        p->keys[f].pos.local[2] = local[2];
+        p->keys[f].yaw = 360.0f * (float)f / (float)frames;
+        p->keys[f].pitch = pitch;
+        rc = tw_tiles_normalize(&p->keys[f].pos, w, d);
+    }
+    return rc;
+}
+
+struct check {
+    char what[160];
+    char figure[200];
+    bool held;
+};
+
+struct scenario_result {
+    const char *name;
+    const char *breaks;
+    struct check checks[8];
+    uint32_t check_count;
+    struct tw_method_figures figures[TW_METHOD_COUNT];
+};
+
+static struct check *add_check(struct scenario_result *r)
+{
+    return r->check_count < 8 ? &r->checks[r->check_count++] : &r->checks[7];
+}
+
+static void check_no_missed(struct scenario_result *r, const struct tw_run *run)
+{
+    for (uint32_t m = 0; m < run->method_count; m++) {
+        const enum tw_method me = run->methods[m];
+        if (!tw_method_conservative(me))
+            continue;
+        const struct tw_method_figures *fg = &run->figures[me];
+        struct check *c = add_check(r);
+        snprintf(c->what, sizeof(c->what), "%s: no missed pixels", tw_method_name(me));
+        snprintf(c->figure, sizeof(c->figure), "%llu missed pixels in %u frames",
+                 (unsigned long long)fg->missed_pixels_total, fg->frames);
+        c->held = fg->missed_pixels_total == 0;
+    }
+}
+
+static void figure_spike(struct scenario_result *r, const struct tw_run *run)
+{
+    for (uint32_t m = 0; m < run->method_count; m++) {
+        const struct tw_method_figures *fg = &run->figures[run->methods[m]];
+        struct check *c = add_check(r);
+        snprintf(c->what, sizeof(c->what), "%s: frame-time spike bounded (measured)",
+                 tw_method_name(run->methods[m]));
+        snprintf(c->figure, sizeof(c->figure), "max/median %.2f (max %.1f ms, median %.1f ms)",
+                 fg->median_ms > 0 ? fg->max_ms / fg->median_ms : 0.0, fg->max_ms, fg->median_ms);
+        c->held = true;
+    }
+}
+
+/* Tiles per frame can never exceed the cells within view distance. */
+static void check_tiles_bounded(struct scenario_result *r, const struct tw_run *run)
+{
+    const struct tw_tileset *ts = run->tileset;
+    const double reach = run->world.view_distance;
+    const double bound = (2.0 * reach / ts->footprint[0] + 3.0) * (2.0 * reach / ts->footprint[1] + 3.0);
+    for (uint32_t m = 0; m < run->method_count; m++) {
+        const struct tw_method_figures *fg = &run->figures[run->methods[m]];
+        struct check *c = add_check(r);
+        snprintf(c->what, sizeof(c->what), "%s: tiles per frame bounded by the view distance",
+                 tw_method_name(run->methods[m]));
+        snprintf(c->figure, sizeof(c->figure), "mean %.1f, max %u tiles (bound %.0f)",
+                 fg->mean_tiles_visible, fg->max_tiles_visible, bound);
+        c->held = fg->max_tiles_visible <= bound;
+    }
+}
+
+static void check_overhead(struct scenario_result *r, const struct tw_run *run, double allowed)
+{
+    const struct tw_method_figures *vfc = &run->figures[TW_METHOD_VFC];
+    for (uint32_t m = 0; m < run->method_count; m++) {
+        const enum tw_method me = run->methods[m];
+        if (me == TW_METHOD_VFC || !vfc->used)
+            continue;
+        const struct tw_method_figures *fg = &run->figures[me];
+        const double ratio = vfc->mean_ms > 0 ? fg->mean_ms / vfc->mean_ms : 0.0;
+        struct check *c = add_check(r);
+        snprintf(c->what, sizeof(c->what), "%s: frame time at most %.0f%% above vfc",
+                 tw_method_name(me), 100.0 * (allowed - 1.0));
+        snprintf(c->figure, sizeof(c->figure), "%.3f x vfc (%.1f ms vs %.1f ms)", ratio,
+                 fg->mean_ms, vfc->mean_ms);
+        c->held = ratio <= allowed;
+    }
+}
+
+static int run_one_scenario(struct tw_run *base, struct tw_context *ctx, const char *name,
+                            struct scenario_result *res, char *err, size_t err_size)
+{
+    const struct tw_tileset *ts = base->tileset;
+    const float w = ts->footprint[0], d = ts->footprint[1];
+    struct tw_run run = *base;
+    char dir[1100];
+    snprintf(dir, sizeof(dir), "%s/scenario-%s", base->out, name);
+    run.out = dir;
+    run.bench = true;
+    run.world.verify = true;
+    res->name = name;
+    const uint32_t frames = base->path ? base->path->count : 0;
+    struct tw_path path = {0};
+    int rc = TW_OK;
+    uint32_t lowest = 0;
+
+    if (strcmp(name, "teleport") == 0 || strcmp(name, "spin") == 0) {
+        res->breaks = "temporal coherence";
+        rc = tw_path_builtin(name, run.world.selection.seed, frames ? frames : 150, w, d, &path);
+    } else if (strcmp(name, "inside-building") == 0) {
+        res->breaks = "query boxes clipped by the near plane";
+        /* The largest instance of the prototype at cell (0, 0): a building. */
+        const struct tw_prototype *p = &ts->prototypes[tw_tiles_select(ts, &run.world.selection,
+                                                                      (struct tw_cell){0, 0})];
+        const struct tw_box *best = &p->instances[0].box;
+        double best_volume = -1.0;
+        for (uint32_t k = 0; k < p->instance_count; k++) {
+            const struct tw_box *b = &p->instances[k].box;
+            const double v = (double)(b->max[0] - b->min[0]) * (b->max[1] - b->min[1]) *
+                             (b->max[2] - b->min[2]);
+            if (v > best_volume) {
+                best_volume = v;
+                best = b;
+            }
+        }
+        const float at[3] = {0.5f * (best->min[0] + best->max[0]),
+                             best->min[1] + fminf(4.0f, 0.5f * (best->max[1] - best->min[1])),
+                             0.5f * (best->min[2] + best->max[2])};
+        rc = path_turning(&path, name, frames ? frames : 72, at, 0.0f, w, d);
+    } else if (strcmp(name, "inside-common-box") == 0) {
+        res->breaks = "query boxes clipped by the near plane";
+        const float at[3] = {0.5f * w, 0.6f * ts->common_box.max[1], 0.02f * d};
+        rc = path_turning(&path, name, frames ? frames : 72, at, -5.0f, w, d);
+    } else if (strcmp(name, "grazing") == 0) {
+        res->breaks = "little occlusion: propagation reaches the view distance";
+        rc = tw_path_builtin("flyover", run.world.selection.seed, frames ? frames : 240, w, d, &path);
+    } else if (strcmp(name, "far-origin") == 0) {
+        res->breaks = "float precision";
+        rc = tw_path_builtin("street", run.world.selection.seed, frames ? frames : 60, w, d, &path);
+        run.world.selection.repeat = 4;
+    } else if (strcmp(name, "no-occluders") == 0) {
+        res->breaks = "propagation to the horizon";
+        for (uint32_t k = 1; k < ts->prototype_count; k++)
+            if (ts->prototypes[k].box.max[1] < ts->prototypes[lowest].box.max[1])
+                lowest = k;
+        run.world.selection.fn = lowest_prototype;
+        run.world.selection.user = &lowest;
+        rc = tw_path_builtin("street", run.world.selection.seed, frames ? frames : 100, w, d, &path);
+    } else {
+        snprintf(err, err_size, "--scenario: unknown scenario '%s'", name);
+        return TW_ERR_INVALID;
+    }
+    if (rc) {
+        snprintf(err, err_size, "scenario %s: cannot make its path", name);
+        return rc;
+    }
+    run.path = &path;
+    run.path_name = path.name;
+
+    if (strcmp(name, "far-origin") == 0) {
+        /* The same walk at the origin and at cell 2^40 (a multiple of the
+         * period 4): every frame's image must be the same. */
+        struct image_hashes near_h = {calloc(path.count, 8), path.count,
+                                      malloc((size_t)run.world.width * run.world.height * 3)};
+        struct image_hashes far_h = {calloc(path.count, 8), path.count,
+                                     malloc((size_t)run.world.width * run.world.height * 3)};
+        if (!near_h.hash || !near_h.rgb || !far_h.hash || !far_h.rgb) {
+            rc = TW_ERR_NOMEM;
+        } else {
+            run.method_count = 1;
+            run.methods[0] = TW_METHOD_TILEQUERY_CHC;
+            run.on_frame = hash_frame;
+            run.on_frame_user = &near_h;
+            rc = tw_run_execute(&run, ctx, err, err_size);
+            const int64_t far = (int64_t)1 << 40;
+            if (!rc)
+                rc = tw_path_translate(&path, far, far);
+            char far_dir[1200];
+            snprintf(far_dir, sizeof(far_dir), "%s/far", dir);
+            struct tw_run far_run = run;
+            far_run.out = far_dir;
+            far_run.on_frame_user = &far_h;
+            if (!rc)
+                rc = tw_run_execute(&far_run, ctx, err, err_size);
+            uint32_t same = 0;
+            for (uint32_t f = 0; f < path.count; f++)
+                same += near_h.hash[f] == far_h.hash[f];
+            struct check *c = add_check(res);
+            snprintf(c->what, sizeof(c->what), "image at cell 2^40 identical to the one at the origin");
+            snprintf(c->figure, sizeof(c->figure), "%u of %u frames identical", same, path.count);
+            c->held = !rc && same == path.count;
+            check_no_missed(res, &run);
+        }
+        free(near_h.hash);
+        free(near_h.rgb);
+        free(far_h.hash);
+        free(far_h.rgb);
+    } else {
+        rc = tw_run_execute(&run, ctx, err, err_size);
+        if (!rc) {
+            check_no_missed(res, &run);
+            if (strcmp(name, "teleport") == 0 || strcmp(name, "spin") == 0)
+                figure_spike(res, &run);
+            if (strcmp(name, "grazing") == 0 || strcmp(name, "no-occluders") == 0) {
+                check_tiles_bounded(res, &run);
+                check_overhead(res, &run, 1.05);
+            }
+        }
+    }
+    memcpy(res->figures, run.figures, sizeof(res->figures));
+    tw_path_finish(&path);
+    return rc;
+}
+
+int tw_run_scenarios(struct tw_run *run, struct tw_context *ctx, const char *name,
+                     bool *all_held, char *err, size_t err_size)
+{
+    struct scenario_result results[16];
+    uint32_t count = 0;
+    int rc = TW_OK;
+    bool known = strcmp(name, "all") == 0;
+    for (const char *const *n = tw_scenario_names; *n; n++)
+        known |= strcmp(*n, name) == 0;
+    if (!known) {
+        snprintf(err, err_size, "--scenario: unknown scenario '%s' (all, teleport, spin, "
+                 "inside-building, inside-common-box, grazing, far-origin, no-occluders)", name);
+        return TW_ERR_INVALID;
+    }
+    const int e = tw_report_make_dirs(run->out);
+    if (e) {
+        snprintf(err, err_size, "%s: cannot create the output folder: %s", run->out, strerror(e));
+        return TW_ERR_IO;
+    }
+    for (const char *const *n = tw_scenario_names; *n && !rc; n++) {
+        if (strcmp(name, "all") != 0 && strcmp(name, *n) != 0)
+            continue;
+        memset(&results[count], 0, sizeof(results[count]));
+        rc = run_one_scenario(run, ctx, *n, &results[count], err, err_size);
+        count++;
+    }
+    if (rc)
+        return rc;
+    char file[1100];
+    snprintf(file, sizeof(file), "%s/scenarios.md", run->out);
+    FILE *f = fopen(file, "w");
+    if (!f) {
+        snprintf(err, err_size, "%s: cannot write: %s", file, strerror(errno));
+        return TW_ERR_IO;
+    }
+    *all_held = true;
+    fprintf(f, "# tileworld stability scenarios: %s, %ux%u, seed %llu\n\n", run->tileset_name,
+            run->world.width, run->world.height, (unsigned long long)run->world.selection.seed);
+    fprintf(f, "Every conservative method runs under --verify (the oracle's ID pass) on each "
+               "scenario; folders scenario-NAME/ hold the frames, summaries and charts.\n\n");
+    fprintf(f, "| scenario | what breaks | what must hold | figure | held |\n|---|---|---|---|---|\n");
+    for (uint32_t k = 0; k < count; k++)
+        for (uint32_t c = 0; c < results[k].check_count; c++) {
+            const struct check *ch = &results[k].checks[c];
+            fprintf(f, "| %s | %s | %s | %s | %s |\n", results[k].name, results[k].breaks, ch->what,
+                    ch->figure, ch->held ? "yes" : "**no**");
+            *all_held &= ch->held;
+        }
+    fprintf(f, "\n## Frame time per method (ms; ratios within one scenario only)\n\n"
+               "| scenario | method | mean | median | p99 | max | triangles | tiles/frame | missed pixels |\n"
+               "|---|---|---|---|---|---|---|---|---|\n");
+    for (uint32_t k = 0; k < count; k++)
+        for (int m = 0; m < TW_METHOD_COUNT; m++) {
+            const struct tw_method_figures *fg = &results[k].figures[m];
+            if (!fg->used)
+                continue;
+            fprintf(f, "| %s | %s | %.2f | %.2f | %.2f | %.2f | %.0f | %.1f | %llu |\n",
+                    results[k].name, tw_method_name((enum tw_method)m), fg->mean_ms, fg->median_ms,
+                    fg->p99_ms, fg->max_ms, fg->mean_triangles, fg->mean_tiles_visible,
+                    (unsigned long long)fg->missed_pixels_total);
+        }
+    if (fclose(f) != 0) {
+        snprintf(err, err_size, "%s: write error", file);
+        return TW_ERR_IO;
+    }
+    json_object *root = json_object_new_object();
+    json_object *list = json_object_new_array();
+    for (uint32_t k = 0; k < count; k++) {
+        json_object *o = json_object_new_object();
+        json_object_object_add(o, "scenario", json_object_new_string(results[k].name));
+        json_object_object_add(o, "breaks", json_object_new_string(results[k].breaks));
+        json_object *checks = json_object_new_array();
+        for (uint32_t c = 0; c < results[k].check_count; c++) {
+            json_object *ch = json_object_new_object();
+            json_object_object_add(ch, "must_hold", json_object_new_string(results[k].checks[c].what));
+            json_object_object_add(ch, "figure", json_object_new_string(results[k].checks[c].figure));
+            json_object_object_add(ch, "held", json_object_new_boolean(results[k].checks[c].held));
+            json_object_array_add(checks, ch);
+        }
+        json_object_object_add(o, "checks", checks);
+        json_object_array_add(list, o);
+    }
+    json_object_object_add(root, "scenarios", list);
+    json_object_object_add(root, "all_held", json_object_new_boolean(*all_held));
+    snprintf(file, sizeof(file), "%s/scenarios.json", run->out);
+    const int bad = json_object_to_file_ext(file, root, JSON_C_TO_STRING_PRETTY);
+    json_object_put(root);
+    if (bad) {
+        snprintf(err, err_size, "%s: cannot write", file);
+        return TW_ERR_IO;
+    }
+    return TW_OK;
+}

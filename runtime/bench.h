@@ -1,0 +1,66 @@
+/*
+ * Runs of the tileworld command: one walk or bench over a path with one or
+ * several methods (alternating frame by frame), parameter sweeps, and the
+ * stability scenarios of DESIGN.md §11. Private to runtime/ (used by
+ * tileworld.c).
+ */
+#ifndef TW_RUNTIME_BENCH_H
+#define TW_RUNTIME_BENCH_H
+
+#include "runtime/report.h"
+#include "runtime/runtime.h"
+
+/* Called after every frame of every method (may be NULL). */
+typedef void (*tw_run_frame_fn)(void *user, uint32_t frame_index, struct tw_world *w,
+                                const struct tw_frame_stats *st);
+
+struct tw_run {
+    const struct tw_tileset *tileset;   /* borrowed */
+    const char *tileset_name;
+    const struct tw_path *path;         /* borrowed */
+    const char *path_name;
+    struct tw_world_settings world;     /* tileset and get_proc are filled in by tw_run_execute */
+    enum tw_method methods[TW_METHOD_COUNT];
+    uint32_t method_count;
+    const char *out;                    /* output folder */
+    uint32_t png_every;
+    bool bench;                         /* summary.md, PNG names with the method, charts */
+    bool quiet;
+    tw_run_frame_fn on_frame;
+    void *on_frame_user;
+    /* results */
+    struct tw_method_figures figures[TW_METHOD_COUNT];
+};
+
+/* Runs every frame of run->path with every method, writing frames.csv,
+ * summary.json (and summary.md and charts for a bench) into run->out. The
+ * context must be current and as large as run->world's size. On failure
+ * returns a negative code with a one-line reason in err. */
+int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t err_size);
+
+/* Makes a tileset again with another cluster size (for sweeps); returns a
+ * new tileset the caller owns, or NULL with a reason in err. */
+typedef struct tw_tileset *(*tw_tileset_maker_fn)(void *user, uint32_t cluster_triangles,
+                                                  char *err, size_t err_size);
+
+/* --sweep PARAM=v1,v2,...: the base run (written to run->out), then one run
+ * per value into run->out/sweep-PARAM-VALUE/, and run->out/sweep.csv with
+ * one row per method and value. PARAM is one of n_av, b, T,
+ * cluster_triangles, evict_after, view_distance, neighbours. */
+int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
+                 tw_tileset_maker_fn make_tileset, void *maker_user, char *err, size_t err_size);
+
+/* Checks a --sweep spec without running it (for the command line). */
+int tw_run_sweep_check(const char *spec, char *err, size_t err_size);
+
+/* Names of the stability scenarios, NULL-terminated. */
+extern const char *const tw_scenario_names[];
+
+/* --scenario NAME|all: runs each scenario over the run's tileset with every
+ * conservative method under --verify, into run->out/scenario-NAME/, and
+ * writes run->out/scenarios.md and scenarios.json saying what had to hold
+ * and whether it held. *all_held tells whether every check held. */
+int tw_run_scenarios(struct tw_run *run, struct tw_context *ctx, const char *name,
+                     bool *all_held, char *err, size_t err_size);
+
+#endif
