@@ -338,14 +338,14 @@ struct check {
 struct scenario_result {
     const char *name;
     const char *breaks;
-    struct check checks[8];
+    struct check checks[32];
     uint32_t check_count;
     struct tw_method_figures figures[TW_METHOD_COUNT];
 };
 
 static struct check *add_check(struct scenario_result *r)
 {
-    return r->check_count < 8 ? &r->checks[r->check_count++] : &r->checks[7];
+    return r->check_count < 32 ? &r->checks[r->check_count++] : &r->checks[31];
 }
 
 static void check_no_missed(struct scenario_result *r, const struct tw_run *run)

@@ -7,6 +7,7 @@
 #include <json-c/json.h>
 #include <math.h>
 #include <poll.h>
+#include <stdarg.h>
 #include <signal.h>
 #include <stdbool.h>
 #include <stdint.h>
@@ -24,6 +25,8 @@
 #define MAX_METHODS 16
 #define MAX_NAME 64
 #define MAX_FIELDS 256
+/* A sweep is methods x settings; far more would not be readable anyway. */
+#define MAX_SWEEP_ROWS 4096
 #define PATH_SIZE 4096
 /* A chart run takes a second or two; this only stops a wedged gnuplot. */
 #define GNUPLOT_TIMEOUT_S 120
@@ -41,7 +44,7 @@ struct method {
     char name[MAX_NAME];
     char data_file[MAX_NAME + 32]; /* relative to dir */
     FILE *data;
-    int colour;                    /* palette slot, also the gnuplot line style - 1 */
+    int colour;                    /* palette slot; gnuplot linetype colour + 1 */
     uint64_t frames;
     double ms_sum, triangles_sum, overdraw_sum, missed_total;
     double ms_min, ms_max, triangles_min, triangles_max; /* over frames, for log axes */
@@ -50,8 +53,11 @@ struct method {
 struct sweep_row {
     char method[MAX_NAME], param[MAX_NAME], value[MAX_NAME];
     int method_index;
-    double x;                      /* the value, or its rank for a non-numeric param */
+    double x;                      /* the value, or its rank when by_rank */
+    bool by_rank;                  /* the param is plotted by rank, values as tic labels */
+    bool unaffected;               /* the param changes nothing this method draws */
     double mean_ms, missed_total, mean_overdraw;
+    double mean_triangles;         /* -1 when sweep.csv has no mean_triangles */
 };
 
 struct charts {
@@ -433,8 +439,87 @@ static bool parse_value(const char *s, double *out)
     return true;
 }
 
-/* Reads sweep.csv if there is one. A parameter whose values are not all
- * numbers is plotted by rank, its values as tick labels. */
+/* By parameter, then value (numbers by value before words in alphabetical
+ * order): the order in which ranks are given. */
+static int compare_sweep_rows_by_value(const void *a, const void *b)
+{
+    const struct sweep_row *x = a, *y = b;
+    int d = strcmp(x->param, y->param);
+    if (d)
+        return d;
+    double u, v;
+    const bool nu = parse_value(x->value, &u), nv = parse_value(y->value, &v);
+    if (nu != nv)
+        return nu ? -1 : 1;
+    if (nu && u != v)
+        return (u > v) - (u < v);
+    return nu ? 0 : strcmp(x->value, y->value);
+}
+
+static size_t group_end(const struct charts *c, size_t start, bool by_method)
+{
+    size_t end = start;
+    while (end < c->sweep_count && strcmp(c->sweep[end].param, c->sweep[start].param) == 0 &&
+           (!by_method || c->sweep[end].method_index == c->sweep[start].method_index))
+        end++;
+    return end;
+}
+
+/* x of every sweep row (rows sorted by parameter and value): the value
+ * itself, or its rank among the parameter's values when they are not all
+ * numbers, or when they include 0 and span decades (0, 1, 4, 16, 64 would
+ * bunch up on a linear axis and 0 has no place on a log one). */
+static void set_sweep_x(struct charts *c)
+{
+    for (size_t start = 0; start < c->sweep_count;) {
+        const size_t end = group_end(c, start, false);
+        bool numeric = true, zero = false;
+        double lo = INFINITY, hi = 0.0, v;
+        for (size_t k = start; k < end; k++) {
+            numeric &= parse_value(c->sweep[k].value, &v);
+            if (!numeric)
+                break;
+            zero |= v == 0.0;
+            if (v > 0.0)
+                lo = fmin(lo, v);
+            hi = fmax(hi, v);
+        }
+        const bool by_rank = !numeric || (zero && lo < INFINITY && hi / lo >= 50.0);
+        double rank = -1.0;
+        for (size_t k = start; k < end; k++) {
+            struct sweep_row *r = &c->sweep[k];
+            r->by_rank = by_rank;
+            if (by_rank) {
+                if (k == start || strcmp(r->value, r[-1].value) != 0)
+                    rank += 1.0;
+                r->x = rank;
+            } else {
+                parse_value(r->value, &r->x);
+            }
+        }
+        start = end;
+    }
+}
+
+/* A parameter that leaves a method's triangles, missed pixels and overdraw
+ * the same at every value changes nothing it draws (T for vfc): its sweep
+ * points differ only by timing noise. */
+static void mark_unaffected(struct charts *c)
+{
+    for (size_t start = 0; start < c->sweep_count;) {
+        const size_t end = group_end(c, start, true);
+        bool same = end - start > 1 && c->sweep[start].mean_triangles >= 0.0;
+        for (size_t k = start + 1; k < end && same; k++)
+            same = c->sweep[k].mean_triangles == c->sweep[start].mean_triangles &&
+                   c->sweep[k].missed_total == c->sweep[start].missed_total &&
+                   c->sweep[k].mean_overdraw == c->sweep[start].mean_overdraw;
+        for (size_t k = start; k < end; k++)
+            c->sweep[k].unaffected = same;
+        start = end;
+    }
+}
+
+/* Reads sweep.csv if there is one. */
 static int read_sweep(struct charts *c)
 {
     char file[PATH_SIZE];
@@ -465,9 +550,15 @@ static int read_sweep(struct charts *c)
         rc = TW_ERR_FORMAT;
         goto out;
     }
+    const int col_triangles = column(c, &csv, "mean_triangles", false);
     while ((rc = csv_next(c, &csv)) > 0) {
         if ((rc = check_field_count(c, &csv, header_fields)))
             goto out;
+        if (c->sweep_count == MAX_SWEEP_ROWS) {
+            set_error(c, "%s:%lu: more than %d rows", csv.file, csv.line_no, MAX_SWEEP_ROWS);
+            rc = TW_ERR_LIMIT;
+            goto out;
+        }
         if (c->sweep_count == c->sweep_cap) {
             size_t cap = c->sweep_cap ? c->sweep_cap * 2 : 32;
             struct sweep_row *rows = realloc(c->sweep, cap * sizeof(*rows));
@@ -486,8 +577,12 @@ static int read_sweep(struct charts *c)
             (rc = name_field(c, &csv, col_value, "value", r->value)) ||
             (rc = number(c, &csv, col_ms, "mean_ms", &r->mean_ms)) ||
             (rc = number(c, &csv, col_missed, "missed_pixels_total", &r->missed_total)) ||
-            (rc = number(c, &csv, col_overdraw, "mean_overdraw_triangles", &r->mean_overdraw)))
+            (rc = number(c, &csv, col_overdraw, "mean_overdraw_triangles", &r->mean_overdraw)) ||
+            (col_triangles >= 0 &&
+             (rc = number(c, &csv, col_triangles, "mean_triangles", &r->mean_triangles))))
             goto out;
+        if (col_triangles < 0)
+            r->mean_triangles = -1.0;
         r->method_index = method_index(c, csv.file, csv.line_no, r->method);
         if (r->method_index < 0) {
             rc = TW_ERR_LIMIT;
@@ -497,38 +592,12 @@ static int read_sweep(struct charts *c)
     }
     if (rc < 0)
         goto out;
-    /* Numeric x, or ranks in order of first appearance for a parameter
-     * with any non-numeric value. */
-    for (size_t i = 0; i < c->sweep_count; i++) {
-        struct sweep_row *r = &c->sweep[i];
-        bool numeric = true;
-        for (size_t j = 0; j < c->sweep_count && numeric; j++)
-            if (strcmp(c->sweep[j].param, r->param) == 0)
-                numeric = parse_value(c->sweep[j].value, &(double){0.0});
-        if (numeric) {
-            parse_value(r->value, &r->x);
-            continue;
-        }
-        double rank = 0.0;
-        for (size_t j = 0; j < i; j++) {
-            if (strcmp(c->sweep[j].param, r->param) != 0)
-                continue;
-            bool seen = false;
-            for (size_t k = 0; k < j && !seen; k++)
-                seen = strcmp(c->sweep[k].param, r->param) == 0 &&
-                       strcmp(c->sweep[k].value, c->sweep[j].value) == 0;
-            if (strcmp(c->sweep[j].value, r->value) == 0) {
-                rank = -1.0;
-                r->x = c->sweep[j].x;
-                break;
-            }
-            rank += !seen;
-        }
-        if (rank >= 0.0)
-            r->x = rank;
-    }
+    if (c->sweep_count > 1)
+        qsort(c->sweep, c->sweep_count, sizeof(*c->sweep), compare_sweep_rows_by_value);
+    set_sweep_x(c);
     if (c->sweep_count > 1)
         qsort(c->sweep, c->sweep_count, sizeof(*c->sweep), compare_sweep_rows);
+    mark_unaffected(c);
     rc = TW_OK;
 out:
     csv_close(&csv);
@@ -580,14 +649,16 @@ static void put_quoted(FILE *f, const char *s)
     fputc('"', f);
 }
 
-static void put_title(FILE *f, const struct charts *c, const char *title, const char *detail)
+/* The title as a label at a fixed place: gnuplot's title would sit above
+ * a key placed at the top, far from its plot. */
+static void put_heading(FILE *f, const struct charts *c, const char *title, const char *detail)
 {
     char text[1200];
     snprintf(text, sizeof(text), "%s\n%s%s%s", title, c->subtitle, *c->subtitle && *detail ? ", " : "",
              detail);
-    fputs("set title ", f);
+    fputs("set label 100 ", f);
     put_quoted(f, text);
-    fputs(" font ',13'\n", f);
+    fputs(" at screen 0.5, screen 0.955 center font ',13'\n", f);
 }
 
 /* Tics at 1, 2, 5 x 10^k inside [lo, hi]: a log axis with labels only at
@@ -611,6 +682,9 @@ static void put_log_tics(FILE *f, char axis, double lo, double hi)
 }
 
 static bool has_frames(const struct method *m) { return m->frames > 0; }
+
+/* The mean per frame of a sum over a method's frames. */
+static double per_frame(const struct method *m, double sum) { return sum / (double)m->frames; }
 
 /* Counts read best as plain numbers of a named unit ("800 thousand")
  * rather than "800.0k" or "8e+05". */
@@ -649,7 +723,7 @@ static void put_frame_chart(FILE *f, const struct charts *c, const char *output,
         const struct method *m = &c->methods[k];
         if (!has_frames(m))
             continue;
-        const double mean = (triangles ? m->triangles_sum : m->ms_sum) / m->frames;
+        const double mean = per_frame(m, triangles ? m->triangles_sum : m->ms_sum);
         lo = fmin(lo, mean);
         hi = fmax(hi, mean);
         frame_lo = fmin(frame_lo, triangles ? m->triangles_min : m->ms_min);
@@ -666,13 +740,20 @@ static void put_frame_chart(FILE *f, const struct charts *c, const char *output,
     const struct count_unit unit = triangles ? count_unit_for(hi) : (struct count_unit){1.0, "ms"};
     fprintf(f, "\n# ---- %s ----\nreset\nset terminal @png_term size 1000,600\n", output);
     fprintf(f, "set output '%s'\n", output);
-    put_title(f, c, title, detail);
+    put_heading(f, c, title, detail);
+    /* The key in rows of three between the heading and the plot, where it
+     * hides no line. */
+    int shown = 0;
+    for (int k = 0; k < c->method_count; k++)
+        shown += has_frames(&c->methods[k]);
+    fprintf(f, "set key at graph 0.5, graph 1.01 bottom center horizontal maxcols 3 Left reverse "
+               "samplen 3 width 1\nset tmargin %.1f\n",
+            4.5 + (shown + 2) / 3);
     fputs("set xlabel 'frame'\n", f);
     fprintf(f, "set ylabel '%s%s%s%s%s'\n", quantity, unit.name || log_y ? " (" : "",
             unit.name ? unit.name : "", unit.name && log_y ? ", " : "",
             log_y ? "log scale)" : unit.name ? ")" : "");
     fputs("set grid xtics ytics lc rgb '#d8d8d8'\n"
-          "set key below center horizontal Left reverse samplen 3 width 2\n"
           "set border 3\nset tics nomirror\n"
           "set autoscale xfixmin\nset autoscale xfixmax\nset format y '%g'\n",
           f);
@@ -695,10 +776,10 @@ static void put_frame_chart(FILE *f, const struct charts *c, const char *output,
             continue;
         char key[128], mean[32];
         if (triangles) {
-            human_count(m->triangles_sum / m->frames, mean, sizeof(mean));
+            human_count(per_frame(m, m->triangles_sum), mean, sizeof(mean));
             snprintf(key, sizeof(key), "%s (mean %s)", m->name, mean);
         } else {
-            snprintf(key, sizeof(key), "%s (mean %.1f ms)", m->name, m->ms_sum / m->frames);
+            snprintf(key, sizeof(key), "%s (mean %.1f ms)", m->name, per_frame(m, m->ms_sum));
         }
         fprintf(f, "%s  '%s' using 1:($%d/%g) with lines lt %d title '%s'", first ? "" : ", \\\n",
                 m->data_file, column_no, unit.scale, m->colour + 1, key);
@@ -706,10 +787,6 @@ static void put_frame_chart(FILE *f, const struct charts *c, const char *output,
     }
     fputs("\n", f);
 }
-
-/* The y position of a missed-pixel total on the log axis: the total + 1, so
- * that 0 (the expected value for conservative methods) is plotted. */
-static double missed_y(double missed) { return missed + 1.0; }
 
 /* ---- point labels that do not overlap ------------------------------------------ */
 
@@ -724,6 +801,7 @@ struct point_label {
     double cx, cy;          /* the point in character cells */
     char text[3 * MAX_NAME + 8];
     bool small;             /* a sweep setting, in a smaller font */
+    const char *rgb;        /* the method's colour */
     double dx, dy;          /* chosen offset in character cells */
     int align;              /* -1 right, 0 centre, 1 left of the anchor */
 };
@@ -732,9 +810,12 @@ struct cell_box {
     double x0, y0, x1, y1;
 };
 
-static bool boxes_overlap(const struct cell_box *a, const struct cell_box *b)
+/* The area two boxes share, 0 if they are apart. */
+static double overlap_area(const struct cell_box *a, const struct cell_box *b)
 {
-    return a->x0 < b->x1 && b->x0 < a->x1 && a->y0 < b->y1 && b->y0 < a->y1;
+    const double w = fmin(a->x1, b->x1) - fmax(a->x0, b->x0);
+    const double h = fmin(a->y1, b->y1) - fmax(a->y0, b->y0);
+    return w > 0.0 && h > 0.0 ? w * h : 0.0;
 }
 
 /* Text of 10 pt (8 pt) is about 7 (5.6) px a character, 14 (11) px high. */
@@ -744,49 +825,73 @@ static struct cell_box label_box(const struct point_label *l, double dx, double 
     const double h = l->small ? 0.7 : 0.85;
     const double ax = l->cx + dx, ay = l->cy + dy;
     const double x0 = align > 0 ? ax : align < 0 ? ax - w : ax - w / 2.0;
-    return (struct cell_box){x0, ay - h / 2.0, x0 + w, ay + h / 2.0};
+    /* A little padding keeps neighbours from reading as one word. */
+    return (struct cell_box){x0 - 0.3, ay - h / 2.0 - 0.05, x0 + w + 0.3, ay + h / 2.0 + 0.05};
+}
+
+struct label_spot {
+    double dx, dy;
+    int align;
+};
+
+/* Spots around a point, nearest first so that a label stays next to its
+ * point: the eight neighbours, then rings further above and below. */
+static int label_spots(struct label_spot *spots, int cap)
+{
+    static const struct label_spot near[] = {
+        {1.3, 0.0, 1}, {1.2, 0.8, 1},   {1.2, -0.8, 1},  {-1.3, 0.0, -1},
+        {0.0, 1.2, 0}, {0.0, -1.2, 0},  {-1.2, 0.8, -1}, {-1.2, -0.8, -1},
+    };
+    int n = 0;
+    for (size_t k = 0; k < sizeof(near) / sizeof(near[0]) && n < cap; k++)
+        spots[n++] = near[k];
+    for (int ring = 1; ring <= 5; ring++) {
+        const double dy = 0.8 + 1.0 * ring;
+        const struct label_spot more[] = {
+            {1.2, dy, 1}, {1.2, -dy, 1}, {-1.2, dy, -1}, {-1.2, -dy, -1},
+            {0.0, dy + 0.4, 0}, {0.0, -dy - 0.4, 0},
+        };
+        for (size_t k = 0; k < sizeof(more) / sizeof(more[0]) && n < cap; k++)
+            spots[n++] = more[k];
+    }
+    return n;
 }
 
 /* Greedy: each label takes the first spot around its point that is free of
- * the points, of the labels placed before it and of the fixed obstacles. */
+ * the points, of the labels placed before it and of the fixed obstacles;
+ * if none is, the spot that overlaps least. */
 static void place_labels(struct point_label *labels, int n, const struct cell_box *obstacles,
                          int obstacle_count)
 {
-    static const struct {
-        double dx, dy;
-        int align;
-    } spots[] = {
-        /* Nearest first, so that a label stays next to its point. */
-        {1.3, 0.0, 1},   {1.2, 0.8, 1},   {1.2, -0.8, 1},  {-1.3, 0.0, -1}, {0.0, 1.2, 0},
-        {0.0, -1.2, 0},  {-1.2, 0.8, -1}, {-1.2, -0.8, -1}, {1.2, 1.8, 1},  {1.2, -1.8, 1},
-        {-1.2, 1.8, -1}, {-1.2, -1.8, -1}, {0.0, 2.4, 0},  {0.0, -2.4, 0},  {1.2, 3.0, 1},
-        {1.2, -3.0, 1},  {0.0, 3.6, 0},   {0.0, -3.6, 0},
-    };
-    const int spot_count = (int)(sizeof(spots) / sizeof(spots[0]));
+    struct label_spot spots[64];
+    const int spot_count = label_spots(spots, 64);
     for (int i = 0; i < n; i++) {
         struct point_label *l = &labels[i];
         int chosen = 0;
-        for (int s = 0; s < spot_count; s++) {
+        double least = INFINITY;
+        for (int s = 0; s < spot_count && least > 0.0; s++) {
             const struct cell_box b = label_box(l, spots[s].dx, spots[s].dy, spots[s].align);
-            bool free = b.x0 >= 0.0 && b.x1 <= PANEL_COLS + 2.0 && b.y0 >= 0.05 &&
-                        b.y1 <= PANEL_ROWS;
-            for (int k = 0; k < n && free; k++) {
+            /* Outside the plot area counts as a large overlap. */
+            double overlap = 0.0;
+            if (b.x0 < 0.0 || b.x1 > PANEL_COLS + 2.0 || b.y0 < 0.05 || b.y1 > PANEL_ROWS)
+                overlap += 100.0;
+            for (int k = 0; k < n; k++) {
                 /* A dot of 2 (1.3) point sizes is about 14 (9) px wide. */
                 const double rx = labels[k].small ? 0.55 : 0.85, ry = labels[k].small ? 0.3 : 0.45;
                 const struct cell_box dot = {labels[k].cx - rx, labels[k].cy - ry,
                                              labels[k].cx + rx, labels[k].cy + ry};
-                free = !boxes_overlap(&b, &dot);
+                overlap += overlap_area(&b, &dot);
             }
-            for (int k = 0; k < i && free; k++) {
+            for (int k = 0; k < i; k++) {
                 const struct cell_box other =
                     label_box(&labels[k], labels[k].dx, labels[k].dy, labels[k].align);
-                free = !boxes_overlap(&b, &other);
+                overlap += 4.0 * overlap_area(&b, &other); /* text on text is worst */
             }
-            for (int k = 0; k < obstacle_count && free; k++)
-                free = !boxes_overlap(&b, &obstacles[k]);
-            if (free) {
+            for (int k = 0; k < obstacle_count; k++)
+                overlap += overlap_area(&b, &obstacles[k]);
+            if (overlap < least) {
+                least = overlap;
                 chosen = s;
-                break;
             }
         }
         l->dx = spots[chosen].dx;
@@ -802,19 +907,34 @@ static void put_labels(FILE *f, const struct point_label *labels, int n)
         fprintf(f, "set label %d '%s' at first %.10g, first %.10g %s offset char %.2f,%.2f "
                    "font ',%d' tc rgb '%s' front\n",
                 k + 10, l->text, l->x, l->y, l->align > 0 ? "left" : l->align < 0 ? "right" : "center",
-                l->dx, l->dy, l->small ? 8 : 10, l->small ? "#555555" : "#222222");
+                l->dx, l->dy, l->small ? 8 : 10, l->rgb);
     }
 }
 
 /* One panel of the speed/accuracy chart: the methods as filled dots, the
  * sweep settings as open circles joined per method and parameter. */
 struct accuracy_panel {
-    int methods_column, sweep_column; /* y in methods.dat, sweep.dat */
-    bool log_y;
-    double y_lo, y_hi, x_hi;
-    double y_scale;                   /* data / y_scale is plotted */
+    bool missed;            /* missed pixels, else overdraw triangles */
+    bool log_y;             /* a log axis of 1 + value, so that 0 has a place */
+    double y_lo, y_hi, x_hi; /* the ranges, in plotted units */
+    double y_scale;         /* on a linear axis, value / y_scale is plotted */
     bool key;
 };
+
+/* The plotted y of a value, and the same as a gnuplot expression of a
+ * data column. */
+static double panel_y(const struct accuracy_panel *p, double v)
+{
+    return p->log_y ? v + 1.0 : v / p->y_scale;
+}
+
+static void panel_y_expression(const struct accuracy_panel *p, int column, char *out, size_t size)
+{
+    if (p->log_y)
+        snprintf(out, size, "($%d+1)", column);
+    else
+        snprintf(out, size, "($%d/%g)", column, p->y_scale);
+}
 
 static double panel_cell_y(const struct accuracy_panel *p, double y)
 {
@@ -822,6 +942,36 @@ static double panel_cell_y(const struct accuracy_panel *p, double y)
         return (log(y) - log(p->y_lo)) / (log(p->y_hi) - log(p->y_lo)) * PANEL_ROWS;
     return (y - p->y_lo) / (p->y_hi - p->y_lo) * PANEL_ROWS;
 }
+
+/* The range of a log axis of 1 + value up to max: room above for labels,
+ * and 0 (at 1) a tenth of the height above the axis with room below. */
+static void symlog_range(double max, double headroom, double *lo, double *hi)
+{
+    *hi = fmax(20.0, (max + 1.0) * headroom);
+    *lo = pow(*hi, -1.0 / 9.0);
+}
+
+/* Tics at 1 + 10^k labelled 10^k, and 0 at 1; the tic for 1 (at 2) would
+ * crowd the one for 0 over many decades. */
+static void put_symlog_tics(FILE *f, double hi)
+{
+    fputs("set ytics ('0' 1", f);
+    for (double v = hi > 1e4 ? 10.0 : 1.0; v + 1.0 <= hi; v *= 10.0) {
+        if (v >= 1e6)
+            fprintf(f, ", '%.0fM' %.10g", v / 1e6, v + 1.0);
+        else if (v >= 1e4)
+            fprintf(f, ", '%.0fk' %.10g", v / 1e3, v + 1.0);
+        else
+            fprintf(f, ", '%.0f' %.10g", v, v + 1.0);
+    }
+    fputs(")\n", f);
+}
+
+/* Columns of chart-data/methods.dat and chart-data/sweep.dat. */
+enum {
+    METHODS_MEAN_MS = 2, METHODS_MISSED = 3, METHODS_OVERDRAW = 4,
+    SWEEP_X = 4, SWEEP_MEAN_MS = 5, SWEEP_MISSED = 6, SWEEP_OVERDRAW = 7,
+};
 
 static int put_accuracy_panel(FILE *f, const struct charts *c, const struct accuracy_panel *p,
                               const struct cell_box *obstacles, int obstacle_count,
@@ -837,18 +987,26 @@ static int put_accuracy_panel(FILE *f, const struct charts *c, const struct accu
         if (!has_frames(m))
             continue;
         struct point_label *l = &labels[n++];
-        l->x = m->ms_sum / m->frames;
-        l->y = p->methods_column == 3 ? missed_y(m->missed_total)
-                                      : m->overdraw_sum / m->frames / p->y_scale;
+        l->x = per_frame(m, m->ms_sum);
+        l->y = panel_y(p, p->missed ? m->missed_total : per_frame(m, m->overdraw_sum));
         snprintf(l->text, sizeof(l->text), "%s", m->name);
+        l->rgb = palette[m->colour];
     }
+    /* The first point of a method's sweep curve says whose it is; the
+     * curve carries the name to the others. */
     for (size_t k = 0; k < c->sweep_count; k++) {
         const struct sweep_row *r = &c->sweep[k];
+        if (r->unaffected)
+            continue;
+        const bool first = k == 0 || r[-1].method_index != r->method_index ||
+                           strcmp(r[-1].param, r->param) != 0;
         struct point_label *l = &labels[n++];
         l->x = r->mean_ms;
-        l->y = p->sweep_column == 6 ? missed_y(r->missed_total) : r->mean_overdraw / p->y_scale;
+        l->y = panel_y(p, p->missed ? r->missed_total : r->mean_overdraw);
         l->small = true;
-        snprintf(l->text, sizeof(l->text), "%s %s=%s", r->method, r->param, r->value);
+        snprintf(l->text, sizeof(l->text), "%s%s%s=%s", first ? r->method : "", first ? " " : "",
+                 r->param, r->value);
+        l->rgb = palette[c->methods[r->method_index].colour];
     }
     for (int k = 0; k < n; k++) {
         labels[k].cx = labels[k].x / p->x_hi * PANEL_COLS;
@@ -858,31 +1016,33 @@ static int put_accuracy_panel(FILE *f, const struct charts *c, const struct accu
     put_labels(f, labels, n);
     free(labels);
 
+    char y[32];
+    panel_y_expression(p, p->missed ? METHODS_MISSED : METHODS_OVERDRAW, y, sizeof(y));
     fputs("plot \\\n", f);
     int row = 0;
     for (int k = 0; k < c->method_count; k++) {
         const struct method *m = &c->methods[k];
         if (!has_frames(m))
             continue;
-        fprintf(f, "  '%s' every ::%d::%d using 2:($%d/%g) with points lt %d pt 7 ps 2 %s%s%s, \\\n",
-                methods_file, row, row, p->methods_column, p->methods_column == 3 ? 1.0 : p->y_scale,
-                m->colour + 1, p->key ? "title '" : "notitle", p->key ? m->name : "",
-                p->key ? "'" : "");
+        fprintf(f, "  '%s' every ::%d::%d using %d:%s with points lt %d pt 7 ps 2 %s%s%s, \\\n",
+                methods_file, row, row, METHODS_MEAN_MS, y, m->colour + 1,
+                p->key ? "title '" : "notitle", p->key ? m->name : "", p->key ? "'" : "");
         row++;
     }
+    panel_y_expression(p, p->missed ? SWEEP_MISSED : SWEEP_OVERDRAW, y, sizeof(y));
+    bool any_sweep = false;
     int group = 0;
-    for (size_t k = 0; k < c->sweep_count; group++) {
+    for (size_t k = 0; k < c->sweep_count; k = group_end(c, k, true), group++) {
         const struct sweep_row *r = &c->sweep[k];
-        fprintf(f, "  '%s' index %d using 5:($%d/%g) with linespoints lt %d pt 6 ps 1.3 lw 1 dt 3 "
+        if (r->unaffected)
+            continue;
+        fprintf(f, "  '%s' index %d using %d:%s with linespoints lt %d pt 6 ps 1.3 lw 1 dt 3 "
                    "notitle, \\\n",
-                sweep_file, group, p->sweep_column, p->sweep_column == 6 ? 1.0 : p->y_scale,
-                c->methods[r->method_index].colour + 1);
-        while (k < c->sweep_count && strcmp(c->sweep[k].param, r->param) == 0 &&
-               c->sweep[k].method_index == r->method_index)
-            k++;
+                sweep_file, group, SWEEP_MEAN_MS, y, c->methods[r->method_index].colour + 1);
+        any_sweep = true;
     }
     /* The plot command needs a last element; it also keys the sweep. */
-    if (c->sweep_count && p->key)
+    if (any_sweep && p->key)
         fputs("  NaN with points lc rgb '#555555' pt 6 ps 1.3 title 'sweep settings'\n", f);
     else
         fputs("  NaN notitle\n", f);
@@ -893,7 +1053,7 @@ static int put_accuracy_panel(FILE *f, const struct charts *c, const struct accu
 static int put_speed_accuracy(FILE *f, const struct charts *c, const char *methods_file,
                               const char *sweep_file)
 {
-    double x_max = 0.0, missed_max = 0.0, overdraw_max = 0.0;
+    double x_max = 0.0, missed_max = 0.0, overdraw_max = 0.0, overdraw_min = INFINITY;
     bool any_accuracy = false;
     int shown = 0;
     for (int k = 0; k < c->method_count; k++) {
@@ -901,21 +1061,29 @@ static int put_speed_accuracy(FILE *f, const struct charts *c, const char *metho
         if (!has_frames(m))
             continue;
         shown++;
-        x_max = fmax(x_max, m->ms_sum / m->frames);
+        const double overdraw = per_frame(m, m->overdraw_sum);
+        x_max = fmax(x_max, per_frame(m, m->ms_sum));
         missed_max = fmax(missed_max, m->missed_total);
-        overdraw_max = fmax(overdraw_max, m->overdraw_sum / m->frames);
+        overdraw_max = fmax(overdraw_max, overdraw);
+        if (overdraw > 0.0)
+            overdraw_min = fmin(overdraw_min, overdraw);
         any_accuracy |= m->missed_total > 0.0 || m->overdraw_sum > 0.0;
     }
+    bool any_sweep = false;
     for (size_t k = 0; k < c->sweep_count; k++) {
         const struct sweep_row *r = &c->sweep[k];
+        if (r->unaffected)
+            continue;
+        any_sweep = true;
         x_max = fmax(x_max, r->mean_ms);
         missed_max = fmax(missed_max, r->missed_total);
         overdraw_max = fmax(overdraw_max, r->mean_overdraw);
+        if (r->mean_overdraw > 0.0)
+            overdraw_min = fmin(overdraw_min, r->mean_overdraw);
         any_accuracy |= r->missed_total > 0.0 || r->mean_overdraw > 0.0;
     }
-    /* Headroom to the right and above for the point labels. */
+    /* Headroom to the right for the point labels. */
     const double x_hi = x_max > 0.0 ? x_max * 1.25 : 1.0;
-    const struct count_unit unit = count_unit_for(overdraw_max);
 
     fputs("\n# ---- chart-speed-accuracy.png ----\nreset\n"
           "set terminal @png_term size 1200,600\n"
@@ -936,35 +1104,29 @@ static int put_speed_accuracy(FILE *f, const struct charts *c, const char *metho
      * show every method as perfect. */
     const bool unmeasured = !c->accuracy_columns || !any_accuracy;
 
-    /* Left panel: missed pixels on a log axis of 1 + value, tics labelled
-     * with the value itself so that 0 reads as 0. */
-    struct accuracy_panel missed = {3, 6, true, 0.6, fmax(20.0, missed_y(missed_max) * 8.0), x_hi,
-                                    1.0, true};
+    /* Left panel: missed pixels, 0 expected of conservative methods. */
+    struct accuracy_panel missed = {.missed = true, .log_y = true, .x_hi = x_hi, .y_scale = 1.0,
+                                    .key = true};
+    symlog_range(missed_max, 8.0, &missed.y_lo, &missed.y_hi);
     fputs("set title 'Missed pixels (visible errors)' font ',12'\n"
           "set ylabel 'missed pixels, total over the run (log scale of 1 + value)'\n"
           "set logscale y\n",
           f);
-    fprintf(f, "set yrange [%g:%.6g]\n", missed.y_lo, missed.y_hi);
-    fputs("set ytics ('0' 1", f);
-    for (double v = 1.0; v + 1.0 <= missed.y_hi; v *= 10.0) {
-        char label[32];
-        human_count(v, label, sizeof(label));
-        fprintf(f, ", '%s' %.10g", label, v + 1.0);
-    }
-    fputs(")\n", f);
+    fprintf(f, "set yrange [%.6g:%.6g]\n", missed.y_lo, missed.y_hi);
+    put_symlog_tics(f, missed.y_hi);
     const double zero_row = panel_cell_y(&missed, 1.0);
     fputs("set arrow 1 from graph 0, first 1 to graph 1, first 1 nohead lc rgb '#9a9a9a' dt 2 back\n"
           "set label 1 'no pixel missed (conservative)' at graph 0.99, first 1 right "
           "offset 0,-1 tc rgb '#6a6a6a' font ',9'\n",
           f);
     if (unmeasured)
-        fputs("set label 2 'no missed pixels and no overdraw recorded:\\nwas bench run with --verify?' "
+        fputs("set label 2 \"no missed pixels and no overdraw recorded:\\nwas bench run with --verify?\" "
               "at graph 0.5, graph 0.6 center tc rgb '#b00000' font ',12'\n",
               f);
     /* The key (top right), the conservative line's label, the warning, the
      * conservative line itself (text across a dashed line reads badly). */
     const struct cell_box missed_obstacles[] = {
-        {PANEL_COLS - 19.0, PANEL_ROWS - 1.2 * (shown + (c->sweep_count ? 2 : 1)), PANEL_COLS + 2.0,
+        {PANEL_COLS - 19.0, PANEL_ROWS - 1.2 * (shown + (any_sweep ? 2 : 1)), PANEL_COLS + 2.0,
          PANEL_ROWS + 1.0},
         {PANEL_COLS - 27.0, zero_row - 1.6, PANEL_COLS + 2.0, zero_row - 0.4},
         {PANEL_COLS / 2.0 - 16.0, PANEL_ROWS * 0.6 - 1.5, PANEL_COLS / 2.0 + 16.0,
@@ -975,17 +1137,28 @@ static int put_speed_accuracy(FILE *f, const struct charts *c, const char *metho
     if (rc)
         return rc;
 
-    /* Right panel: overdraw. */
-    struct accuracy_panel overdraw = {4, 7, false, 0.0,
-                                      overdraw_max > 0.0 ? overdraw_max / unit.scale * 1.15 : 1.0,
-                                      x_hi, unit.scale, false};
-    fputs("unset arrow 1\nunset logscale y\nunset key\n"
+    /* Right panel: overdraw, on a log axis too when vfc's dwarfs the rest. */
+    struct accuracy_panel overdraw = {.missed = false, .x_hi = x_hi, .y_scale = 1.0};
+    overdraw.log_y = overdraw_min < INFINITY && overdraw_max / overdraw_min > 10.0;
+    const struct count_unit unit = count_unit_for(overdraw_max);
+    fputs("unset arrow 1\nunset key\n"
           "set title 'Overdraw (wasted work)' font ',12'\n",
           f);
-    fprintf(f, "set ylabel 'overdraw triangles per frame, mean%s%s%s'\n",
-            unit.name ? " (" : "", unit.name ? unit.name : "", unit.name ? ")" : "");
-    fputs("set ytics autofreq\nset format y '%g'\n", f);
-    fprintf(f, "set yrange [0:%.6g]\n", overdraw.y_hi);
+    if (overdraw.log_y) {
+        symlog_range(overdraw_max, 4.0, &overdraw.y_lo, &overdraw.y_hi);
+        fputs("set ylabel 'overdraw triangles per frame, mean (log scale of 1 + value)'\n", f);
+        fprintf(f, "set yrange [%.6g:%.6g]\n", overdraw.y_lo, overdraw.y_hi);
+        put_symlog_tics(f, overdraw.y_hi);
+    } else {
+        overdraw.y_scale = unit.scale;
+        overdraw.y_lo = 0.0;
+        overdraw.y_hi = overdraw_max > 0.0 ? overdraw_max / unit.scale * 1.15 : 1.0;
+        fputs("unset logscale y\n", f);
+        fprintf(f, "set ylabel 'overdraw triangles per frame, mean%s%s%s'\n",
+                unit.name ? " (" : "", unit.name ? unit.name : "", unit.name ? ")" : "");
+        fputs("set ytics autofreq\nset format y '%g'\n", f);
+        fprintf(f, "set yrange [0:%.6g]\n", overdraw.y_hi);
+    }
     fputs("set label 1 'triangles drawn in clusters with no visible pixel' at graph 0.99, graph 0.98 "
           "right tc rgb '#6a6a6a' font ',9'\n",
           f);
@@ -1009,8 +1182,8 @@ static int put_speed_accuracy(FILE *f, const struct charts *c, const char *metho
 static void put_sweep_chart(FILE *f, const struct charts *c, const char *sweep_file)
 {
     int params = 0;
-    for (size_t k = 0; k < c->sweep_count; k++)
-        params += k == 0 || strcmp(c->sweep[k].param, c->sweep[k - 1].param) != 0;
+    for (size_t k = 0; k < c->sweep_count; k = group_end(c, k, false))
+        params++;
     const int cols = params < 2 ? 1 : 2;
     const int rows_of_panels = (params + cols - 1) / cols;
     fprintf(f, "\n# ---- chart-sweep.png ----\nreset\nset terminal @png_term size 1000,%d\n",
@@ -1023,40 +1196,64 @@ static void put_sweep_chart(FILE *f, const struct charts *c, const char *sweep_f
     put_quoted(f, text);
     fputs(" font ',13'\n", f);
     fputs("set grid xtics ytics lc rgb '#d8d8d8'\nset border 3\nset tics nomirror\n"
-          "set key top right Left reverse samplen 3 spacing 1.2 box lc rgb '#bbbbbb' opaque\n"
-          "set ylabel 'mean frame time (ms)'\nset yrange [0:*]\nset offsets graph 0.05, graph 0.05, 0, 0\n",
+          /* In a multiplot, a key below the panel lands on the x label. */
+          "set key outside right top vertical Left reverse samplen 2\n",
           f);
     int group = 0;
     for (size_t k = 0; k < c->sweep_count;) {
+        const size_t end = group_end(c, k, false);
         const char *param = c->sweep[k].param;
-        size_t end = k;
-        bool numeric = true;
-        double lo = INFINITY, hi = -INFINITY;
-        while (end < c->sweep_count && strcmp(c->sweep[end].param, param) == 0) {
-            double v;
-            numeric &= parse_value(c->sweep[end].value, &v);
-            lo = fmin(lo, c->sweep[end].x);
-            hi = fmax(hi, c->sweep[end].x);
-            end++;
+        const bool by_rank = c->sweep[k].by_rank;
+        double lo = INFINITY, hi = -INFINITY, ms_lo = INFINITY, ms_hi = 0.0;
+        bool any_unaffected = false;
+        for (size_t j = k; j < end; j++) {
+            lo = fmin(lo, c->sweep[j].x);
+            hi = fmax(hi, c->sweep[j].x);
+            ms_lo = fmin(ms_lo, c->sweep[j].mean_ms);
+            ms_hi = fmax(ms_hi, c->sweep[j].mean_ms);
+            any_unaffected |= c->sweep[j].unaffected;
         }
-        /* Sizes and thresholds are often swept by doubling: a log axis
-         * spaces them evenly. */
-        const bool log_x = numeric && lo > 0.0 && hi / lo >= 50.0;
-        fprintf(f, "set title 'parameter %s' font ',12'\nset xlabel '%s'\n", param, param);
+        /* Sizes are often swept by doubling: a log axis spaces them
+         * evenly. Times, like the frame chart, on a log axis past 10x. */
+        const bool log_x = !by_rank && lo > 0.0 && hi / lo >= 50.0;
+        const bool log_y = ms_lo > 0.0 && ms_hi / ms_lo > 10.0;
+        fprintf(f, "set title 'parameter %s' font ',12'\nset xlabel '%s%s'\n", param, param,
+                by_rank ? " (evenly spaced)" : "");
         fputs(log_x ? "set logscale x 2\n" : "unset logscale x\n", f);
-        fputs(numeric ? "set xtics autofreq\n" : "unset xtics\nset xtics nomirror\n", f);
+        /* A margin so that the end points are not on the frame. */
+        if (log_x)
+            fprintf(f, "set xrange [%.10g:%.10g]\n", lo / 1.25, hi * 1.25);
+        else if (hi > lo)
+            fprintf(f, "set xrange [%.10g:%.10g]\n", lo - (hi - lo) * 0.08, hi + (hi - lo) * 0.08);
+        else
+            fprintf(f, "set xrange [%.10g:%.10g]\n", lo - 1.0, hi + 1.0);
+        fputs(by_rank ? "unset xtics\nset xtics nomirror\n" : "set xtics autofreq\n", f);
+        if (log_y) {
+            fprintf(f, "set logscale y\nset yrange [%.6g:%.6g]\n", ms_lo / 1.25, ms_hi * 1.25);
+            fputs("set ylabel 'mean frame time (ms, log scale)'\n", f);
+            put_log_tics(f, 'y', ms_lo / 1.25, ms_hi * 1.25);
+        } else {
+            fputs("unset logscale y\nset yrange [0:*]\nset ytics autofreq\n"
+                  "set ylabel 'mean frame time (ms)'\n",
+                  f);
+        }
+        if (any_unaffected)
+            fprintf(f, "set label 1 'unaffected: %s changes nothing the method draws' at graph 0.01, "
+                       "graph 1.02 left font ',9' tc rgb '#6a6a6a'\n",
+                    param);
+        else
+            fputs("unset label 1\n", f);
         fputs("plot \\\n", f);
         bool first = true;
-        while (k < end) {
+        for (; k < end; k = group_end(c, k, true), group++) {
             const struct sweep_row *r = &c->sweep[k];
             const struct method *m = &c->methods[r->method_index];
-            fprintf(f, "%s  '%s' index %d using 4:5%s with linespoints lt %d pt 7 ps 1.3 title '%s'",
-                    first ? "" : ", \\\n", sweep_file, group, numeric ? "" : ":xtic(3)",
-                    m->colour + 1, m->name);
+            fprintf(f, "%s  '%s' index %d using %d:%d%s with linespoints lt %d pt 7 ps 1.3%s "
+                       "title '%s%s'",
+                    first ? "" : ", \\\n", sweep_file, group, SWEEP_X, SWEEP_MEAN_MS,
+                    by_rank ? ":xtic(3)" : "", m->colour + 1, r->unaffected ? " lw 1" : "",
+                    m->name, r->unaffected ? " (unaffected)" : "");
             first = false;
-            while (k < end && c->sweep[k].method_index == r->method_index)
-                k++;
-            group++;
         }
         fputs("\n", f);
     }
@@ -1085,32 +1282,32 @@ static int write_data(struct charts *c, const char *name, bool (*write)(FILE *, 
 static bool write_methods(FILE *f, const struct charts *c)
 {
     fputs("# one row per method, from frames.csv\n"
-          "# method mean_ms missed_pixels_total+1 mean_overdraw_triangles missed_pixels_total "
-          "frames mean_triangles\n",
+          "# method mean_ms missed_pixels_total mean_overdraw_triangles frames mean_triangles\n",
           f);
     for (int k = 0; k < c->method_count; k++) {
         const struct method *m = &c->methods[k];
         if (!has_frames(m))
             continue;
-        fprintf(f, "\"%s\" %.6f %.10g %.6f %.10g %llu %.3f\n", m->name, m->ms_sum / m->frames,
-                missed_y(m->missed_total), m->overdraw_sum / m->frames, m->missed_total,
-                (unsigned long long)m->frames, m->triangles_sum / m->frames);
+        fprintf(f, "\"%s\" %.6f %.10g %.6f %llu %.3f\n", m->name, per_frame(m, m->ms_sum),
+                m->missed_total, per_frame(m, m->overdraw_sum), (unsigned long long)m->frames,
+                per_frame(m, m->triangles_sum));
     }
     return !ferror(f);
 }
 
 static bool write_sweep(FILE *f, const struct charts *c)
 {
-    fputs("# from sweep.csv: one block (gnuplot index) per parameter and method, by value\n"
-          "# method param value x mean_ms missed_pixels_total+1 mean_overdraw_triangles label\n",
+    fputs("# from sweep.csv: one block (gnuplot index) per parameter and method, by value;\n"
+          "# x is the value, or its rank for a parameter plotted evenly spaced\n"
+          "# method param value x mean_ms missed_pixels_total mean_overdraw_triangles label\n",
           f);
     for (size_t k = 0; k < c->sweep_count; k++) {
         const struct sweep_row *r = &c->sweep[k];
         if (k > 0 && (strcmp(r->param, r[-1].param) != 0 || r->method_index != r[-1].method_index))
             fputs("\n\n", f);
         fprintf(f, "\"%s\" \"%s\" \"%s\" %.10g %.6f %.10g %.6f \"%s %s=%s\"\n", r->method, r->param,
-                r->value, r->x, r->mean_ms, missed_y(r->missed_total), r->mean_overdraw, r->method,
-                r->param, r->value);
+                r->value, r->x, r->mean_ms, r->missed_total, r->mean_overdraw, r->method, r->param,
+                r->value);
     }
     return !ferror(f);
 }
@@ -1175,7 +1372,7 @@ static double now_s(void)
 {
     struct timespec t;
     clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + t.tv_nsec * 1e-9;
+    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
 }
 
 /* The most telling line of gnuplot's stderr: its last non-blank one (the
@@ -1236,54 +1433,62 @@ static int run_gnuplot(struct charts *c, const char *gnuplot)
     char output[4096];
     size_t output_len = 0;
     const double deadline = now_s() + GNUPLOT_TIMEOUT_S;
-    bool open_pipe = true, timed_out = false;
-    int status = 0;
-    for (;;) {
-        const double left = deadline - now_s();
-        if (left <= 0.0) {
+    bool open_pipe = true, reaped = false, timed_out = false;
+    int status = 0, wait_errno = 0;
+    while (open_pipe || !reaped) {
+        if (now_s() >= deadline) {
             timed_out = true;
             break;
         }
-        if (open_pipe) {
-            struct pollfd pfd = {pipe_fds[0], POLLIN, 0};
-            const int ready = poll(&pfd, 1, (int)(left * 1000.0) + 1);
-            if (ready < 0 && errno != EINTR)
-                break;
-            if (ready > 0) {
-                char buf[1024];
-                const ssize_t n = read(pipe_fds[0], buf, sizeof(buf));
-                if (n > 0) {
-                    /* Keep the tail: the error is at the end. */
-                    size_t take = (size_t)n;
-                    if (take > sizeof(output) - 1)
-                        take = sizeof(output) - 1;
-                    if (output_len + take > sizeof(output) - 1) {
-                        const size_t drop = output_len + take - (sizeof(output) - 1);
-                        memmove(output, output + drop, output_len - drop);
-                        output_len -= drop;
-                    }
-                    memcpy(output + output_len, buf + (size_t)n - take, take);
-                    output_len += take;
-                } else if (n == 0 || errno != EINTR) {
-                    open_pipe = false;
-                }
+        if (!reaped) {
+            const pid_t done = waitpid(pid, &status, WNOHANG);
+            if (done == pid) {
+                reaped = true;
+            } else if (done < 0 && errno != EINTR) {
+                wait_errno = errno;
+                reaped = true;
+                status = -1;
             }
+        }
+        if (!open_pipe) {
+            const struct timespec pause = {0, 10 * 1000 * 1000};
+            nanosleep(&pause, NULL);
             continue;
         }
-        const pid_t done = waitpid(pid, &status, WNOHANG);
-        if (done == pid)
-            break;
-        if (done < 0 && errno != EINTR) {
-            status = -1;
-            break;
+        /* Once gnuplot has exited only what is already in the pipe is read:
+         * a process it left behind holding the pipe must not hold us. */
+        struct pollfd pfd = {pipe_fds[0], POLLIN, 0};
+        const int ready = poll(&pfd, 1, reaped ? 0 : 50);
+        if (ready < 0) {
+            open_pipe = errno == EINTR;
+            continue;
         }
-        const struct timespec pause = {0, 10 * 1000 * 1000};
-        nanosleep(&pause, NULL);
+        if (ready == 0) {
+            open_pipe = !reaped;
+            continue;
+        }
+        char buf[1024];
+        const ssize_t n = read(pipe_fds[0], buf, sizeof(buf));
+        if (n > 0) {
+            /* Keep the tail: the error is at the end. */
+            const size_t take = (size_t)n;
+            if (output_len + take > sizeof(output) - 1) {
+                const size_t drop = output_len + take - (sizeof(output) - 1);
+                memmove(output, output + drop, output_len - drop);
+                output_len -= drop;
+            }
+            memcpy(output + output_len, buf, take);
+            output_len += take;
+        } else if (n == 0 || errno != EINTR) {
+            open_pipe = false;
+        }
     }
     close(pipe_fds[0]);
     if (timed_out) {
-        kill(pid, SIGKILL);
-        waitpid(pid, &status, 0);
+        if (!reaped) {
+            kill(pid, SIGKILL);
+            waitpid(pid, &status, 0);
+        }
         set_error(c, "%s/charts.gp: gnuplot did not finish within %d s and was stopped", c->dir,
                   GNUPLOT_TIMEOUT_S);
         return TW_ERR_IO;
@@ -1292,7 +1497,7 @@ static int run_gnuplot(struct charts *c, const char *gnuplot)
     char reason[1024];
     last_line(output, reason, sizeof(reason));
     if (status == -1) {
-        set_error(c, "%s/charts.gp: lost track of gnuplot: %s", c->dir, strerror(errno));
+        set_error(c, "%s/charts.gp: lost track of gnuplot: %s", c->dir, strerror(wait_errno));
         return TW_ERR_IO;
     }
     if (WIFSIGNALED(status)) {

@@ -17,7 +17,8 @@
 
 /* Writes the charts of a bench run in dir from dir/frames.csv and, if
  * present, dir/sweep.csv (columns method, param, value, mean_ms,
- * missed_pixels_total, mean_overdraw_triangles, found by name), by running
+ * missed_pixels_total, mean_overdraw_triangles and, optionally,
+ * mean_triangles, found by name; one row per method and value), by running
  * gnuplot with dir as its working directory. Reads dir/summary.json, if
  * present, for the chart subtitles. Returns TW_OK, or a negative tw_error
  * with a one-line "file:line: reason" in err (err_size bytes, may be 0):

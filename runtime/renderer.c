@@ -38,6 +38,8 @@ struct tw_renderer {
 
     enum mode mode;
     struct tw_render_counters counters;
+    float eye[3];
+    float pixel_angle;      /* radians per pixel, vertically (the larger of the two) */
 
     bool recording;
     struct tw_drawn_cluster *drawn;
@@ -88,12 +90,43 @@ static const char *const scene_fs =
     "}\n";
 
 /* The ID pass shares scene_vs, whose position is invariant: a cluster covers
- * the same pixels at the same depth in both passes. */
+ * the same pixels in both passes. Its geometry shader hands each triangle's
+ * window-depth range to the fragment shader, which clamps to it: a
+ * rasteriser may extrapolate depth for a sample on the edge of a sliver
+ * triangle seen edge-on, and such a spike can poke one pixel through a much
+ * nearer surface. The oracle measures true visibility, so it must not count
+ * those as visible. */
+static const char *const id_gs =
+    "#version 330 core\n"
+    "layout(triangles) in;\n"
+    "layout(triangle_strip, max_vertices = 3) out;\n"
+    "flat out vec2 g_depth;\n"
+    "void main() {\n"
+    "    vec2 range = vec2(0.0, 1.0);\n"
+    "    if (gl_in[0].gl_Position.w > 0.0 && gl_in[1].gl_Position.w > 0.0 &&\n"
+    "        gl_in[2].gl_Position.w > 0.0) {\n"
+    "        float z0 = gl_in[0].gl_Position.z / gl_in[0].gl_Position.w;\n"
+    "        float z1 = gl_in[1].gl_Position.z / gl_in[1].gl_Position.w;\n"
+    "        float z2 = gl_in[2].gl_Position.z / gl_in[2].gl_Position.w;\n"
+    "        range = vec2(min(z0, min(z1, z2)), max(z0, max(z1, z2)));\n"
+    "    }\n"
+    "    for (int k = 0; k < 3; k++) {\n"
+    "        g_depth = range;\n"
+    "        gl_Position = gl_in[k].gl_Position;\n"
+    "        EmitVertex();\n"
+    "    }\n"
+    "    EndPrimitive();\n"
+    "}\n";
+
 static const char *const id_fs =
     "#version 330 core\n"
+    "flat in vec2 g_depth;\n"
     "uniform uint u_id;\n"
     "out uint o_id;\n"
-    "void main() { o_id = u_id; }\n";
+    "void main() {\n"
+    "    gl_FragDepth = clamp(gl_FragCoord.z, g_depth.x, g_depth.y);\n"
+    "    o_id = u_id;\n"
+    "}\n";
 
 static const char *const box_vs =
     "#version 330 core\n"
@@ -128,15 +161,19 @@ static GLuint compile(struct tw_renderer *r, GLenum type, const char *src)
     return s;
 }
 
-static GLuint link_program(struct tw_renderer *r, const char *vs_src, const char *fs_src)
+static GLuint link_program(struct tw_renderer *r, const char *vs_src, const char *gs_src,
+                           const char *fs_src)
 {
     const struct tw_gl *gl = &r->gl;
     GLuint vs = compile(r, GL_VERTEX_SHADER, vs_src);
+    GLuint gs = gs_src ? compile(r, GL_GEOMETRY_SHADER, gs_src) : 0;
     GLuint fs = compile(r, GL_FRAGMENT_SHADER, fs_src);
     GLuint p = 0;
-    if (vs && fs) {
+    if (vs && fs && (gs || !gs_src)) {
         p = gl->CreateProgram();
         gl->AttachShader(p, vs);
+        if (gs)
+            gl->AttachShader(p, gs);
         gl->AttachShader(p, fs);
         gl->LinkProgram(p);
         GLint ok = 0;
@@ -151,6 +188,8 @@ static GLuint link_program(struct tw_renderer *r, const char *vs_src, const char
     }
     if (vs)
         gl->DeleteShader(vs);
+    if (gs)
+        gl->DeleteShader(gs);
     if (fs)
         gl->DeleteShader(fs);
     return p;
@@ -303,9 +342,9 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
     }
     /* Reversed depth needs [0, 1] clip depth: core since 4.5. */
     gl->ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
-    r->program = link_program(r, scene_vs, scene_fs);
-    r->box_program = link_program(r, box_vs, box_fs);
-    r->id_program = link_program(r, scene_vs, id_fs);
+    r->program = link_program(r, scene_vs, NULL, scene_fs);
+    r->box_program = link_program(r, box_vs, NULL, box_fs);
+    r->id_program = link_program(r, scene_vs, id_gs, id_fs);
     if (!r->program || !r->box_program || !r->id_program) {
         err = TW_ERR_GL;
         goto fail;
@@ -383,6 +422,18 @@ void tw_renderer_begin_frame(struct tw_renderer *r, const struct tw_view *v)
     const struct tw_gl *gl = &r->gl;
     memset(&r->counters, 0, sizeof(r->counters));
     r->drawn_count = 0;
+    memcpy(r->eye, v->eye, sizeof(r->eye));
+    /* view_proj_rz[5] is the focal length in NDC units (1 / tan(fov_y / 2)) times the
+     * vertical part of the view; its magnitude bounds the pixel size from above. */
+    {
+        const float fx = sqrtf(v->view_proj_rz[0] * v->view_proj_rz[0] + v->view_proj_rz[4] * v->view_proj_rz[4] +
+                               v->view_proj_rz[8] * v->view_proj_rz[8]);
+        const float fy = sqrtf(v->view_proj_rz[1] * v->view_proj_rz[1] + v->view_proj_rz[5] * v->view_proj_rz[5] +
+                               v->view_proj_rz[9] * v->view_proj_rz[9]);
+        const float ax = fx > 0.0f ? 2.0f / (fx * (float)r->width) : 0.0f;
+        const float ay = fy > 0.0f ? 2.0f / (fy * (float)r->height) : 0.0f;
+        r->pixel_angle = ax > ay ? ax : ay;
+    }
     gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
     gl->Viewport(0, 0, (GLsizei)r->width, (GLsizei)r->height);
     gl->DepthMask(GL_TRUE);
@@ -520,10 +571,25 @@ static uint32_t backend_issue(void *ctx, const struct tw_box *boxes, uint32_t co
     enter_query_mode(r);
     gl->BeginQuery(GL_ANY_SAMPLES_PASSED, r->queries[handle - 1]);
     for (uint32_t k = 0; k < count; k++) {
-        const float lo[3] = {boxes[k].min[0] + offset[0], boxes[k].min[1] + offset[1],
-                             boxes[k].min[2] + offset[2]};
-        const float hi[3] = {boxes[k].max[0] + offset[0], boxes[k].max[1] + offset[1],
-                             boxes[k].max[2] + offset[2]};
+        /* The box must cover every sample its contents cover. Geometry on
+         * the box's own faces (a facade is its building's box side) shares
+         * the box's silhouette edges and depth; after the rasteriser snaps
+         * vertices to its sub-pixel grid and applies the fill rule, an edge
+         * sample can go to the geometry and not to the box, and the query
+         * misses a visible pixel. So the box is drawn larger by a quarter
+         * pixel at its farthest point (and by 5 mm at least, for depth). */
+        float lo[3], hi[3], far2 = 0.0f;
+        for (int a = 0; a < 3; a++) {
+            lo[a] = boxes[k].min[a] + offset[a];
+            hi[a] = boxes[k].max[a] + offset[a];
+            const float e = fmaxf(fabsf(lo[a] - r->eye[a]), fabsf(hi[a] - r->eye[a]));
+            far2 += e * e;
+        }
+        const float margin = fmaxf(0.005f, 0.25f * r->pixel_angle * sqrtf(far2));
+        for (int a = 0; a < 3; a++) {
+            lo[a] -= margin;
+            hi[a] += margin;
+        }
         gl->Uniform3fv(r->ub_min, 1, lo);
         gl->Uniform3fv(r->ub_max, 1, hi);
         gl->DrawElements(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, (const void *)0);

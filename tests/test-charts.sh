@@ -134,5 +134,20 @@ rm "$bad_dir/sweep.csv"
 # No gnuplot in PATH: an error that says so (the caller warns and goes on).
 expect_failure "no gnuplot" "gnuplot is not installed" env PATH="$tmp/empty-path" "$driver" "$run"
 
+# gnuplot fails: its last stderr line, on the one line.
+mkdir -p "$tmp/fake-bin"
+cat >"$tmp/fake-bin/gnuplot" <<'EOF'
+#!/bin/sh
+echo "" >&2
+echo "plot 'chart-data/x.dat'" >&2
+echo "     ^" >&2
+echo '"charts.gp" line 3: something broke' >&2
+exit 1
+EOF
+chmod +x "$tmp/fake-bin/gnuplot"
+expect_failure "gnuplot fails" \
+    'charts.gp: gnuplot failed \(exit status 1\): "charts.gp" line 3: something broke$' \
+    env PATH="$tmp/fake-bin" "$driver" "$run"
+
 echo "charts: $passed passed, $failed failed"
 [ "$failed" -eq 0 ]

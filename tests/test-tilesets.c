@@ -1,5 +1,5 @@
-/* Tests of the tilesets module: the procedural city and the built-in
- * registry. Plain C: main returns 0 when every check holds. */
+/* Tests of the tilesets module: the procedural city, forest and hybrid and
+ * the built-in registry. Plain C: main returns 0 when every check holds. */
 #include "tilesets/tilesets.h"
 
 #include <math.h>
@@ -163,6 +163,199 @@ static uint64_t shading_violations(const struct tw_tileset *ts)
     return bad;
 }
 
+
+/* The forest's walking band: a triangle whose horizontal extent reaches
+ * within band of a border must lie on the ground (max y <= ground + 0.05)
+ * or overhead (min y >= ground + headroom). Conservative as above. */
+static uint64_t headroom_violations(const struct tw_tileset *ts, float band, float headroom,
+                                    const char **where)
+{
+    const float w = ts->footprint[0], d = ts->footprint[1];
+    uint64_t bad = 0;
+    for (uint32_t p = 0; p < ts->prototype_count; p++) {
+        const struct tw_prototype *proto = &ts->prototypes[p];
+        for (uint32_t k = 0; k < proto->instance_count; k++) {
+            const struct tw_instance *in = &proto->instances[k];
+            const struct tw_mesh *m = &ts->meshes[in->mesh];
+            for (uint32_t t = 0; t < m->triangle_count; t++) {
+                float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
+                for (int v = 0; v < 3; v++) {
+                    float q[3];
+                    transform_point(in->transform, m->positions + 3 * m->indices[3 * t + v], q);
+                    for (int a = 0; a < 3; a++) {
+                        lo[a] = fminf(lo[a], q[a]);
+                        hi[a] = fmaxf(hi[a], q[a]);
+                    }
+                }
+                const bool in_band = lo[0] < band || hi[0] > w - band || lo[2] < band ||
+                                     hi[2] > d - band;
+                if (in_band && hi[1] > 0.05f && lo[1] < headroom) {
+                    if (!bad)
+                        *where = proto->name;
+                    bad++;
+                }
+            }
+        }
+    }
+    return bad;
+}
+
+/* Checks that hold for every generated tileset: finished, boxes inside the
+ * footprint and the common box, clusters within the limit and adding up,
+ * flat shading, every material used, triangle counts in [10k, 100k]. */
+static void check_common(const struct tw_tileset *ts, const char *what)
+{
+    CHECK(ts->finished, "%s: not finished", what);
+    const float w = ts->footprint[0], d = ts->footprint[1], eps = 1e-4f;
+    bool *material_used = calloc(ts->material_count, sizeof(bool));
+    for (uint32_t p = 0; p < ts->prototype_count; p++) {
+        const struct tw_prototype *proto = &ts->prototypes[p];
+        CHECK(proto->triangle_count >= 10000 && proto->triangle_count <= 100000,
+              "%s: %llu triangles", proto->name, (unsigned long long)proto->triangle_count);
+        CHECK(proto->weight > 0.0f, "%s: weight %g", proto->name, (double)proto->weight);
+        CHECK(proto->box.min[0] >= -eps && proto->box.max[0] <= w + eps &&
+              proto->box.min[2] >= -eps && proto->box.max[2] <= d + eps,
+              "%s: box x [%g, %g] z [%g, %g] leaves the footprint", proto->name,
+              (double)proto->box.min[0], (double)proto->box.max[0],
+              (double)proto->box.min[2], (double)proto->box.max[2]);
+        CHECK(proto->box.max[1] > 0.0f && proto->box.min[1] >= -eps, "%s: box y [%g, %g]",
+              proto->name, (double)proto->box.min[1], (double)proto->box.max[1]);
+        CHECK(box_contains(&ts->common_box, &proto->box), "%s: not inside the common box",
+              proto->name);
+        uint64_t cluster_triangles = 0;
+        for (uint32_t k = 0; k < proto->cluster_count; k++) {
+            CHECK(proto->clusters[k].triangle_count <= ts->max_cluster_triangles,
+                  "%s: cluster of %u triangles", proto->name, proto->clusters[k].triangle_count);
+            cluster_triangles += proto->clusters[k].triangle_count;
+        }
+        CHECK(cluster_triangles == proto->triangle_count, "%s: clusters hold %llu triangles",
+              proto->name, (unsigned long long)cluster_triangles);
+        for (uint32_t k = 0; k < proto->instance_count; k++)
+            if (material_used && proto->instances[k].material < ts->material_count)
+                material_used[proto->instances[k].material] = true;
+    }
+    for (uint32_t k = 0; material_used && k < ts->material_count; k++)
+        CHECK(material_used[k], "%s: material %u is never used", what, k);
+    free(material_used);
+    const uint64_t shading_bad = shading_violations(ts);
+    CHECK(shading_bad == 0, "%s: %llu triangles not flat shaded or wound clockwise", what,
+          (unsigned long long)shading_bad);
+}
+
+/* The ground and trail instances span the tile; everything else is an
+ * object standing in it. */
+static bool spans_tile(const struct tw_tileset *ts, const struct tw_instance *in)
+{
+    return in->box.max[0] - in->box.min[0] > 0.5f * ts->footprint[0] &&
+           in->box.max[2] - in->box.min[2] > 0.5f * ts->footprint[1];
+}
+
+/* Objects that stand on the ground and reach higher than height: trees,
+ * in a forest. A tree's canopy and trunk are two instances at the same
+ * place, counted once. */
+static uint32_t tall_objects(const struct tw_prototype *proto, float height)
+{
+    uint32_t n = 0;
+    for (uint32_t k = 0; k < proto->instance_count; k++) {
+        const struct tw_instance *in = &proto->instances[k];
+        if (!(in->box.max[1] > height && in->box.min[1] < 0.5f))
+            continue;
+        bool seen = false;
+        for (uint32_t j = 0; j < k && !seen; j++) {
+            const struct tw_instance *o = &proto->instances[j];
+            seen = o->box.max[1] > height && o->box.min[1] < 0.5f &&
+                   o->transform[3] == in->transform[3] && o->transform[11] == in->transform[11];
+        }
+        n += !seen;
+    }
+    return n;
+}
+
+/* Distance along o + t dir to the nearest triangle of one instance, or
+ * INFINITY (Moller-Trumbore on transformed vertices). */
+static float ray_instance(const struct tw_tileset *ts, const struct tw_instance *in,
+                          const float o[3], const float dir[3], float t_max)
+{
+    /* Slab test against the instance box first. */
+    float t0 = 0.0f, t1 = t_max;
+    for (int a = 0; a < 3; a++) {
+        if (fabsf(dir[a]) < 1e-12f) {
+            if (o[a] < in->box.min[a] || o[a] > in->box.max[a])
+                return INFINITY;
+            continue;
+        }
+        float ta = (in->box.min[a] - o[a]) / dir[a], tb = (in->box.max[a] - o[a]) / dir[a];
+        if (ta > tb) {
+            const float x = ta;
+            ta = tb;
+            tb = x;
+        }
+        t0 = fmaxf(t0, ta);
+        t1 = fminf(t1, tb);
+        if (t0 > t1)
+            return INFINITY;
+    }
+    const struct tw_mesh *m = &ts->meshes[in->mesh];
+    float best = INFINITY;
+    for (uint32_t t = 0; t < m->triangle_count; t++) {
+        float v[3][3];
+        for (int k = 0; k < 3; k++)
+            transform_point(in->transform, m->positions + 3 * m->indices[3 * t + k], v[k]);
+        const float e1[3] = {v[1][0] - v[0][0], v[1][1] - v[0][1], v[1][2] - v[0][2]};
+        const float e2[3] = {v[2][0] - v[0][0], v[2][1] - v[0][1], v[2][2] - v[0][2]};
+        const float p[3] = {dir[1] * e2[2] - dir[2] * e2[1], dir[2] * e2[0] - dir[0] * e2[2],
+                            dir[0] * e2[1] - dir[1] * e2[0]};
+        const float det = e1[0] * p[0] + e1[1] * p[1] + e1[2] * p[2];
+        if (fabsf(det) < 1e-12f)
+            continue;
+        const float inv = 1.0f / det;
+        const float s[3] = {o[0] - v[0][0], o[1] - v[0][1], o[2] - v[0][2]};
+        const float u = (s[0] * p[0] + s[1] * p[1] + s[2] * p[2]) * inv;
+        if (u < 0.0f || u > 1.0f)
+            continue;
+        const float q[3] = {s[1] * e1[2] - s[2] * e1[1], s[2] * e1[0] - s[0] * e1[2],
+                            s[0] * e1[1] - s[1] * e1[0]};
+        const float w = (dir[0] * q[0] + dir[1] * q[1] + dir[2] * q[2]) * inv;
+        if (w < 0.0f || u + w > 1.0f)
+            continue;
+        const float t_hit = (e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) * inv;
+        if (t_hit > 1e-4f && t_hit < best)
+            best = t_hit;
+    }
+    return best;
+}
+
+/* Casts a ray from a point in cell (0, 0) through the world of ts (hash
+ * selection with seed) and returns the distance to the first object (not
+ * the ground) it meets within t_max, or INFINITY. Cells are visited in
+ * the order the ray enters them, so the first cell with a hit holds the
+ * nearest one. */
+static float ray_world(const struct tw_tileset *ts, uint64_t seed, const float o[3],
+                       const float dir[3], float t_max)
+{
+    const struct tw_selection sel = {seed, 0, NULL, NULL};
+    const float w = ts->footprint[0], d = ts->footprint[1];
+    struct tw_cell last = {INT64_MIN, INT64_MIN};
+    for (float t = 0.0f; t <= t_max; t += 0.25f) {
+        const struct tw_cell cell = {(int64_t)floorf((o[0] + t * dir[0]) / w),
+                                     (int64_t)floorf((o[2] + t * dir[2]) / d)};
+        if (cell.i == last.i && cell.j == last.j)
+            continue;
+        last = cell;
+        const struct tw_prototype *proto = &ts->prototypes[tw_tiles_select(ts, &sel, cell)];
+        const float local[3] = {o[0] - (float)cell.i * w, o[1], o[2] - (float)cell.j * d};
+        float best = INFINITY;
+        for (uint32_t k = 0; k < proto->instance_count; k++) {
+            if (spans_tile(ts, &proto->instances[k]))
+                continue;
+            best = fminf(best, ray_instance(ts, &proto->instances[k], local, dir, t_max));
+        }
+        if (best <= t_max)
+            return best;
+    }
+    return INFINITY;
+}
+
 static void test_city(void)
 {
     struct tw_city_settings set = {0};
@@ -324,15 +517,311 @@ static void test_city_settings(void)
     }
 }
 
+
+static void print_prototypes(const struct tw_tileset *ts)
+{
+    printf("  %-26s %9s %9s %9s %8s %6s\n", "prototype", "triangles", "instances", "clusters",
+           "height", "tall");
+    for (uint32_t p = 0; p < ts->prototype_count; p++) {
+        const struct tw_prototype *proto = &ts->prototypes[p];
+        printf("  %-26s %9llu %9u %9u %8.1f %6u\n", proto->name,
+               (unsigned long long)proto->triangle_count, proto->instance_count,
+               proto->cluster_count, (double)proto->box.max[1], tall_objects(proto, 3.0f));
+    }
+}
+
+static void test_forest(void)
+{
+    struct tw_forest_settings set = {0};
+    tw_tilesets_forest_default_settings(&set);
+    CHECK(set.prototypes == 10 && set.footprint == 80.0f && set.density == 1.0f &&
+          set.path_clearance == 1.0f && set.max_cluster_triangles == 2048,
+          "unexpected forest defaults");
+
+    struct captured_log captured = {0};
+    const struct tw_log log = {capture, &captured};
+    struct tw_tileset *a = NULL, *b = NULL, *other = NULL;
+    const double t0 = now_seconds();
+    int err = tw_tilesets_forest(1, NULL, &log, &a);
+    const double t1 = now_seconds();
+    CHECK(err == 0 && a, "forest(seed 1) failed: %s", tw_error_to_str(err));
+    if (err || !a)
+        return;
+    printf("forest seed 1: generated in %.3f s, %u meshes, %u parts, %.1f MB geometry\n",
+           t1 - t0, a->mesh_count, a->part_count, (double)tw_tileset_geometry_bytes(a) / 1e6);
+    print_prototypes(a);
+
+    err = tw_tilesets_forest(1, &set, &log, &b);
+    CHECK(err == 0 && b, "forest(seed 1) again failed: %s", tw_error_to_str(err));
+    err = tw_tilesets_forest(2, NULL, &log, &other);
+    CHECK(err == 0 && other, "forest(seed 2) failed: %s", tw_error_to_str(err));
+    CHECK(captured.errors == 0, "unexpected error message: %s", captured.last);
+    if (b)
+        CHECK(tilesets_identical(a, b), "forest: the same seed gave different tilesets");
+    if (other)
+        CHECK(!tilesets_identical(a, other), "forest: seeds 1 and 2 gave identical tilesets");
+
+    CHECK(a->footprint[0] == 80.0f && a->footprint[1] == 80.0f, "forest footprint %g x %g",
+          (double)a->footprint[0], (double)a->footprint[1]);
+    CHECK(a->prototype_count == 10, "forest prototype_count = %u", a->prototype_count);
+    check_common(a, "forest");
+
+    /* The stands differ, and each kind the design asks for is there. */
+    static const char *const kinds[] = {"spruce", "mixed", "beech", "birch", "thin", "clearing",
+                                        "rocky"};
+    for (size_t k = 0; k < sizeof(kinds) / sizeof(kinds[0]); k++) {
+        bool found = false;
+        for (uint32_t p = 0; p < a->prototype_count; p++)
+            found |= strstr(a->prototypes[p].name, kinds[k]) != NULL;
+        CHECK(found, "forest: no %s stand", kinds[k]);
+    }
+
+    /* Many weak occluders: hundreds of instances, every standing object
+     * small next to the tile, trees by the hundred in the dense stands;
+     * shared meshes, far fewer than instances. */
+    const float w = a->footprint[0], d = a->footprint[1];
+    const double tile_volume = (double)w * d * (a->common_box.max[1] - a->common_box.min[1]);
+    uint64_t instances = 0;
+    for (uint32_t p = 0; p < a->prototype_count; p++) {
+        const struct tw_prototype *proto = &a->prototypes[p];
+        instances += proto->instance_count;
+        CHECK(proto->instance_count >= 100 && proto->instance_count <= 450,
+              "%s: %u instances", proto->name, proto->instance_count);
+        const uint32_t trees = tall_objects(proto, 3.0f);
+        const bool dense = strstr(proto->name, "spruce") || strstr(proto->name, "mixed");
+        CHECK(trees >= (dense ? 150u : 100u), "%s: only %u objects taller than 3 m",
+              proto->name, trees);
+        double volume = 0.0, largest = 0.0;
+        uint32_t objects = 0;
+        for (uint32_t k = 0; k < proto->instance_count; k++) {
+            const struct tw_instance *in = &proto->instances[k];
+            if (spans_tile(a, in))
+                continue;
+            const double area = (double)(in->box.max[0] - in->box.min[0]) *
+                                (in->box.max[2] - in->box.min[2]);
+            const double v = area * (in->box.max[1] - in->box.min[1]);
+            volume += v;
+            objects++;
+            if (in->box.max[1] > 3.0f && area > largest)
+                largest = area;
+        }
+        const double mean = objects ? volume / objects : 0.0;
+        CHECK(mean < 0.002 * tile_volume, "%s: mean instance box %.0f m^3 is %.2f %% of the tile",
+              proto->name, mean, 100.0 * mean / tile_volume);
+        CHECK(largest < 0.025 * (double)w * d, "%s: a tree covers %.0f m^2 of the tile",
+              proto->name, largest);
+    }
+    CHECK(a->mesh_count * 8 < instances, "forest: %u meshes for %llu instances: not shared",
+          a->mesh_count, (unsigned long long)instances);
+
+    /* The walking band: no trunk, bush or low branch within path_clearance
+     * of a border; and the check can see trees, with a wider band. */
+    const char *where = "";
+    uint64_t bad = headroom_violations(a, set.path_clearance, 2.5f, &where);
+    CHECK(bad == 0, "forest: %llu triangles in the walking band (first in %s)",
+          (unsigned long long)bad, where);
+    CHECK(headroom_violations(a, 6.0f, 2.5f, &where) > 0,
+          "forest: band check does not see trees 6 m from the border");
+
+    /* Together they close up: horizontal rays at eye height and above,
+     * through a world of this tileset, all but a few meet something within
+     * 3 tiles, while many pass the first 10 m: no tree is a wall. */
+    uint32_t rays = 0, near = 0, through = 0;
+    for (uint32_t k = 0; k < 300; k++) {
+        const uint64_t h = tw_tiles_hash(99, k, 7);
+        const float height = 0.6f + 14.0f * (float)(h & 0xffff) / 65536.0f;
+        const float angle = 6.2831853f * (float)((h >> 16) & 0xffff) / 65536.0f;
+        const float z = 10.0f + 60.0f * (float)((h >> 32) & 0xffff) / 65536.0f;
+        const float o[3] = {40.0f, height, z};
+        const float dir[3] = {cosf(angle), 0.0f, sinf(angle)};
+        const float hit = ray_world(a, 1, o, dir, 3.0f * w);
+        rays++;
+        near += hit < 10.0f;
+        through += !(hit <= 3.0f * w);
+    }
+    printf("  horizontal rays at 0.6-14.6 m: %.1f %% stopped within 10 m, %.1f %% pass 3 tiles\n",
+           100.0 * near / rays, 100.0 * through / rays);
+    CHECK(through * 50 <= rays, "forest: %u of %u rays pass 3 tiles", through, rays);
+    CHECK(near * 4 <= rays * 3, "forest: %u of %u rays stopped within 10 m: a wall, not trees",
+          near, rays);
+
+    tw_tileset_destroy(a);
+    tw_tileset_destroy(b);
+    tw_tileset_destroy(other);
+}
+
+static void test_forest_settings(void)
+{
+    struct captured_log captured = {0};
+    const struct tw_log log = {capture, &captured};
+    struct tw_tileset *ts = NULL;
+
+    struct tw_forest_settings set = {0};
+    set.prototypes = 3;
+    int err = tw_tilesets_forest(1, &set, &log, &ts);
+    CHECK(err == TW_ERR_INVALID && !ts, "forest, 3 prototypes: %s", tw_error_to_str(err));
+    CHECK(captured.errors > 0 && strstr(captured.last, "prototypes") &&
+          strstr(captured.last, "forest"), "no message about prototypes: \"%s\"", captured.last);
+    set = (struct tw_forest_settings){0};
+    set.density = 5.0f;
+    err = tw_tilesets_forest(1, &set, &log, &ts);
+    CHECK(err == TW_ERR_INVALID && !ts, "forest, density 5: %s", tw_error_to_str(err));
+    CHECK(strstr(captured.last, "density"), "no message about density: \"%s\"", captured.last);
+    set = (struct tw_forest_settings){0};
+    set.footprint = NAN;
+    err = tw_tilesets_forest(1, &set, &log, &ts);
+    CHECK(err == TW_ERR_INVALID && !ts, "forest, footprint NaN: %s", tw_error_to_str(err));
+    err = tw_tilesets_forest(1, NULL, &log, NULL);
+    CHECK(err == TW_ERR_INVALID, "forest, NULL out: %s", tw_error_to_str(err));
+
+    /* Other settings are honoured: a wider tile, a wider trail, a thinner
+     * forest, more prototypes, smaller clusters. */
+    set = (struct tw_forest_settings){0};
+    set.prototypes = 12;
+    set.footprint = 100.0f;
+    set.path_clearance = 2.5f;
+    set.density = 0.6f;
+    set.max_cluster_triangles = 500;
+    err = tw_tilesets_forest(3, &set, NULL, &ts);
+    CHECK(err == 0 && ts, "forest, custom settings: %s", tw_error_to_str(err));
+    if (ts) {
+        CHECK(ts->prototype_count == 12, "prototype_count = %u", ts->prototype_count);
+        CHECK(ts->footprint[0] == 100.0f, "footprint %g", (double)ts->footprint[0]);
+        CHECK(ts->max_cluster_triangles == 500, "max_cluster_triangles = %u",
+              ts->max_cluster_triangles);
+        CHECK(ts->common_box.min[0] >= -1e-4f && ts->common_box.max[0] <= 100.0f + 1e-4f &&
+              ts->common_box.min[2] >= -1e-4f && ts->common_box.max[2] <= 100.0f + 1e-4f,
+              "common box x [%g, %g] z [%g, %g]", (double)ts->common_box.min[0],
+              (double)ts->common_box.max[0], (double)ts->common_box.min[2],
+              (double)ts->common_box.max[2]);
+        const char *where = "";
+        const uint64_t bad = headroom_violations(ts, 2.5f, 2.5f, &where);
+        CHECK(bad == 0, "custom settings: %llu triangles in the walking band (first in %s)",
+              (unsigned long long)bad, where);
+        tw_tileset_destroy(ts);
+        ts = NULL;
+    }
+}
+
+static void test_hybrid(void)
+{
+    struct tw_hybrid_settings set = {0};
+    tw_tilesets_hybrid_default_settings(&set);
+    CHECK(set.prototypes == 12 && set.footprint == 80.0f && set.street_width == 14.0f &&
+          set.max_height == 90.0f && set.green_share == 0.4f &&
+          set.max_cluster_triangles == 2048, "unexpected hybrid defaults");
+
+    struct captured_log captured = {0};
+    const struct tw_log log = {capture, &captured};
+    struct tw_tileset *a = NULL, *b = NULL, *other = NULL;
+    const double t0 = now_seconds();
+    int err = tw_tilesets_hybrid(1, NULL, &log, &a);
+    const double t1 = now_seconds();
+    CHECK(err == 0 && a, "hybrid(seed 1) failed: %s", tw_error_to_str(err));
+    if (err || !a)
+        return;
+    printf("hybrid seed 1: generated in %.3f s, %u meshes, %u parts, %.1f MB geometry\n",
+           t1 - t0, a->mesh_count, a->part_count, (double)tw_tileset_geometry_bytes(a) / 1e6);
+    print_prototypes(a);
+
+    err = tw_tilesets_hybrid(1, &set, &log, &b);
+    CHECK(err == 0 && b, "hybrid(seed 1) again failed: %s", tw_error_to_str(err));
+    err = tw_tilesets_hybrid(2, NULL, &log, &other);
+    CHECK(err == 0 && other, "hybrid(seed 2) failed: %s", tw_error_to_str(err));
+    CHECK(captured.errors == 0, "unexpected error message: %s", captured.last);
+    if (b)
+        CHECK(tilesets_identical(a, b), "hybrid: the same seed gave different tilesets");
+    if (other)
+        CHECK(!tilesets_identical(a, other), "hybrid: seeds 1 and 2 gave identical tilesets");
+
+    CHECK(a->footprint[0] == 80.0f && a->footprint[1] == 80.0f, "hybrid footprint %g x %g",
+          (double)a->footprint[0], (double)a->footprint[1]);
+    CHECK(a->prototype_count == 12, "hybrid prototype_count = %u", a->prototype_count);
+    check_common(a, "hybrid");
+
+    uint32_t woods = 0, parks = 0, city = 0;
+    float tallest = 0.0f;
+    for (uint32_t p = 0; p < a->prototype_count; p++) {
+        const struct tw_prototype *proto = &a->prototypes[p];
+        tallest = fmaxf(tallest, proto->box.max[1]);
+        CHECK(proto->box.max[1] <= set.max_height + 1e-3f, "%s: %g m is above max_height",
+              proto->name, (double)proto->box.max[1]);
+        if (strstr(proto->name, "wood")) {
+            woods++;
+            CHECK(tall_objects(proto, 3.0f) >= 80, "%s: only %u trees", proto->name,
+                  tall_objects(proto, 3.0f));
+        } else if (strstr(proto->name, "park")) {
+            parks++;
+        } else {
+            city++;
+        }
+    }
+    CHECK(woods >= 2 && parks >= 1 && city >= 4, "hybrid: %u woods, %u parks, %u city blocks",
+          woods, parks, city);
+    CHECK(tallest > 40.0f, "hybrid: no prototype taller than 40 m (tallest %g m)",
+          (double)tallest);
+
+    /* Streets along every border, wooded blocks and parks included. */
+    const char *where = "";
+    const uint64_t band_bad = street_band_violations(a, 0.5f * set.street_width - 1.0f, &where);
+    CHECK(band_bad == 0, "hybrid: %llu triangles above the kerb in the street band (first in %s)",
+          (unsigned long long)band_bad, where);
+    CHECK(street_band_violations(a, 0.5f * set.street_width + 0.5f, &where) > 0,
+          "hybrid: band check does not see the blocks");
+
+    tw_tileset_destroy(a);
+    tw_tileset_destroy(b);
+    tw_tileset_destroy(other);
+
+    /* Settings: the city's checks apply, and green_share's own. */
+    struct tw_tileset *ts = NULL;
+    set = (struct tw_hybrid_settings){0};
+    set.green_share = 1.5f;
+    captured.errors = 0;
+    err = tw_tilesets_hybrid(1, &set, &log, &ts);
+    CHECK(err == TW_ERR_INVALID && !ts, "hybrid, green_share 1.5: %s", tw_error_to_str(err));
+    CHECK(captured.errors > 0 && strstr(captured.last, "green_share"),
+          "no message about green_share: \"%s\"", captured.last);
+    set = (struct tw_hybrid_settings){0};
+    set.street_width = 70.0f;
+    err = tw_tilesets_hybrid(1, &set, &log, &ts);
+    CHECK(err == TW_ERR_INVALID && !ts, "hybrid, street_width 70: %s", tw_error_to_str(err));
+    CHECK(strstr(captured.last, "hybrid") && strstr(captured.last, "footprint"),
+          "no message naming the hybrid's footprint: \"%s\"", captured.last);
+
+    set = (struct tw_hybrid_settings){0};
+    set.prototypes = 9;
+    set.footprint = 100.0f;
+    set.street_width = 16.0f;
+    set.green_share = 0.7f;
+    err = tw_tilesets_hybrid(4, &set, NULL, &ts);
+    CHECK(err == 0 && ts, "hybrid, custom settings: %s", tw_error_to_str(err));
+    if (ts) {
+        CHECK(ts->prototype_count == 9, "prototype_count = %u", ts->prototype_count);
+        const uint64_t bad = street_band_violations(ts, 7.0f, &where);
+        CHECK(bad == 0, "hybrid, custom settings: %llu triangles in the street band (first in %s)",
+              (unsigned long long)bad, where);
+        uint32_t green = 0;
+        for (uint32_t p = 0; p < ts->prototype_count; p++)
+            green += strstr(ts->prototypes[p].name, "wood") ||
+                     strstr(ts->prototypes[p].name, "park");
+        CHECK(green == 6, "hybrid, green_share 0.7 of 9: %u green prototypes", green);
+        tw_tileset_destroy(ts);
+    }
+}
+
 static void test_builtin(void)
 {
     struct captured_log captured = {0};
     const struct tw_log log = {capture, &captured};
 
-    bool has_city = false;
-    for (const char *const *n = tw_tilesets_builtin_names; *n; n++)
-        has_city |= strcmp(*n, "city") == 0;
-    CHECK(has_city, "\"city\" is not among the built-in names");
+    static const char *const expected[] = {"city", "forest", "hybrid"};
+    for (size_t k = 0; k < sizeof(expected) / sizeof(expected[0]); k++) {
+        bool found = false;
+        for (const char *const *n = tw_tilesets_builtin_names; *n; n++)
+            found |= strcmp(*n, expected[k]) == 0;
+        CHECK(found, "\"%s\" is not among the built-in names", expected[k]);
+    }
 
     struct tw_tileset *ts = NULL, *direct = NULL;
     int err = tw_tilesets_builtin("city", 5, 0, &log, &ts);
@@ -353,6 +842,29 @@ static void test_builtin(void)
           tw_error_to_str(err));
     tw_tileset_destroy(ts);
 
+    /* forest and hybrid: the generators with default settings. */
+    ts = NULL;
+    direct = NULL;
+    err = tw_tilesets_builtin("forest", 5, 0, &log, &ts);
+    CHECK(err == 0 && ts, "builtin(forest): %s", tw_error_to_str(err));
+    err = tw_tilesets_forest(5, NULL, NULL, &direct);
+    if (ts && direct)
+        CHECK(tilesets_identical(ts, direct), "builtin(forest) differs from forest()");
+    tw_tileset_destroy(ts);
+    tw_tileset_destroy(direct);
+    ts = NULL;
+    direct = NULL;
+    err = tw_tilesets_builtin("hybrid", 5, 1024, &log, &ts);
+    CHECK(err == 0 && ts && ts->max_cluster_triangles == 1024, "builtin(hybrid, 1024): %s",
+          tw_error_to_str(err));
+    struct tw_hybrid_settings hybrid = {0};
+    hybrid.max_cluster_triangles = 1024;
+    err = tw_tilesets_hybrid(5, &hybrid, NULL, &direct);
+    if (ts && direct)
+        CHECK(tilesets_identical(ts, direct), "builtin(hybrid) differs from hybrid()");
+    tw_tileset_destroy(ts);
+    tw_tileset_destroy(direct);
+
     ts = NULL;
     captured.errors = 0;
     err = tw_tilesets_builtin("nope", 5, 0, &log, &ts);
@@ -371,6 +883,9 @@ int main(void)
 {
     test_city();
     test_city_settings();
+    test_forest();
+    test_forest_settings();
+    test_hybrid();
     test_builtin();
     if (failures) {
         fprintf(stderr, "test-tilesets: %d check(s) failed\n", failures);

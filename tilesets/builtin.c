@@ -3,7 +3,7 @@
 
 #include <string.h>
 
-const char *const tw_tilesets_builtin_names[] = {"city", NULL};
+const char *const tw_tilesets_builtin_names[] = {"city", "forest", "hybrid", NULL};
 
 int tw_tilesets_builtin(const char *name, uint64_t seed, uint32_t max_cluster_triangles,
                         const struct tw_log *log, struct tw_tileset **out)
@@ -22,7 +22,17 @@ int tw_tilesets_builtin(const char *name, uint64_t seed, uint32_t max_cluster_tr
         settings.max_cluster_triangles = max_cluster_triangles;
         return tw_tilesets_city(seed, &settings, log, out);
     }
+    if (strcmp(name, "forest") == 0) {
+        struct tw_forest_settings settings = {0};
+        settings.max_cluster_triangles = max_cluster_triangles;
+        return tw_tilesets_forest(seed, &settings, log, out);
+    }
+    if (strcmp(name, "hybrid") == 0) {
+        struct tw_hybrid_settings settings = {0};
+        settings.max_cluster_triangles = max_cluster_triangles;
+        return tw_tilesets_hybrid(seed, &settings, log, out);
+    }
     tw_log_printf(log, TW_LOG_ERROR,
-                  "tilesets: builtin: unknown tileset \"%s\" (known: city)", name);
+                  "tilesets: builtin: unknown tileset \"%s\" (known: city, forest, hybrid)", name);
     return TW_ERR_INVALID;
 }

@@ -8,7 +8,7 @@
  * houses, matching corner towers and repeated types across prototypes are
  * instanced rather than duplicated. Each building is three meshes (walls,
  * glass, roof) because a material belongs to an instance. */
-#include "tilesets/tilesets.h"
+#include "tilesets/tilesets-private.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -1602,6 +1602,108 @@ static int add_materials(struct city *c)
     return TW_OK;
 }
 
+/* ---- the generator's lifetime (tilesets-private.h) --------------------------------- */
+
+/* Sets up the generator on an unfinished tileset: materials, then the
+ * ground and park meshes that every prototype shares. */
+static int city_begin(struct city *c, struct tw_tileset *ts, const struct tw_city_settings *set)
+{
+    memset(c, 0, sizeof(*c));
+    c->ts = ts;
+    c->set = *set;
+    c->w = c->set.footprint;
+    c->half_street = 0.5f * c->set.street_width;
+    c->kerb_line = c->half_street - clampf(0.22f * c->set.street_width, 1.5f, 4.0f);
+    c->lot_scale = fmaxf(1.0f, (c->w - c->set.street_width) / 66.0f);
+    int err = add_materials(c);
+    if (!err)
+        err = build_ground_meshes(c);
+    if (!err)
+        err = build_park_meshes(c);
+    return err;
+}
+
+static void city_release(struct city *c)
+{
+    builder_release(&c->wall);
+    builder_release(&c->glass);
+    builder_release(&c->roof);
+    free(c->cache);
+    free(c->lots);
+    c->cache = NULL;
+    c->lots = NULL;
+}
+
+static int city_add_block(struct city *c, uint32_t proto, enum block_kind kind, uint64_t stream,
+                          bool tallest)
+{
+    struct rng r = {stream};
+    switch (kind) {
+    case BLOCK_DENSE: return build_dense(c, proto, &r, tallest);
+    case BLOCK_LOWRISE: return build_lowrise(c, proto, &r);
+    default: return build_park(c, proto, &r);
+    }
+}
+
+struct tw_city_blocks {
+    struct city city;
+};
+
+int tw_city_blocks_create(struct tw_tileset *ts, const struct tw_city_settings *settings,
+                          struct tw_city_blocks **out)
+{
+    if (!ts || !settings || !out || ts->finished)
+        return TW_ERR_INVALID;
+    *out = NULL;
+    struct tw_city_blocks *b = malloc(sizeof(*b));
+    if (!b)
+        return TW_ERR_NOMEM;
+    const int err = city_begin(&b->city, ts, settings);
+    if (err) {
+        tw_city_blocks_destroy(b);
+        return err;
+    }
+    *out = b;
+    return TW_OK;
+}
+
+void tw_city_blocks_destroy(struct tw_city_blocks *blocks)
+{
+    if (!blocks)
+        return;
+    city_release(&blocks->city);
+    free(blocks);
+}
+
+int tw_city_blocks_add(struct tw_city_blocks *blocks, uint32_t proto,
+                       enum tw_city_block_kind kind, uint64_t stream, bool tallest)
+{
+    if (!blocks || proto >= blocks->city.ts->prototype_count)
+        return TW_ERR_INVALID;
+    const enum block_kind k = kind == TW_CITY_BLOCK_DENSE     ? BLOCK_DENSE
+                              : kind == TW_CITY_BLOCK_LOWRISE ? BLOCK_LOWRISE
+                                                              : BLOCK_PARK;
+    return city_add_block(&blocks->city, proto, k, stream, tallest);
+}
+
+int tw_city_blocks_add_streets(struct tw_city_blocks *blocks, uint32_t proto,
+                               uint32_t ground_material)
+{
+    if (!blocks || proto >= blocks->city.ts->prototype_count ||
+        ground_material >= blocks->city.ts->material_count)
+        return TW_ERR_INVALID;
+    uint64_t triangles = 0;
+    return add_streets(&blocks->city, proto, ground_material, &triangles);
+}
+
+void tw_city_blocks_lot_area(const struct tw_city_blocks *blocks, float area[4], float *ground_y)
+{
+    const struct city *c = &blocks->city;
+    area[0] = area[1] = c->half_street;
+    area[2] = area[3] = c->w - c->half_street;
+    *ground_y = kerb_height;
+}
+
 /* ---- public API -------------------------------------------------------------------- */
 
 void tw_tilesets_city_default_settings(struct tw_city_settings *s)
@@ -1615,8 +1717,8 @@ void tw_tilesets_city_default_settings(struct tw_city_settings *s)
     s->max_cluster_triangles = 2048;
 }
 
-static int resolve_settings(const struct tw_city_settings *in, struct tw_city_settings *out,
-                            const struct tw_log *log)
+int tw_city_settings_resolve(const struct tw_city_settings *in, struct tw_city_settings *out,
+                             const struct tw_log *log, const char *who)
 {
     struct tw_city_settings d;
     tw_tilesets_city_default_settings(&d);
@@ -1635,29 +1737,29 @@ static int resolve_settings(const struct tw_city_settings *in, struct tw_city_se
     }
     if (out->prototypes < 8 || out->prototypes > 256) {
         tw_log_printf(log, TW_LOG_ERROR,
-                      "tilesets: city: prototypes = %u, must be in [8, 256] (caller's settings)",
-                      (unsigned)out->prototypes);
+                      "tilesets: %s: prototypes = %u, must be in [8, 256] (caller's settings)",
+                      who, (unsigned)out->prototypes);
         return TW_ERR_INVALID;
     }
     if (!isfinite(out->street_width) || !(out->street_width >= 4.0f)) {
         tw_log_printf(log, TW_LOG_ERROR,
-                      "tilesets: city: street_width = %g m, must be at least 4 m (caller's settings)",
-                      (double)out->street_width);
+                      "tilesets: %s: street_width = %g m, must be at least 4 m (caller's settings)",
+                      who, (double)out->street_width);
         return TW_ERR_INVALID;
     }
     if (!isfinite(out->footprint) || !(out->footprint - out->street_width >= 40.0f) ||
         !(out->footprint <= 1000.0f)) {
         tw_log_printf(log, TW_LOG_ERROR,
-                      "tilesets: city: footprint = %g m with street_width = %g m: the block "
+                      "tilesets: %s: footprint = %g m with street_width = %g m: the block "
                       "(footprint - street_width) must be at least 40 m and the footprint at "
                       "most 1000 m (caller's settings)",
-                      (double)out->footprint, (double)out->street_width);
+                      who, (double)out->footprint, (double)out->street_width);
         return TW_ERR_INVALID;
     }
     if (!isfinite(out->max_height) || !(out->max_height >= 20.0f) || !(out->max_height <= 1000.0f)) {
         tw_log_printf(log, TW_LOG_ERROR,
-                      "tilesets: city: max_height = %g m, must be in [20, 1000] (caller's settings)",
-                      (double)out->max_height);
+                      "tilesets: %s: max_height = %g m, must be in [20, 1000] (caller's settings)",
+                      who, (double)out->max_height);
         return TW_ERR_INVALID;
     }
     return TW_OK;
@@ -1671,27 +1773,21 @@ int tw_tilesets_city(uint64_t seed, const struct tw_city_settings *settings,
         return TW_ERR_INVALID;
     }
     *out = NULL;
-    struct city c;
-    memset(&c, 0, sizeof(c));
-    int err = resolve_settings(settings, &c.set, log);
+    struct tw_city_settings set;
+    int err = tw_city_settings_resolve(settings, &set, log, "city");
     if (err)
         return err;
-    c.w = c.set.footprint;
-    c.half_street = 0.5f * c.set.street_width;
-    c.kerb_line = c.half_street - clampf(0.22f * c.set.street_width, 1.5f, 4.0f);
-    c.lot_scale = fmaxf(1.0f, (c.w - c.set.street_width) / 66.0f);
+    struct city c;
+    memset(&c, 0, sizeof(c));
 
-    err = tw_tileset_create("city", c.w, c.w, &c.ts);
+    struct tw_tileset *ts = NULL;
+    err = tw_tileset_create("city", set.footprint, set.footprint, &ts);
     if (err)
         goto fail;
-    if ((err = add_materials(&c)))
-        goto fail;
-    if ((err = build_ground_meshes(&c)))
-        goto fail;
-    if ((err = build_park_meshes(&c)))
+    if ((err = city_begin(&c, ts, &set)))
         goto fail;
 
-    const uint32_t n = c.set.prototypes;
+    const uint32_t n = set.prototypes;
     for (uint32_t k = 0; k < n; k++) {
         /* The last prototype is a park, the one before a low-rise block;
          * prototype 0 holds the tallest tower. */
@@ -1700,36 +1796,27 @@ int tw_tilesets_city(uint64_t seed, const struct tw_city_settings *settings,
         static const float weights[] = {1.0f, 0.6f, 0.4f};
         char name[48];
         snprintf(name, sizeof(name), "city-%s-%02u", kind_names[kind], k);
-        const int proto = tw_tileset_add_prototype(c.ts, name, weights[kind]);
+        const int proto = tw_tileset_add_prototype(ts, name, weights[kind]);
         if (proto < 0) {
             err = proto;
             goto fail;
         }
-        struct rng r = rng_seeded(seed, (int64_t)k, 0x63697479);
-        switch (kind) {
-        case BLOCK_DENSE: err = build_dense(&c, (uint32_t)proto, &r, k == 0); break;
-        case BLOCK_LOWRISE: err = build_lowrise(&c, (uint32_t)proto, &r); break;
-        default: err = build_park(&c, (uint32_t)proto, &r); break;
-        }
-        if (err)
+        const uint64_t stream = tw_tiles_hash(seed, (int64_t)k, 0x63697479);
+        if ((err = city_add_block(&c, (uint32_t)proto, kind, stream, k == 0)))
             goto fail;
     }
-    if ((err = tw_tileset_finish(c.ts, c.set.max_cluster_triangles)))
+    if ((err = tw_tileset_finish(ts, set.max_cluster_triangles)))
         goto fail;
 
-    *out = c.ts;
-    c.ts = NULL;
+    *out = ts;
+    ts = NULL;
     goto out;
 
 fail:
     tw_log_printf(log, TW_LOG_ERROR, "tilesets: city: generation failed: %s",
                   tw_error_to_str(err));
-    tw_tileset_destroy(c.ts);
+    tw_tileset_destroy(ts);
 out:
-    builder_release(&c.wall);
-    builder_release(&c.glass);
-    builder_release(&c.roof);
-    free(c.cache);
-    free(c.lots);
+    city_release(&c);
     return err;
 }

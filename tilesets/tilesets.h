@@ -6,7 +6,9 @@
 #ifndef TW_TILESETS_H
 #define TW_TILESETS_H
 
+#include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #include "tiles/tiles.h"
 
@@ -43,6 +45,187 @@ extern const char *const tw_tilesets_builtin_names[];
 int tw_tilesets_builtin(const char *name, uint64_t seed,
                         uint32_t max_cluster_triangles,
                         const struct tw_log *log, struct tw_tileset **out);
+
+/* ---- glTF import and manifests ---- */
+
+/* Limits of one glTF import. Zero-initialisable: zero fields take the
+ * defaults of tw_gltf_default_settings(). */
+struct tw_gltf_settings {
+    uint64_t max_file_bytes;    /* the file plus its external buffers; default 256 MiB */
+    uint64_t max_triangles;     /* triangles the scene draws (every instance); default 10 M */
+};
+
+void tw_gltf_default_settings(struct tw_gltf_settings *s);
+
+/* One glTF mesh primitive as an indexed triangle list (strips and fans are
+ * converted), in the glTF mesh's own coordinates. */
+struct tw_gltf_primitive {
+    float *positions;           /* xyz per vertex, vertex_count * 3 */
+    float *normals;             /* xyz per vertex, or NULL when the file has none usable */
+    uint32_t *indices;          /* three per triangle, triangle_count * 3 */
+    uint32_t vertex_count;
+    uint32_t triangle_count;    /* >= 1 */
+    uint32_t material;          /* index into tw_gltf_scene.materials */
+    struct tw_box box;
+};
+
+/* A glTF mesh that the scene draws: primitives [first_primitive,
+ * first_primitive + primitive_count). */
+struct tw_gltf_mesh {
+    uint32_t first_primitive;
+    uint32_t primitive_count;
+};
+
+/* A node that draws a mesh, its hierarchy flattened into one transform. */
+struct tw_gltf_instance {
+    uint32_t mesh;              /* index into tw_gltf_scene.meshes */
+    float transform[12];        /* affine, row-major 3x4, mesh -> scene coordinates */
+};
+
+/* An imported glTF scene: read-only plain data, owned by whoever imported
+ * it and freed with tw_gltf_scene_destroy(). Only the meshes that the scene
+ * draws are kept; a mesh used by several nodes is one mesh, several
+ * instances. */
+struct tw_gltf_scene {
+    char *source;               /* the file name given to the importer */
+    struct tw_gltf_primitive *primitives;
+    uint32_t primitive_count;
+    struct tw_gltf_mesh *meshes;
+    uint32_t mesh_count;
+    struct tw_material *materials;  /* the file's, then a grey default if needed */
+    uint32_t material_count;
+    struct tw_gltf_instance *instances;
+    uint32_t instance_count;
+    uint64_t vertex_count;      /* over the meshes */
+    uint64_t unique_triangles;  /* over the meshes */
+    uint64_t triangle_count;    /* drawn: over the instances */
+    struct tw_box bounds;       /* of every instance, scene coordinates */
+};
+
+/* Imports the default scene (else scene 0, else every root node) of the
+ * .gltf or .glb file at path (binary or JSON is told by the content).
+ * Buffers in external files must lie inside the file's folder; images are
+ * ignored. Every reference, accessor range, index and node transform is
+ * checked, node hierarchies must be trees (no cycles, one parent per node),
+ * primitives must be triangles (lists, strips or fans). settings may be
+ * NULL. On bad input returns TW_ERR_FORMAT, TW_ERR_IO or TW_ERR_LIMIT and
+ * logs one error line "<path>: <element>: <reason>", e.g.
+ * "a.gltf: nodes[2].children[0]: nodes[0] is an ancestor of nodes[2] (a cycle)".
+ * The caller owns *out. */
+int tw_gltf_import(const char *path, const struct tw_gltf_settings *settings,
+                   const struct tw_log *log, struct tw_gltf_scene **out);
+
+/* The same from size bytes at data (only read during the call). name is used
+ * in messages; base_dir is the folder of external buffers, NULL to refuse
+ * them (then nothing but data is read). */
+int tw_gltf_import_memory(const void *data, size_t size, const char *name,
+                          const char *base_dir, const struct tw_gltf_settings *settings,
+                          const struct tw_log *log, struct tw_gltf_scene **out);
+
+/* Frees an imported scene; accepts NULL. */
+void tw_gltf_scene_destroy(struct tw_gltf_scene *scene);
+
+/* Writes what `tileworld import` shows: meshes, primitives, instances,
+ * materials, vertices, triangles (drawn and unique) and the bounds. */
+void tw_gltf_print_summary(const struct tw_gltf_scene *scene, FILE *f);
+
+/* Where a scene's data went in a tileset: primitive p is tileset mesh
+ * first_mesh + p, scene material m is tileset material first_material + m. */
+struct tw_gltf_binding {
+    uint32_t first_mesh;
+    uint32_t first_material;
+};
+
+/* Adds the scene's primitives as meshes and its materials to the unfinished
+ * tileset ts, once; place it as often as wanted with tw_gltf_place(). */
+int tw_gltf_bind(const struct tw_gltf_scene *scene, struct tw_tileset *ts,
+                 struct tw_gltf_binding *out);
+
+/* Adds one instance per (scene instance, primitive) to prototype proto of
+ * ts, under placement (row-major 3x4, tile-local; NULL for identity) applied
+ * after the scene's own transforms. The meshes stay shared. */
+int tw_gltf_place(const struct tw_gltf_scene *scene, const struct tw_gltf_binding *binding,
+                  struct tw_tileset *ts, uint32_t proto, const float placement[12]);
+
+/* The placement "scale uniformly by scale, turn by yaw_degrees about +y
+ * (0 keeps +z, 90 turns +z towards +x, as camera yaw in DESIGN.md §9), then
+ * move to position" as a row-major 3x4 transform. */
+void tw_gltf_placement(const float position[3], float yaw_degrees, float scale,
+                       float out[12]);
+
+/* Tileset manifests: a JSON file that composes glTF files into prototypes.
+ * The format is documented at the top of tilesets/manifest.c. */
+struct tw_manifest_settings {
+    uint32_t max_cluster_triangles; /* 0: the manifest's, else 2048 */
+    struct tw_gltf_settings gltf;   /* limits of each glTF file; zero: defaults */
+};
+
+/* Loads the manifest at path and every glTF file it names (paths relative
+ * to the manifest's folder, which they may not leave) into a finished
+ * tileset. On bad input returns a negative tw_error and logs one error line
+ * "<manifest>: <place, e.g. prototypes[2].objects[0].gltf>: <reason>". The
+ * caller owns *out. */
+int tw_tilesets_load_manifest(const char *path, const struct tw_log *log,
+                              struct tw_tileset **out);
+/* The same with settings (NULL: defaults). */
+int tw_tilesets_load_manifest_ex(const char *path, const struct tw_manifest_settings *settings,
+                                 const struct tw_log *log, struct tw_tileset **out);
+/* The same from size bytes of JSON at text; name is used in messages and
+ * default names, base_dir is the folder that file names resolve in. */
+int tw_tilesets_parse_manifest(const char *text, size_t size, const char *name,
+                               const char *base_dir,
+                               const struct tw_manifest_settings *settings,
+                               const struct tw_log *log, struct tw_tileset **out);
+
+/* ---- forest and hybrid ---- */
+
+/* Settings of the procedural forest. Zero-initialisable: zero fields take
+ * the defaults of tw_tilesets_forest_default_settings(). */
+struct tw_forest_settings {
+    uint32_t prototypes;        /* how many stands; default 10, at least 8 */
+    float footprint;            /* tile side in metres (square tiles); default 80, in [40, 1000] */
+    float density;              /* scales every stand's tree count; default 1, in [0.25, 2] */
+    float path_clearance;       /* half-width of the clear trail on every tile border,
+                                 * metres; default 1, in [0.1, 5] */
+    uint32_t max_cluster_triangles; /* passed to tw_tileset_finish(); default 2048 */
+};
+
+void tw_tilesets_forest_default_settings(struct tw_forest_settings *s);
+
+/* Generates the forest tileset for seed: stands of trees (conifers of
+ * stacked frusta, lumpy broadleaves, birches; each tree an instance of a
+ * shared species x size mesh, turned about y and scaled), undergrowth baked
+ * into shared patch meshes, rocks and logs: many weak occluders that close
+ * up only together. Stands vary: dense, mixed, thin, a clearing, a rocky
+ * one. Along every tile border runs a trail: within path_clearance of a
+ * border nothing stands between 0.05 m and 2.5 m above the ground (no
+ * trunk, bush or low branch), and everything stays inside the footprint.
+ * Deterministic: the same seed and settings give the same tileset, bit for
+ * bit. settings may be NULL. The caller owns *out. */
+int tw_tilesets_forest(uint64_t seed, const struct tw_forest_settings *settings,
+                       const struct tw_log *log, struct tw_tileset **out);
+
+/* Settings of the hybrid city. Zero-initialisable: zero fields take the
+ * defaults of tw_tilesets_hybrid_default_settings(). */
+struct tw_hybrid_settings {
+    uint32_t prototypes;        /* default 12, at least 8 */
+    float footprint;            /* as the city's; default 80 */
+    float street_width;         /* as the city's; default 14 */
+    float max_height;           /* as the city's; default 90 */
+    float green_share;          /* share of prototypes that are parks or wooded
+                                 * blocks; default 0.4, in (0, 1) */
+    uint32_t max_cluster_triangles; /* default 2048 */
+};
+
+void tw_tilesets_hybrid_default_settings(struct tw_hybrid_settings *s);
+
+/* Generates the hybrid tileset for seed: the city's blocks (built by the
+ * city's generator) mixed with parks and wooded blocks (the forest's stands
+ * inside the block). Streets run along every tile border in every
+ * prototype, as in the city. Deterministic; settings may be NULL. The
+ * caller owns *out. */
+int tw_tilesets_hybrid(uint64_t seed, const struct tw_hybrid_settings *settings,
+                       const struct tw_log *log, struct tw_tileset **out);
 
 #ifdef __cplusplus
 }

@@ -3,7 +3,8 @@
 # Does nothing when they are all present already.
 set -euo pipefail
 packages=(build-essential meson ninja-build pkg-config libembree-dev libosmesa6-dev
-          mesa-common-dev libgl-dev libglfw3-dev libpng-dev libjson-c-dev gnuplot-nox)
+          mesa-common-dev libgl-dev libglfw3-dev libpng-dev libjson-c-dev gnuplot-nox
+          g++ libtinygltf-dev nlohmann-json3-dev)
 missing=()
 for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")

@@ -1,0 +1,1490 @@
+/* glTF import (tilesets.h): tinygltf parses (gltf-shim.cpp), this file
+ * checks everything itself and converts.
+ *
+ * tinygltf accepts documents with dangling references, out-of-range indices,
+ * overlong buffer views and node loops, so nothing it returns is trusted:
+ * every index is range-checked before use, every byte range is checked
+ * against its buffer view and buffer with overflow-safe arithmetic, every
+ * index value against its vertex count, every float for finiteness, and the
+ * node graph for cycles and shared children before it is walked (iteratively:
+ * a deep hierarchy cannot exhaust the stack). Allocation sizes are bounded by
+ * the settings' limits, checked before anything is allocated. The first
+ * problem found ends the import with one message naming the file, the
+ * element and the reason. */
+#include "tilesets/tilesets.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "tilesets/confined-path.h"
+#include "tilesets/gltf-shim.h"
+
+#define DEFAULT_MAX_FILE_BYTES (256ull << 20)
+#define DEFAULT_MAX_TRIANGLES 10000000ull
+/* JSON nesting deeper than this is refused before tinygltf sees it: its
+ * value parser recurses once per level. */
+#define MAX_JSON_DEPTH 256
+/* tinygltf holds the whole JSON tree, at tens to hundreds of bytes per
+ * value: bound the count so that a file within max_file_bytes cannot make it
+ * allocate gigabytes. Real documents keep their bulk in buffers. */
+#define MAX_JSON_VALUES (4 << 20)
+
+enum {
+    COMP_BYTE = 5120,
+    COMP_UNSIGNED_BYTE = 5121,
+    COMP_SHORT = 5122,
+    COMP_UNSIGNED_SHORT = 5123,
+    COMP_UNSIGNED_INT = 5125,
+    COMP_FLOAT = 5126,
+};
+
+/* tinygltf's TINYGLTF_TYPE_* codes. */
+enum {
+    TYPE_VEC2 = 2,
+    TYPE_VEC3 = 3,
+    TYPE_VEC4 = 4,
+    TYPE_MAT2 = 32 + 2,
+    TYPE_MAT3 = 32 + 3,
+    TYPE_MAT4 = 32 + 4,
+    TYPE_SCALAR = 64 + 1,
+};
+
+enum {
+    MODE_POINTS = 0,
+    MODE_LINES = 1,
+    MODE_LINE_LOOP = 2,
+    MODE_LINE_STRIP = 3,
+    MODE_TRIANGLES = 4,
+    MODE_TRIANGLE_STRIP = 5,
+    MODE_TRIANGLE_FAN = 6,
+};
+
+static const float default_grey[4] = {0.6f, 0.6f, 0.6f, 1.0f};
+
+void tw_gltf_default_settings(struct tw_gltf_settings *s)
+{
+    s->max_file_bytes = DEFAULT_MAX_FILE_BYTES;
+    s->max_triangles = DEFAULT_MAX_TRIANGLES;
+}
+
+static struct tw_gltf_settings resolve_settings(const struct tw_gltf_settings *given)
+{
+    struct tw_gltf_settings s;
+    tw_gltf_default_settings(&s);
+    if (given && given->max_file_bytes)
+        s.max_file_bytes = given->max_file_bytes;
+    if (given && given->max_triangles)
+        s.max_triangles = given->max_triangles;
+    /* Keeps 3 * max_triangles and byte sizes far from overflow. */
+    if (s.max_triangles > (1ull << 40))
+        s.max_triangles = 1ull << 40;
+    return s;
+}
+
+/* ---- the import context and its one error message ------------------------------ */
+
+struct importer {
+    const char *name;                 /* for messages */
+    const char *base_dir;             /* of external buffers; NULL: none allowed */
+    struct tw_gltf_settings settings;
+    uint64_t bytes_read;              /* the file and its external buffers */
+    const struct tw_gltf_doc *doc;
+    char msg[1024];                   /* the first error, "<element>: <reason>" */
+    int io_error;                     /* set by the external-file reader */
+    char io_msg[768];
+};
+
+static int fail(struct importer *im, int err, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+
+static int fail(struct importer *im, int err, const char *fmt, ...)
+{
+    if (!im->msg[0]) {
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(im->msg, sizeof(im->msg), fmt, ap);
+        va_end(ap);
+    }
+    return err;
+}
+
+/* ---- reading files ----------------------------------------------------------- */
+
+/* Reads the regular file at path, at most limit bytes, into a malloc()ed
+ * block. On failure the reason is written to why. */
+static int read_file(const char *path, uint64_t limit, uint8_t **data, size_t *size, char *why,
+                     size_t why_size)
+{
+    *data = NULL;
+    *size = 0;
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        snprintf(why, why_size, "cannot open: %s", strerror(errno));
+        return TW_ERR_IO;
+    }
+    int err = TW_OK;
+    uint8_t *buf = NULL;
+    struct stat st;
+    if (fstat(fileno(f), &st) != 0) {
+        snprintf(why, why_size, "cannot stat: %s", strerror(errno));
+        err = TW_ERR_IO;
+        goto out;
+    }
+    if (!S_ISREG(st.st_mode)) {
+        snprintf(why, why_size, "is not a regular file");
+        err = TW_ERR_IO;
+        goto out;
+    }
+    if (st.st_size < 0 || (uint64_t)st.st_size > limit) {
+        snprintf(why, why_size, "is %lld bytes, more than the limit of %llu bytes",
+                 (long long)st.st_size, (unsigned long long)limit);
+        err = TW_ERR_LIMIT;
+        goto out;
+    }
+    const size_t n = (size_t)st.st_size;
+    buf = malloc(n ? n : 1);
+    if (!buf) {
+        snprintf(why, why_size, "out of memory reading %zu bytes", n);
+        err = TW_ERR_NOMEM;
+        goto out;
+    }
+    if (n && fread(buf, 1, n, f) != n) {
+        snprintf(why, why_size, "cannot read: %s", ferror(f) ? strerror(errno) : "file shrank");
+        err = TW_ERR_IO;
+        goto out;
+    }
+    *data = buf;
+    *size = n;
+    buf = NULL;
+out:
+    free(buf);
+    fclose(f);
+    return err;
+}
+
+/* The shim's reader of external buffers: confined to the document's folder
+ * and to what is left of the byte budget. */
+static int read_external(void *user, const char *uri, uint8_t **data, size_t *size)
+{
+    struct importer *im = user;
+    *data = NULL;
+    *size = 0;
+    if (!im->base_dir) {
+        snprintf(im->io_msg, sizeof(im->io_msg),
+                 "buffer file \"%.200s\": external files are not allowed here", uri);
+        return im->io_error = TW_ERR_INVALID;
+    }
+    char *resolved = NULL;
+    const char *reason = NULL;
+    int err = tw_confined_path_resolve(im->base_dir, uri, &resolved, &reason);
+    if (err) {
+        snprintf(im->io_msg, sizeof(im->io_msg), "buffer file \"%.200s\" %s", uri, reason);
+        return im->io_error = err == TW_ERR_IO ? TW_ERR_IO : TW_ERR_FORMAT;
+    }
+    char why[512];
+    const uint64_t left = im->settings.max_file_bytes - im->bytes_read;
+    err = read_file(resolved, left, data, size, why, sizeof(why));
+    free(resolved);
+    if (err) {
+        if (err == TW_ERR_LIMIT)
+            snprintf(im->io_msg, sizeof(im->io_msg),
+                     "buffer file \"%.200s\" is too large: with the document it exceeds the "
+                     "limit of %llu bytes",
+                     uri, (unsigned long long)im->settings.max_file_bytes);
+        else
+            snprintf(im->io_msg, sizeof(im->io_msg), "buffer file \"%.200s\" %s", uri, why);
+        return im->io_error = err;
+    }
+    im->bytes_read += *size;
+    return TW_OK;
+}
+
+/* The JSON text of a .gltf, or the JSON chunk of a .glb (bounded by the
+ * data whatever its header claims). */
+static void json_text(const uint8_t *data, size_t size, const uint8_t **text, size_t *len)
+{
+    *text = data;
+    *len = size;
+    if (size >= 4 && memcmp(data, "glTF", 4) == 0) {
+        if (size < 20) {
+            *len = 0;
+            return;
+        }
+        uint32_t chunk = (uint32_t)data[12] | (uint32_t)data[13] << 8 |
+                         (uint32_t)data[14] << 16 | (uint32_t)data[15] << 24;
+        *text = data + 20;
+        *len = chunk < size - 20 ? chunk : size - 20;
+    }
+}
+
+/* How deep the JSON nests and roughly how many values it holds (commas and
+ * openings outside strings), measured without parsing. */
+static void json_measure(const uint8_t *s, size_t n, uint32_t *deepest, uint64_t *values)
+{
+    uint32_t depth = 0;
+    bool in_string = false;
+    *deepest = 0;
+    *values = 0;
+    for (size_t k = 0; k < n; k++) {
+        const uint8_t c = s[k];
+        if (in_string) {
+            if (c == '\\')
+                k++;
+            else if (c == '"')
+                in_string = false;
+        } else if (c == '"') {
+            in_string = true;
+        } else if (c == '[' || c == '{') {
+            ++*values;
+            if (++depth > *deepest)
+                *deepest = depth;
+        } else if ((c == ']' || c == '}') && depth > 0) {
+            depth--;
+        } else if (c == ',') {
+            ++*values;
+        }
+    }
+}
+
+/* ---- accessors ----------------------------------------------------------------- */
+
+static uint32_t component_size(int32_t comp)
+{
+    switch (comp) {
+    case COMP_BYTE:
+    case COMP_UNSIGNED_BYTE:
+        return 1;
+    case COMP_SHORT:
+    case COMP_UNSIGNED_SHORT:
+        return 2;
+    case COMP_UNSIGNED_INT:
+    case COMP_FLOAT:
+        return 4;
+    default:
+        return 0;
+    }
+}
+
+static uint32_t type_components(int32_t type)
+{
+    switch (type) {
+    case TYPE_SCALAR:
+        return 1;
+    case TYPE_VEC2:
+        return 2;
+    case TYPE_VEC3:
+        return 3;
+    case TYPE_VEC4:
+    case TYPE_MAT2:
+        return 4;
+    case TYPE_MAT3:
+        return 9;
+    case TYPE_MAT4:
+        return 16;
+    default:
+        return 0;
+    }
+}
+
+static const char *type_name(int32_t type)
+{
+    switch (type) {
+    case TYPE_SCALAR: return "SCALAR";
+    case TYPE_VEC2: return "VEC2";
+    case TYPE_VEC3: return "VEC3";
+    case TYPE_VEC4: return "VEC4";
+    case TYPE_MAT2: return "MAT2";
+    case TYPE_MAT3: return "MAT3";
+    case TYPE_MAT4: return "MAT4";
+    default: return "an unknown type";
+    }
+}
+
+static const char *component_name(int32_t comp)
+{
+    switch (comp) {
+    case COMP_BYTE: return "BYTE";
+    case COMP_UNSIGNED_BYTE: return "UNSIGNED_BYTE";
+    case COMP_SHORT: return "SHORT";
+    case COMP_UNSIGNED_SHORT: return "UNSIGNED_SHORT";
+    case COMP_UNSIGNED_INT: return "UNSIGNED_INT";
+    case COMP_FLOAT: return "FLOAT";
+    default: return "an unknown component type";
+    }
+}
+
+/* Bytes of one element; 0 if the type or component type is invalid. Matrix
+ * columns are padded to 4 bytes (glTF 2.0 §3.6.2.4). */
+static uint64_t element_size(int32_t comp, int32_t type)
+{
+    const uint64_t cs = component_size(comp), nc = type_components(type);
+    if (!cs || !nc)
+        return 0;
+    if (type == TYPE_MAT2 && cs == 1)
+        return 8;
+    if (type == TYPE_MAT3 && cs == 1)
+        return 12;
+    if (type == TYPE_MAT3 && cs == 2)
+        return 24;
+    return cs * nc;
+}
+
+static uint64_t view_stride(const struct tw_gltf_doc_buffer_view *v, uint64_t elem)
+{
+    return v->byte_stride ? v->byte_stride : elem;
+}
+
+/* Checks that [offset, offset + stride * (count - 1) + elem) lies within a
+ * view of view_length bytes, without overflow. count >= 1. */
+static bool range_fits(uint64_t offset, uint64_t stride, uint64_t count, uint64_t elem,
+                       uint64_t view_length)
+{
+    if (offset > view_length || elem > view_length - offset)
+        return false;
+    const uint64_t room = view_length - offset - elem;
+    return count - 1 == 0 || stride == 0 || (count - 1) <= room / stride;
+}
+
+static int check_buffer_views(struct importer *im)
+{
+    const struct tw_gltf_doc *d = im->doc;
+    for (uint32_t k = 0; k < d->buffer_view_count; k++) {
+        const struct tw_gltf_doc_buffer_view *v = &d->buffer_views[k];
+        if (v->buffer < 0 || (uint32_t)v->buffer >= d->buffer_count)
+            return fail(im, TW_ERR_FORMAT, "bufferViews[%u].buffer: %d is not a buffer (%u)", k,
+                        v->buffer, d->buffer_count);
+        const uint64_t size = d->buffers[v->buffer].size;
+        if (v->byte_offset > size || v->byte_length > size - v->byte_offset)
+            return fail(im, TW_ERR_FORMAT,
+                        "bufferViews[%u]: bytes [%llu, %llu + %llu) overrun buffers[%d] "
+                        "(%llu bytes)",
+                        k, (unsigned long long)v->byte_offset,
+                        (unsigned long long)v->byte_offset, (unsigned long long)v->byte_length,
+                        v->buffer, (unsigned long long)size);
+    }
+    return TW_OK;
+}
+
+static int check_accessors(struct importer *im)
+{
+    const struct tw_gltf_doc *d = im->doc;
+    for (uint32_t k = 0; k < d->accessor_count; k++) {
+        const struct tw_gltf_doc_accessor *a = &d->accessors[k];
+        const uint64_t elem = element_size(a->component_type, a->type);
+        if (!component_size(a->component_type))
+            return fail(im, TW_ERR_FORMAT, "accessors[%u].componentType: %d is not valid", k,
+                        a->component_type);
+        if (!elem)
+            return fail(im, TW_ERR_FORMAT, "accessors[%u].type is not valid", k);
+        if (a->count < 1 || a->count > UINT32_MAX)
+            return fail(im, TW_ERR_FORMAT, "accessors[%u].count: %llu is not in [1, 2^32)", k,
+                        (unsigned long long)a->count);
+        if (a->buffer_view >= 0) {
+            if ((uint32_t)a->buffer_view >= d->buffer_view_count)
+                return fail(im, TW_ERR_FORMAT,
+                            "accessors[%u].bufferView: %d is not a buffer view (%u)", k,
+                            a->buffer_view, d->buffer_view_count);
+            const struct tw_gltf_doc_buffer_view *v = &d->buffer_views[a->buffer_view];
+            const uint64_t stride = view_stride(v, elem);
+            if (stride < elem)
+                return fail(im, TW_ERR_FORMAT,
+                            "accessors[%u]: bufferViews[%d].byteStride %llu is smaller than "
+                            "one element (%llu bytes)",
+                            k, a->buffer_view, (unsigned long long)stride,
+                            (unsigned long long)elem);
+            if (!range_fits(a->byte_offset, stride, a->count, elem, v->byte_length))
+                return fail(im, TW_ERR_FORMAT,
+                            "accessors[%u]: %llu elements of %llu bytes every %llu bytes from "
+                            "byte %llu overrun bufferViews[%d] (%llu bytes)",
+                            k, (unsigned long long)a->count, (unsigned long long)elem,
+                            (unsigned long long)stride, (unsigned long long)a->byte_offset,
+                            a->buffer_view, (unsigned long long)v->byte_length);
+        } else if (a->buffer_view != -1) {
+            return fail(im, TW_ERR_FORMAT, "accessors[%u].bufferView: %d is not a buffer view",
+                        k, a->buffer_view);
+        }
+        if (!a->sparse)
+            continue;
+        if (a->sparse_count < 1 || (uint64_t)a->sparse_count > a->count)
+            return fail(im, TW_ERR_FORMAT, "accessors[%u].sparse.count: %d is not in [1, %llu]",
+                        k, a->sparse_count, (unsigned long long)a->count);
+        const int32_t ic = a->sparse_indices_component_type;
+        if (ic != COMP_UNSIGNED_BYTE && ic != COMP_UNSIGNED_SHORT && ic != COMP_UNSIGNED_INT)
+            return fail(im, TW_ERR_FORMAT,
+                        "accessors[%u].sparse.indices.componentType: %d is not an unsigned "
+                        "integer type",
+                        k, ic);
+        const struct {
+            const char *what;
+            int32_t view;
+            int32_t offset;
+            uint64_t elem;
+        } parts[2] = {
+            {"indices", a->sparse_indices_view, a->sparse_indices_offset, component_size(ic)},
+            {"values", a->sparse_values_view, a->sparse_values_offset, elem},
+        };
+        for (int p = 0; p < 2; p++) {
+            if (parts[p].view < 0 || (uint32_t)parts[p].view >= d->buffer_view_count)
+                return fail(im, TW_ERR_FORMAT,
+                            "accessors[%u].sparse.%s.bufferView: %d is not a buffer view (%u)",
+                            k, parts[p].what, parts[p].view, d->buffer_view_count);
+            if (parts[p].offset < 0)
+                return fail(im, TW_ERR_FORMAT, "accessors[%u].sparse.%s.byteOffset is negative",
+                            k, parts[p].what);
+            const struct tw_gltf_doc_buffer_view *v = &d->buffer_views[parts[p].view];
+            if (!range_fits((uint64_t)parts[p].offset, parts[p].elem, (uint64_t)a->sparse_count,
+                            parts[p].elem, v->byte_length))
+                return fail(im, TW_ERR_FORMAT,
+                            "accessors[%u].sparse.%s: %d elements from byte %d overrun "
+                            "bufferViews[%d] (%llu bytes)",
+                            k, parts[p].what, a->sparse_count, parts[p].offset, parts[p].view,
+                            (unsigned long long)v->byte_length);
+        }
+    }
+    return TW_OK;
+}
+
+static uint32_t load_u32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static uint32_t load_uint(const uint8_t *p, int32_t comp)
+{
+    switch (comp) {
+    case COMP_UNSIGNED_BYTE:
+        return p[0];
+    case COMP_UNSIGNED_SHORT:
+        return (uint32_t)p[0] | (uint32_t)p[1] << 8;
+    default:
+        return load_u32(p);
+    }
+}
+
+static float load_float(const uint8_t *p)
+{
+    const uint32_t bits = load_u32(p);
+    float f;
+    memcpy(&f, &bits, sizeof(f));
+    return f;
+}
+
+/* Start of the accessor's data in its buffer, or NULL when it has no buffer
+ * view (zeros). The accessor has been checked. */
+static const uint8_t *accessor_base(const struct tw_gltf_doc *d,
+                                    const struct tw_gltf_doc_accessor *a, uint64_t *stride)
+{
+    const uint64_t elem = element_size(a->component_type, a->type);
+    *stride = elem;
+    if (a->buffer_view < 0)
+        return NULL;
+    const struct tw_gltf_doc_buffer_view *v = &d->buffer_views[a->buffer_view];
+    *stride = view_stride(v, elem);
+    return d->buffers[v->buffer].data + v->byte_offset + a->byte_offset;
+}
+
+static const uint8_t *view_data(const struct tw_gltf_doc *d, int32_t view, int32_t offset)
+{
+    const struct tw_gltf_doc_buffer_view *v = &d->buffer_views[view];
+    return d->buffers[v->buffer].data + v->byte_offset + (uint64_t)offset;
+}
+
+/* Applies sparse substitutions: for each entry, copy(out, target, source). */
+static int apply_sparse(struct importer *im, uint32_t index,
+                        void (*copy)(void *out, uint32_t target, const uint8_t *src, int32_t comp,
+                                     uint32_t n),
+                        void *out, uint32_t n)
+{
+    const struct tw_gltf_doc *d = im->doc;
+    const struct tw_gltf_doc_accessor *a = &d->accessors[index];
+    if (!a->sparse)
+        return TW_OK;
+    const int32_t ic = a->sparse_indices_component_type;
+    const uint64_t is = component_size(ic);
+    const uint64_t elem = element_size(a->component_type, a->type);
+    const uint8_t *idx = view_data(d, a->sparse_indices_view, a->sparse_indices_offset);
+    const uint8_t *val = view_data(d, a->sparse_values_view, a->sparse_values_offset);
+    for (uint32_t s = 0; s < (uint32_t)a->sparse_count; s++) {
+        const uint32_t target = load_uint(idx + s * is, ic);
+        if (target >= a->count)
+            return fail(im, TW_ERR_FORMAT,
+                        "accessors[%u].sparse.indices[%u]: %u is not below the count %llu",
+                        index, s, target, (unsigned long long)a->count);
+        copy(out, target, val + s * elem, a->component_type, n);
+    }
+    return TW_OK;
+}
+
+static void copy_floats(void *out, uint32_t target, const uint8_t *src, int32_t comp, uint32_t n)
+{
+    float *f = (float *)out + (size_t)target * n;
+    for (uint32_t c = 0; c < n; c++)
+        f[c] = load_float(src + 4 * c);
+}
+
+static void copy_uint(void *out, uint32_t target, const uint8_t *src, int32_t comp, uint32_t n)
+{
+    ((uint32_t *)out)[target] = load_uint(src, comp);
+}
+
+/* Reads a checked FLOAT accessor of n components into out (count * n). */
+static int read_floats(struct importer *im, uint32_t index, uint32_t n, float *out)
+{
+    const struct tw_gltf_doc_accessor *a = &im->doc->accessors[index];
+    uint64_t stride;
+    const uint8_t *base = accessor_base(im->doc, a, &stride);
+    for (uint64_t k = 0; k < a->count; k++)
+        for (uint32_t c = 0; c < n; c++)
+            out[k * n + c] = base ? load_float(base + k * stride + 4 * c) : 0.0f;
+    return apply_sparse(im, index, copy_floats, out, n);
+}
+
+/* Reads a checked unsigned integer SCALAR accessor into out (count). */
+static int read_uints(struct importer *im, uint32_t index, uint32_t *out)
+{
+    const struct tw_gltf_doc_accessor *a = &im->doc->accessors[index];
+    uint64_t stride;
+    const uint8_t *base = accessor_base(im->doc, a, &stride);
+    for (uint64_t k = 0; k < a->count; k++)
+        out[k] = base ? load_uint(base + k * stride, a->component_type) : 0;
+    return apply_sparse(im, index, copy_uint, out, 1);
+}
+
+/* ---- meshes --------------------------------------------------------------------- */
+
+static int32_t find_attribute(const struct tw_gltf_doc_primitive *p, const char *name)
+{
+    for (uint32_t k = 0; k < p->attribute_count; k++)
+        if (p->attributes[k].name && strcmp(p->attributes[k].name, name) == 0)
+            return p->attributes[k].accessor;
+    return -1;
+}
+
+static const char *mode_name(int32_t mode)
+{
+    switch (mode) {
+    case MODE_POINTS: return "POINTS";
+    case MODE_LINES: return "LINES";
+    case MODE_LINE_LOOP: return "LINE_LOOP";
+    case MODE_LINE_STRIP: return "LINE_STRIP";
+    default: return "an unknown mode";
+    }
+}
+
+static int check_meshes(struct importer *im)
+{
+    const struct tw_gltf_doc *d = im->doc;
+    for (uint32_t m = 0; m < d->mesh_count; m++) {
+        const struct tw_gltf_doc_mesh *mesh = &d->meshes[m];
+        if (mesh->primitive_count == 0)
+            return fail(im, TW_ERR_FORMAT, "meshes[%u]: has no primitives", m);
+        for (uint32_t k = 0; k < mesh->primitive_count; k++) {
+            const struct tw_gltf_doc_primitive *p = &mesh->primitives[k];
+            if (p->mode != MODE_TRIANGLES && p->mode != MODE_TRIANGLE_STRIP &&
+                p->mode != MODE_TRIANGLE_FAN)
+                return fail(im, TW_ERR_FORMAT,
+                            "meshes[%u].primitives[%u].mode: %d (%s) is not supported: only "
+                            "triangles, triangle strips and triangle fans are",
+                            m, k, p->mode, mode_name(p->mode));
+            for (uint32_t t = 0; t < p->attribute_count; t++) {
+                const int32_t acc = p->attributes[t].accessor;
+                if (acc < 0 || (uint32_t)acc >= d->accessor_count)
+                    return fail(im, TW_ERR_FORMAT,
+                                "meshes[%u].primitives[%u].attributes.%s: %d is not an "
+                                "accessor (%u)",
+                                m, k, p->attributes[t].name ? p->attributes[t].name : "?", acc,
+                                d->accessor_count);
+            }
+            if (p->indices < -1 || (p->indices >= 0 && (uint32_t)p->indices >= d->accessor_count))
+                return fail(im, TW_ERR_FORMAT,
+                            "meshes[%u].primitives[%u].indices: %d is not an accessor (%u)", m,
+                            k, p->indices, d->accessor_count);
+            if (p->material < -1 ||
+                (p->material >= 0 && (uint32_t)p->material >= d->material_count))
+                return fail(im, TW_ERR_FORMAT,
+                            "meshes[%u].primitives[%u].material: %d is not a material (%u)", m,
+                            k, p->material, d->material_count);
+            const int32_t pos = find_attribute(p, "POSITION");
+            if (pos < 0)
+                continue; /* drawn as nothing (glTF 2.0 §3.7.2.1) */
+            const struct tw_gltf_doc_accessor *a = &d->accessors[pos];
+            if (a->type != TYPE_VEC3 || a->component_type != COMP_FLOAT || a->normalized)
+                return fail(im, TW_ERR_FORMAT,
+                            "meshes[%u].primitives[%u].attributes.POSITION: accessors[%d] is "
+                            "%s of %s; positions must be VEC3 of FLOAT",
+                            m, k, pos, type_name(a->type), component_name(a->component_type));
+            const int32_t nrm = find_attribute(p, "NORMAL");
+            if (nrm >= 0) {
+                const struct tw_gltf_doc_accessor *n = &d->accessors[nrm];
+                if (n->type != TYPE_VEC3 || n->component_type != COMP_FLOAT ||
+                    n->count != a->count)
+                    return fail(im, TW_ERR_FORMAT,
+                                "meshes[%u].primitives[%u].attributes.NORMAL: accessors[%d] "
+                                "must be %llu VEC3 of FLOAT like POSITION",
+                                m, k, nrm, (unsigned long long)a->count);
+            }
+            if (p->indices >= 0) {
+                const struct tw_gltf_doc_accessor *ix = &d->accessors[p->indices];
+                const int32_t c = ix->component_type;
+                if (ix->type != TYPE_SCALAR ||
+                    (c != COMP_UNSIGNED_BYTE && c != COMP_UNSIGNED_SHORT &&
+                     c != COMP_UNSIGNED_INT))
+                    return fail(im, TW_ERR_FORMAT,
+                                "meshes[%u].primitives[%u].indices: accessors[%d] is %s of "
+                                "%s; indices must be SCALAR of UNSIGNED_BYTE, UNSIGNED_SHORT "
+                                "or UNSIGNED_INT",
+                                m, k, p->indices, type_name(ix->type), component_name(c));
+            }
+        }
+    }
+    return TW_OK;
+}
+
+/* Triangles of a checked primitive, from its counts alone. */
+static int primitive_triangles(struct importer *im, uint32_t m, uint32_t k, uint64_t *tris)
+{
+    const struct tw_gltf_doc *d = im->doc;
+    const struct tw_gltf_doc_primitive *p = &d->meshes[m].primitives[k];
+    *tris = 0;
+    const int32_t pos = find_attribute(p, "POSITION");
+    if (pos < 0)
+        return TW_OK;
+    const uint64_t n = p->indices >= 0 ? d->accessors[p->indices].count : d->accessors[pos].count;
+    if (p->mode == MODE_TRIANGLES) {
+        if (n % 3 != 0)
+            return fail(im, TW_ERR_FORMAT,
+                        "meshes[%u].primitives[%u]: %llu %s is not a multiple of 3", m, k,
+                        (unsigned long long)n, p->indices >= 0 ? "indices" : "vertices");
+        *tris = n / 3;
+    } else {
+        *tris = n >= 3 ? n - 2 : 0;
+    }
+    return TW_OK;
+}
+
+/* Checks the data of primitive k of mesh m without allocating: positions
+ * finite, every index below the vertex count (sparse substitutes included;
+ * base values that a substitute replaces must be in range too). Runs on
+ * every primitive, drawn or not. */
+static int check_primitive_data(struct importer *im, uint32_t m, uint32_t k)
+{
+    const struct tw_gltf_doc *d = im->doc;
+    const struct tw_gltf_doc_primitive *p = &d->meshes[m].primitives[k];
+    const int32_t pos = find_attribute(p, "POSITION");
+    if (pos < 0)
+        return TW_OK;
+    const struct tw_gltf_doc_accessor *pa = &d->accessors[pos];
+    uint64_t stride;
+    const uint8_t *base = accessor_base(d, pa, &stride);
+    for (uint64_t v = 0; base && v < pa->count; v++)
+        for (int c = 0; c < 3; c++)
+            if (!isfinite(load_float(base + v * stride + 4 * c)))
+                return fail(im, TW_ERR_FORMAT,
+                            "meshes[%u].primitives[%u].attributes.POSITION: accessors[%d] "
+                            "element %llu is not finite",
+                            m, k, pos, (unsigned long long)v);
+    if (pa->sparse) {
+        const uint8_t *val = view_data(d, pa->sparse_values_view, pa->sparse_values_offset);
+        for (int32_t e = 0; e < pa->sparse_count; e++)
+            for (int c = 0; c < 3; c++)
+                if (!isfinite(load_float(val + 12 * (uint64_t)e + 4 * c)))
+                    return fail(im, TW_ERR_FORMAT,
+                                "meshes[%u].primitives[%u].attributes.POSITION: accessors[%d] "
+                                "sparse value %d is not finite",
+                                m, k, pos, e);
+    }
+    if (p->indices < 0)
+        return TW_OK;
+    const struct tw_gltf_doc_accessor *ia = &d->accessors[p->indices];
+    const uint64_t nv = pa->count;
+    base = accessor_base(d, ia, &stride);
+    for (uint64_t e = 0; base && e < ia->count; e++) {
+        const uint32_t i = load_uint(base + e * stride, ia->component_type);
+        if (i >= nv)
+            return fail(im, TW_ERR_FORMAT,
+                        "meshes[%u].primitives[%u].indices: accessors[%d] element %llu is %u, "
+                        "not below the vertex count %llu",
+                        m, k, p->indices, (unsigned long long)e, i, (unsigned long long)nv);
+    }
+    if (ia->sparse) {
+        const uint8_t *val = view_data(d, ia->sparse_values_view, ia->sparse_values_offset);
+        const uint64_t size = component_size(ia->component_type);
+        for (int32_t e = 0; e < ia->sparse_count; e++) {
+            const uint32_t i = load_uint(val + size * (uint64_t)e, ia->component_type);
+            if (i >= nv)
+                return fail(im, TW_ERR_FORMAT,
+                            "meshes[%u].primitives[%u].indices: accessors[%d] sparse value %d "
+                            "is %u, not below the vertex count %llu",
+                            m, k, p->indices, e, i, (unsigned long long)nv);
+        }
+    }
+    return TW_OK;
+}
+
+static int check_mesh_data(struct importer *im)
+{
+    int err = TW_OK;
+    for (uint32_t m = 0; m < im->doc->mesh_count && !err; m++)
+        for (uint32_t k = 0; k < im->doc->meshes[m].primitive_count && !err; k++)
+            err = check_primitive_data(im, m, k);
+    return err;
+}
+
+/* Converts primitive k of mesh m into out (zeroed). A primitive that draws
+ * nothing leaves out->triangle_count at 0. */
+static int convert_primitive(struct importer *im, uint32_t m, uint32_t k, uint32_t grey,
+                             struct tw_gltf_primitive *out)
+{
+    const struct tw_gltf_doc *d = im->doc;
+    const struct tw_gltf_doc_primitive *p = &d->meshes[m].primitives[k];
+    uint32_t *list = NULL;
+    int err;
+    uint64_t tris;
+    if ((err = primitive_triangles(im, m, k, &tris)) || tris == 0)
+        return err;
+    const int32_t pos = find_attribute(p, "POSITION");
+    const struct tw_gltf_doc_accessor *pa = &d->accessors[pos];
+    const uint32_t nv = (uint32_t)pa->count;
+    out->vertex_count = nv;
+    out->material = p->material >= 0 ? (uint32_t)p->material : grey;
+    out->positions = malloc(sizeof(float) * 3 * (size_t)nv);
+    out->indices = malloc(sizeof(uint32_t) * 3 * (size_t)tris);
+    if (!out->positions || !out->indices)
+        return fail(im, TW_ERR_NOMEM, "meshes[%u].primitives[%u]: out of memory", m, k);
+    if ((err = read_floats(im, (uint32_t)pos, 3, out->positions)))
+        return err;
+    out->box = tw_box_empty();
+    for (uint32_t v = 0; v < nv; v++) {
+        const float *x = out->positions + 3 * (size_t)v;
+        if (!isfinite(x[0]) || !isfinite(x[1]) || !isfinite(x[2]))
+            return fail(im, TW_ERR_FORMAT,
+                        "meshes[%u].primitives[%u].attributes.POSITION: accessors[%d] element "
+                        "%u is not finite",
+                        m, k, pos, v);
+        tw_box_add_point(&out->box, x);
+    }
+
+    const int32_t nrm = find_attribute(p, "NORMAL");
+    if (nrm >= 0) {
+        out->normals = malloc(sizeof(float) * 3 * (size_t)nv);
+        if (!out->normals)
+            return fail(im, TW_ERR_NOMEM, "meshes[%u].primitives[%u]: out of memory", m, k);
+        if ((err = read_floats(im, (uint32_t)nrm, 3, out->normals)))
+            return err;
+        for (uint64_t c = 0; c < 3ull * nv; c++) {
+            if (!isfinite(out->normals[c])) {
+                /* Normals are optional: drop them rather than the mesh. */
+                free(out->normals);
+                out->normals = NULL;
+                break;
+            }
+        }
+    }
+
+    /* The primitive's vertex order: its index list, or 0 .. n-1. */
+    uint64_t n = nv;
+    if (p->indices >= 0) {
+        n = d->accessors[p->indices].count;
+        list = malloc(sizeof(uint32_t) * (size_t)n);
+        if (!list)
+            return fail(im, TW_ERR_NOMEM, "meshes[%u].primitives[%u]: out of memory", m, k);
+        if ((err = read_uints(im, (uint32_t)p->indices, list)))
+            goto out;
+        for (uint64_t e = 0; e < n; e++) {
+            if (list[e] >= nv) {
+                err = fail(im, TW_ERR_FORMAT,
+                           "meshes[%u].primitives[%u].indices: accessors[%d] element %llu is "
+                           "%u, not below the vertex count %u",
+                           m, k, p->indices, (unsigned long long)e, list[e], nv);
+                goto out;
+            }
+        }
+    }
+#define VERTEX(e) (list ? list[(e)] : (uint32_t)(e))
+    uint32_t *ix = out->indices;
+    for (uint64_t t = 0; t < tris; t++) {
+        switch (p->mode) {
+        case MODE_TRIANGLES:
+            ix[0] = VERTEX(3 * t);
+            ix[1] = VERTEX(3 * t + 1);
+            ix[2] = VERTEX(3 * t + 2);
+            break;
+        case MODE_TRIANGLE_STRIP: /* odd triangles swap to keep the winding */
+            ix[0] = VERTEX(t + (t & 1));
+            ix[1] = VERTEX(t + 1 - (t & 1));
+            ix[2] = VERTEX(t + 2);
+            break;
+        default: /* MODE_TRIANGLE_FAN */
+            ix[0] = VERTEX(t + 1);
+            ix[1] = VERTEX(t + 2);
+            ix[2] = VERTEX(0);
+            break;
+        }
+        ix += 3;
+    }
+#undef VERTEX
+    out->triangle_count = (uint32_t)tris;
+out:
+    free(list);
+    return err;
+}
+
+/* ---- nodes ---------------------------------------------------------------------- */
+
+static bool all_finite(const double *v, uint32_t n)
+{
+    for (uint32_t k = 0; k < n; k++)
+        if (!isfinite(v[k]))
+            return false;
+    return true;
+}
+
+static int check_nodes(struct importer *im, int32_t *parent)
+{
+    const struct tw_gltf_doc *d = im->doc;
+    for (uint32_t k = 0; k < d->node_count; k++)
+        parent[k] = -1;
+    for (uint32_t k = 0; k < d->node_count; k++) {
+        const struct tw_gltf_doc_node *n = &d->nodes[k];
+        if (n->mesh < -1 || (n->mesh >= 0 && (uint32_t)n->mesh >= d->mesh_count))
+            return fail(im, TW_ERR_FORMAT, "nodes[%u].mesh: %d is not a mesh (%u)", k, n->mesh,
+                        d->mesh_count);
+        for (uint32_t c = 0; c < n->child_count; c++) {
+            const int child = n->children[c];
+            if (child < 0 || (uint32_t)child >= d->node_count)
+                return fail(im, TW_ERR_FORMAT, "nodes[%u].children[%u]: %d is not a node (%u)",
+                            k, c, child, d->node_count);
+            if ((uint32_t)child == k)
+                return fail(im, TW_ERR_FORMAT,
+                            "nodes[%u].children[%u]: the node is its own child (a cycle)", k, c);
+            if (parent[child] >= 0)
+                return fail(im, TW_ERR_FORMAT,
+                            "nodes[%u].children[%u]: nodes[%d] is already a child of nodes[%d]; "
+                            "a node has at most one parent",
+                            k, c, child, parent[child]);
+            parent[child] = (int32_t)k;
+        }
+        const struct {
+            const char *what;
+            uint32_t given, want;
+            const double *values;
+        } props[4] = {
+            {"matrix", n->matrix_count, 16, n->matrix},
+            {"translation", n->translation_count, 3, n->translation},
+            {"rotation", n->rotation_count, 4, n->rotation},
+            {"scale", n->scale_count, 3, n->scale},
+        };
+        for (int p = 0; p < 4; p++) {
+            if (props[p].given && props[p].given != props[p].want)
+                return fail(im, TW_ERR_FORMAT, "nodes[%u].%s: has %u values, not %u", k,
+                            props[p].what, props[p].given, props[p].want);
+            if (props[p].given && !all_finite(props[p].values, props[p].want))
+                return fail(im, TW_ERR_FORMAT, "nodes[%u].%s: a value is not finite", k,
+                            props[p].what);
+        }
+        if (n->matrix_count && (n->translation_count || n->rotation_count || n->scale_count))
+            return fail(im, TW_ERR_FORMAT,
+                        "nodes[%u]: has both a matrix and translation/rotation/scale", k);
+        if (n->matrix_count && (n->matrix[3] != 0.0 || n->matrix[7] != 0.0 ||
+                                n->matrix[11] != 0.0 || n->matrix[15] != 1.0))
+            return fail(im, TW_ERR_FORMAT,
+                        "nodes[%u].matrix: is not affine (its last row is not 0 0 0 1)", k);
+        if (n->rotation_count) {
+            const double *q = n->rotation;
+            const double len = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+            if (!(len > 1e-6) || !isfinite(len))
+                return fail(im, TW_ERR_FORMAT, "nodes[%u].rotation: is not a rotation (length %g)",
+                            k, len);
+        }
+    }
+    /* With one parent per node, a cycle is a chain of parents that never
+     * reaches a root: walk up from every node, marking what is known to end
+     * at a root. Linear time overall. */
+    uint8_t *state = calloc(d->node_count ? d->node_count : 1, 1); /* 0 unknown, 1 on path, 2 rooted */
+    if (!state)
+        return fail(im, TW_ERR_NOMEM, "nodes: out of memory");
+    int err = TW_OK;
+    for (uint32_t k = 0; k < d->node_count && !err; k++) {
+        uint32_t n = k;
+        while (state[n] == 0 && parent[n] >= 0) {
+            state[n] = 1;
+            n = (uint32_t)parent[n];
+        }
+        if (state[n] == 1) {
+            /* n was reached twice on this walk: it lies on a cycle. Name the
+             * edge that closes it: n's parent lists n as a child. */
+            const uint32_t p = (uint32_t)parent[n];
+            uint32_t c = 0;
+            while (d->nodes[p].children[c] != (int)n)
+                c++;
+            err = fail(im, TW_ERR_FORMAT,
+                       "nodes[%u].children[%u]: nodes[%u] is an ancestor of nodes[%u] (a cycle)",
+                       p, c, n, p);
+            break;
+        }
+        for (uint32_t m = k; state[m] == 1; m = (uint32_t)parent[m]) {
+            state[m] = 2;
+            if (parent[m] < 0)
+                break;
+        }
+        state[n] = 2;
+    }
+    free(state);
+    return err;
+}
+
+/* Row-major affine 3x4 in double. */
+static void node_local(const struct tw_gltf_doc_node *n, double out[12])
+{
+    if (n->matrix_count) {
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 4; c++)
+                out[4 * r + c] = n->matrix[4 * c + r]; /* glTF is column-major */
+        return;
+    }
+    double t[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, s[3] = {1, 1, 1};
+    if (n->translation_count)
+        memcpy(t, n->translation, sizeof(t));
+    if (n->rotation_count) {
+        const double len = sqrt(n->rotation[0] * n->rotation[0] + n->rotation[1] * n->rotation[1] +
+                                n->rotation[2] * n->rotation[2] + n->rotation[3] * n->rotation[3]);
+        for (int k = 0; k < 4; k++)
+            q[k] = n->rotation[k] / len;
+    }
+    if (n->scale_count)
+        memcpy(s, n->scale, sizeof(s));
+    const double x = q[0], y = q[1], z = q[2], w = q[3];
+    const double r[9] = {
+        1 - 2 * (y * y + z * z), 2 * (x * y - z * w),     2 * (x * z + y * w),
+        2 * (x * y + z * w),     1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+        2 * (x * z - y * w),     2 * (y * z + x * w),     1 - 2 * (x * x + y * y),
+    };
+    for (int row = 0; row < 3; row++) {
+        for (int c = 0; c < 3; c++)
+            out[4 * row + c] = r[3 * row + c] * s[c];
+        out[4 * row + 3] = t[row];
+    }
+}
+
+static void compose(const double a[12], const double b[12], double out[12])
+{
+    for (int r = 0; r < 3; r++) {
+        for (int c = 0; c < 4; c++) {
+            double v = a[4 * r] * b[c] + a[4 * r + 1] * b[4 + c] + a[4 * r + 2] * b[8 + c];
+            if (c == 3)
+                v += a[4 * r + 3];
+            out[4 * r + c] = v;
+        }
+    }
+}
+
+/* ---- the import ----------------------------------------------------------------- */
+
+void tw_gltf_scene_destroy(struct tw_gltf_scene *scene)
+{
+    if (!scene)
+        return;
+    for (uint32_t k = 0; k < scene->primitive_count; k++) {
+        free(scene->primitives[k].positions);
+        free(scene->primitives[k].normals);
+        free(scene->primitives[k].indices);
+    }
+    free(scene->primitives);
+    free(scene->meshes);
+    free(scene->materials);
+    free(scene->instances);
+    free(scene->source);
+    free(scene);
+}
+
+static char *copy_string(const char *s)
+{
+    const size_t n = strlen(s) + 1;
+    char *c = malloc(n);
+    if (c)
+        memcpy(c, s, n);
+    return c;
+}
+
+static bool supported_extension(const char *name)
+{
+    /* Required extensions that change only materials or textures can be
+     * ignored; anything else (compression, quantization) changes geometry. */
+    static const char *const prefixes[] = {"KHR_materials_", "KHR_texture_", "KHR_lights_",
+                                           "EXT_texture_", NULL};
+    for (const char *const *p = prefixes; *p; p++)
+        if (strncmp(name, *p, strlen(*p)) == 0)
+            return true;
+    return false;
+}
+
+/* Builds the scene from a checked document. */
+static int build_scene(struct importer *im, const int32_t *parent, struct tw_gltf_scene *sc)
+{
+    const struct tw_gltf_doc *d = im->doc;
+    int err = TW_OK;
+    uint32_t *stack = NULL, *mesh_slot = NULL;
+    double *world = NULL;
+
+    /* Which nodes the scene starts from. */
+    const int *roots = NULL;
+    uint32_t root_count = 0;
+    int32_t scene_index = d->default_scene;
+    if (scene_index < -1 || (scene_index >= 0 && (uint32_t)scene_index >= d->scene_count))
+        return fail(im, TW_ERR_FORMAT, "scene: %d is not a scene (%u)", scene_index,
+                    d->scene_count);
+    if (scene_index < 0 && d->scene_count > 0)
+        scene_index = 0;
+    stack = malloc(sizeof(*stack) * (d->node_count ? d->node_count : 1));
+    world = malloc(sizeof(*world) * 12 * (d->node_count ? d->node_count : 1));
+    mesh_slot = malloc(sizeof(*mesh_slot) * (d->mesh_count ? d->mesh_count : 1));
+    sc->instances = malloc(sizeof(*sc->instances) * (d->node_count ? d->node_count : 1));
+    if (!stack || !world || !mesh_slot || !sc->instances) {
+        err = fail(im, TW_ERR_NOMEM, "nodes: out of memory");
+        goto out;
+    }
+    uint32_t top = 0;
+    if (scene_index >= 0) {
+        roots = d->scenes[scene_index].nodes;
+        root_count = d->scenes[scene_index].node_count;
+        for (uint32_t k = 0; k < root_count; k++) {
+            const int n = roots[k];
+            if (n < 0 || (uint32_t)n >= d->node_count) {
+                err = fail(im, TW_ERR_FORMAT, "scenes[%d].nodes[%u]: %d is not a node (%u)",
+                           scene_index, k, n, d->node_count);
+                goto out;
+            }
+            if (parent[n] >= 0) {
+                err = fail(im, TW_ERR_FORMAT,
+                           "scenes[%d].nodes[%u]: nodes[%d] is not a root (a child of nodes[%d])",
+                           scene_index, k, n, parent[n]);
+                goto out;
+            }
+            for (uint32_t j = 0; j < k; j++) {
+                if (roots[j] == n) {
+                    err = fail(im, TW_ERR_FORMAT, "scenes[%d].nodes[%u]: nodes[%d] is listed twice",
+                               scene_index, k, n);
+                    goto out;
+                }
+            }
+            stack[top++] = (uint32_t)n;
+        }
+    } else {
+        for (uint32_t n = 0; n < d->node_count; n++)
+            if (parent[n] < 0)
+                stack[top++] = n;
+    }
+    for (uint32_t k = 0; k < top; k++)
+        node_local(&d->nodes[stack[k]], world + 12 * (size_t)stack[k]);
+    /* Pop in document order. */
+    for (uint32_t a = 0, b = top; a + 1 < b; a++, b--) {
+        const uint32_t t = stack[a];
+        stack[a] = stack[b - 1];
+        stack[b - 1] = t;
+    }
+    for (uint32_t m = 0; m < d->mesh_count; m++)
+        mesh_slot[m] = UINT32_MAX;
+
+    /* Depth first; every node is pushed at most once (one parent, no cycle). */
+    uint64_t drawn = 0, vertices = 0;
+    while (top > 0) {
+        const uint32_t n = stack[--top];
+        const struct tw_gltf_doc_node *node = &d->nodes[n];
+        const double *w = world + 12 * (size_t)n;
+        for (uint32_t c = node->child_count; c-- > 0;) {
+            const uint32_t child = (uint32_t)node->children[c];
+            double local[12];
+            node_local(&d->nodes[child], local);
+            compose(w, local, world + 12 * (size_t)child);
+            stack[top++] = child;
+        }
+        if (node->mesh < 0)
+            continue;
+        const uint32_t m = (uint32_t)node->mesh;
+        struct tw_gltf_instance *in = &sc->instances[sc->instance_count];
+        for (int k = 0; k < 12; k++) {
+            in->transform[k] = (float)w[k];
+            if (!isfinite(in->transform[k])) {
+                err = fail(im, TW_ERR_FORMAT,
+                           "nodes[%u]: its transform, composed with its ancestors', is not "
+                           "finite",
+                           n);
+                goto out;
+            }
+        }
+        if (mesh_slot[m] == UINT32_MAX) {
+            uint64_t tris = 0;
+            for (uint32_t k = 0; k < d->meshes[m].primitive_count; k++) {
+                uint64_t t;
+                if ((err = primitive_triangles(im, m, k, &t)))
+                    goto out;
+                tris += t;
+            }
+            if (tris == 0)
+                continue; /* draws nothing */
+            mesh_slot[m] = sc->mesh_count++;
+            sc->unique_triangles += tris;
+            /* Accessors without a buffer view hold any count in no bytes:
+             * bound vertices too before anything is allocated for them. */
+            for (uint32_t k = 0; k < d->meshes[m].primitive_count; k++) {
+                const int32_t pos = find_attribute(&d->meshes[m].primitives[k], "POSITION");
+                if (pos >= 0)
+                    vertices += d->accessors[pos].count;
+            }
+            if (vertices > 3 * im->settings.max_triangles) {
+                err = fail(im, TW_ERR_LIMIT,
+                           "meshes[%u]: the scene's meshes have more than %llu vertices (3 per "
+                           "triangle of the limit)",
+                           m, (unsigned long long)(3 * im->settings.max_triangles));
+                goto out;
+            }
+            if (sc->unique_triangles > im->settings.max_triangles) {
+                err = fail(im, TW_ERR_LIMIT,
+                           "meshes: more than the limit of %llu triangles",
+                           (unsigned long long)im->settings.max_triangles);
+                goto out;
+            }
+        }
+        in->mesh = mesh_slot[m];
+        sc->instance_count++;
+        /* Drawn triangles are counted from the document's counts, before
+         * anything is converted, so that the limit holds first. */
+        for (uint32_t k = 0; k < d->meshes[m].primitive_count; k++) {
+            uint64_t t;
+            primitive_triangles(im, m, k, &t);
+            drawn += t;
+        }
+        if (drawn > im->settings.max_triangles) {
+            err = fail(im, TW_ERR_LIMIT,
+                       "nodes[%u]: the scene draws more than the limit of %llu triangles", n,
+                       (unsigned long long)im->settings.max_triangles);
+            goto out;
+        }
+    }
+    if (sc->instance_count == 0) {
+        err = fail(im, TW_ERR_FORMAT, "%s: draws nothing (no node with a triangle mesh)",
+                   scene_index >= 0 ? "the scene" : "the document");
+        goto out;
+    }
+    sc->triangle_count = drawn;
+
+    /* Materials: the file's, then grey for primitives without one. */
+    sc->material_count = d->material_count + 1;
+    sc->materials = malloc(sizeof(*sc->materials) * sc->material_count);
+    if (!sc->materials) {
+        err = fail(im, TW_ERR_NOMEM, "materials: out of memory");
+        goto out;
+    }
+    for (uint32_t k = 0; k < d->material_count; k++) {
+        const struct tw_gltf_doc_material *mat = &d->materials[k];
+        if (mat->base_color_count != 4 || !all_finite(mat->base_color, 4)) {
+            err = fail(im, TW_ERR_FORMAT,
+                       "materials[%u].pbrMetallicRoughness.baseColorFactor: must be 4 finite "
+                       "numbers",
+                       k);
+            goto out;
+        }
+        for (int c = 0; c < 4; c++)
+            sc->materials[k].base_color[c] = (float)fmin(fmax(mat->base_color[c], 0.0), 1.0);
+    }
+    memcpy(sc->materials[d->material_count].base_color, default_grey, sizeof(default_grey));
+
+    /* Meshes, in slot order. */
+    uint32_t primitive_total = 0;
+    for (uint32_t m = 0; m < d->mesh_count; m++)
+        if (mesh_slot[m] != UINT32_MAX)
+            primitive_total += d->meshes[m].primitive_count;
+    sc->meshes = calloc(sc->mesh_count, sizeof(*sc->meshes));
+    sc->primitives = calloc(primitive_total, sizeof(*sc->primitives));
+    if (!sc->meshes || !sc->primitives) {
+        err = fail(im, TW_ERR_NOMEM, "meshes: out of memory");
+        goto out;
+    }
+    bool grey_used = false;
+    for (uint32_t m = 0; m < d->mesh_count; m++) {
+        const uint32_t slot = mesh_slot[m];
+        if (slot == UINT32_MAX)
+            continue;
+        struct tw_gltf_mesh *gm = &sc->meshes[slot];
+        gm->first_primitive = sc->primitive_count;
+        for (uint32_t k = 0; k < d->meshes[m].primitive_count; k++) {
+            struct tw_gltf_primitive *p = &sc->primitives[sc->primitive_count];
+            err = convert_primitive(im, m, k, d->material_count, p);
+            if (p->triangle_count == 0 || err) {
+                free(p->positions);
+                free(p->normals);
+                free(p->indices);
+                memset(p, 0, sizeof(*p));
+                if (err)
+                    goto out;
+                continue;
+            }
+            grey_used |= p->material == d->material_count;
+            sc->vertex_count += p->vertex_count;
+            sc->primitive_count++;
+            gm->primitive_count++;
+        }
+    }
+    if (!grey_used)
+        sc->material_count--;
+
+    sc->bounds = tw_box_empty();
+    for (uint32_t k = 0; k < sc->instance_count; k++) {
+        const struct tw_gltf_instance *in = &sc->instances[k];
+        const struct tw_gltf_mesh *gm = &sc->meshes[in->mesh];
+        for (uint32_t p = 0; p < gm->primitive_count; p++) {
+            struct tw_box b = tw_box_transform(&sc->primitives[gm->first_primitive + p].box,
+                                               in->transform);
+            tw_box_add_box(&sc->bounds, &b);
+        }
+    }
+    for (int k = 0; k < 3; k++) {
+        if (!isfinite(sc->bounds.min[k]) || !isfinite(sc->bounds.max[k])) {
+            err = fail(im, TW_ERR_FORMAT, "the scene's bounds are not finite");
+            goto out;
+        }
+    }
+out:
+    free(stack);
+    free(world);
+    free(mesh_slot);
+    return err;
+}
+
+static int import_document(struct importer *im, const uint8_t *data, size_t size,
+                           struct tw_gltf_scene **out)
+{
+    struct tw_gltf_doc doc = {0};
+    struct tw_gltf_scene *sc = NULL;
+    int32_t *parent = NULL;
+    int err;
+
+    const uint8_t *text;
+    size_t text_len;
+    json_text(data, size, &text, &text_len);
+    uint32_t depth;
+    uint64_t values;
+    json_measure(text, text_len, &depth, &values);
+    if (depth > MAX_JSON_DEPTH) {
+        err = fail(im, TW_ERR_FORMAT, "JSON: nested %u levels deep, more than %d", depth,
+                   MAX_JSON_DEPTH);
+        goto out;
+    }
+    if (values > MAX_JSON_VALUES) {
+        err = fail(im, TW_ERR_LIMIT, "JSON: about %llu values, more than the limit of %d",
+                   (unsigned long long)values, MAX_JSON_VALUES);
+        goto out;
+    }
+
+    const struct tw_gltf_shim_io io = {read_external, im};
+    char why[768];
+    err = tw_gltf_shim_load(data, size, &io, &doc, why, sizeof(why));
+    if (err) {
+        if (im->io_error)
+            err = fail(im, im->io_error, "buffers: %s", im->io_msg);
+        else
+            err = fail(im, err, "%s", why[0] ? why : tw_error_to_str(err));
+        goto out;
+    }
+    im->doc = &doc;
+
+    if (!doc.version || doc.version[0] != '2' || doc.version[1] != '.') {
+        err = fail(im, TW_ERR_FORMAT, "asset.version: \"%.32s\" is not 2.x",
+                   doc.version ? doc.version : "");
+        goto out;
+    }
+    for (uint32_t k = 0; k < doc.extensions_required_count; k++) {
+        if (!supported_extension(doc.extensions_required[k])) {
+            err = fail(im, TW_ERR_FORMAT, "extensionsRequired[%u]: \"%.64s\" is not supported", k,
+                       doc.extensions_required[k]);
+            goto out;
+        }
+    }
+    parent = malloc(sizeof(*parent) * (doc.node_count ? doc.node_count : 1));
+    sc = calloc(1, sizeof(*sc));
+    if (!parent || !sc) {
+        err = fail(im, TW_ERR_NOMEM, "out of memory");
+        goto out;
+    }
+    sc->source = copy_string(im->name);
+    if (!sc->source) {
+        err = fail(im, TW_ERR_NOMEM, "out of memory");
+        goto out;
+    }
+    if ((err = check_buffer_views(im)) || (err = check_accessors(im)) ||
+        (err = check_meshes(im)) || (err = check_mesh_data(im)) ||
+        (err = check_nodes(im, parent)) ||
+        (err = build_scene(im, parent, sc)))
+        goto out;
+    *out = sc;
+    sc = NULL;
+out:
+    tw_gltf_scene_destroy(sc);
+    free(parent);
+    tw_gltf_shim_free(&doc);
+    im->doc = NULL;
+    return err;
+}
+
+static int report(const struct importer *im, const struct tw_log *log, int err)
+{
+    if (err)
+        tw_log_printf(log, TW_LOG_ERROR, "%s: %s", im->name,
+                      im->msg[0] ? im->msg : tw_error_to_str(err));
+    return err;
+}
+
+int tw_gltf_import_memory(const void *data, size_t size, const char *name, const char *base_dir,
+                          const struct tw_gltf_settings *settings, const struct tw_log *log,
+                          struct tw_gltf_scene **out)
+{
+    if (!out) {
+        tw_log_printf(log, TW_LOG_ERROR, "gltf: import: out is NULL (caller's bug)");
+        return TW_ERR_INVALID;
+    }
+    *out = NULL;
+    struct importer im = {0};
+    im.name = name ? name : "(memory)";
+    im.base_dir = base_dir;
+    im.settings = resolve_settings(settings);
+    if (!data && size)
+        return report(&im, log, fail(&im, TW_ERR_INVALID, "no data (caller's bug)"));
+    if (size > im.settings.max_file_bytes)
+        return report(&im, log,
+                      fail(&im, TW_ERR_LIMIT, "is %zu bytes, more than the limit of %llu bytes",
+                           size, (unsigned long long)im.settings.max_file_bytes));
+    im.bytes_read = size;
+    static const uint8_t nothing = 0;
+    return report(&im, log, import_document(&im, data ? data : &nothing, size, out));
+}
+
+int tw_gltf_import(const char *path, const struct tw_gltf_settings *settings,
+                   const struct tw_log *log, struct tw_gltf_scene **out)
+{
+    if (!out || !path) {
+        tw_log_printf(log, TW_LOG_ERROR, "gltf: import: %s is NULL (caller's bug)",
+                      out ? "path" : "out");
+        return TW_ERR_INVALID;
+    }
+    *out = NULL;
+    struct importer im = {0};
+    im.name = path;
+    im.settings = resolve_settings(settings);
+    uint8_t *data = NULL;
+    size_t size = 0;
+    char why[512];
+    int err = read_file(path, im.settings.max_file_bytes, &data, &size, why, sizeof(why));
+    if (err)
+        return report(&im, log, fail(&im, err, "%s", why));
+    char *dir = tw_confined_path_dirname(path);
+    if (!dir) {
+        free(data);
+        return report(&im, log, fail(&im, TW_ERR_NOMEM, "out of memory"));
+    }
+    im.base_dir = dir;
+    im.bytes_read = size;
+    err = import_document(&im, data, size, out);
+    free(dir);
+    free(data);
+    return report(&im, log, err);
+}
+
+/* ---- summary and tilesets -------------------------------------------------------- */
+
+void tw_gltf_print_summary(const struct tw_gltf_scene *scene, FILE *f)
+{
+    if (!scene || !f)
+        return;
+    fprintf(f, "%s\n", scene->source ? scene->source : "(glTF scene)");
+    fprintf(f, "  meshes      %u (%u primitives)\n", scene->mesh_count, scene->primitive_count);
+    fprintf(f, "  instances   %u\n", scene->instance_count);
+    fprintf(f, "  materials   %u\n", scene->material_count);
+    fprintf(f, "  vertices    %llu\n", (unsigned long long)scene->vertex_count);
+    fprintf(f, "  triangles   %llu drawn, %llu in meshes\n",
+            (unsigned long long)scene->triangle_count,
+            (unsigned long long)scene->unique_triangles);
+    const struct tw_box *b = &scene->bounds;
+    fprintf(f, "  bounds      [%.3f, %.3f, %.3f] .. [%.3f, %.3f, %.3f]\n", b->min[0], b->min[1],
+            b->min[2], b->max[0], b->max[1], b->max[2]);
+    fprintf(f, "  size        %.3f x %.3f x %.3f\n", b->max[0] - b->min[0],
+            b->max[1] - b->min[1], b->max[2] - b->min[2]);
+}
+
+int tw_gltf_bind(const struct tw_gltf_scene *scene, struct tw_tileset *ts,
+                 struct tw_gltf_binding *out)
+{
+    if (!scene || !ts || !out || ts->finished)
+        return TW_ERR_INVALID;
+    out->first_mesh = ts->mesh_count;
+    out->first_material = ts->material_count;
+    for (uint32_t k = 0; k < scene->material_count; k++) {
+        int r = tw_tileset_add_material(ts, scene->materials[k].base_color);
+        if (r < 0)
+            return r;
+    }
+    for (uint32_t k = 0; k < scene->primitive_count; k++) {
+        const struct tw_gltf_primitive *p = &scene->primitives[k];
+        int r = tw_tileset_add_mesh(ts, p->positions, p->normals, p->vertex_count, p->indices,
+                                    p->triangle_count);
+        if (r < 0)
+            return r;
+    }
+    return TW_OK;
+}
+
+int tw_gltf_place(const struct tw_gltf_scene *scene, const struct tw_gltf_binding *binding,
+                  struct tw_tileset *ts, uint32_t proto, const float placement[12])
+{
+    static const float identity[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+    if (!scene || !binding || !ts || ts->finished || proto >= ts->prototype_count ||
+        binding->first_mesh + (uint64_t)scene->primitive_count > ts->mesh_count ||
+        binding->first_material + (uint64_t)scene->material_count > ts->material_count)
+        return TW_ERR_INVALID;
+    if (!placement)
+        placement = identity;
+    double a[12];
+    for (int k = 0; k < 12; k++)
+        a[k] = placement[k];
+    for (uint32_t k = 0; k < scene->instance_count; k++) {
+        const struct tw_gltf_instance *in = &scene->instances[k];
+        double b[12], c[12];
+        float t[12];
+        for (int e = 0; e < 12; e++)
+            b[e] = in->transform[e];
+        compose(a, b, c);
+        for (int e = 0; e < 12; e++)
+            t[e] = (float)c[e];
+        const struct tw_gltf_mesh *gm = &scene->meshes[in->mesh];
+        for (uint32_t p = 0; p < gm->primitive_count; p++) {
+            const uint32_t prim = gm->first_primitive + p;
+            const int r = tw_tileset_add_instance(ts, proto, binding->first_mesh + prim,
+                                                  binding->first_material +
+                                                      scene->primitives[prim].material,
+                                                  t);
+            if (r < 0)
+                return r;
+        }
+    }
+    return TW_OK;
+}
+
+void tw_gltf_placement(const float position[3], float yaw_degrees, float scale, float out[12])
+{
+    const double yaw = (double)yaw_degrees * 3.14159265358979323846 / 180.0;
+    const double c = cos(yaw), s = sin(yaw);
+    /* R_y(yaw): +z turns towards +x. */
+    const double r[9] = {c, 0, s, 0, 1, 0, -s, 0, c};
+    for (int row = 0; row < 3; row++) {
+        for (int col = 0; col < 3; col++)
+            out[4 * row + col] = (float)(r[3 * row + col] * scale);
+        out[4 * row + 3] = position ? position[row] : 0.0f;
+    }
+}

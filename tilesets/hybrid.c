@@ -1,0 +1,163 @@
+/* The hybrid tileset (tilesets.h, DESIGN.md §10): city blocks mixed with
+ * parks and wooded blocks.
+ *
+ * Nothing here generates geometry: the city's block generator builds the
+ * city blocks and the parks, and a wooded block is the city's streets round
+ * a stand of the forest's generator that fills the lot area (canopies
+ * included), so streets run along every tile border in every prototype. */
+#include "tilesets/tilesets-private.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+void tw_tilesets_hybrid_default_settings(struct tw_hybrid_settings *s)
+{
+    if (!s)
+        return;
+    struct tw_city_settings city;
+    tw_tilesets_city_default_settings(&city);
+    s->prototypes = city.prototypes;
+    s->footprint = city.footprint;
+    s->street_width = city.street_width;
+    s->max_height = city.max_height;
+    s->green_share = 0.4f;
+    s->max_cluster_triangles = city.max_cluster_triangles;
+}
+
+static int resolve_settings(const struct tw_hybrid_settings *in, struct tw_hybrid_settings *out,
+                            struct tw_city_settings *city, const struct tw_log *log)
+{
+    tw_tilesets_hybrid_default_settings(out);
+    if (in) {
+        if (in->prototypes)
+            out->prototypes = in->prototypes;
+        if (in->footprint != 0.0f)
+            out->footprint = in->footprint;
+        if (in->street_width != 0.0f)
+            out->street_width = in->street_width;
+        if (in->max_height != 0.0f)
+            out->max_height = in->max_height;
+        if (in->green_share != 0.0f)
+            out->green_share = in->green_share;
+        if (in->max_cluster_triangles)
+            out->max_cluster_triangles = in->max_cluster_triangles;
+    }
+    const struct tw_city_settings requested = {
+        out->prototypes, out->footprint, out->street_width, out->max_height,
+        out->max_cluster_triangles,
+    };
+    const int err = tw_city_settings_resolve(&requested, city, log, "hybrid");
+    if (err)
+        return err;
+    if (!isfinite(out->green_share) || !(out->green_share > 0.0f) || !(out->green_share < 1.0f)) {
+        tw_log_printf(log, TW_LOG_ERROR,
+                      "tilesets: hybrid: green_share = %g, must be in (0, 1) (caller's settings)",
+                      (double)out->green_share);
+        return TW_ERR_INVALID;
+    }
+    return TW_OK;
+}
+
+/* Wooded blocks cycle through these stands. */
+static const enum tw_forest_stand_kind wooded_stands[] = {
+    TW_FOREST_STAND_MIXED, TW_FOREST_STAND_BEECH, TW_FOREST_STAND_THIN,
+    TW_FOREST_STAND_BIRCH, TW_FOREST_STAND_SPRUCE,
+};
+
+enum block { BLOCK_DENSE, BLOCK_LOWRISE, BLOCK_PARK, BLOCK_WOOD };
+
+/* Prototype k of n with green of them parks or woods: city blocks first
+ * (dense ones, then one low-rise block), then woods and parks alternating,
+ * woods first and at least as many as parks. */
+static enum block block_of(uint32_t k, uint32_t n, uint32_t green)
+{
+    const uint32_t city = n - green;
+    if (k < city)
+        return k + 1 == city ? BLOCK_LOWRISE : BLOCK_DENSE;
+    return (k - city) % 3 == 1 ? BLOCK_PARK : BLOCK_WOOD;
+}
+
+int tw_tilesets_hybrid(uint64_t seed, const struct tw_hybrid_settings *settings,
+                       const struct tw_log *log, struct tw_tileset **out)
+{
+    if (!out) {
+        tw_log_printf(log, TW_LOG_ERROR, "tilesets: hybrid: out is NULL (caller's bug)");
+        return TW_ERR_INVALID;
+    }
+    *out = NULL;
+    struct tw_hybrid_settings set;
+    struct tw_city_settings city_set;
+    int err = resolve_settings(settings, &set, &city_set, log);
+    if (err)
+        return err;
+    struct tw_forest_settings forest_set;
+    tw_tilesets_forest_default_settings(&forest_set);
+    forest_set.footprint = set.footprint;
+    forest_set.max_cluster_triangles = set.max_cluster_triangles;
+
+    const uint32_t n = set.prototypes;
+    uint32_t green = (uint32_t)floorf(set.green_share * (float)n + 0.5f);
+    green = green < 2 ? 2 : green > n - 2 ? n - 2 : green;
+
+    struct tw_tileset *ts = NULL;
+    struct tw_city_blocks *blocks = NULL;
+    struct tw_forest_stands *stands = NULL;
+    if ((err = tw_tileset_create("hybrid", set.footprint, set.footprint, &ts)))
+        goto fail;
+    if ((err = tw_city_blocks_create(ts, &city_set, &blocks)))
+        goto fail;
+    if ((err = tw_forest_stands_create(ts, seed, &forest_set, &stands)))
+        goto fail;
+
+    uint32_t woods = 0;
+    for (uint32_t k = 0; k < n; k++) {
+        const enum block b = block_of(k, n, green);
+        static const char *const block_names[] = {"dense", "lowrise", "park", "wood"};
+        static const float weights[] = {1.0f, 0.7f, 0.5f, 0.7f};
+        const enum tw_forest_stand_kind stand =
+            wooded_stands[woods % (sizeof(wooded_stands) / sizeof(wooded_stands[0]))];
+        char name[48];
+        if (b == BLOCK_WOOD)
+            snprintf(name, sizeof(name), "hybrid-wood-%s-%02u", tw_forest_stand_name(stand), k);
+        else
+            snprintf(name, sizeof(name), "hybrid-%s-%02u", block_names[b], k);
+        const int proto = tw_tileset_add_prototype(ts, name, weights[b]);
+        if (proto < 0) {
+            err = proto;
+            goto fail;
+        }
+        const uint64_t stream = tw_tiles_hash(seed, (int64_t)k, 0x687962726964);
+        if (b == BLOCK_WOOD) {
+            struct tw_forest_area area = {{0}, 0.0f, 0.0f};
+            tw_city_blocks_lot_area(blocks, area.rect, &area.ground_y);
+            err = tw_city_blocks_add_streets(blocks, (uint32_t)proto,
+                                             tw_forest_stands_floor_material(stands));
+            if (!err)
+                err = tw_forest_stands_add(stands, (uint32_t)proto, stand, stream, &area);
+            woods++;
+        } else {
+            const enum tw_city_block_kind kind = b == BLOCK_DENSE     ? TW_CITY_BLOCK_DENSE
+                                                 : b == BLOCK_LOWRISE ? TW_CITY_BLOCK_LOWRISE
+                                                                      : TW_CITY_BLOCK_PARK;
+            err = tw_city_blocks_add(blocks, (uint32_t)proto, kind, stream, k == 0);
+        }
+        if (err)
+            goto fail;
+    }
+    if ((err = tw_tileset_finish(ts, set.max_cluster_triangles)))
+        goto fail;
+
+    *out = ts;
+    ts = NULL;
+    goto out;
+
+fail:
+    tw_log_printf(log, TW_LOG_ERROR, "tilesets: hybrid: generation failed: %s",
+                  tw_error_to_str(err));
+    tw_tileset_destroy(ts);
+out:
+    tw_forest_stands_destroy(stands);
+    tw_city_blocks_destroy(blocks);
+    return err;
+}

@@ -1,0 +1,120 @@
+/*
+ * tilesets-private.h: generator internals shared between the tilesets'
+ * translation units. Not public API: nothing outside tilesets/ includes it.
+ *
+ * The hybrid tileset (hybrid.c) is made of the city's blocks (city.c) and
+ * the forest's stands (forest.c). Both generators keep their state in an
+ * opaque object that adds its materials and shared meshes to a tileset the
+ * caller created, and then adds one block or stand to a prototype per call.
+ * The tileset stays owned by the caller; the generator objects borrow it:
+ * it must outlive every call on them but destroy, which never touches it.
+ */
+#ifndef TW_TILESETS_PRIVATE_H
+#define TW_TILESETS_PRIVATE_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "tilesets/tilesets.h"
+
+/* ---- the city's block generator (city.c) ---------------------------------------- */
+
+/* Validates in (NULL: all defaults) and fills every field of out, defaults
+ * resolved. Messages name who ("city", "hybrid") as the generator the
+ * caller's settings were for. */
+int tw_city_settings_resolve(const struct tw_city_settings *in, struct tw_city_settings *out,
+                             const struct tw_log *log, const char *who);
+
+enum tw_city_block_kind {
+    TW_CITY_BLOCK_DENSE,    /* perimeter blocks and courtyard towers up to max_height */
+    TW_CITY_BLOCK_LOWRISE,  /* two to four floors */
+    TW_CITY_BLOCK_PARK,     /* lawns, paths, a fountain, trees; low houses on two sides */
+};
+
+struct tw_city_blocks;
+
+/* Adds the city's materials and shared ground meshes to ts (unfinished,
+ * footprint settings->footprint square). settings must be resolved by
+ * tw_city_settings_resolve(). The caller owns *out. */
+int tw_city_blocks_create(struct tw_tileset *ts, const struct tw_city_settings *settings,
+                          struct tw_city_blocks **out);
+/* Frees the generator's scratch memory, not the tileset; accepts NULL. */
+void tw_city_blocks_destroy(struct tw_city_blocks *blocks);
+
+/* Adds a whole block of kind to prototype proto: streets, ground, lots.
+ * stream seeds the block's random numbers (e.g. tw_tiles_hash(seed, k,
+ * tag)); tallest makes a dense block reach max_height. */
+int tw_city_blocks_add(struct tw_city_blocks *blocks, uint32_t proto,
+                       enum tw_city_block_kind kind, uint64_t stream, bool tallest);
+
+/* Adds only the streets, sidewalks, lamps and the block's ground, the
+ * ground in ground_material (a material of the tileset), for blocks that
+ * fill the lot area themselves. */
+int tw_city_blocks_add_streets(struct tw_city_blocks *blocks, uint32_t proto,
+                               uint32_t ground_material);
+
+/* The lot area that the streets leave, as {x0, z0, x1, z1} in tile-local
+ * metres, and the height of its ground (the kerb). */
+void tw_city_blocks_lot_area(const struct tw_city_blocks *blocks, float area[4],
+                             float *ground_y);
+
+/* ---- the forest's stand generator (forest.c) -------------------------------------- */
+
+/* Validates in (NULL: all defaults) and fills every field of out; messages
+ * name who. */
+int tw_forest_settings_resolve(const struct tw_forest_settings *in,
+                               struct tw_forest_settings *out, const struct tw_log *log,
+                               const char *who);
+
+enum tw_forest_stand_kind {
+    TW_FOREST_STAND_SPRUCE,     /* dense conifers, skirts to the ground */
+    TW_FOREST_STAND_MIXED,      /* dense conifers and broadleaves */
+    TW_FOREST_STAND_BEECH,      /* tall broadleaves over saplings */
+    TW_FOREST_STAND_BIRCH,      /* a birch grove with pines */
+    TW_FOREST_STAND_THIN,       /* a thinner stand, more undergrowth */
+    TW_FOREST_STAND_CLEARING,   /* a glade in the middle, trees round it */
+    TW_FOREST_STAND_ROCKY,      /* boulders and outcrops among pines */
+    TW_FOREST_STAND_KIND_COUNT,
+};
+
+/* A short name of a stand kind ("spruce", "clearing", ...); never NULL. */
+const char *tw_forest_stand_name(enum tw_forest_stand_kind kind);
+
+/* Where a stand goes inside its prototype. */
+struct tw_forest_area {
+    float rect[4];      /* {x0, z0, x1, z1}: everything stays inside, canopies included */
+    float ground_y;     /* height of the ground the stand stands on */
+    /* Walking clearance along the tile borders x = 0, x = W, z = 0, z = D:
+     * within band metres of one, nothing stands between ground_y + 0.05 m
+     * and ground_y + TW_FOREST_HEADROOM (no trunk, no bush, no low branch).
+     * 0: no band. */
+    float band;
+};
+
+/* Height above the ground below which the walking band is clear (m). */
+#define TW_FOREST_HEADROOM 2.5f
+
+struct tw_forest_stands;
+
+/* Adds the forest's materials and its shared meshes (tree species x
+ * sizes, rocks, logs, undergrowth patches) to ts, drawn from seed.
+ * settings must be resolved by tw_forest_settings_resolve(). The caller
+ * owns *out. */
+int tw_forest_stands_create(struct tw_tileset *ts, uint64_t seed,
+                            const struct tw_forest_settings *settings,
+                            struct tw_forest_stands **out);
+/* Frees the generator's scratch memory, not the tileset; accepts NULL. */
+void tw_forest_stands_destroy(struct tw_forest_stands *stands);
+
+/* Adds a stand of kind inside area to prototype proto: trees (one or two
+ * instances each: canopy, trunk), rocks, logs and undergrowth patches. The
+ * tree count scales with the area and settings->density. stream seeds the
+ * stand's random numbers. */
+int tw_forest_stands_add(struct tw_forest_stands *stands, uint32_t proto,
+                         enum tw_forest_stand_kind kind, uint64_t stream,
+                         const struct tw_forest_area *area);
+
+/* The forest floor's material, for the ground under a stand. */
+uint32_t tw_forest_stands_floor_material(const struct tw_forest_stands *stands);
+
+#endif
