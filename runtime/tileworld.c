@@ -306,10 +306,33 @@ static struct tw_tileset *load_tileset(const struct options *o, const struct tw_
             return ts;
         }
     }
-    if (access(o->tileset, F_OK) == 0)
-        fail_usage("--tileset", "%s: tileset manifest files are not supported yet", o->tileset);
-    fail_usage("--tileset", "unknown tileset '%s' (built-in: city)", o->tileset);
-    return NULL;
+    if (access(o->tileset, F_OK) != 0)
+        fail_usage("--tileset", "unknown tileset '%s' (built-in: city, forest, hybrid; or a "
+                                "manifest file)", o->tileset);
+    /* A manifest: its loader logs one line naming the file, the place and the reason. */
+    const struct tw_manifest_settings ms = {.max_cluster_triangles = o->cluster_triangles};
+    struct tw_tileset *ts = NULL;
+    const int err = tw_tilesets_load_manifest_ex(o->tileset, &ms, log, &ts);
+    if (err)
+        exit(err == TW_ERR_NOMEM ? 1 : EXIT_USAGE);
+    return ts;
+}
+
+/* tileworld import FILE: validate one glTF file and summarise it. */
+static int import(int argc, char **argv)
+{
+    if (argc != 3 || argv[2][0] == '-') {
+        fprintf(stderr, "tileworld: import: expected one file: tileworld import FILE.gltf|FILE.glb\n");
+        return EXIT_USAGE;
+    }
+    const struct tw_log log = {log_to_stderr, NULL};
+    struct tw_gltf_scene *scene = NULL;
+    const int err = tw_gltf_import(argv[2], NULL, &log, &scene);
+    if (err)
+        return err == TW_ERR_NOMEM ? 1 : EXIT_USAGE;
+    tw_gltf_print_summary(scene, stdout);
+    tw_gltf_scene_destroy(scene);
+    return 0;
 }
 
 static void load_path(const struct options *o, const struct tw_tileset *ts, struct tw_path *p)
@@ -512,7 +535,9 @@ int main(int argc, char **argv)
     if (strcmp(argv[1], "walk") == 0 || strcmp(argv[1], "bench") == 0 ||
         strcmp(argv[1], "info") == 0) {
         parse_options(argc, argv, &o);
-    } else if (strcmp(argv[1], "view") == 0 || strcmp(argv[1], "import") == 0) {
+    } else if (strcmp(argv[1], "import") == 0) {
+        return import(argc, argv);
+    } else if (strcmp(argv[1], "view") == 0) {
         fprintf(stderr, "tileworld: %s: not implemented in this build yet\n", argv[1]);
         return EXIT_USAGE;
     } else {

@@ -584,6 +584,21 @@ static void test_synthetic(void)
                    NULL, NULL);
     make_data(NULL);
 
+    /* Found by libFuzzer: a BIN chunk whose length ignores its 8-byte header
+     * made tinygltf 2.7 read past the end of the input. */
+    static const uint8_t overlong_bin[104] =
+        "glTF\x02\0\0\0\x68\0\0\0\x3c\0\0\0JSON"
+        "{\"asset\":{\"version\":\"4.0\"},\"buffers\":[{\"byteLength\":17}]}   "
+        "\x18\0\0\0BIN\0\0\x01\x02\x03\x04\x05\x06\x07\x08\x09\x0a\x0b\x0c\x0d\x0e\x0f";
+    {
+        const struct tw_log clog = {capture, &cap};
+        cap.errors = 0;
+        err = tw_gltf_import_memory(overlong_bin, sizeof(overlong_bin), "overlong.glb", NULL, NULL,
+                                    &clog, &s);
+        CHECK(err == TW_ERR_FORMAT && strstr(cap.last, "overruns the file") && s == NULL,
+              "overlong BIN chunk: %s", cap.last);
+    }
+
     /* Garbage and emptiness. */
     const struct tw_log log = {capture, &cap};
     cap.errors = 0;
@@ -811,6 +826,20 @@ static void test_manifests(void)
 
     test_external_buffers(tmp_root);
 
+    /* A FIFO is refused, not waited on. */
+    char *fifo = join(m, "fifo.glb");
+    CHECK(mkfifo(fifo, 0600) == 0, "cannot make a FIFO");
+    {
+        struct captured_log fcap = {"", 0};
+        const struct tw_log flog = {capture, &fcap};
+        struct tw_gltf_scene *fs = NULL;
+        const int ferr = tw_gltf_import(fifo, NULL, &flog, &fs);
+        CHECK(ferr == TW_ERR_IO && strstr(fcap.last, "is not a regular file"), "FIFO: %s",
+              fcap.last);
+        tw_gltf_scene_destroy(fs);
+    }
+    free(fifo);
+
     /* A good manifest, both forms; road.glb is placed three times. */
     struct captured_log cap;
     struct tw_tileset *ts = NULL;
@@ -902,6 +931,8 @@ static void test_manifests(void)
                             "symbolic link");
     expect_manifest_refused(d, "missing file", PROTO("{\"name\": \"a\", \"gltf\": \"nope.glb\"}"),
                             "prototypes[0].gltf: \"nope.glb\" does not exist");
+    expect_manifest_refused(d, "FIFO", PROTO("{\"name\": \"a\", \"gltf\": \"fifo.glb\"}"),
+                            "\"fifo.glb\" is not a regular file");
     expect_manifest_refused(d, "folder", PROTO("{\"name\": \"a\", \"gltf\": \".\"}"),
                             "\".\" is the document's folder, not a file");
     expect_manifest_refused(d, "unknown key",

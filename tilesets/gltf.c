@@ -14,12 +14,14 @@
 #include "tilesets/tilesets.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "tilesets/confined-path.h"
 #include "tilesets/gltf-shim.h"
@@ -119,21 +121,22 @@ static int fail(struct importer *im, int err, const char *fmt, ...)
 /* ---- reading files ----------------------------------------------------------- */
 
 /* Reads the regular file at path, at most limit bytes, into a malloc()ed
- * block. On failure the reason is written to why. */
+ * block. On failure the reason is written to why. Opened non-blocking so
+ * that a FIFO is refused instead of waited on. */
 static int read_file(const char *path, uint64_t limit, uint8_t **data, size_t *size, char *why,
                      size_t why_size)
 {
     *data = NULL;
     *size = 0;
-    FILE *f = fopen(path, "rb");
-    if (!f) {
+    const int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) {
         snprintf(why, why_size, "cannot open: %s", strerror(errno));
         return TW_ERR_IO;
     }
     int err = TW_OK;
     uint8_t *buf = NULL;
     struct stat st;
-    if (fstat(fileno(f), &st) != 0) {
+    if (fstat(fd, &st) != 0) {
         snprintf(why, why_size, "cannot stat: %s", strerror(errno));
         err = TW_ERR_IO;
         goto out;
@@ -156,17 +159,24 @@ static int read_file(const char *path, uint64_t limit, uint8_t **data, size_t *s
         err = TW_ERR_NOMEM;
         goto out;
     }
-    if (n && fread(buf, 1, n, f) != n) {
-        snprintf(why, why_size, "cannot read: %s", ferror(f) ? strerror(errno) : "file shrank");
-        err = TW_ERR_IO;
-        goto out;
+    size_t got = 0;
+    while (got < n) {
+        const ssize_t r = read(fd, buf + got, n - got);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r <= 0) {
+            snprintf(why, why_size, "cannot read: %s", r < 0 ? strerror(errno) : "file shrank");
+            err = TW_ERR_IO;
+            goto out;
+        }
+        got += (size_t)r;
     }
     *data = buf;
     *size = n;
     buf = NULL;
 out:
     free(buf);
-    fclose(f);
+    close(fd);
     return err;
 }
 
@@ -207,22 +217,53 @@ static int read_external(void *user, const char *uri, uint8_t **data, size_t *si
     return TW_OK;
 }
 
-/* The JSON text of a .gltf, or the JSON chunk of a .glb (bounded by the
- * data whatever its header claims). */
-static void json_text(const uint8_t *data, size_t size, const uint8_t **text, size_t *len)
+static uint32_t le32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+/* Finds the JSON text: the whole of a .gltf, or the JSON chunk of a .glb
+ * after checking the GLB container (glTF 2.0 §4.4). tinygltf 2.7 reads past
+ * the end of a BIN chunk whose length ignores its own 8-byte header, so the
+ * chunk layout is checked here, and tinygltf is given exactly the header's
+ * length. */
+static int find_json(struct importer *im, const uint8_t *data, size_t *size,
+                     const uint8_t **text, size_t *text_len)
 {
     *text = data;
-    *len = size;
-    if (size >= 4 && memcmp(data, "glTF", 4) == 0) {
-        if (size < 20) {
-            *len = 0;
-            return;
-        }
-        uint32_t chunk = (uint32_t)data[12] | (uint32_t)data[13] << 8 |
-                         (uint32_t)data[14] << 16 | (uint32_t)data[15] << 24;
-        *text = data + 20;
-        *len = chunk < size - 20 ? chunk : size - 20;
+    *text_len = *size;
+    if (*size < 4 || memcmp(data, "glTF", 4) != 0)
+        return TW_OK;
+    if (*size < 20)
+        return fail(im, TW_ERR_FORMAT, "GLB: %zu bytes, shorter than a header and a chunk",
+                    *size);
+    const uint32_t version = le32(data + 4), length = le32(data + 8);
+    if (version != 2)
+        return fail(im, TW_ERR_FORMAT, "GLB: version %u is not 2", version);
+    if (length > *size || length < 20)
+        return fail(im, TW_ERR_FORMAT, "GLB: the header's length %u does not fit the %zu bytes",
+                    length, *size);
+    const uint64_t json_length = le32(data + 12);
+    if (le32(data + 16) != 0x4E4F534Au)
+        return fail(im, TW_ERR_FORMAT, "GLB: the first chunk is not JSON");
+    if (20 + json_length > length)
+        return fail(im, TW_ERR_FORMAT, "GLB: the JSON chunk (%llu bytes) overruns the file",
+                    (unsigned long long)json_length);
+    const uint64_t next = 20 + json_length;
+    if (next < length) {
+        if (length - next < 8)
+            return fail(im, TW_ERR_FORMAT, "GLB: a chunk header is cut short at byte %llu",
+                        (unsigned long long)next);
+        const uint64_t bin_length = le32(data + next);
+        if (next + 8 + bin_length > length)
+            return fail(im, TW_ERR_FORMAT,
+                        "GLB: the chunk at byte %llu (%llu bytes) overruns the file",
+                        (unsigned long long)next, (unsigned long long)bin_length);
     }
+    *size = length;
+    *text = data + 20;
+    *text_len = (size_t)json_length;
+    return TW_OK;
 }
 
 /* How deep the JSON nests and roughly how many values it holds (commas and
@@ -452,11 +493,6 @@ static int check_accessors(struct importer *im)
     return TW_OK;
 }
 
-static uint32_t load_u32(const uint8_t *p)
-{
-    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-
 static uint32_t load_uint(const uint8_t *p, int32_t comp)
 {
     switch (comp) {
@@ -465,13 +501,13 @@ static uint32_t load_uint(const uint8_t *p, int32_t comp)
     case COMP_UNSIGNED_SHORT:
         return (uint32_t)p[0] | (uint32_t)p[1] << 8;
     default:
-        return load_u32(p);
+        return le32(p);
     }
 }
 
 static float load_float(const uint8_t *p)
 {
-    const uint32_t bits = load_u32(p);
+    const uint32_t bits = le32(p);
     float f;
     memcpy(&f, &bits, sizeof(f));
     return f;
@@ -1269,7 +1305,8 @@ static int import_document(struct importer *im, const uint8_t *data, size_t size
 
     const uint8_t *text;
     size_t text_len;
-    json_text(data, size, &text, &text_len);
+    if ((err = find_json(im, data, &size, &text, &text_len)))
+        goto out;
     uint32_t depth;
     uint64_t values;
     json_measure(text, text_len, &depth, &values);
