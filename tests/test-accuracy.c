@@ -8,16 +8,7 @@
 
 #include "runtime/runtime.h"
 #include "tilesets/tilesets.h"
-
-static int failures;
-
-#define CHECK(cond) \
-    do { \
-        if (!(cond)) { \
-            fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
-            failures++; \
-        } \
-    } while (0)
+#include "tests/check.h"
 
 enum { W = 160, H = 90 };
 

@@ -4,16 +4,7 @@
 #include <string.h>
 
 #include "cull/cull.h"
-
-static int failures;
-
-#define CHECK(cond) \
-    do { \
-        if (!(cond)) { \
-            fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
-            failures++; \
-        } \
-    } while (0)
+#include "tests/check.h"
 
 static struct tw_box box(float x0, float y0, float z0, float x1, float y1, float z1)
 {

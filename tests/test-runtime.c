@@ -6,16 +6,7 @@
 
 #include "runtime/runtime.h"
 #include "tilesets/tilesets.h"
-
-static int failures;
-
-#define CHECK(cond) \
-    do { \
-        if (!(cond)) { \
-            fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
-            failures++; \
-        } \
-    } while (0)
+#include "tests/check.h"
 
 enum { W = 320, H = 180 };
 
@@ -62,7 +53,6 @@ static bool is_sky(const uint8_t *p)
 {
     return abs(p[0] - 179) <= 1 && abs(p[1] - 204) <= 1 && abs(p[2] - 235) <= 1;
 }
-
 
 static uint32_t count_differing(const uint8_t *a, const uint8_t *b)
 {

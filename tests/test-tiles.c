@@ -5,16 +5,7 @@
 #include <string.h>
 
 #include "tiles/tiles.h"
-
-static int failures;
-
-#define CHECK(cond) \
-    do { \
-        if (!(cond)) { \
-            fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
-            failures++; \
-        } \
-    } while (0)
+#include "tests/check.h"
 
 static uint64_t rng_state = 0x1234567;
 
@@ -288,7 +279,6 @@ static void test_boxes(void)
     CHECK(tw_box_distance2(&b, (const float[3]){0, 2, 3}) == 1.0f);
     CHECK(tw_box_distance2(&b, (const float[3]){5, 8, 6}) == 9.0f + 16.0f);
 }
-
 
 /* The cell map against a naive list, with random inserts and removals. */
 static void test_cell_map(void)

@@ -8,6 +8,7 @@
  * houses, matching corner towers and repeated types across prototypes are
  * instanced rather than duplicated. Each building is three meshes (walls,
  * glass, roof) because a material belongs to an instance. */
+#include "tilesets/mesh-builder.h"
 #include "tilesets/tilesets-private.h"
 
 #include <math.h>
@@ -16,47 +17,6 @@
 #include <string.h>
 
 static const float kerb_height = 0.15f;
-
-/* ---- a local PRNG, seeded from tw_tiles_hash() ------------------------------ */
-
-struct rng {
-    uint64_t state;
-};
-
-static struct rng rng_seeded(uint64_t seed, int64_t i, int64_t j)
-{
-    struct rng r = {tw_tiles_hash(seed, i, j)};
-    return r;
-}
-
-static uint64_t rng_next(struct rng *r)
-{
-    uint64_t z = (r->state += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-}
-
-/* Uniform in [0, 1); 24 bits so that the value is exact in float. */
-static float rng_float(struct rng *r)
-{
-    return (float)(rng_next(r) >> 40) * 0x1.0p-24f;
-}
-
-static float rng_range(struct rng *r, float lo, float hi)
-{
-    return lo + (hi - lo) * rng_float(r);
-}
-
-static uint32_t rng_below(struct rng *r, uint32_t n)
-{
-    return (uint32_t)(((rng_next(r) >> 32) * (uint64_t)n) >> 32);
-}
-
-static bool rng_chance(struct rng *r, float p)
-{
-    return rng_float(r) < p;
-}
 
 /* Dimensions are snapped to a grid so that independently drawn buildings
  * coincide now and then and can share meshes. */
@@ -72,78 +32,11 @@ static float clampf(float x, float lo, float hi)
 
 /* ---- mesh building ----------------------------------------------------------- */
 
-/* Accumulates flat-shaded polygons. In count_only mode nothing is stored, so
- * the triangle budget can be fitted by running the same generator; errors
- * are sticky and checked once at the end. */
-struct mesh_builder {
-    float *positions;
-    float *normals;
-    uint32_t *indices;
-    uint32_t vertex_count, vertex_cap;
-    uint32_t triangle_count, triangle_cap;
-    bool count_only;
-    int err;
-};
-
-static void builder_reset(struct mesh_builder *b, bool count_only)
-{
-    b->vertex_count = 0;
-    b->triangle_count = 0;
-    b->count_only = count_only;
-    b->err = TW_OK;
-}
-
-static void builder_release(struct mesh_builder *b)
-{
-    free(b->positions);
-    free(b->normals);
-    free(b->indices);
-    memset(b, 0, sizeof(*b));
-}
-
-static bool builder_reserve(struct mesh_builder *b, uint32_t vertices, uint32_t triangles)
-{
-    if (b->vertex_count > UINT32_MAX / 2 - vertices ||
-        b->triangle_count > UINT32_MAX / 8 - triangles) {
-        b->err = TW_ERR_LIMIT;
-        return false;
-    }
-    if (b->vertex_count + vertices > b->vertex_cap) {
-        uint32_t cap = b->vertex_cap ? b->vertex_cap : 1024;
-        while (cap < b->vertex_count + vertices)
-            cap *= 2;
-        float *p = realloc(b->positions, sizeof(float) * 3 * (size_t)cap);
-        if (p)
-            b->positions = p;
-        float *n = p ? realloc(b->normals, sizeof(float) * 3 * (size_t)cap) : NULL;
-        if (n)
-            b->normals = n;
-        if (!p || !n) {
-            b->err = TW_ERR_NOMEM;
-            return false;
-        }
-        b->vertex_cap = cap;
-    }
-    if (b->triangle_count + triangles > b->triangle_cap) {
-        uint32_t cap = b->triangle_cap ? b->triangle_cap : 1024;
-        while (cap < b->triangle_count + triangles)
-            cap *= 2;
-        uint32_t *i = realloc(b->indices, sizeof(uint32_t) * 3 * (size_t)cap);
-        if (!i) {
-            b->err = TW_ERR_NOMEM;
-            return false;
-        }
-        b->indices = i;
-        b->triangle_cap = cap;
-    }
-    return true;
-}
-
 /* Emits a planar convex polygon as a triangle fan with its own vertices and
  * the face normal. The winding is made counter-clockwise seen from the side
  * that facing points to, because the renderer culls back faces. Degenerate
  * polygons are dropped (in both modes, so that counts agree). */
-static void emit_polygon(struct mesh_builder *b, const float p[][3], uint32_t n,
+static void emit_polygon(struct tw_mesh_builder *b, const float p[][3], uint32_t n,
                          const float facing[3])
 {
     if (b->err)
@@ -164,7 +57,7 @@ static void emit_polygon(struct mesh_builder *b, const float p[][3], uint32_t n,
         b->triangle_count += n - 2;
         return;
     }
-    if (!builder_reserve(b, n, n - 2))
+    if (!tw_mesh_builder_reserve(b, n, n - 2))
         return;
     const uint32_t base = b->vertex_count;
     for (uint32_t v = 0; v < n; v++) {
@@ -182,7 +75,7 @@ static void emit_polygon(struct mesh_builder *b, const float p[][3], uint32_t n,
     b->triangle_count += n - 2;
 }
 
-static void emit_quad(struct mesh_builder *b, const float p0[3], const float p1[3],
+static void emit_quad(struct tw_mesh_builder *b, const float p0[3], const float p1[3],
                       const float p2[3], const float p3[3], const float facing[3])
 {
     float p[4][3];
@@ -202,7 +95,7 @@ enum box_face {
 };
 
 /* The faces of an axis-aligned box selected by mask. */
-static void emit_box(struct mesh_builder *b, const float lo[3], const float hi[3], unsigned mask)
+static void emit_box(struct tw_mesh_builder *b, const float lo[3], const float hi[3], unsigned mask)
 {
     for (int axis = 0; axis < 3; axis++) {
         const int u = (axis + 1) % 3, v = (axis + 2) % 3;
@@ -223,7 +116,7 @@ static void emit_box(struct mesh_builder *b, const float lo[3], const float hi[3
 }
 
 /* A vertical prism with a regular polygon section, sides and top. */
-static void emit_prism(struct mesh_builder *b, float cx, float cz, float radius, float y0,
+static void emit_prism(struct tw_mesh_builder *b, float cx, float cz, float radius, float y0,
                        float y1, uint32_t sides, bool top)
 {
     float ring[16][2];
@@ -273,7 +166,7 @@ static void facade_point(const struct facade *f, float s, float y, float t, floa
 }
 
 /* A rectangle parallel to the wall at offset t, facing out (dir > 0) or in. */
-static void facade_face(struct mesh_builder *b, const struct facade *f, float s0, float s1,
+static void facade_face(struct tw_mesh_builder *b, const struct facade *f, float s0, float s1,
                         float y0, float y1, float t, float dir)
 {
     float p[4][3];
@@ -286,7 +179,7 @@ static void facade_face(struct mesh_builder *b, const struct facade *f, float s0
 }
 
 /* A rectangle across the wall at s (a window jamb, the end of a fin). */
-static void facade_jamb(struct mesh_builder *b, const struct facade *f, float s, float y0,
+static void facade_jamb(struct tw_mesh_builder *b, const struct facade *f, float s, float y0,
                         float y1, float t0, float t1, float dir)
 {
     float p[4][3];
@@ -299,7 +192,7 @@ static void facade_jamb(struct mesh_builder *b, const struct facade *f, float s,
 }
 
 /* A horizontal rectangle at height y, facing up (dir > 0) or down. */
-static void facade_flat(struct mesh_builder *b, const struct facade *f, float s0, float s1,
+static void facade_flat(struct tw_mesh_builder *b, const struct facade *f, float s0, float s1,
                         float y, float t0, float t1, float dir)
 {
     float p[4][3];
@@ -314,7 +207,7 @@ static void facade_flat(struct mesh_builder *b, const struct facade *f, float s0
 /* A horizontal strip along the whole wall between offsets t0 and t1, mitred
  * at 45 degrees so that the strips of the four walls of a rectangle meet
  * without overlapping (ledges, cornices, parapet tops). */
-static void facade_mitre(struct mesh_builder *b, const struct facade *f, float y, float t0,
+static void facade_mitre(struct tw_mesh_builder *b, const struct facade *f, float y, float t0,
                          float t1, float dir)
 {
     float p[4][3];
@@ -327,7 +220,7 @@ static void facade_mitre(struct mesh_builder *b, const struct facade *f, float y
 }
 
 /* A ledge running round the building: protrudes by depth between y0 and y1. */
-static void facade_ledge(struct mesh_builder *b, const struct facade *f, float y0, float y1,
+static void facade_ledge(struct tw_mesh_builder *b, const struct facade *f, float y0, float y1,
                          float depth)
 {
     facade_face(b, f, -depth, f->len + depth, y0, y1, depth, 1.0f);
@@ -335,7 +228,7 @@ static void facade_ledge(struct mesh_builder *b, const struct facade *f, float y
     facade_mitre(b, f, y0, 0.0f, depth, -1.0f);
 }
 
-static void facade_parapet(struct mesh_builder *b, const struct facade *f, float y0, float y1,
+static void facade_parapet(struct tw_mesh_builder *b, const struct facade *f, float y0, float y1,
                            float thickness)
 {
     facade_face(b, f, 0.0f, f->len, y0, y1, 0.0f, 1.0f);
@@ -345,7 +238,7 @@ static void facade_parapet(struct mesh_builder *b, const struct facade *f, float
 
 /* A window recessed by depth: four reveals in the wall material, the pane
  * in the glass material. */
-static void facade_window(struct mesh_builder *wall, struct mesh_builder *glass,
+static void facade_window(struct tw_mesh_builder *wall, struct tw_mesh_builder *glass,
                           const struct facade *f, float s0, float s1, float y0, float y1,
                           float depth)
 {
@@ -357,7 +250,7 @@ static void facade_window(struct mesh_builder *wall, struct mesh_builder *glass,
 }
 
 /* A protruding stone sill under a window. */
-static void facade_sill(struct mesh_builder *b, const struct facade *f, float s0, float s1,
+static void facade_sill(struct tw_mesh_builder *b, const struct facade *f, float s0, float s1,
                         float y)
 {
     const float over = 0.08f, depth = 0.12f, height = 0.1f;
@@ -371,7 +264,7 @@ static void facade_sill(struct mesh_builder *b, const struct facade *f, float s0
 }
 
 /* A cross of glazing bars in a recessed window, standing on the pane. */
-static void facade_glazing_bars(struct mesh_builder *b, const struct facade *f, float s0,
+static void facade_glazing_bars(struct tw_mesh_builder *b, const struct facade *f, float s0,
                                 float s1, float y0, float y1, float depth)
 {
     const float half = 0.035f, t = -depth, front = -depth + 0.06f;
@@ -388,7 +281,7 @@ static void facade_glazing_bars(struct mesh_builder *b, const struct facade *f, 
  * solid railing. It protrudes 0.9 m, less than the 1 m between a lot line
  * and the street band. The slab floats 0.25 m up so that its faces never
  * coincide with a ledge's. */
-static void facade_balcony(struct mesh_builder *b, const struct facade *f, float s0, float s1,
+static void facade_balcony(struct tw_mesh_builder *b, const struct facade *f, float s0, float s1,
                            float y)
 {
     const float depth = 0.9f, rail = 0.06f;
@@ -408,7 +301,7 @@ static void facade_balcony(struct mesh_builder *b, const struct facade *f, float
 }
 
 /* A drip moulding over a window: a small protruding cap. */
-static void facade_hood(struct mesh_builder *b, const struct facade *f, float s0, float s1,
+static void facade_hood(struct tw_mesh_builder *b, const struct facade *f, float s0, float s1,
                         float y)
 {
     const float over = 0.12f, depth = 0.15f, height = 0.18f;
@@ -489,7 +382,7 @@ static uint32_t party_walls(float height, uint32_t blank_mask)
 
 /* Draws a building of footprint w x d whose top (roof clutter included)
  * stays at or below height. */
-static void spec_init(struct building_spec *sp, struct rng *r, float w, float d, float height,
+static void spec_init(struct building_spec *sp, struct tw_rng *r, float w, float d, float height,
                       uint32_t style, uint32_t blank_mask, bool allow_setback)
 {
     memset(sp, 0, sizeof(*sp));
@@ -497,33 +390,33 @@ static void spec_init(struct building_spec *sp, struct rng *r, float w, float d,
     sp->d = d;
     sp->style = style;
     sp->blank_mask = party_walls(height, blank_mask);
-    sp->floor_h = quantize(rng_range(r, 3.1f, 3.6f), 0.1f);
-    sp->ground_h = quantize(rng_range(r, 3.9f, 4.8f), 0.1f);
-    sp->parapet_h = quantize(rng_range(r, 0.6f, 1.2f), 0.1f);
+    sp->floor_h = quantize(tw_rng_range(r, 3.1f, 3.6f), 0.1f);
+    sp->ground_h = quantize(tw_rng_range(r, 3.9f, 4.8f), 0.1f);
+    sp->parapet_h = quantize(tw_rng_range(r, 0.6f, 1.2f), 0.1f);
     switch (style) {
     case STYLE_CLASSIC:
-        sp->recess = quantize(rng_range(r, 0.2f, 0.35f), 0.05f);
-        sp->window_ratio = quantize(rng_range(r, 0.42f, 0.55f), 0.05f);
-        sp->base_bay = quantize(rng_range(r, 2.6f, 3.4f), 0.1f);
-        sp->ledge_every = 2 + rng_below(r, 3);
+        sp->recess = quantize(tw_rng_range(r, 0.2f, 0.35f), 0.05f);
+        sp->window_ratio = quantize(tw_rng_range(r, 0.42f, 0.55f), 0.05f);
+        sp->base_bay = quantize(tw_rng_range(r, 2.6f, 3.4f), 0.1f);
+        sp->ledge_every = 2 + tw_rng_below(r, 3);
         break;
     case STYLE_MODERN:
-        sp->recess = quantize(rng_range(r, 0.15f, 0.3f), 0.05f);
-        sp->window_ratio = quantize(rng_range(r, 0.5f, 0.7f), 0.05f);
-        sp->base_bay = quantize(rng_range(r, 2.8f, 3.8f), 0.1f);
-        sp->ledge_every = rng_chance(r, 0.5f) ? 0 : 4 + rng_below(r, 3);
+        sp->recess = quantize(tw_rng_range(r, 0.15f, 0.3f), 0.05f);
+        sp->window_ratio = quantize(tw_rng_range(r, 0.5f, 0.7f), 0.05f);
+        sp->base_bay = quantize(tw_rng_range(r, 2.8f, 3.8f), 0.1f);
+        sp->ledge_every = tw_rng_chance(r, 0.5f) ? 0 : 4 + tw_rng_below(r, 3);
         break;
     default:
         sp->recess = 0.15f;
         sp->window_ratio = 1.0f;
-        sp->base_bay = quantize(rng_range(r, 1.4f, 2.2f), 0.1f);
+        sp->base_bay = quantize(tw_rng_range(r, 1.4f, 2.2f), 0.1f);
         sp->ledge_every = 0;
         break;
     }
-    const uint32_t roll = rng_below(r, 10);
+    const uint32_t roll = tw_rng_below(r, 10);
     if (height > 18.0f && fminf(w, d) >= 9.0f)
         sp->roof = roll < 5 ? ROOF_PENTHOUSE : roll < 7 ? ROOF_TANK : ROOF_PLAIN;
-    sp->detail = rng_below(r, 4);
+    sp->detail = tw_rng_below(r, 4);
 
     /* The margin keeps float round-off in the summed floor heights from
      * pushing the top past height. */
@@ -531,9 +424,9 @@ static void spec_init(struct building_spec *sp, struct rng *r, float w, float d,
     uint32_t floors = 1;
     if (body > sp->ground_h + sp->floor_h)
         floors = 1 + (uint32_t)floorf((body - sp->ground_h) / sp->floor_h);
-    if (allow_setback && floors >= 12 && fminf(w, d) >= 16.0f && rng_chance(r, 0.55f)) {
-        sp->inset = quantize(rng_range(r, 2.0f, fminf(w, d) * 0.2f), 0.5f);
-        sp->upper_floors = (uint32_t)((float)floors * rng_range(r, 0.25f, 0.5f));
+    if (allow_setback && floors >= 12 && fminf(w, d) >= 16.0f && tw_rng_chance(r, 0.55f)) {
+        sp->inset = quantize(tw_rng_range(r, 2.0f, fminf(w, d) * 0.2f), 0.5f);
+        sp->upper_floors = (uint32_t)((float)floors * tw_rng_range(r, 0.25f, 0.5f));
         floors -= sp->upper_floors;
     }
     sp->floors = floors;
@@ -579,7 +472,7 @@ static struct facade tier_facade(const struct tier *t, int k)
 }
 
 /* Walls, windows and ledges of one wall of a tier. */
-static void emit_wall(struct mesh_builder *wall, struct mesh_builder *glass,
+static void emit_wall(struct tw_mesh_builder *wall, struct tw_mesh_builder *glass,
                       const struct building_spec *sp, const struct tier *t,
                       const struct facade *f, bool blank)
 {
@@ -656,10 +549,10 @@ static bool rects_overlap(const float a[4], const float b[4])
 }
 
 /* Penthouse, water tank and air-conditioning units on the top roof. */
-static void emit_roof_clutter(struct mesh_builder *wall, struct mesh_builder *roof,
+static void emit_roof_clutter(struct tw_mesh_builder *wall, struct tw_mesh_builder *roof,
                               const struct building_spec *sp, const struct tier *t, float top)
 {
-    struct rng r = rng_seeded(sp->detail, (int64_t)(sp->w * 16.0f), (int64_t)(sp->d * 16.0f));
+    struct tw_rng r = tw_rng_seeded(sp->detail, (int64_t)(sp->w * 16.0f), (int64_t)(sp->d * 16.0f));
     const float margin = 0.9f;
     const float ax = t->x0 + margin, az = t->z0 + margin;
     const float aw = t->x1 - t->x0 - 2.0f * margin, ad = t->z1 - t->z0 - 2.0f * margin;
@@ -668,8 +561,8 @@ static void emit_roof_clutter(struct mesh_builder *wall, struct mesh_builder *ro
     float taken[4] = {0, 0, 0, 0};
     bool has_taken = false;
     if (sp->roof == ROOF_PENTHOUSE) {
-        const float pw = aw * rng_range(&r, 0.3f, 0.5f), pd = ad * rng_range(&r, 0.3f, 0.5f);
-        const float px = ax + (aw - pw) * rng_float(&r), pz = az + (ad - pd) * rng_float(&r);
+        const float pw = aw * tw_rng_range(&r, 0.3f, 0.5f), pd = ad * tw_rng_range(&r, 0.3f, 0.5f);
+        const float px = ax + (aw - pw) * tw_rng_float(&r), pz = az + (ad - pd) * tw_rng_float(&r);
         const float lo[3] = {px, top, pz}, hi[3] = {px + pw, top + 3.4f, pz + pd};
         emit_box(wall, lo, hi, FACES_SIDES);
         emit_box(roof, lo, hi, FACE_PY);
@@ -677,8 +570,8 @@ static void emit_roof_clutter(struct mesh_builder *wall, struct mesh_builder *ro
         has_taken = true;
     } else if (sp->roof == ROOF_TANK) {
         const float radius = fminf(1.4f, 0.25f * fminf(aw, ad));
-        const float cx = ax + radius + (aw - 2.0f * radius) * rng_float(&r);
-        const float cz = az + radius + (ad - 2.0f * radius) * rng_float(&r);
+        const float cx = ax + radius + (aw - 2.0f * radius) * tw_rng_float(&r);
+        const float cz = az + radius + (ad - 2.0f * radius) * tw_rng_float(&r);
         const float lo[3] = {cx - radius, top, cz - radius};
         const float hi[3] = {cx + radius, top + 0.8f, cz + radius};
         emit_box(roof, lo, hi, FACES_NO_BOTTOM);
@@ -686,14 +579,14 @@ static void emit_roof_clutter(struct mesh_builder *wall, struct mesh_builder *ro
         taken[0] = lo[0]; taken[1] = lo[2]; taken[2] = hi[0]; taken[3] = hi[2];
         has_taken = true;
     }
-    const uint32_t units = 1 + rng_below(&r, 4);
+    const uint32_t units = 1 + tw_rng_below(&r, 4);
     for (uint32_t u = 0; u < units; u++) {
-        const float uw = rng_range(&r, 1.0f, 2.2f), ud = rng_range(&r, 1.0f, 2.0f);
-        const float uh = rng_range(&r, 0.8f, 1.4f);
+        const float uw = tw_rng_range(&r, 1.0f, 2.2f), ud = tw_rng_range(&r, 1.0f, 2.0f);
+        const float uh = tw_rng_range(&r, 0.8f, 1.4f);
         if (uw > aw || ud > ad)
             continue;
         for (int attempt = 0; attempt < 4; attempt++) {
-            const float ux = ax + (aw - uw) * rng_float(&r), uz = az + (ad - ud) * rng_float(&r);
+            const float ux = ax + (aw - uw) * tw_rng_float(&r), uz = az + (ad - ud) * tw_rng_float(&r);
             const float rect[4] = {ux, uz, ux + uw, uz + ud};
             if (has_taken && rects_overlap(rect, taken))
                 continue;
@@ -706,8 +599,8 @@ static void emit_roof_clutter(struct mesh_builder *wall, struct mesh_builder *ro
 
 /* The whole building, in mesh-local coordinates: footprint [0, w] x [0, d],
  * ground at y = 0. */
-static void emit_building(struct mesh_builder *wall, struct mesh_builder *glass,
-                          struct mesh_builder *roof, const struct building_spec *sp)
+static void emit_building(struct tw_mesh_builder *wall, struct tw_mesh_builder *glass,
+                          struct tw_mesh_builder *roof, const struct building_spec *sp)
 {
     struct tier tiers[2];
     uint32_t tier_count = 1;
@@ -785,10 +678,10 @@ struct city {
     struct lot *lots;
     uint32_t lot_count, lot_cap;
 
-    struct mesh_builder wall, glass, roof;
+    struct tw_mesh_builder wall, glass, roof;
 };
 
-static int add_mesh_from(struct city *c, struct mesh_builder *b, uint32_t *mesh)
+static int add_mesh_from(struct city *c, struct tw_mesh_builder *b, uint32_t *mesh)
 {
     if (b->err)
         return b->err;
@@ -806,9 +699,9 @@ static int add_mesh_from(struct city *c, struct mesh_builder *b, uint32_t *mesh)
 
 static uint64_t building_triangles(struct city *c, const struct building_spec *sp)
 {
-    builder_reset(&c->wall, true);
-    builder_reset(&c->glass, true);
-    builder_reset(&c->roof, true);
+    tw_mesh_builder_reset(&c->wall, true);
+    tw_mesh_builder_reset(&c->glass, true);
+    tw_mesh_builder_reset(&c->roof, true);
     emit_building(&c->wall, &c->glass, &c->roof, sp);
     return (uint64_t)c->wall.triangle_count + c->glass.triangle_count + c->roof.triangle_count;
 }
@@ -830,9 +723,9 @@ static int building_meshes(struct city *c, const struct building_spec *sp, uint3
         c->cache = p;
         c->cache_cap = cap;
     }
-    builder_reset(&c->wall, false);
-    builder_reset(&c->glass, false);
-    builder_reset(&c->roof, false);
+    tw_mesh_builder_reset(&c->wall, false);
+    tw_mesh_builder_reset(&c->glass, false);
+    tw_mesh_builder_reset(&c->roof, false);
     emit_building(&c->wall, &c->glass, &c->roof, sp);
     struct cached_building *entry = &c->cache[c->cache_count];
     entry->spec = *sp;
@@ -952,9 +845,9 @@ struct block_params {
     float tall_style_from;  /* buildings above this prefer modern styles */
 };
 
-static uint32_t pick_style(struct rng *r, float height, float tall_from)
+static uint32_t pick_style(struct tw_rng *r, float height, float tall_from)
 {
-    const uint32_t roll = rng_below(r, 20);
+    const uint32_t roll = tw_rng_below(r, 20);
     if (height > tall_from)
         return roll < 8 ? STYLE_RIBBON : roll < 17 ? STYLE_MODERN : STYLE_CLASSIC;
     /* Curtain walls carry few triangles per square metre; low blocks need
@@ -962,14 +855,14 @@ static uint32_t pick_style(struct rng *r, float height, float tall_from)
     return roll < 12 ? STYLE_CLASSIC : STYLE_MODERN;
 }
 
-static float pick_height(struct rng *r, const float range[2])
+static float pick_height(struct tw_rng *r, const float range[2])
 {
-    return quantize(rng_range(r, range[0], range[1]), 0.5f);
+    return quantize(tw_rng_range(r, range[0], range[1]), 0.5f);
 }
 
 /* Lines side k with buildings from a = start to a = end; reports whether
  * buildings touch both ends (the corner buildings' party walls). */
-static int layout_side(struct city *c, struct rng *r, const struct block_params *bp,
+static int layout_side(struct city *c, struct tw_rng *r, const struct block_params *bp,
                        uint32_t k, float start, float end, bool corner_before,
                        bool corner_after)
 {
@@ -977,18 +870,18 @@ static int layout_side(struct city *c, struct rng *r, const struct block_params 
     if (avail < bp->lot_min)
         return TW_OK;
     int err = TW_OK;
-    if (rng_chance(r, bp->row_chance)) {
+    if (tw_rng_chance(r, bp->row_chance)) {
         /* A terrace of identical houses: one mesh set, instanced. */
-        const float target = rng_range(r, bp->lot_min, bp->lot_max);
+        const float target = tw_rng_range(r, bp->lot_min, bp->lot_max);
         const uint32_t n = (uint32_t)fmaxf(1.0f, floorf(avail / target + 0.5f));
         const float lw = avail / (float)n;
-        const float depth = quantize(rng_range(r, 0.7f * bp->depth, bp->depth), 0.5f);
+        const float depth = quantize(tw_rng_range(r, 0.7f * bp->depth, bp->depth), 0.5f);
         const float h = pick_height(r, bp->side_h);
         const uint32_t style = pick_style(r, h, bp->tall_style_from);
         struct building_spec base;
         spec_init(&base, r, lw, depth, h, style, 0, false);
-        const uint32_t mat_a = c->mat_facade[rng_below(r, FACADE_COLOURS)];
-        const uint32_t mat_b = rng_chance(r, 0.5f) ? c->mat_facade[rng_below(r, FACADE_COLOURS)] : mat_a;
+        const uint32_t mat_a = c->mat_facade[tw_rng_below(r, FACADE_COLOURS)];
+        const uint32_t mat_b = tw_rng_chance(r, 0.5f) ? c->mat_facade[tw_rng_below(r, FACADE_COLOURS)] : mat_a;
         for (uint32_t i = 0; i < n && !err; i++) {
             struct building_spec sp = base;
             sp.blank_mask = party_walls(h, ((i > 0 || corner_before) ? 1u << 3 : 0u) |
@@ -1009,14 +902,14 @@ static int layout_side(struct city *c, struct rng *r, const struct block_params 
     while (end - a > 0.01f && n < 64) {
         const float remaining = end - a;
         if (!gap_used && n > 0 && remaining > 2.0f * bp->lot_min + 6.0f &&
-            rng_chance(r, bp->gap_chance)) {
-            widths[n] = quantize(rng_range(r, 3.0f, 6.0f), 0.5f);
+            tw_rng_chance(r, bp->gap_chance)) {
+            widths[n] = quantize(tw_rng_range(r, 3.0f, 6.0f), 0.5f);
             gap[n++] = true;
             gap_used = true;
             a += widths[n - 1];
             continue;
         }
-        float lw = quantize(rng_range(r, bp->lot_min, bp->lot_max), 0.5f);
+        float lw = quantize(tw_rng_range(r, bp->lot_min, bp->lot_max), 0.5f);
         if (remaining - lw < bp->lot_min)
             lw = remaining;
         widths[n] = lw;
@@ -1030,14 +923,14 @@ static int layout_side(struct city *c, struct rng *r, const struct block_params 
         if (!gap[i]) {
             const bool before = i > 0 ? !gap[i - 1] : corner_before;
             const bool after = i + 1 < n ? !gap[i + 1] : corner_after;
-            const float depth = quantize(rng_range(r, 0.7f * bp->depth, bp->depth), 0.5f);
+            const float depth = quantize(tw_rng_range(r, 0.7f * bp->depth, bp->depth), 0.5f);
             const float h = pick_height(r, bp->side_h);
             struct building_spec sp;
             spec_init(&sp, r, widths[i], depth, h, pick_style(r, h, bp->tall_style_from),
                       (before ? 1u << 3 : 0u) | (after ? 1u << 1 : 0u), false);
             float m[12];
             side_transform(c, k, a, m);
-            err = push_lot(c, &sp, m, c->mat_facade[rng_below(r, FACADE_COLOURS)]);
+            err = push_lot(c, &sp, m, c->mat_facade[tw_rng_below(r, FACADE_COLOURS)]);
         }
         a += widths[i];
     }
@@ -1045,7 +938,7 @@ static int layout_side(struct city *c, struct rng *r, const struct block_params 
 }
 
 /* Corner buildings and the sides between them. */
-static int layout_perimeter(struct city *c, struct rng *r, const struct block_params *bp)
+static int layout_perimeter(struct city *c, struct tw_rng *r, const struct block_params *bp)
 {
     const float block = c->w - 2.0f * c->half_street;
     bool corner[4];
@@ -1079,7 +972,7 @@ static int layout_perimeter(struct city *c, struct rng *r, const struct block_pa
             const float size = bp->corner_size[k];
             spec_init(&sp, r, size, size, h, pick_style(r, h, bp->tall_style_from),
                       (1u << 1) | (1u << 2), true);
-            material = c->mat_facade[rng_below(r, FACADE_COLOURS)];
+            material = c->mat_facade[tw_rng_below(r, FACADE_COLOURS)];
             shared = sp;
             shared_material = material;
             have_shared = true;
@@ -1179,20 +1072,20 @@ static float proto_height_cap(const struct city *c)
     return c->set.max_height - kerb_height;
 }
 
-static int build_dense(struct city *c, uint32_t proto, struct rng *r, bool tallest)
+static int build_dense(struct city *c, uint32_t proto, struct tw_rng *r, bool tallest)
 {
     const float block = c->w - 2.0f * c->half_street;
     const float cap = proto_height_cap(c);
-    const float hp = tallest ? cap : fmaxf(16.0f, cap * rng_range(r, 0.45f, 1.0f));
+    const float hp = tallest ? cap : fmaxf(16.0f, cap * tw_rng_range(r, 0.45f, 1.0f));
     struct block_params bp = {0};
     bp.side_mask = 0xf;
     const float k = c->lot_scale;
-    bp.depth = quantize(clampf(k * rng_range(r, 13.0f, 20.0f), 6.0f, block * 0.3f), 0.5f);
-    bp.share_corners = rng_chance(r, 0.35f);
-    const float shared_size = quantize(bp.depth + k * rng_range(r, 0.0f, 5.0f), 0.5f);
+    bp.depth = quantize(clampf(k * tw_rng_range(r, 13.0f, 20.0f), 6.0f, block * 0.3f), 0.5f);
+    bp.share_corners = tw_rng_chance(r, 0.35f);
+    const float shared_size = quantize(bp.depth + k * tw_rng_range(r, 0.0f, 5.0f), 0.5f);
     for (int i = 0; i < 4; i++)
         bp.corner_size[i] = bp.share_corners ? shared_size
-                                             : quantize(bp.depth + k * rng_range(r, 0.0f, 5.0f), 0.5f);
+                                             : quantize(bp.depth + k * tw_rng_range(r, 0.0f, 5.0f), 0.5f);
     bp.lot_min = 8.0f * k;
     bp.lot_max = 17.0f * k;
     bp.gap_chance = 0.2f;
@@ -1207,34 +1100,34 @@ static int build_dense(struct city *c, uint32_t proto, struct rng *r, bool talle
     /* A tower in the courtyard, when the block is deep enough for one. */
     /* Corner lots reach depth + 5 m into the block; keep 2 m clear of them. */
     const float room = block - 2.0f * (bp.depth + 5.0f * k) - 4.0f;
-    if (!err && room >= 10.0f && (tallest || rng_chance(r, 0.6f))) {
-        const float size = quantize(fminf(k * rng_range(r, 14.0f, 22.0f), room), 0.5f);
+    if (!err && room >= 10.0f && (tallest || tw_rng_chance(r, 0.6f))) {
+        const float size = quantize(fminf(k * tw_rng_range(r, 14.0f, 22.0f), room), 0.5f);
         const float range[2] = {0.85f * hp, hp};
         const float h = tallest ? hp : pick_height(r, range);
         struct building_spec sp;
         spec_init(&sp, r, size, size, h, pick_style(r, h, bp.tall_style_from), 0, true);
         float m[12];
         const float lo = 0.5f * (c->w - size);
-        rect_transform(rng_below(r, 4), size, size, lo, lo, m);
-        err = push_lot(c, &sp, m, c->mat_facade[rng_below(r, FACADE_COLOURS)]);
+        rect_transform(tw_rng_below(r, 4), size, size, lo, lo, m);
+        err = push_lot(c, &sp, m, c->mat_facade[tw_rng_below(r, FACADE_COLOURS)]);
     }
     uint64_t fixed = 0;
     if (!err)
         err = add_streets(c, proto, c->mat_courtyard, &fixed);
     if (!err)
-        err = place_lots(c, proto, fixed, rng_range(r, 15000.0f, 34000.0f));
+        err = place_lots(c, proto, fixed, tw_rng_range(r, 15000.0f, 34000.0f));
     return err;
 }
 
-static int build_lowrise(struct city *c, uint32_t proto, struct rng *r)
+static int build_lowrise(struct city *c, uint32_t proto, struct tw_rng *r)
 {
     const float block = c->w - 2.0f * c->half_street;
     struct block_params bp = {0};
     bp.side_mask = 0xf;
     const float k = c->lot_scale;
-    bp.depth = quantize(clampf(k * rng_range(r, 10.0f, 14.0f), 6.0f, block * 0.3f), 0.5f);
+    bp.depth = quantize(clampf(k * tw_rng_range(r, 10.0f, 14.0f), 6.0f, block * 0.3f), 0.5f);
     for (int i = 0; i < 4; i++)
-        bp.corner_size[i] = quantize(bp.depth + k * rng_range(r, 0.0f, 3.0f), 0.5f);
+        bp.corner_size[i] = quantize(bp.depth + k * tw_rng_range(r, 0.0f, 3.0f), 0.5f);
     bp.lot_min = 8.0f * k;
     bp.lot_max = 14.0f * k;
     bp.gap_chance = 0.35f;
@@ -1251,21 +1144,21 @@ static int build_lowrise(struct city *c, uint32_t proto, struct rng *r)
     if (!err)
         err = add_streets(c, proto, c->mat_courtyard, &fixed);
     if (!err)
-        err = place_lots(c, proto, fixed, rng_range(r, 12000.0f, 18000.0f));
+        err = place_lots(c, proto, fixed, tw_rng_range(r, 12000.0f, 18000.0f));
     return err;
 }
 
 /* A park: lawns, paths, a fountain and trees, with low buildings along two
  * sides (fewer would not carry the triangle budget). */
-static int build_park(struct city *c, uint32_t proto, struct rng *r)
+static int build_park(struct city *c, uint32_t proto, struct tw_rng *r)
 {
     const float block = c->w - 2.0f * c->half_street;
     struct block_params bp = {0};
     bp.side_mask = (1u << 2) | (1u << 3);
     const float k = c->lot_scale;
-    bp.depth = quantize(clampf(k * rng_range(r, 10.0f, 13.0f), 6.0f, block * 0.3f), 0.5f);
+    bp.depth = quantize(clampf(k * tw_rng_range(r, 10.0f, 13.0f), 6.0f, block * 0.3f), 0.5f);
     for (int i = 0; i < 4; i++)
-        bp.corner_size[i] = quantize(bp.depth + k * rng_range(r, 0.0f, 3.0f), 0.5f);
+        bp.corner_size[i] = quantize(bp.depth + k * tw_rng_range(r, 0.0f, 3.0f), 0.5f);
     bp.lot_min = 7.0f * k;
     bp.lot_max = 12.0f * k;
     bp.gap_chance = 0.2f;
@@ -1305,10 +1198,10 @@ static int build_park(struct city *c, uint32_t proto, struct rng *r)
     const uint32_t steps = (uint32_t)floorf((hi - lo) / step) + 1;
     for (uint32_t j = 0; j < steps; j++) {
         for (uint32_t i = 0; i < steps && count < MAX_CANDIDATES; i++) {
-            const float tx = clampf(lo + step * (float)i + rng_range(r, -1.5f, 1.5f), lo, hi);
-            const float tz = clampf(lo + step * (float)j + rng_range(r, -1.5f, 1.5f), lo, hi);
-            const float angle = rng_range(r, 0.0f, 6.2831853f);
-            const float scale = rng_range(r, 0.8f, 1.2f);
+            const float tx = clampf(lo + step * (float)i + tw_rng_range(r, -1.5f, 1.5f), lo, hi);
+            const float tz = clampf(lo + step * (float)j + tw_rng_range(r, -1.5f, 1.5f), lo, hi);
+            const float angle = tw_rng_range(r, 0.0f, 6.2831853f);
+            const float scale = tw_rng_range(r, 0.8f, 1.2f);
             if (fabsf(tx - centre) < 3.5f || fabsf(tz - centre) < 3.5f)
                 continue;
             if (((bp.side_mask >> 2 & 1u) && tz > c->w - built) ||
@@ -1330,7 +1223,7 @@ static int build_park(struct city *c, uint32_t proto, struct rng *r)
         fixed += mesh_triangles(c, c->mesh_trunk) + mesh_triangles(c, c->mesh_canopy);
     }
     if (!err)
-        err = place_lots(c, proto, fixed, rng_range(r, 11500.0f, 16000.0f));
+        err = place_lots(c, proto, fixed, tw_rng_range(r, 11500.0f, 16000.0f));
     return err;
 }
 
@@ -1370,12 +1263,12 @@ static int build_ground_meshes(struct city *c)
     int err;
 
     /* Asphalt, sidewalk and lot ground as pinwheels: no overlaps. */
-    builder_reset(&c->wall, false);
+    tw_mesh_builder_reset(&c->wall, false);
     emit_ground_rect4(c, 0.0f, 0.0f, w - r, r, 0.0f);
     if ((err = finish_shared(c, &c->mesh_asphalt)))
         return err;
 
-    builder_reset(&c->wall, false);
+    tw_mesh_builder_reset(&c->wall, false);
     emit_ground_rect4(c, r, r, w - s, s, kerb_height);
     for (uint32_t k = 0; k < 4; k++) {
         float p[4][3];
@@ -1390,7 +1283,7 @@ static int build_ground_meshes(struct city *c)
     if ((err = finish_shared(c, &c->mesh_sidewalk)))
         return err;
 
-    builder_reset(&c->wall, false);
+    tw_mesh_builder_reset(&c->wall, false);
     {
         const float up[3] = {0, 1, 0};
         const float p0[3] = {s, kerb_height, s}, p1[3] = {w - s, kerb_height, s};
@@ -1402,7 +1295,7 @@ static int build_ground_meshes(struct city *c)
 
     /* Markings: half of each centre line and zebra crossing lies in each
      * tile, symmetric about the border, so neighbours complete them. */
-    builder_reset(&c->wall, false);
+    tw_mesh_builder_reset(&c->wall, false);
     const float y = 0.01f, half_line = 0.06f;
     const float cross0 = s + 0.8f, cross1 = s + 3.8f;
     for (float z = 0.25f; z + 0.5f <= r - 0.2f; z += 1.0f) {
@@ -1419,7 +1312,7 @@ static int build_ground_meshes(struct city *c)
 
     /* Lamps on the building side of the sidewalk of side 0, clear of the
      * street band (which ends 1 m short of the lot line). */
-    builder_reset(&c->wall, false);
+    tw_mesh_builder_reset(&c->wall, false);
     const float lz = s - 0.55f;
     const float span = w - 2.0f * s - 4.0f;
     const uint32_t lamps = (uint32_t)fmaxf(2.0f, floorf(span / 18.0f + 0.5f) + 1.0f);
@@ -1454,7 +1347,7 @@ static void blob_point(const float a[3], const float b[3], const float c[3], uin
 
 /* An icosahedron with every face split into n x n triangles, pushed onto an
  * ellipsoid: a canopy blob of 20 n^2 triangles. */
-static void emit_blob(struct mesh_builder *b, const float centre[3], const float radius[3],
+static void emit_blob(struct tw_mesh_builder *b, const float centre[3], const float radius[3],
                       uint32_t n)
 {
 #define PHI 1.6180339887f
@@ -1497,7 +1390,7 @@ static void emit_blob(struct mesh_builder *b, const float centre[3], const float
 static int build_park_meshes(struct city *c)
 {
     int err;
-    builder_reset(&c->wall, false);
+    tw_mesh_builder_reset(&c->wall, false);
     const float blob_a[3] = {0.0f, 5.4f, 0.0f}, radius_a[3] = {2.6f, 2.1f, 2.6f};
     const float blob_b[3] = {0.5f, 6.9f, -0.3f}, radius_b[3] = {1.8f, 1.5f, 1.8f};
     emit_blob(&c->wall, blob_a, radius_a, 4);
@@ -1505,13 +1398,13 @@ static int build_park_meshes(struct city *c)
     if ((err = finish_shared(c, &c->mesh_canopy)))
         return err;
 
-    builder_reset(&c->wall, false);
+    tw_mesh_builder_reset(&c->wall, false);
     emit_prism(&c->wall, 0.0f, 0.0f, 0.22f, 0.0f, 4.6f, 6, false);
     if ((err = finish_shared(c, &c->mesh_trunk)))
         return err;
 
     /* A cross of paths, slightly above the lawn. */
-    builder_reset(&c->wall, false);
+    tw_mesh_builder_reset(&c->wall, false);
     const float s = c->half_street, w = c->w, m = 0.5f * c->w, y = kerb_height + 0.02f;
     const float rects[3][4] = {
         {s, m - 1.5f, w - s, m + 1.5f}, {m - 1.5f, s, m + 1.5f, m - 1.5f},
@@ -1527,7 +1420,7 @@ static int build_park_meshes(struct city *c)
         return err;
 
     /* The fountain: a ring wall (outer and inner faces, top) and a column. */
-    builder_reset(&c->wall, false);
+    tw_mesh_builder_reset(&c->wall, false);
     const uint32_t sides = 16;
     const float r_out = 4.0f, r_in = 3.6f, y0 = kerb_height, y1 = kerb_height + 0.6f;
     for (uint32_t k = 0; k < sides; k++) {
@@ -1547,7 +1440,7 @@ static int build_park_meshes(struct city *c)
     if ((err = finish_shared(c, &c->mesh_fountain)))
         return err;
 
-    builder_reset(&c->wall, false);
+    tw_mesh_builder_reset(&c->wall, false);
     float disc[16][3];
     for (uint32_t k = 0; k < sides; k++) {
         const double a = 2.0 * 3.14159265358979323846 * k / sides;
@@ -1625,9 +1518,9 @@ static int city_begin(struct city *c, struct tw_tileset *ts, const struct tw_cit
 
 static void city_release(struct city *c)
 {
-    builder_release(&c->wall);
-    builder_release(&c->glass);
-    builder_release(&c->roof);
+    tw_mesh_builder_release(&c->wall);
+    tw_mesh_builder_release(&c->glass);
+    tw_mesh_builder_release(&c->roof);
     free(c->cache);
     free(c->lots);
     c->cache = NULL;
@@ -1637,7 +1530,7 @@ static void city_release(struct city *c)
 static int city_add_block(struct city *c, uint32_t proto, enum block_kind kind, uint64_t stream,
                           bool tallest)
 {
-    struct rng r = {stream};
+    struct tw_rng r = {stream};
     switch (kind) {
     case BLOCK_DENSE: return build_dense(c, proto, &r, tallest);
     case BLOCK_LOWRISE: return build_lowrise(c, proto, &r);

@@ -18,6 +18,7 @@
  * TW_FOREST_HEADROOM above the ground. Each mesh carries a profile (per
  * triangle: lowest point, horizontal reach from the axis) against which
  * every candidate placement is tested exactly. */
+#include "tilesets/mesh-builder.h"
 #include "tilesets/tilesets-private.h"
 
 #include <math.h>
@@ -28,47 +29,6 @@
 static const float tau = 6.28318530717958647692f;
 static const uint32_t no_mesh = UINT32_MAX;
 
-/* ---- a local PRNG, seeded from tw_tiles_hash() ------------------------------ */
-
-struct rng {
-    uint64_t state;
-};
-
-static struct rng rng_seeded(uint64_t seed, int64_t i, int64_t j)
-{
-    struct rng r = {tw_tiles_hash(seed, i, j)};
-    return r;
-}
-
-static uint64_t rng_next(struct rng *r)
-{
-    uint64_t z = (r->state += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-}
-
-/* Uniform in [0, 1); 24 bits so that the value is exact in float. */
-static float rng_float(struct rng *r)
-{
-    return (float)(rng_next(r) >> 40) * 0x1.0p-24f;
-}
-
-static float rng_range(struct rng *r, float lo, float hi)
-{
-    return lo + (hi - lo) * rng_float(r);
-}
-
-static uint32_t rng_below(struct rng *r, uint32_t n)
-{
-    return (uint32_t)(((rng_next(r) >> 32) * (uint64_t)n) >> 32);
-}
-
-static bool rng_chance(struct rng *r, float p)
-{
-    return rng_float(r) < p;
-}
-
 static float clampf(float x, float lo, float hi)
 {
     return x < lo ? lo : x > hi ? hi : x;
@@ -76,74 +36,10 @@ static float clampf(float x, float lo, float hi)
 
 /* ---- mesh building -------------------------------------------------------------- */
 
-/* Accumulates flat-shaded triangles; errors are sticky and checked once,
- * when the mesh is added. */
-struct mesh_builder {
-    float *positions;
-    float *normals;
-    uint32_t *indices;
-    uint32_t vertex_count, vertex_cap;
-    uint32_t triangle_count, triangle_cap;
-    int err;
-};
-
-static void builder_reset(struct mesh_builder *b)
-{
-    b->vertex_count = 0;
-    b->triangle_count = 0;
-    b->err = TW_OK;
-}
-
-static void builder_release(struct mesh_builder *b)
-{
-    free(b->positions);
-    free(b->normals);
-    free(b->indices);
-    memset(b, 0, sizeof(*b));
-}
-
-static bool builder_reserve(struct mesh_builder *b, uint32_t vertices, uint32_t triangles)
-{
-    if (b->vertex_count > UINT32_MAX / 2 - vertices ||
-        b->triangle_count > UINT32_MAX / 8 - triangles) {
-        b->err = TW_ERR_LIMIT;
-        return false;
-    }
-    if (b->vertex_count + vertices > b->vertex_cap) {
-        uint32_t cap = b->vertex_cap ? b->vertex_cap : 1024;
-        while (cap < b->vertex_count + vertices)
-            cap *= 2;
-        float *p = realloc(b->positions, sizeof(float) * 3 * (size_t)cap);
-        if (p)
-            b->positions = p;
-        float *n = p ? realloc(b->normals, sizeof(float) * 3 * (size_t)cap) : NULL;
-        if (n)
-            b->normals = n;
-        if (!p || !n) {
-            b->err = TW_ERR_NOMEM;
-            return false;
-        }
-        b->vertex_cap = cap;
-    }
-    if (b->triangle_count + triangles > b->triangle_cap) {
-        uint32_t cap = b->triangle_cap ? b->triangle_cap : 1024;
-        while (cap < b->triangle_count + triangles)
-            cap *= 2;
-        uint32_t *i = realloc(b->indices, sizeof(uint32_t) * 3 * (size_t)cap);
-        if (!i) {
-            b->err = TW_ERR_NOMEM;
-            return false;
-        }
-        b->indices = i;
-        b->triangle_cap = cap;
-    }
-    return true;
-}
-
 /* A triangle with its own vertices and its face normal, wound
  * counter-clockwise seen from the side facing points to (the renderer culls
  * back faces). Degenerate triangles are dropped. */
-static void emit_triangle(struct mesh_builder *b, const float p0[3], const float p1[3],
+static void emit_triangle(struct tw_mesh_builder *b, const float p0[3], const float p1[3],
                           const float p2[3], const float facing[3])
 {
     if (b->err)
@@ -159,7 +55,7 @@ static void emit_triangle(struct mesh_builder *b, const float p0[3], const float
     const float scale = (flip ? -1.0f : 1.0f) / len;
     for (int k = 0; k < 3; k++)
         n[k] *= scale;
-    if (!builder_reserve(b, 3, 1))
+    if (!tw_mesh_builder_reserve(b, 3, 1))
         return;
     const float *corners[3] = {p0, flip ? p2 : p1, flip ? p1 : p2};
     const uint32_t base = b->vertex_count;
@@ -173,7 +69,7 @@ static void emit_triangle(struct mesh_builder *b, const float p0[3], const float
 }
 
 /* A triangle of a star-shaped solid around inside: it faces away from it. */
-static void emit_outward(struct mesh_builder *b, const float p0[3], const float p1[3],
+static void emit_outward(struct tw_mesh_builder *b, const float p0[3], const float p1[3],
                          const float p2[3], const float inside[3])
 {
     float facing[3];
@@ -183,7 +79,7 @@ static void emit_outward(struct mesh_builder *b, const float p0[3], const float 
 }
 
 /* Both sides of a thin leaf. */
-static void emit_two_sided(struct mesh_builder *b, const float p0[3], const float p1[3],
+static void emit_two_sided(struct tw_mesh_builder *b, const float p0[3], const float p1[3],
                            const float p2[3])
 {
     const float e1[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
@@ -198,7 +94,7 @@ static void emit_two_sided(struct mesh_builder *b, const float p0[3], const floa
 /* A vertical frustum about (cx, cz) from radius r0 at y0 to r1 at y1 (r1 = 0:
  * a cone), sides faces, the ring turned by phase radians; a bottom cap
  * facing down when asked. */
-static void emit_frustum(struct mesh_builder *b, float cx, float cz, float y0, float y1, float r0,
+static void emit_frustum(struct tw_mesh_builder *b, float cx, float cz, float y0, float y1, float r0,
                          float r1, uint32_t sides, float phase, bool bottom_cap)
 {
     for (uint32_t k = 0; k < sides; k++) {
@@ -235,17 +131,17 @@ struct lumps {
     float freq[4], phase[4], amp[4];
 };
 
-static void lumps_init(struct lumps *l, struct rng *r, float amount)
+static void lumps_init(struct lumps *l, struct tw_rng *r, float amount)
 {
     for (int k = 0; k < 4; k++) {
-        const float y = rng_range(r, -1.0f, 1.0f), a = rng_range(r, 0.0f, tau);
+        const float y = tw_rng_range(r, -1.0f, 1.0f), a = tw_rng_range(r, 0.0f, tau);
         const float h = sqrtf(fmaxf(0.0f, 1.0f - y * y));
         l->axis[k][0] = h * cosf(a);
         l->axis[k][1] = y;
         l->axis[k][2] = h * sinf(a);
-        l->freq[k] = rng_range(r, 1.5f, 4.0f);
-        l->phase[k] = rng_range(r, 0.0f, tau);
-        l->amp[k] = amount * rng_range(r, 0.04f, 0.09f);
+        l->freq[k] = tw_rng_range(r, 1.5f, 4.0f);
+        l->phase[k] = tw_rng_range(r, 0.0f, tau);
+        l->amp[k] = amount * tw_rng_range(r, 0.04f, 0.09f);
     }
 }
 
@@ -276,7 +172,7 @@ static void blob_point(const float a[3], const float b[3], const float c[3], uin
 
 /* An icosahedron with every face split into n x n triangles, pushed onto a
  * lumpy ellipsoid and cut flat at floor_y: 20 n^2 triangles. */
-static void emit_blob(struct mesh_builder *b, const float centre[3], const float radius[3],
+static void emit_blob(struct tw_mesh_builder *b, const float centre[3], const float radius[3],
                       uint32_t n, const struct lumps *lumps, float floor_y)
 {
 #define PHI 1.6180339887f
@@ -311,16 +207,16 @@ static void emit_blob(struct mesh_builder *b, const float centre[3], const float
 }
 
 /* A fern: fronds arching out from (x, y, z), each a two-sided folded kite. */
-static void emit_fern(struct mesh_builder *b, struct rng *r, float x, float y, float z,
+static void emit_fern(struct tw_mesh_builder *b, struct tw_rng *r, float x, float y, float z,
                       float length)
 {
-    const uint32_t fronds = 5 + rng_below(r, 3);
-    const float turn = rng_range(r, 0.0f, tau);
+    const uint32_t fronds = 5 + tw_rng_below(r, 3);
+    const float turn = tw_rng_range(r, 0.0f, tau);
     for (uint32_t k = 0; k < fronds; k++) {
-        const float a = turn + tau * ((float)k + rng_range(r, -0.25f, 0.25f)) / (float)fronds;
-        const float len = length * rng_range(r, 0.75f, 1.1f);
+        const float a = turn + tau * ((float)k + tw_rng_range(r, -0.25f, 0.25f)) / (float)fronds;
+        const float len = length * tw_rng_range(r, 0.75f, 1.1f);
         const float dx = cosf(a), dz = sinf(a), width = 0.16f * len;
-        const float rise = rng_range(r, 0.45f, 0.65f) * len;
+        const float rise = tw_rng_range(r, 0.45f, 0.65f) * len;
         const float base[3] = {x + 0.05f * dx, y + 0.02f, z + 0.05f * dz};
         const float tip[3] = {x + len * dx, y + 0.2f * rise, z + len * dz};
         const float mid_l[3] = {x + 0.55f * len * dx - width * dz, y + rise,
@@ -438,14 +334,14 @@ struct tw_forest_stands {
     uint32_t bush_patch[PATCH_LEVELS], fern_patch[PATCH_LEVELS];
     float patch_size;
 
-    struct mesh_builder builder;
+    struct tw_mesh_builder builder;
     struct placed *placed;
     uint32_t placed_count, placed_cap;
 };
 
 static int add_mesh(struct tw_forest_stands *f, uint32_t *mesh)
 {
-    struct mesh_builder *b = &f->builder;
+    struct tw_mesh_builder *b = &f->builder;
     if (b->err)
         return b->err;
     if (b->triangle_count == 0)
@@ -459,7 +355,7 @@ static int add_mesh(struct tw_forest_stands *f, uint32_t *mesh)
 }
 
 /* Appends the profile of the builder's triangles to the model's. */
-static int append_profile(struct tree_model *m, const struct mesh_builder *b)
+static int append_profile(struct tree_model *m, const struct tw_mesh_builder *b)
 {
     struct profile_entry *p =
         realloc(m->profile, sizeof(*p) * (m->profile_count + b->triangle_count));
@@ -492,7 +388,7 @@ static float model_reach_below(const struct tree_model *m, float height, float s
 
 /* Conifer crowns: frusta stacked like skirts, each overlapping the one
  * below, radii shrinking to the top, a cone to finish. */
-static void emit_conifer_crown(struct mesh_builder *b, struct rng *r,
+static void emit_conifer_crown(struct tw_mesh_builder *b, struct tw_rng *r,
                                const struct model_recipe *mr)
 {
     const uint32_t layers = mr->layers;
@@ -503,15 +399,15 @@ static void emit_conifer_crown(struct mesh_builder *b, struct rng *r,
         const float t = (float)k / (float)layers;
         const float y0 = mr->crown_base + 0.55f * tall * (float)k;
         const float y1 = k + 1 == layers ? mr->height : y0 + tall;
-        const float r0 = mr->radius * (1.0f - 0.78f * t) * rng_range(r, 0.9f, 1.08f);
+        const float r0 = mr->radius * (1.0f - 0.78f * t) * tw_rng_range(r, 0.9f, 1.08f);
         const float r1 = k + 1 == layers ? 0.0f : 0.22f * r0;
-        emit_frustum(b, rng_range(r, -0.05f, 0.05f) * r0, rng_range(r, -0.05f, 0.05f) * r0, y0,
-                     y1, r0, r1, mr->sides, rng_range(r, 0.0f, tau), true);
+        emit_frustum(b, tw_rng_range(r, -0.05f, 0.05f) * r0, tw_rng_range(r, -0.05f, 0.05f) * r0, y0,
+                     y1, r0, r1, mr->sides, tw_rng_range(r, 0.0f, tau), true);
     }
 }
 
 /* A tapered trunk from the ground to top, closed at the top. */
-static void emit_trunk(struct mesh_builder *b, float radius, float top, uint32_t sides,
+static void emit_trunk(struct tw_mesh_builder *b, float radius, float top, uint32_t sides,
                        float phase)
 {
     emit_frustum(b, 0.0f, 0.0f, 0.0f, top, radius, 0.45f * radius, sides, phase, false);
@@ -529,7 +425,7 @@ static void emit_trunk(struct mesh_builder *b, float radius, float top, uint32_t
 
 /* Broadleaf, pine and birch crowns: a main lumpy blob and smaller ones
  * round it, with gaps between them. */
-static void emit_leafy_crown(struct mesh_builder *b, struct rng *r, const struct model_recipe *mr)
+static void emit_leafy_crown(struct tw_mesh_builder *b, struct tw_rng *r, const struct model_recipe *mr)
 {
     const float crown_h = mr->height - mr->crown_base;
     const float cy = mr->crown_base + 0.5f * crown_h;
@@ -540,17 +436,17 @@ static void emit_leafy_crown(struct mesh_builder *b, struct rng *r, const struct
     const float main_ry = fminf(0.5f * crown_h, main_r * squash);
     lumps_init(&l, r, 1.0f);
     const float centre[3] = {0.0f, cy + 0.05f * crown_h, 0.0f};
-    const float radius[3] = {main_r, main_ry, main_r * rng_range(r, 0.9f, 1.05f)};
+    const float radius[3] = {main_r, main_ry, main_r * tw_rng_range(r, 0.9f, 1.05f)};
     emit_blob(b, centre, radius, mr->sides, &l, -1e30f);
     /* Satellites round the main one, at random heights in the crown. */
     const uint32_t n = mr->layers;
-    const float turn = rng_range(r, 0.0f, tau);
+    const float turn = tw_rng_range(r, 0.0f, tau);
     for (uint32_t k = 0; k < n; k++) {
-        const float a = turn + tau * ((float)k + rng_range(r, -0.2f, 0.2f)) / (float)n;
-        const float sr = mr->radius * rng_range(r, 0.36f, 0.48f);
+        const float a = turn + tau * ((float)k + tw_rng_range(r, -0.2f, 0.2f)) / (float)n;
+        const float sr = mr->radius * tw_rng_range(r, 0.36f, 0.48f);
         const float sry = fminf(sr * squash, 0.35f * crown_h);
         const float out = mr->radius - sr;
-        const float sy = mr->crown_base + sry + rng_range(r, 0.0f, 1.0f) *
+        const float sy = mr->crown_base + sry + tw_rng_range(r, 0.0f, 1.0f) *
                          fmaxf(0.0f, crown_h - 2.0f * sry) * (mr->species == BIRCH ? 1.0f : 0.6f);
         lumps_init(&l, r, 1.0f);
         const float c[3] = {out * cosf(a), sy, out * sinf(a)};
@@ -560,11 +456,11 @@ static void emit_leafy_crown(struct mesh_builder *b, struct rng *r, const struct
 }
 
 /* Two short limbs from the trunk into the crown. */
-static void emit_limbs(struct mesh_builder *b, struct rng *r, const struct model_recipe *mr)
+static void emit_limbs(struct tw_mesh_builder *b, struct tw_rng *r, const struct model_recipe *mr)
 {
-    const float turn = rng_range(r, 0.0f, tau);
+    const float turn = tw_rng_range(r, 0.0f, tau);
     for (int k = 0; k < 2; k++) {
-        const float a = turn + (float)k * 0.5f * tau + rng_range(r, -0.4f, 0.4f);
+        const float a = turn + (float)k * 0.5f * tau + tw_rng_range(r, -0.4f, 0.4f);
         const float y0 = mr->crown_base * 0.85f;
         const float y1 = mr->crown_base + 0.35f * (mr->height - mr->crown_base);
         const float reach = 0.45f * mr->radius, rr = 0.45f * mr->trunk_radius;
@@ -595,15 +491,15 @@ static void emit_limbs(struct mesh_builder *b, struct rng *r, const struct model
 
 static int build_tree_models(struct tw_forest_stands *f, uint64_t seed)
 {
-    struct mesh_builder *b = &f->builder;
+    struct tw_mesh_builder *b = &f->builder;
     int err = TW_OK;
     for (uint32_t k = 0; k < MODEL_COUNT && !err; k++) {
         const struct model_recipe *mr = &model_recipes[k];
         struct tree_model *m = &f->models[k];
-        struct rng r = rng_seeded(seed, (int64_t)k, 0x74726565);
+        struct tw_rng r = tw_rng_seeded(seed, (int64_t)k, 0x74726565);
         m->trunk = no_mesh;
 
-        builder_reset(b);
+        tw_mesh_builder_reset(b, false);
         if (mr->species == SPRUCE || mr->species == FIR)
             emit_conifer_crown(b, &r, mr);
         else
@@ -613,20 +509,20 @@ static int build_tree_models(struct tw_forest_stands *f, uint64_t seed)
          * floating. Old ones have shed their lower branches. */
         const bool skirted = mr->species == SPRUCE && mr->crown_base < 1.0f;
         if (skirted)
-            emit_trunk(b, mr->trunk_radius, mr->crown_base + 0.4f, 5, rng_range(&r, 0.0f, tau));
+            emit_trunk(b, mr->trunk_radius, mr->crown_base + 0.4f, 5, tw_rng_range(&r, 0.0f, tau));
         if ((err = add_mesh(f, &m->canopy)) || (err = append_profile(m, b)))
             break;
         if (skirted)
             continue;
 
-        builder_reset(b);
+        tw_mesh_builder_reset(b, false);
         /* Up into the crown, where it ends unseen. */
         const float crown_h = mr->height - mr->crown_base;
         const float top = mr->species == FIR || mr->species == SPRUCE ? 0.55f * mr->height
                           : mr->species == BIRCH ? 0.85f * mr->height
                                                  : mr->crown_base + 0.45f * crown_h;
         emit_trunk(b, mr->trunk_radius, top, mr->species == BIRCH ? 5 : 6,
-                   rng_range(&r, 0.0f, tau));
+                   tw_rng_range(&r, 0.0f, tau));
         if (mr->species == BEECH)
             emit_limbs(b, &r, mr);
         if (!(err = add_mesh(f, &m->trunk)))
@@ -638,16 +534,16 @@ static int build_tree_models(struct tw_forest_stands *f, uint64_t seed)
 /* Rock shapes: lumpy, flattened blobs cut flat at the ground; unit size. */
 static int build_rocks(struct tw_forest_stands *f, uint64_t seed)
 {
-    struct mesh_builder *b = &f->builder;
+    struct tw_mesh_builder *b = &f->builder;
     int err = TW_OK;
     for (uint32_t k = 0; k < ROCK_SHAPES && !err; k++) {
-        struct rng r = rng_seeded(seed, (int64_t)k, 0x726f636b);
+        struct tw_rng r = tw_rng_seeded(seed, (int64_t)k, 0x726f636b);
         struct lumps l;
         lumps_init(&l, &r, 1.6f);
-        builder_reset(b);
-        const float ry = rng_range(&r, 0.55f, 0.8f);
+        tw_mesh_builder_reset(b, false);
+        const float ry = tw_rng_range(&r, 0.55f, 0.8f);
         const float centre[3] = {0.0f, 0.25f * ry, 0.0f};
-        const float radius[3] = {1.0f, ry, rng_range(&r, 0.7f, 1.0f)};
+        const float radius[3] = {1.0f, ry, tw_rng_range(&r, 0.7f, 1.0f)};
         emit_blob(b, centre, radius, k == ROCK_SHAPES - 1 ? 2 : 1, &l, 0.0f);
         err = add_mesh(f, &f->rock[k]);
         f->rock_reach[k] = 0.0f;
@@ -658,7 +554,7 @@ static int build_rocks(struct tw_forest_stands *f, uint64_t seed)
     }
     /* A fallen log along x, centred on the origin, lying on the ground. */
     if (!err) {
-        builder_reset(b);
+        tw_mesh_builder_reset(b, false);
         f->log_length = 7.0f;
         f->log_radius = 0.3f;
         const uint32_t sides = 6;
@@ -693,26 +589,26 @@ static int build_patches(struct tw_forest_stands *f, uint64_t seed)
 {
     static const uint32_t bushes[PATCH_LEVELS] = {4, 7, 11};
     static const uint32_t fern_clumps[PATCH_LEVELS] = {4, 6, 9};
-    struct mesh_builder *b = &f->builder;
+    struct tw_mesh_builder *b = &f->builder;
     const float half = 0.5f * f->patch_size;
     int err = TW_OK;
     for (uint32_t level = 0; level < PATCH_LEVELS && !err; level++) {
-        struct rng r = rng_seeded(seed, (int64_t)level, 0x62757368);
-        builder_reset(b);
+        struct tw_rng r = tw_rng_seeded(seed, (int64_t)level, 0x62757368);
+        tw_mesh_builder_reset(b, false);
         for (uint32_t k = 0; k < bushes[level]; k++) {
-            const float size = rng_range(&r, 0.45f, 1.1f);
-            const uint32_t blobs = 1 + rng_below(&r, 2);
+            const float size = tw_rng_range(&r, 0.45f, 1.1f);
+            const uint32_t blobs = 1 + tw_rng_below(&r, 2);
             /* amount 1: lumps within 1 +- 0.36. */
             /* Lumps reach 1.36 x a blob's radius, side blobs sit 0.6 x out. */
             const float room = half - patch_margin - 1.8f * size;
-            const float x = rng_range(&r, -room, room), z = rng_range(&r, -room, room);
+            const float x = tw_rng_range(&r, -room, room), z = tw_rng_range(&r, -room, room);
             for (uint32_t j = 0; j < blobs; j++) {
                 struct lumps l;
                 lumps_init(&l, &r, 1.0f);
-                const float s = j ? size * rng_range(&r, 0.5f, 0.75f) : size;
-                const float a = rng_range(&r, 0.0f, tau), d = j ? 0.6f * size : 0.0f;
+                const float s = j ? size * tw_rng_range(&r, 0.5f, 0.75f) : size;
+                const float a = tw_rng_range(&r, 0.0f, tau), d = j ? 0.6f * size : 0.0f;
                 const float centre[3] = {x + d * cosf(a), 0.45f * s, z + d * sinf(a)};
-                const float radius[3] = {s, 0.8f * s, s * rng_range(&r, 0.8f, 1.0f)};
+                const float radius[3] = {s, 0.8f * s, s * tw_rng_range(&r, 0.8f, 1.0f)};
                 emit_blob(b, centre, radius, 1, &l, 0.0f);
             }
         }
@@ -720,17 +616,17 @@ static int build_patches(struct tw_forest_stands *f, uint64_t seed)
         if (err)
             break;
 
-        r = rng_seeded(seed, (int64_t)level, 0x6665726e);
-        builder_reset(b);
+        r = tw_rng_seeded(seed, (int64_t)level, 0x6665726e);
+        tw_mesh_builder_reset(b, false);
         for (uint32_t k = 0; k < fern_clumps[level]; k++) {
-            const float length = rng_range(&r, 0.5f, 0.95f);
+            const float length = tw_rng_range(&r, 0.5f, 0.95f);
             /* A frond reaches 1.1 x length from its fern. */
             const float room = half - patch_margin - 1.15f * length;
-            const float x = rng_range(&r, -room, room), z = rng_range(&r, -room, room);
-            const uint32_t clump = 1 + rng_below(&r, 3);
+            const float x = tw_rng_range(&r, -room, room), z = tw_rng_range(&r, -room, room);
+            const uint32_t clump = 1 + tw_rng_below(&r, 3);
             for (uint32_t j = 0; j < clump; j++) {
-                const float ox = j ? rng_range(&r, -0.9f, 0.9f) : 0.0f;
-                const float oz = j ? rng_range(&r, -0.9f, 0.9f) : 0.0f;
+                const float ox = j ? tw_rng_range(&r, -0.9f, 0.9f) : 0.0f;
+                const float oz = j ? tw_rng_range(&r, -0.9f, 0.9f) : 0.0f;
                 emit_fern(b, &r, clampf(x + ox, -room, room), 0.0f, clampf(z + oz, -room, room),
                           length);
             }
@@ -853,12 +749,12 @@ static int add_turned(struct tw_forest_stands *f, uint32_t proto, uint32_t mesh,
     return k < 0 ? k : TW_OK;
 }
 
-static uint32_t pick_weighted(struct rng *r, const float *weights, uint32_t n)
+static uint32_t pick_weighted(struct tw_rng *r, const float *weights, uint32_t n)
 {
     float total = 0.0f;
     for (uint32_t k = 0; k < n; k++)
         total += weights[k];
-    float x = rng_float(r) * total;
+    float x = tw_rng_float(r) * total;
     for (uint32_t k = 0; k < n; k++) {
         if (x < weights[k])
             return k;
@@ -869,7 +765,7 @@ static uint32_t pick_weighted(struct rng *r, const float *weights, uint32_t n)
 
 /* The model of species: sizes in order, the largest with probability big,
  * the others evenly. */
-static uint32_t pick_model(struct rng *r, uint32_t species, float big)
+static uint32_t pick_model(struct tw_rng *r, uint32_t species, float big)
 {
     uint32_t first = 0, count = 0;
     for (uint32_t k = 0; k < MODEL_COUNT; k++) {
@@ -879,23 +775,23 @@ static uint32_t pick_model(struct rng *r, uint32_t species, float big)
             first = k;
         count++;
     }
-    if (count <= 1 || rng_chance(r, big))
+    if (count <= 1 || tw_rng_chance(r, big))
         return first + count - 1;
-    return first + rng_below(r, count - 1);
+    return first + tw_rng_below(r, count - 1);
 }
 
-static uint32_t canopy_material(const struct tw_forest_stands *f, struct rng *r, uint32_t species)
+static uint32_t canopy_material(const struct tw_forest_stands *f, struct tw_rng *r, uint32_t species)
 {
     switch (species) {
-    case SPRUCE: return f->mat[rng_chance(r, 0.5f) ? MAT_SPRUCE : MAT_SPRUCE_DARK];
+    case SPRUCE: return f->mat[tw_rng_chance(r, 0.5f) ? MAT_SPRUCE : MAT_SPRUCE_DARK];
     case FIR: return f->mat[MAT_FIR];
     case PINE: return f->mat[MAT_PINE];
-    case BEECH: return f->mat[rng_chance(r, 0.6f) ? MAT_BEECH : MAT_BEECH_LIGHT];
+    case BEECH: return f->mat[tw_rng_chance(r, 0.6f) ? MAT_BEECH : MAT_BEECH_LIGHT];
     default: return f->mat[MAT_BIRCH_LEAVES];
     }
 }
 
-static int place_rocks(struct tw_forest_stands *f, uint32_t proto, struct rng *r,
+static int place_rocks(struct tw_forest_stands *f, uint32_t proto, struct tw_rng *r,
                        const struct stand_recipe *sr, const struct tw_forest_area *area,
                        const float clearing[3], float scale)
 {
@@ -905,14 +801,14 @@ static int place_rocks(struct tw_forest_stands *f, uint32_t proto, struct rng *r
     for (uint32_t k = 0; k < total && !err; k++) {
         const bool outcrop = k < sr->outcrops;
         for (int attempt = 0; attempt < 60; attempt++) {
-            const uint32_t shape = outcrop ? ROCK_SHAPES - 1 : rng_below(r, ROCK_SHAPES);
-            const float size = outcrop ? rng_range(r, 3.0f, 4.6f)
-                                       : rng_range(r, 0.5f, 1.1f) * rng_range(r, 0.6f, 2.0f);
-            const float sy = size * rng_range(r, 0.85f, 1.15f);
+            const uint32_t shape = outcrop ? ROCK_SHAPES - 1 : tw_rng_below(r, ROCK_SHAPES);
+            const float size = outcrop ? tw_rng_range(r, 3.0f, 4.6f)
+                                       : tw_rng_range(r, 0.5f, 1.1f) * tw_rng_range(r, 0.6f, 2.0f);
+            const float sy = size * tw_rng_range(r, 0.85f, 1.15f);
             const float reach = f->rock_reach[shape] * size;
-            const float x = rng_range(r, area->rect[0], area->rect[2]);
-            const float z = rng_range(r, area->rect[1], area->rect[3]);
-            const float angle = rng_range(r, 0.0f, tau);
+            const float x = tw_rng_range(r, area->rect[0], area->rect[2]);
+            const float z = tw_rng_range(r, area->rect[1], area->rect[3]);
+            const float angle = tw_rng_range(r, 0.0f, tau);
             if (!fits(f, area, x, z, reach, reach))
                 continue;
             /* Outcrops stay out of the glade; boulders may lie in it. */
@@ -930,7 +826,7 @@ static int place_rocks(struct tw_forest_stands *f, uint32_t proto, struct rng *r
     return err;
 }
 
-static int place_logs(struct tw_forest_stands *f, uint32_t proto, struct rng *r,
+static int place_logs(struct tw_forest_stands *f, uint32_t proto, struct tw_rng *r,
                       const struct stand_recipe *sr, const struct tw_forest_area *area,
                       float scale)
 {
@@ -938,12 +834,12 @@ static int place_logs(struct tw_forest_stands *f, uint32_t proto, struct rng *r,
     int err = TW_OK;
     for (uint32_t k = 0; k < logs && !err; k++) {
         for (int attempt = 0; attempt < 60; attempt++) {
-            const float s = rng_range(r, 0.6f, 1.1f);
+            const float s = tw_rng_range(r, 0.6f, 1.1f);
             const float half = 0.5f * f->log_length * s, rad = f->log_radius * s;
             const float reach = sqrtf(half * half + rad * rad);
-            const float x = rng_range(r, area->rect[0], area->rect[2]);
-            const float z = rng_range(r, area->rect[1], area->rect[3]);
-            const float angle = rng_range(r, 0.0f, tau);
+            const float x = tw_rng_range(r, area->rect[0], area->rect[2]);
+            const float z = tw_rng_range(r, area->rect[1], area->rect[3]);
+            const float angle = tw_rng_range(r, 0.0f, tau);
             if (!fits(f, area, x, z, reach, reach))
                 continue;
             /* Three discs along the log keep it off trunks and rocks. */
@@ -965,7 +861,7 @@ static int place_logs(struct tw_forest_stands *f, uint32_t proto, struct rng *r,
     return err;
 }
 
-static int place_trees(struct tw_forest_stands *f, uint32_t proto, struct rng *r,
+static int place_trees(struct tw_forest_stands *f, uint32_t proto, struct tw_rng *r,
                        const struct stand_recipe *sr, const struct tw_forest_area *area,
                        const float clearing[3], float scale)
 {
@@ -976,11 +872,11 @@ static int place_trees(struct tw_forest_stands *f, uint32_t proto, struct rng *r
         const uint32_t species = pick_weighted(r, sr->mix, SPECIES_COUNT);
         const uint32_t model = pick_model(r, species, sr->big);
         const struct tree_model *m = &f->models[model];
-        const float sxz = rng_range(r, 0.85f, 1.15f);
-        const float sy = sxz * rng_range(r, 0.92f, 1.08f);
-        const float angle = rng_range(r, 0.0f, tau);
-        const float x = rng_range(r, area->rect[0], area->rect[2]);
-        const float z = rng_range(r, area->rect[1], area->rect[3]);
+        const float sxz = tw_rng_range(r, 0.85f, 1.15f);
+        const float sy = sxz * tw_rng_range(r, 0.92f, 1.08f);
+        const float angle = tw_rng_range(r, 0.0f, tau);
+        const float x = tw_rng_range(r, area->rect[0], area->rect[2]);
+        const float z = tw_rng_range(r, area->rect[1], area->rect[3]);
         const float reach = m->reach * sxz;
         /* A sapling or two may stand at the glade's edge, nothing inside. */
         if (in_clearing(clearing, x, z, -0.3f * clearing[2]) ||
@@ -1011,7 +907,7 @@ static int place_trees(struct tw_forest_stands *f, uint32_t proto, struct rng *r
 /* Undergrowth patches on a grid of patch_size squares centred in the area,
  * each a bush or fern patch in a quarter turn. A patch that the walking
  * band would cut is left out. */
-static int place_undergrowth(struct tw_forest_stands *f, uint32_t proto, struct rng *r,
+static int place_undergrowth(struct tw_forest_stands *f, uint32_t proto, struct tw_rng *r,
                              const struct stand_recipe *sr, const struct tw_forest_area *area,
                              const float clearing[3])
 {
@@ -1026,12 +922,12 @@ static int place_undergrowth(struct tw_forest_stands *f, uint32_t proto, struct 
     for (uint32_t j = 0; j < nz && !err; j++) {
         for (uint32_t i = 0; i < nx && !err; i++) {
             const float cx = x0 + p * ((float)i + 0.5f), cz = z0 + p * ((float)j + 0.5f);
-            const bool fern = rng_chance(r, sr->fern_share) || in_clearing(clearing, cx, cz, 0.0f);
-            int level = (int)sr->undergrowth + (int)rng_below(r, 3) - 1;
+            const bool fern = tw_rng_chance(r, sr->fern_share) || in_clearing(clearing, cx, cz, 0.0f);
+            int level = (int)sr->undergrowth + (int)tw_rng_below(r, 3) - 1;
             if (in_clearing(clearing, cx, cz, 0.0f))
                 level = PATCH_LEVELS - 1;
             level = level < 0 ? 0 : level >= PATCH_LEVELS ? PATCH_LEVELS - 1 : level;
-            const uint32_t k = rng_below(r, 4);
+            const uint32_t k = tw_rng_below(r, 4);
             if (area->band > 0.0f &&
                 border_distance(f, cx, cz) - 0.5f * p + patch_margin < area->band)
                 continue;
@@ -1056,7 +952,7 @@ int tw_forest_stands_add(struct tw_forest_stands *f, uint32_t proto,
         !(area->rect[3] > area->rect[1]) || !(area->band >= 0.0f))
         return TW_ERR_INVALID;
     const struct stand_recipe *sr = &stand_recipes[kind];
-    struct rng r = {stream};
+    struct tw_rng r = {stream};
     const float aw = area->rect[2] - area->rect[0], ad = area->rect[3] - area->rect[1];
     const float scale = aw * ad / 6400.0f;
     f->placed_count = 0;
@@ -1065,8 +961,8 @@ int tw_forest_stands_add(struct tw_forest_stands *f, uint32_t proto,
     if (sr->clearing > 0.0f) {
         const float side = fminf(aw, ad);
         clearing[2] = sr->clearing * side;
-        clearing[0] = area->rect[0] + 0.5f * aw + rng_range(&r, -0.08f, 0.08f) * side;
-        clearing[1] = area->rect[1] + 0.5f * ad + rng_range(&r, -0.08f, 0.08f) * side;
+        clearing[0] = area->rect[0] + 0.5f * aw + tw_rng_range(&r, -0.08f, 0.08f) * side;
+        clearing[1] = area->rect[1] + 0.5f * ad + tw_rng_range(&r, -0.08f, 0.08f) * side;
     }
     int err = place_rocks(f, proto, &r, sr, area, clearing, scale);
     if (!err)
@@ -1117,7 +1013,7 @@ void tw_forest_stands_destroy(struct tw_forest_stands *f)
         return;
     for (uint32_t k = 0; k < MODEL_COUNT; k++)
         free(f->models[k].profile);
-    builder_release(&f->builder);
+    tw_mesh_builder_release(&f->builder);
     free(f->placed);
     free(f);
 }
@@ -1129,9 +1025,9 @@ void tw_forest_stands_destroy(struct tw_forest_stands *f)
 static int build_ground(struct tw_forest_stands *f, float band, uint32_t *floor_mesh,
                         uint32_t *trail_mesh)
 {
-    struct mesh_builder *b = &f->builder;
+    struct tw_mesh_builder *b = &f->builder;
     const float w = f->ts->footprint[0], d = f->ts->footprint[1], up[3] = {0, 1, 0};
-    builder_reset(b);
+    tw_mesh_builder_reset(b, false);
     {
         const float p0[3] = {0, 0, 0}, p1[3] = {w, 0, 0}, p2[3] = {w, 0, d}, p3[3] = {0, 0, d};
         emit_triangle(b, p0, p1, p2, up);
@@ -1140,7 +1036,7 @@ static int build_ground(struct tw_forest_stands *f, float band, uint32_t *floor_
     int err = add_mesh(f, floor_mesh);
     if (err)
         return err;
-    builder_reset(b);
+    tw_mesh_builder_reset(b, false);
     const float y = 0.01f;
     const float strips[4][4] = {
         {0.0f, 0.0f, w - band, band}, {w - band, 0.0f, w, d - band},
