@@ -1061,6 +1061,175 @@ static void test_bind_place(void)
     tw_gltf_scene_destroy(s);
 }
 
+/* ---- base colours baked from textures ------------------------------------------- */
+
+struct warning_log {
+    char last[2048];
+    int warnings, errors;
+};
+
+static void capture_warnings(void *user, enum tw_log_level level, const char *msg)
+{
+    struct warning_log *w = user;
+    if (level == TW_LOG_WARN) {
+        w->warnings++;
+        snprintf(w->last, sizeof(w->last), "%s", msg);
+    } else if (level == TW_LOG_ERROR) {
+        w->errors++;
+    }
+}
+
+static uint64_t primitive_triangles_total(const struct tw_gltf_scene *s)
+{
+    uint64_t n = 0;
+    for (uint32_t k = 0; k < s->primitive_count; k++)
+        n += s->primitives[k].triangle_count;
+    return n;
+}
+
+/* Imports path with a warning log. */
+static int import_warned(const char *path, struct warning_log *w, struct tw_gltf_scene **s)
+{
+    memset(w, 0, sizeof(*w));
+    const struct tw_log log = {capture_warnings, w};
+    return tw_gltf_import(path, NULL, &log, s);
+}
+
+static void test_baked_colours(void)
+{
+    static const char *const pieces[] = {"building-small-a.glb", "building-garage.glb",
+                                         "road-straight.glb", "grass-trees.glb"};
+    char dir[64] = "/tmp/test-gltf-colours-XXXXXX";
+    CHECK(mkdtemp(dir) != NULL, "mkdtemp");
+    for (size_t p = 0; p < sizeof(pieces) / sizeof(pieces[0]); p++) {
+        char relative[128];
+        snprintf(relative, sizeof(relative), "tilesets/kenney-city/%s", pieces[p]);
+        char *path = join(source_root, relative);
+        struct warning_log w;
+        struct tw_gltf_scene *s = NULL;
+        int err = import_warned(path, &w, &s);
+        CHECK(err == 0 && w.warnings == 0, "%s: error %d, %d warnings (%s)", pieces[p], err,
+              w.warnings, w.last);
+        free(path);
+        if (err)
+            continue;
+        /* Materials that primitives use: several, distinct, not all white. */
+        uint32_t used = 0, coloured = 0;
+        bool distinct = true;
+        for (uint32_t m = 0; m < s->material_count; m++) {
+            bool is_used = false;
+            for (uint32_t k = 0; k < s->primitive_count; k++)
+                is_used |= s->primitives[k].material == m;
+            if (!is_used)
+                continue;
+            used++;
+            const float *c = s->materials[m].base_color;
+            coloured += c[0] < 0.9f || c[1] < 0.9f || c[2] < 0.9f;
+            for (uint32_t n = 0; n < m; n++)
+                if (memcmp(s->materials[n].base_color, c, sizeof(float) * 3) == 0)
+                    distinct = false;
+        }
+        CHECK(used > 1 && coloured > 1 && distinct && used <= 65,
+              "%s: %u materials used, %u coloured, distinct %d", pieces[p], used, coloured,
+              distinct);
+        CHECK(s->mesh_count == 1 && s->meshes[0].primitive_count == s->primitive_count,
+              "%s: one mesh holds every part", pieces[p]);
+        CHECK(primitive_triangles_total(s) == s->unique_triangles,
+              "%s: %llu triangles in the parts, %llu in the file", pieces[p],
+              (unsigned long long)primitive_triangles_total(s),
+              (unsigned long long)s->unique_triangles);
+        for (uint32_t k = 0; k < s->primitive_count; k++) {
+            const struct tw_gltf_primitive *q = &s->primitives[k];
+            bool in_range = q->triangle_count > 0 && q->vertex_count > 0;
+            for (uint64_t i = 0; i < 3ull * q->triangle_count; i++)
+                in_range &= q->indices[i] < q->vertex_count;
+            CHECK(in_range, "%s: primitive %u has indices out of range", pieces[p], k);
+        }
+        printf("  %-24s %u primitives, %u materials used\n", pieces[p], s->primitive_count,
+               used);
+
+        /* The same piece without its texture: a warning, the base colour, the
+         * same triangles. Then with a file that is not a PNG. */
+        char *copy = join(dir, pieces[p]);
+        char *from = join(source_root, relative);
+        copy_file(from, copy);
+        free(from);
+        struct tw_gltf_scene *plain = NULL;
+        err = import_warned(copy, &w, &plain);
+        CHECK(err == 0 && w.warnings == 1 && w.errors == 0 &&
+                  strstr(w.last, "Textures/colormap.png") && strstr(w.last, pieces[p]),
+              "%s without its texture: error %d, %d warnings: %s", pieces[p], err, w.warnings,
+              w.last);
+        if (!err) {
+            CHECK(plain->primitive_count == 1 && plain->material_count == 1 &&
+                      near(plain->materials[0].base_color[0], 1.0f) &&
+                      near(plain->materials[0].base_color[2], 1.0f),
+                  "%s without its texture: %u primitives, %u materials", pieces[p],
+                  plain->primitive_count, plain->material_count);
+            CHECK(plain->triangle_count == s->triangle_count &&
+                      primitive_triangles_total(plain) == primitive_triangles_total(s),
+                  "%s: the split changed the triangle total", pieces[p]);
+        }
+        tw_gltf_scene_destroy(plain);
+        free(copy);
+        tw_gltf_scene_destroy(s);
+    }
+
+    char *textures = join(dir, "Textures");
+    mkdir(textures, 0700);
+    char *fake = join(textures, "colormap.png");
+    write_text(fake, "not a PNG at all");
+    char *copy = join(dir, pieces[0]);
+    struct warning_log w;
+    struct tw_gltf_scene *s = NULL;
+    int err = import_warned(copy, &w, &s);
+    CHECK(err == 0 && w.warnings == 1 && strstr(w.last, "not a PNG") && s &&
+              s->primitive_count == 1,
+          "not a PNG: error %d, %d warnings: %s", err, w.warnings, w.last);
+    tw_gltf_scene_destroy(s);
+    /* A PNG cut short. */
+    char *real = join(source_root, "tilesets/kenney-city/Textures/colormap.png");
+    FILE *in = fopen(real, "rb"), *out = fopen(fake, "wb");
+    if (in && out) {
+        char buf[600];
+        const size_t n = fread(buf, 1, sizeof(buf), in);
+        fwrite(buf, 1, n, out);
+    }
+    if (in)
+        fclose(in);
+    if (out)
+        fclose(out);
+    s = NULL;
+    err = import_warned(copy, &w, &s);
+    CHECK(err == 0 && w.warnings == 1 && strstr(w.last, "cannot decode") && s &&
+              s->primitive_count == 1,
+          "truncated PNG: error %d, %d warnings: %s", err, w.warnings, w.last);
+    tw_gltf_scene_destroy(s);
+    /* A texture outside the folder is refused like a buffer would be. */
+    unlink(fake);
+    CHECK(symlink(real, fake) == 0, "symlink");
+    s = NULL;
+    err = import_warned(copy, &w, &s);
+    CHECK(err == 0 && w.warnings == 1 && s && s->primitive_count == 1,
+          "texture outside the folder: error %d, %d warnings: %s", err, w.warnings, w.last);
+    tw_gltf_scene_destroy(s);
+    free(real);
+    free(copy);
+    free(fake);
+    free(textures);
+    remove_tree(dir);
+
+    /* The forest's tree embeds its leaves (a bufferView PNG). */
+    char *tree = join(source_root, "tilesets/cesium-forest/tree_CC0.glb");
+    s = NULL;
+    err = import_warned(tree, &w, &s);
+    CHECK(err == 0 && w.warnings == 0 && s && s->primitive_count > 2 &&
+              primitive_triangles_total(s) == 2076,
+          "tree: error %d, %d warnings (%s)", err, w.warnings, w.last);
+    tw_gltf_scene_destroy(s);
+    free(tree);
+}
+
 /* ---- the shipped manifests -------------------------------------------------------- */
 
 static void test_shipped(const char *relative, uint32_t min_prototypes)
@@ -1111,6 +1280,7 @@ int main(int argc, char **argv)
     test_synthetic();
     test_out_of_memory();
     test_bind_place();
+    test_baked_colours();
     test_manifests();
     test_shipped("tilesets/kenney-city/kenney-city.json", 6);
     test_shipped("tilesets/cesium-forest/cesium-forest.json", 3);

@@ -43,6 +43,9 @@ struct holder {
     std::vector<tw_gltf_doc_buffer> buffers;
     std::vector<tw_gltf_doc_material> materials;
     std::vector<tw_gltf_doc_scene> scenes;
+    std::vector<tw_gltf_doc_texture> textures;
+    std::vector<tw_gltf_doc_sampler> samplers;
+    std::vector<tw_gltf_doc_image> images;
     std::vector<const char *> extensions_required;
 };
 
@@ -102,10 +105,16 @@ bool write_whole_file(std::string *err, const std::string &,
     return false;
 }
 
-// Images are never decoded: accept them unread.
-bool skip_image(tinygltf::Image *, const int, std::string *, std::string *, int, int,
-                const unsigned char *, int, void *)
+// Images are never decoded here. The bytes of a data: URI are kept as they
+// are (gltf.c decodes them); bufferView images are left in their view, whose
+// range tinygltf has not checked, so their bytes are not touched.
+bool keep_image(tinygltf::Image *image, const int, std::string *, std::string *, int, int,
+                const unsigned char *bytes, int size, void *)
 {
+    if (image->bufferView < 0 && bytes && size > 0) {
+        image->image.assign(bytes, bytes + size);
+        image->as_is = true;
+    }
     return true;
 }
 
@@ -222,7 +231,27 @@ void export_document(holder &h, tw_gltf_doc *out)
     for (const tinygltf::Material &mat : m.materials) {
         tw_gltf_doc_material d = {};
         d.base_color_count = copy_values(mat.pbrMetallicRoughness.baseColorFactor, d.base_color);
+        d.base_color_texture = mat.pbrMetallicRoughness.baseColorTexture.index;
+        d.base_color_texcoord = mat.pbrMetallicRoughness.baseColorTexture.texCoord;
         h.materials.push_back(d);
+    }
+
+    for (const tinygltf::Texture &t : m.textures)
+        h.textures.push_back(tw_gltf_doc_texture{t.sampler, t.source});
+
+    for (const tinygltf::Sampler &s : m.samplers)
+        h.samplers.push_back(tw_gltf_doc_sampler{s.wrapS, s.wrapT});
+
+    for (const tinygltf::Image &i : m.images) {
+        tw_gltf_doc_image d = {};
+        d.uri = i.uri.empty() ? nullptr : i.uri.c_str();
+        d.buffer_view = i.bufferView;
+        d.mime_type = i.mimeType.c_str();
+        if (i.as_is && !i.image.empty()) {
+            d.data = i.image.data();
+            d.size = i.image.size();
+        }
+        h.images.push_back(d);
     }
 
     for (const tinygltf::Scene &s : m.scenes)
@@ -250,6 +279,12 @@ void export_document(holder &h, tw_gltf_doc *out)
     out->material_count = count32(h.materials.size());
     out->scenes = h.scenes.data();
     out->scene_count = count32(h.scenes.size());
+    out->textures = h.textures.data();
+    out->texture_count = count32(h.textures.size());
+    out->samplers = h.samplers.data();
+    out->sampler_count = count32(h.samplers.size());
+    out->images = h.images.data();
+    out->image_count = count32(h.images.size());
 }
 
 int load(const uint8_t *data, size_t size, const tw_gltf_shim_io *io, tw_gltf_doc *out,
@@ -269,7 +304,7 @@ int load(const uint8_t *data, size_t size, const tw_gltf_shim_io *io, tw_gltf_do
 
     tinygltf::TinyGLTF loader;
     loader.SetFsCallbacks(fs);
-    loader.SetImageLoader(skip_image, nullptr);
+    loader.SetImageLoader(keep_image, nullptr);
 
     holder *h = new holder();
     std::string err, warn;

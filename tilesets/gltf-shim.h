@@ -89,6 +89,27 @@ struct tw_gltf_doc_buffer {
 struct tw_gltf_doc_material {
     double base_color[4];
     uint32_t base_color_count;      /* values given (4 when defaulted) */
+    int32_t base_color_texture;     /* pbrMetallicRoughness.baseColorTexture.index, or -1 */
+    int32_t base_color_texcoord;    /* its texCoord: n of TEXCOORD_n */
+};
+
+struct tw_gltf_doc_texture {
+    int32_t sampler;                /* or -1 */
+    int32_t source;                 /* an image, or -1 */
+};
+
+struct tw_gltf_doc_sampler {
+    int32_t wrap_s;                 /* GL enums; 10497 (REPEAT) when absent */
+    int32_t wrap_t;
+};
+
+/* An image: at most one of uri, buffer_view and data is given. */
+struct tw_gltf_doc_image {
+    const char *uri;                /* an external file as written (not URL-decoded), or NULL */
+    int32_t buffer_view;            /* or -1 */
+    const char *mime_type;          /* "" when absent */
+    const uint8_t *data;            /* the bytes of a data: URI (size bytes), or NULL */
+    uint64_t size;
 };
 
 struct tw_gltf_doc_scene {
@@ -117,6 +138,12 @@ struct tw_gltf_doc {
     uint32_t material_count;
     const struct tw_gltf_doc_scene *scenes;
     uint32_t scene_count;
+    const struct tw_gltf_doc_texture *textures;
+    uint32_t texture_count;
+    const struct tw_gltf_doc_sampler *samplers;
+    uint32_t sampler_count;
+    const struct tw_gltf_doc_image *images;
+    uint32_t image_count;
     void *internal;                 /* the shim's */
 };
 
@@ -132,7 +159,8 @@ struct tw_gltf_shim_io {
 
 /* Parses a .gltf (JSON) or .glb (binary, told by its magic) document held in
  * data[0, size). data is only read during the call. Images are neither read
- * nor decoded. On success returns 0 and fills *out, which the caller frees
+ * nor decoded: external ones keep their uri, data: URIs their bytes, and
+ * bufferView ones their view (unchecked). On success returns 0 and fills *out, which the caller frees
  * with tw_gltf_shim_free(). On failure returns a negative tw_error, leaves
  * *out zeroed and writes tinygltf's reason (one line) to msg. */
 int tw_gltf_shim_load(const uint8_t *data, size_t size, const struct tw_gltf_shim_io *io,

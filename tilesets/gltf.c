@@ -16,6 +16,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
+#include <png.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -99,6 +100,10 @@ struct importer {
     char msg[1024];                   /* the first error, "<element>: <reason>" */
     int io_error;                     /* set by the external-file reader */
     char io_msg[768];
+    const struct tw_log *log;         /* for warnings */
+    struct decoded_image *images;     /* per document image, decoded on first use */
+    struct material_texture *material_textures; /* per document material */
+    uint64_t decoded_bytes;           /* of images */
 };
 
 static int fail(struct importer *im, int err, const char *fmt, ...)
@@ -1022,6 +1027,695 @@ static void compose(const double a[12], const double b[12], double out[12])
     }
 }
 
+/* ---- base colour textures and vertex colours ------------------------------------ */
+
+/* The renderer draws one colour per instance: a primitive whose base colour
+ * varies (a baseColorTexture, COLOR_0) is split by colour into one primitive
+ * per distinct colour, each triangle taking the texel at its centroid's UV
+ * (nearest) times its mean vertex colour times the material's factor. A
+ * texture that cannot be used costs a warning, never the import. */
+
+#define MAX_SPLIT_COLOURS 64
+#define MAX_TEXTURE_PIXELS (16u << 20)
+#define MAX_DECODED_BYTES (256ull << 20)
+
+enum {
+    WRAP_REPEAT = 10497,
+    WRAP_CLAMP_TO_EDGE = 33071,
+    WRAP_MIRRORED_REPEAT = 33648,
+};
+
+struct decoded_image {
+    int state;                        /* 0 not tried, 1 decoded, -1 unusable (warned) */
+    uint32_t width, height;
+    uint8_t *rgba;
+};
+
+struct material_texture {
+    int state;                        /* 0 not resolved, 1 textured, -1 none */
+    const struct decoded_image *image;
+    int32_t wrap_s, wrap_t;
+    uint32_t texcoord;
+};
+
+static void warn(struct importer *im, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+
+static void warn(struct importer *im, const char *fmt, ...)
+{
+    char text[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(text, sizeof(text), fmt, ap);
+    va_end(ap);
+    tw_log_printf(im->log, TW_LOG_WARN, "%s: %s", im->name, text);
+}
+
+static int hex_value(char c)
+{
+    if (c >= '0' && c <= '9')
+        return c - '0';
+    if (c >= 'a' && c <= 'f')
+        return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F')
+        return c - 'A' + 10;
+    return -1;
+}
+
+/* uri with %XX escapes decoded (but %00, kept as is), malloc()ed. */
+static char *uri_decode(const char *uri)
+{
+    const size_t n = strlen(uri);
+    char *out = malloc(n + 1);
+    if (!out)
+        return NULL;
+    size_t o = 0;
+    for (size_t k = 0; k < n; k++) {
+        int hi, lo;
+        if (uri[k] == '%' && (hi = hex_value(uri[k + 1])) >= 0 &&
+            (lo = hex_value(uri[k + 2])) >= 0 && (hi | lo)) {
+            out[o++] = (char)(hi << 4 | lo);
+            k += 2;
+        } else {
+            out[o++] = uri[k];
+        }
+    }
+    out[o] = '\0';
+    return out;
+}
+
+static bool decode_png(struct importer *im, const char *what, const uint8_t *bytes, uint64_t size,
+                       struct decoded_image *out)
+{
+    static const uint8_t signature[8] = {137, 80, 78, 71, 13, 10, 26, 10};
+    if (size < 8 || memcmp(bytes, signature, 8) != 0) {
+        warn(im, "%s: is not a PNG image; its materials keep their base colour factor", what);
+        return false;
+    }
+    png_image png;
+    memset(&png, 0, sizeof(png));
+    png.version = PNG_IMAGE_VERSION;
+    if (!png_image_begin_read_from_memory(&png, bytes, (size_t)size)) {
+        warn(im, "%s: cannot decode the PNG (%s); its materials keep their base colour factor",
+             what, png.message);
+        png_image_free(&png);
+        return false;
+    }
+    const uint64_t pixels = (uint64_t)png.width * png.height;
+    if (pixels == 0 || pixels > MAX_TEXTURE_PIXELS ||
+        im->decoded_bytes + 4 * pixels > MAX_DECODED_BYTES) {
+        warn(im, "%s: a %u x %u PNG is beyond the limit of %u pixels (%llu MiB decoded per "
+                 "import); its materials keep their base colour factor",
+             what, png.width, png.height, MAX_TEXTURE_PIXELS, MAX_DECODED_BYTES >> 20);
+        png_image_free(&png);
+        return false;
+    }
+    png.format = PNG_FORMAT_RGBA;
+    uint8_t *rgba = malloc((size_t)(4 * pixels));
+    if (!rgba) {
+        warn(im, "%s: out of memory decoding the PNG; its materials keep their base colour "
+                 "factor",
+             what);
+        png_image_free(&png);
+        return false;
+    }
+    if (!png_image_finish_read(&png, NULL, rgba, 0, NULL)) {
+        warn(im, "%s: cannot decode the PNG (%s); its materials keep their base colour factor",
+             what, png.message);
+        png_image_free(&png);
+        free(rgba);
+        return false;
+    }
+    png_image_free(&png);
+    out->width = png.width;
+    out->height = png.height;
+    out->rgba = rgba;
+    im->decoded_bytes += 4 * pixels;
+    return true;
+}
+
+/* Image index decoded once per import; NULL (warned once) if unusable. */
+static const struct decoded_image *load_image(struct importer *im, uint32_t index)
+{
+    struct decoded_image *di = &im->images[index];
+    if (di->state)
+        return di->state > 0 ? di : NULL;
+    di->state = -1;
+    const struct tw_gltf_doc *d = im->doc;
+    const struct tw_gltf_doc_image *img = &d->images[index];
+    char what[320];
+    bool ok = false;
+    if (img->uri) {
+        snprintf(what, sizeof(what), "images[%u] \"%.200s\"", index, img->uri);
+        if (!im->base_dir) {
+            warn(im, "%s: external files are not allowed here; its materials keep their base "
+                     "colour factor",
+                 what);
+            return NULL;
+        }
+        char *rel = uri_decode(img->uri), *resolved = NULL;
+        const char *reason = "cannot be read: out of memory";
+        if (!rel || tw_confined_path_resolve(im->base_dir, rel, &resolved, &reason)) {
+            warn(im, "%s %s; its materials keep their base colour factor", what, reason);
+            free(rel);
+            return NULL;
+        }
+        free(rel);
+        uint8_t *bytes = NULL;
+        size_t size = 0;
+        char why[512];
+        const int err = read_file(resolved, im->settings.max_file_bytes - im->bytes_read, &bytes,
+                                  &size, why, sizeof(why));
+        free(resolved);
+        if (err) {
+            warn(im, "%s %s; its materials keep their base colour factor", what, why);
+            return NULL;
+        }
+        im->bytes_read += size;
+        ok = decode_png(im, what, bytes, size, di);
+        free(bytes);
+    } else if (img->buffer_view >= 0) {
+        snprintf(what, sizeof(what), "images[%u] (bufferViews[%d])", index, img->buffer_view);
+        if ((uint32_t)img->buffer_view >= d->buffer_view_count) {
+            warn(im, "%s: not a buffer view (%u); its materials keep their base colour factor",
+                 what, d->buffer_view_count);
+            return NULL;
+        }
+        /* Checked against its buffer by check_buffer_views(). */
+        const struct tw_gltf_doc_buffer_view *v = &d->buffer_views[img->buffer_view];
+        const uint8_t *bytes = d->buffers[v->buffer].data;
+        ok = decode_png(im, what, bytes ? bytes + v->byte_offset : bytes,
+                        bytes ? v->byte_length : 0, di);
+    } else if (img->data) {
+        snprintf(what, sizeof(what), "images[%u] (a data: URI)", index);
+        ok = decode_png(im, what, img->data, img->size, di);
+    } else {
+        warn(im, "images[%u]: has no data; its materials keep their base colour factor", index);
+    }
+    if (ok)
+        di->state = 1;
+    return ok ? di : NULL;
+}
+
+/* The usable baseColorTexture of material index, resolved (and warned about)
+ * once per import; NULL if none. */
+static const struct material_texture *material_texture(struct importer *im, uint32_t index)
+{
+    struct material_texture *mt = &im->material_textures[index];
+    if (mt->state)
+        return mt->state > 0 ? mt : NULL;
+    mt->state = -1;
+    const struct tw_gltf_doc *d = im->doc;
+    const struct tw_gltf_doc_material *mat = &d->materials[index];
+    const int32_t t = mat->base_color_texture;
+    if (t < 0)
+        return NULL;
+    if ((uint32_t)t >= d->texture_count) {
+        warn(im, "materials[%u].pbrMetallicRoughness.baseColorTexture: %d is not a texture "
+                 "(%u); using the base colour factor",
+             index, t, d->texture_count);
+        return NULL;
+    }
+    if (mat->base_color_texcoord < 0 || mat->base_color_texcoord > 99) {
+        warn(im, "materials[%u].pbrMetallicRoughness.baseColorTexture.texCoord: %d is not "
+                 "valid; using the base colour factor",
+             index, mat->base_color_texcoord);
+        return NULL;
+    }
+    const struct tw_gltf_doc_texture *tex = &d->textures[t];
+    if (tex->source < 0 || (uint32_t)tex->source >= d->image_count) {
+        warn(im, "textures[%d].source: %d is not an image (%u); using the base colour factor", t,
+             tex->source, d->image_count);
+        return NULL;
+    }
+    mt->image = load_image(im, (uint32_t)tex->source);
+    if (!mt->image)
+        return NULL;
+    mt->wrap_s = mt->wrap_t = WRAP_REPEAT;
+    if (tex->sampler >= 0 && (uint32_t)tex->sampler < d->sampler_count) {
+        mt->wrap_s = d->samplers[tex->sampler].wrap_s;
+        mt->wrap_t = d->samplers[tex->sampler].wrap_t;
+    }
+    mt->texcoord = (uint32_t)mat->base_color_texcoord;
+    mt->state = 1;
+    return mt;
+}
+
+static float load_component(const uint8_t *p, int32_t comp)
+{
+    switch (comp) {
+    case COMP_FLOAT:
+        return load_float(p);
+    case COMP_UNSIGNED_BYTE:
+        return (float)p[0] / 255.0f;
+    case COMP_UNSIGNED_SHORT:
+        return (float)load_uint(p, comp) / 65535.0f;
+    case COMP_BYTE:
+        return fmaxf((float)((int)p[0] - (p[0] > 127 ? 256 : 0)) / 127.0f, -1.0f);
+    case COMP_SHORT: {
+        const int32_t v = (int32_t)load_uint(p, COMP_UNSIGNED_SHORT);
+        return fmaxf((float)(v - (v > 32767 ? 65536 : 0)) / 32767.0f, -1.0f);
+    }
+    default:
+        return 0.0f;
+    }
+}
+
+static void copy_normalized(void *out, uint32_t target, const uint8_t *src, int32_t comp,
+                            uint32_t n)
+{
+    float *f = (float *)out + (size_t)target * n;
+    for (uint32_t c = 0; c < n; c++)
+        f[c] = load_component(src + component_size(comp) * c, comp);
+}
+
+/* Reads the first n components of a checked accessor as floats (integers
+ * normalised) into out (count * n). */
+static int read_normalized(struct importer *im, uint32_t index, uint32_t n, float *out)
+{
+    const struct tw_gltf_doc_accessor *a = &im->doc->accessors[index];
+    uint64_t stride;
+    const uint8_t *base = accessor_base(im->doc, a, &stride);
+    const uint32_t cs = component_size(a->component_type);
+    for (uint64_t k = 0; k < a->count; k++)
+        for (uint32_t c = 0; c < n; c++)
+            out[k * n + c] =
+                base ? load_component(base + k * stride + cs * c, a->component_type) : 0.0f;
+    return apply_sparse(im, index, copy_normalized, out, n);
+}
+
+/* The accessor of attribute name if it is usable as texture coordinates
+ * (want 2) or colours (want 3: VEC3 or VEC4) of nv vertices, else -1
+ * (warned if present). */
+static int32_t colour_attribute(struct importer *im, uint32_t m, uint32_t k, const char *name,
+                                uint32_t want, uint32_t nv)
+{
+    const struct tw_gltf_doc_primitive *p = &im->doc->meshes[m].primitives[k];
+    const int32_t acc = find_attribute(p, name);
+    if (acc < 0)
+        return -1;
+    const struct tw_gltf_doc_accessor *a = &im->doc->accessors[acc];
+    const bool type_ok = want == 2 ? a->type == TYPE_VEC2
+                                   : (a->type == TYPE_VEC3 || a->type == TYPE_VEC4);
+    const bool comp_ok = a->component_type == COMP_FLOAT ||
+                         ((a->component_type == COMP_UNSIGNED_BYTE ||
+                           a->component_type == COMP_UNSIGNED_SHORT) &&
+                          a->normalized);
+    if (!type_ok || !comp_ok || a->count != nv) {
+        warn(im, "meshes[%u].primitives[%u].attributes.%s: accessors[%d] is not %u %s of FLOAT "
+                 "or normalized UNSIGNED_BYTE/SHORT; ignored",
+             m, k, name, acc, nv, want == 2 ? "VEC2" : "VEC3/VEC4");
+        return -1;
+    }
+    return acc;
+}
+
+static uint32_t wrap_texel(float coord, int32_t mode, uint32_t size)
+{
+    double c = isfinite(coord) ? coord : 0.0;
+    switch (mode) {
+    case WRAP_CLAMP_TO_EDGE:
+        c = fmin(fmax(c, 0.0), 1.0);
+        break;
+    case WRAP_MIRRORED_REPEAT:
+        c -= 2.0 * floor(c / 2.0);
+        if (c > 1.0)
+            c = 2.0 - c;
+        break;
+    default:
+        c -= floor(c);
+        break;
+    }
+    const double t = floor(c * size);
+    return t <= 0.0 ? 0 : t >= size - 1 ? size - 1 : (uint32_t)t;
+}
+
+/* Materials made of baked colours, shared by every primitive of the scene:
+ * an open-addressing table from RGBA8 to material index. */
+struct palette {
+    uint32_t *keys;
+    uint32_t *materials;              /* UINT32_MAX: empty slot */
+    uint32_t size;                    /* a power of two */
+    uint32_t count;
+    uint32_t material_capacity;       /* of sc->materials */
+    uint32_t primitive_capacity;      /* of sc->primitives */
+};
+
+static void palette_finish(struct palette *pal)
+{
+    free(pal->keys);
+    free(pal->materials);
+}
+
+static uint32_t palette_hash(uint32_t key)
+{
+    key ^= key >> 16;
+    key *= 0x7feb352du;
+    key ^= key >> 15;
+    key *= 0x846ca68bu;
+    return key ^ key >> 16;
+}
+
+/* The material of colour rgba (0..1), added to sc if new. */
+static int palette_material(struct palette *pal, struct tw_gltf_scene *sc, const float rgba[4],
+                            uint32_t *out)
+{
+    uint8_t q[4];
+    for (int c = 0; c < 4; c++)
+        q[c] = (uint8_t)lrintf(fminf(fmaxf(rgba[c], 0.0f), 1.0f) * 255.0f);
+    const uint32_t key = (uint32_t)q[0] << 24 | (uint32_t)q[1] << 16 | (uint32_t)q[2] << 8 | q[3];
+    if (2 * (pal->count + 1) > pal->size) {
+        const uint32_t size = pal->size ? 2 * pal->size : 64;
+        uint32_t *keys = malloc(sizeof(*keys) * size), *materials = malloc(sizeof(*materials) * size);
+        if (!keys || !materials) {
+            free(keys);
+            free(materials);
+            return TW_ERR_NOMEM;
+        }
+        for (uint32_t s = 0; s < size; s++)
+            materials[s] = UINT32_MAX;
+        for (uint32_t s = 0; s < pal->size; s++) {
+            if (pal->materials[s] == UINT32_MAX)
+                continue;
+            uint32_t h = palette_hash(pal->keys[s]) & (size - 1);
+            while (materials[h] != UINT32_MAX)
+                h = (h + 1) & (size - 1);
+            keys[h] = pal->keys[s];
+            materials[h] = pal->materials[s];
+        }
+        palette_finish(pal);
+        pal->keys = keys;
+        pal->materials = materials;
+        pal->size = size;
+    }
+    uint32_t h = palette_hash(key) & (pal->size - 1);
+    while (pal->materials[h] != UINT32_MAX) {
+        if (pal->keys[h] == key) {
+            *out = pal->materials[h];
+            return TW_OK;
+        }
+        h = (h + 1) & (pal->size - 1);
+    }
+    if (sc->material_count == pal->material_capacity) {
+        if (pal->material_capacity > UINT32_MAX / 2)
+            return TW_ERR_LIMIT;
+        const uint32_t capacity = 2 * pal->material_capacity;
+        struct tw_material *grown = realloc(sc->materials, sizeof(*grown) * capacity);
+        if (!grown)
+            return TW_ERR_NOMEM;
+        sc->materials = grown;
+        pal->material_capacity = capacity;
+    }
+    struct tw_material *mat = &sc->materials[sc->material_count];
+    memset(mat, 0, sizeof(*mat));
+    for (int c = 0; c < 4; c++)
+        mat->base_color[c] = (float)q[c] / 255.0f;
+    pal->keys[h] = key;
+    pal->materials[h] = sc->material_count;
+    pal->count++;
+    *out = sc->material_count++;
+    return TW_OK;
+}
+
+/* Appends prim (taking its arrays) to sc as the next primitive of gm. On
+ * failure prim's arrays are freed. */
+static int append_primitive(struct palette *pal, struct tw_gltf_scene *sc, struct tw_gltf_mesh *gm,
+                            struct tw_gltf_primitive *prim)
+{
+    if (sc->primitive_count == pal->primitive_capacity) {
+        const uint32_t capacity = pal->primitive_capacity > UINT32_MAX / 2
+                                      ? UINT32_MAX
+                                      : 2 * pal->primitive_capacity + 1;
+        struct tw_gltf_primitive *grown =
+            capacity > sc->primitive_count
+                ? realloc(sc->primitives, sizeof(*grown) * (size_t)capacity)
+                : NULL;
+        if (!grown) {
+            free(prim->positions);
+            free(prim->normals);
+            free(prim->indices);
+            memset(prim, 0, sizeof(*prim));
+            return TW_ERR_NOMEM;
+        }
+        sc->primitives = grown;
+        pal->primitive_capacity = capacity;
+    }
+    sc->primitives[sc->primitive_count++] = *prim;
+    sc->vertex_count += prim->vertex_count;
+    gm->primitive_count++;
+    memset(prim, 0, sizeof(*prim));
+    return TW_OK;
+}
+
+/* The triangles of whole listed in order[0, count) as a primitive of their
+ * own, with only the vertices they use (remap: nv entries of UINT32_MAX,
+ * left so). */
+static int extract_triangles(const struct tw_gltf_primitive *whole, const uint32_t *order,
+                             uint32_t count, uint32_t *remap, struct tw_gltf_primitive *out)
+{
+    memset(out, 0, sizeof(*out));
+    out->indices = malloc(sizeof(uint32_t) * 3 * (size_t)count);
+    if (!out->indices)
+        return TW_ERR_NOMEM;
+    uint32_t nv = 0;
+    for (uint32_t t = 0; t < count; t++) {
+        for (int c = 0; c < 3; c++) {
+            const uint32_t v = whole->indices[3 * (size_t)order[t] + c];
+            if (remap[v] == UINT32_MAX)
+                remap[v] = nv++;
+            out->indices[3 * (size_t)t + c] = remap[v];
+        }
+    }
+    out->positions = malloc(sizeof(float) * 3 * (size_t)nv);
+    out->normals = whole->normals ? malloc(sizeof(float) * 3 * (size_t)nv) : NULL;
+    const bool ok = out->positions && (out->normals || !whole->normals);
+    out->box = tw_box_empty();
+    for (uint32_t t = 0; t < count; t++) {
+        for (int c = 0; c < 3; c++) {
+            const uint32_t v = whole->indices[3 * (size_t)order[t] + c];
+            if (remap[v] == UINT32_MAX)
+                continue;
+            if (ok) {
+                const uint32_t w = remap[v];
+                memcpy(out->positions + 3 * (size_t)w, whole->positions + 3 * (size_t)v,
+                       3 * sizeof(float));
+                if (whole->normals)
+                    memcpy(out->normals + 3 * (size_t)w, whole->normals + 3 * (size_t)v,
+                           3 * sizeof(float));
+                tw_box_add_point(&out->box, whole->positions + 3 * (size_t)v);
+            }
+            remap[v] = UINT32_MAX;
+        }
+    }
+    out->vertex_count = nv;
+    out->triangle_count = count;
+    out->material = whole->material;
+    if (!ok) {
+        free(out->positions);
+        free(out->normals);
+        free(out->indices);
+        memset(out, 0, sizeof(*out));
+        return TW_ERR_NOMEM;
+    }
+    return TW_OK;
+}
+
+static float triangle_area(const float *positions, const uint32_t *ix)
+{
+    const float *a = positions + 3 * (size_t)ix[0], *b = positions + 3 * (size_t)ix[1],
+                *c = positions + 3 * (size_t)ix[2];
+    const float u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    const float v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const float x = u[1] * v[2] - u[2] * v[1], y = u[2] * v[0] - u[0] * v[2],
+                z = u[0] * v[1] - u[1] * v[0];
+    const float area = 0.5f * sqrtf(x * x + y * y + z * z);
+    return isfinite(area) ? area : 0.0f;
+}
+
+/* Appends the converted primitive k of mesh m to sc, split by colour when
+ * its material has a usable baseColorTexture or it has COLOR_0. Takes
+ * prim's arrays in every case. */
+static int add_primitive(struct importer *im, uint32_t m, uint32_t k, struct palette *pal,
+                         struct tw_gltf_scene *sc, struct tw_gltf_mesh *gm,
+                         struct tw_gltf_primitive *prim)
+{
+    const struct tw_gltf_doc *d = im->doc;
+    const uint32_t material = prim->material; /* the file's, or grey */
+    const struct material_texture *tex =
+        material < d->material_count ? material_texture(im, material) : NULL;
+    const uint32_t nv = prim->vertex_count, tris = prim->triangle_count;
+    int32_t uv_acc = -1;
+    if (tex) {
+        char name[32];
+        snprintf(name, sizeof(name), "TEXCOORD_%u", tex->texcoord);
+        uv_acc = colour_attribute(im, m, k, name, 2, nv);
+        if (uv_acc < 0 && find_attribute(&d->meshes[m].primitives[k], name) < 0)
+            warn(im, "meshes[%u].primitives[%u]: materials[%u] has a baseColorTexture but the "
+                     "primitive has no %s; using the base colour factor",
+                 m, k, material, name);
+    }
+    const int32_t colour_acc = colour_attribute(im, m, k, "COLOR_0", 3, nv);
+    if (uv_acc < 0 && colour_acc < 0)
+        return append_primitive(pal, sc, gm, prim);
+
+    int err = TW_OK;
+    float *uv = NULL, *vcol = NULL, *tri_colour = NULL;
+    uint32_t *order = NULL, *remap = NULL;
+    uint8_t *slot = NULL;
+    uint32_t colour_count = 0, first[MAX_SPLIT_COLOURS + 2], materials[MAX_SPLIT_COLOURS + 1];
+    uint32_t keys[MAX_SPLIT_COLOURS + 1];
+    if (uv_acc >= 0 && !(uv = malloc(sizeof(float) * 2 * (size_t)nv)))
+        goto nomem;
+    if (colour_acc >= 0 && !(vcol = malloc(sizeof(float) * 4 * (size_t)nv)))
+        goto nomem;
+    tri_colour = malloc(sizeof(float) * 3 * (size_t)tris);
+    slot = malloc(tris);
+    if (!tri_colour || !slot)
+        goto nomem;
+    if (uv && (err = read_normalized(im, (uint32_t)uv_acc, 2, uv)))
+        goto out;
+    if (vcol) {
+        const bool rgba = d->accessors[colour_acc].type == TYPE_VEC4;
+        if ((err = read_normalized(im, (uint32_t)colour_acc, rgba ? 4 : 3, vcol)))
+            goto out;
+        if (!rgba) /* spread VEC3 to four floats, back to front */
+            for (uint32_t v = nv; v-- > 0;) {
+                for (int c = 2; c >= 0; c--)
+                    vcol[4 * (size_t)v + c] = vcol[3 * (size_t)v + c];
+                vcol[4 * (size_t)v + 3] = 1.0f;
+            }
+    }
+
+    /* A copy: palette_material() may move sc->materials. */
+    float factor[4];
+    memcpy(factor, sc->materials[material].base_color, sizeof(factor));
+    for (uint32_t t = 0; t < tris; t++) {
+        const uint32_t *ix = prim->indices + 3 * (size_t)t;
+        float c[3] = {factor[0], factor[1], factor[2]};
+        if (uv) {
+            float u = 0.0f, v = 0.0f;
+            for (int e = 0; e < 3; e++) {
+                u += uv[2 * (size_t)ix[e]] / 3.0f;
+                v += uv[2 * (size_t)ix[e] + 1] / 3.0f;
+            }
+            const struct decoded_image *img = tex->image;
+            const uint32_t x = wrap_texel(u, tex->wrap_s, img->width);
+            const uint32_t y = wrap_texel(v, tex->wrap_t, img->height);
+            const uint8_t *texel = img->rgba + 4 * ((size_t)y * img->width + x);
+            for (int e = 0; e < 3; e++)
+                c[e] *= (float)texel[e] / 255.0f;
+        }
+        if (vcol) {
+            for (int e = 0; e < 3; e++) {
+                const float mean = (vcol[4 * (size_t)ix[0] + e] + vcol[4 * (size_t)ix[1] + e] +
+                                    vcol[4 * (size_t)ix[2] + e]) / 3.0f;
+                c[e] *= isfinite(mean) ? fminf(fmaxf(mean, 0.0f), 1.0f) : 1.0f;
+            }
+        }
+        for (int e = 0; e < 3; e++)
+            tri_colour[3 * (size_t)t + e] = fminf(fmaxf(c[e], 0.0f), 1.0f);
+    }
+
+    /* Group by 8-bit colour. Palettes with gradients (Kenney's kits) give
+     * more colours than draws are worth: coarsen to 7, 6, ... 4 bits per
+     * channel before giving up; a group's colour is its area-weighted mean. */
+    for (int bits = 8; bits >= 4; bits--) {
+        colour_count = 0;
+        for (uint32_t t = 0; t < tris && colour_count <= MAX_SPLIT_COLOURS; t++) {
+            uint32_t key = 0;
+            for (int e = 0; e < 3; e++)
+                key = key << 8 |
+                      (uint32_t)lrintf(tri_colour[3 * (size_t)t + e] * 255.0f) >> (8 - bits);
+            uint32_t s = 0;
+            while (s < colour_count && keys[s] != key)
+                s++;
+            if (s == colour_count)
+                keys[colour_count++] = key;
+            slot[t] = (uint8_t)s;
+        }
+        if (colour_count <= MAX_SPLIT_COLOURS)
+            break;
+    }
+    if (colour_count > MAX_SPLIT_COLOURS) {
+        /* Too many colours for one draw each: one mean colour. */
+        colour_count = 1;
+        memset(slot, 0, tris);
+    }
+    {
+        double sum[MAX_SPLIT_COLOURS + 1][4];
+        memset(sum, 0, sizeof(sum));
+        for (uint32_t t = 0; t < tris; t++) {
+            double area = triangle_area(prim->positions, prim->indices + 3 * (size_t)t);
+            if (!(area > 0.0))
+                area = 1e-30;
+            for (int e = 0; e < 3; e++)
+                sum[slot[t]][e] += area * tri_colour[3 * (size_t)t + e];
+            sum[slot[t]][3] += area;
+        }
+        for (uint32_t s = 0; s < colour_count; s++) {
+            const float rgba[4] = {(float)(sum[s][0] / sum[s][3]), (float)(sum[s][1] / sum[s][3]),
+                                   (float)(sum[s][2] / sum[s][3]), factor[3]};
+            if ((err = palette_material(pal, sc, rgba, &materials[s])))
+                goto out;
+        }
+    }
+    if (colour_count == 1) {
+        prim->material = materials[0];
+        err = append_primitive(pal, sc, gm, prim);
+        goto out;
+    }
+    /* Triangles grouped by colour, in their order within each group. */
+    order = malloc(sizeof(uint32_t) * (size_t)tris);
+    remap = malloc(sizeof(uint32_t) * (size_t)nv);
+    if (!order || !remap)
+        goto nomem;
+    for (uint32_t v = 0; v < nv; v++)
+        remap[v] = UINT32_MAX;
+    memset(first, 0, sizeof(first));
+    for (uint32_t t = 0; t < tris; t++)
+        first[slot[t] + 1]++;
+    for (uint32_t s = 1; s <= colour_count; s++)
+        first[s] += first[s - 1];
+    {
+        uint32_t next[MAX_SPLIT_COLOURS + 2];
+        memcpy(next, first, sizeof(next));
+        for (uint32_t t = 0; t < tris; t++)
+            order[next[slot[t]]++] = t;
+    }
+    for (uint32_t s = 0; s < colour_count; s++) {
+        const uint32_t end = first[s + 1];
+        struct tw_gltf_primitive part;
+        if ((err = extract_triangles(prim, order + first[s], end - first[s], remap, &part)))
+            goto out;
+        part.material = materials[s];
+        if ((err = append_primitive(pal, sc, gm, &part)))
+            goto out;
+    }
+    goto out;
+nomem:
+    err = TW_ERR_NOMEM;
+out:
+    if (err == TW_ERR_NOMEM)
+        fail(im, err, "meshes[%u].primitives[%u]: out of memory splitting by colour", m, k);
+    else if (err == TW_ERR_LIMIT)
+        fail(im, err, "materials: more than 2^31 colours");
+    /* prim's arrays, unless append_primitive() took them. */
+    free(prim->positions);
+    free(prim->normals);
+    free(prim->indices);
+    memset(prim, 0, sizeof(*prim));
+    free(uv);
+    free(vcol);
+    free(tri_colour);
+    free(order);
+    free(remap);
+    free(slot);
+    return err;
+}
+
 /* ---- the import ----------------------------------------------------------------- */
 
 void tw_gltf_scene_destroy(struct tw_gltf_scene *scene)
@@ -1069,6 +1763,7 @@ static int build_scene(struct importer *im, const int32_t *parent, struct tw_glt
     int err = TW_OK;
     uint32_t *stack = NULL, *mesh_slot = NULL;
     double *world = NULL;
+    struct palette pal = {0};
 
     /* Which nodes the scene starts from. */
     const int *roots = NULL;
@@ -1233,18 +1928,20 @@ static int build_scene(struct importer *im, const int32_t *parent, struct tw_glt
     }
     memcpy(sc->materials[d->material_count].base_color, default_grey, sizeof(default_grey));
 
-    /* Meshes, in slot order. */
+    /* Meshes, in slot order; colour splits append more primitives and
+     * materials (after grey). */
     uint32_t primitive_total = 0;
     for (uint32_t m = 0; m < d->mesh_count; m++)
         if (mesh_slot[m] != UINT32_MAX)
             primitive_total += d->meshes[m].primitive_count;
+    pal.material_capacity = sc->material_count;
+    pal.primitive_capacity = primitive_total;
     sc->meshes = calloc(sc->mesh_count, sizeof(*sc->meshes));
     sc->primitives = calloc(primitive_total, sizeof(*sc->primitives));
     if (!sc->meshes || !sc->primitives) {
         err = fail(im, TW_ERR_NOMEM, "meshes: out of memory");
         goto out;
     }
-    bool grey_used = false;
     for (uint32_t m = 0; m < d->mesh_count; m++) {
         const uint32_t slot = mesh_slot[m];
         if (slot == UINT32_MAX)
@@ -1252,25 +1949,33 @@ static int build_scene(struct importer *im, const int32_t *parent, struct tw_glt
         struct tw_gltf_mesh *gm = &sc->meshes[slot];
         gm->first_primitive = sc->primitive_count;
         for (uint32_t k = 0; k < d->meshes[m].primitive_count; k++) {
-            struct tw_gltf_primitive *p = &sc->primitives[sc->primitive_count];
-            err = convert_primitive(im, m, k, d->material_count, p);
-            if (p->triangle_count == 0 || err) {
-                free(p->positions);
-                free(p->normals);
-                free(p->indices);
-                memset(p, 0, sizeof(*p));
+            struct tw_gltf_primitive prim = {0};
+            err = convert_primitive(im, m, k, d->material_count, &prim);
+            if (prim.triangle_count == 0 || err) {
+                free(prim.positions);
+                free(prim.normals);
+                free(prim.indices);
                 if (err)
                     goto out;
                 continue;
             }
-            grey_used |= p->material == d->material_count;
-            sc->vertex_count += p->vertex_count;
-            sc->primitive_count++;
-            gm->primitive_count++;
+            if ((err = add_primitive(im, m, k, &pal, sc, gm, &prim)))
+                goto out;
         }
     }
-    if (!grey_used)
+    bool grey_used = false;
+    for (uint32_t k = 0; k < sc->primitive_count; k++)
+        grey_used |= sc->primitives[k].material == d->material_count;
+    if (!grey_used) {
+        /* Drop grey: baked colours move down one. */
+        const uint32_t grey = d->material_count;
+        memmove(sc->materials + grey, sc->materials + grey + 1,
+                sizeof(*sc->materials) * (sc->material_count - grey - 1));
         sc->material_count--;
+        for (uint32_t k = 0; k < sc->primitive_count; k++)
+            if (sc->primitives[k].material > grey)
+                sc->primitives[k].material--;
+    }
 
     sc->bounds = tw_box_empty();
     for (uint32_t k = 0; k < sc->instance_count; k++) {
@@ -1289,6 +1994,7 @@ static int build_scene(struct importer *im, const int32_t *parent, struct tw_glt
         }
     }
 out:
+    palette_finish(&pal);
     free(stack);
     free(world);
     free(mesh_slot);
@@ -1347,7 +2053,10 @@ static int import_document(struct importer *im, const uint8_t *data, size_t size
     }
     parent = malloc(sizeof(*parent) * (doc.node_count ? doc.node_count : 1));
     sc = calloc(1, sizeof(*sc));
-    if (!parent || !sc) {
+    im->images = calloc(doc.image_count ? doc.image_count : 1, sizeof(*im->images));
+    im->material_textures =
+        calloc(doc.material_count ? doc.material_count : 1, sizeof(*im->material_textures));
+    if (!parent || !sc || !im->images || !im->material_textures) {
         err = fail(im, TW_ERR_NOMEM, "out of memory");
         goto out;
     }
@@ -1366,6 +2075,12 @@ static int import_document(struct importer *im, const uint8_t *data, size_t size
 out:
     tw_gltf_scene_destroy(sc);
     free(parent);
+    for (uint32_t k = 0; im->images && k < doc.image_count; k++)
+        free(im->images[k].rgba);
+    free(im->images);
+    free(im->material_textures);
+    im->images = NULL;
+    im->material_textures = NULL;
     tw_gltf_shim_free(&doc);
     im->doc = NULL;
     return err;
@@ -1391,6 +2106,7 @@ int tw_gltf_import_memory(const void *data, size_t size, const char *name, const
     struct importer im = {0};
     im.name = name ? name : "(memory)";
     im.base_dir = base_dir;
+    im.log = log;
     im.settings = resolve_settings(settings);
     if (!data && size)
         return report(&im, log, fail(&im, TW_ERR_INVALID, "no data (caller's bug)"));
@@ -1414,6 +2130,7 @@ int tw_gltf_import(const char *path, const struct tw_gltf_settings *settings,
     *out = NULL;
     struct importer im = {0};
     im.name = path;
+    im.log = log;
     im.settings = resolve_settings(settings);
     uint8_t *data = NULL;
     size_t size = 0;

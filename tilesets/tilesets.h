@@ -92,7 +92,8 @@ struct tw_gltf_scene {
     uint32_t primitive_count;
     struct tw_gltf_mesh *meshes;
     uint32_t mesh_count;
-    struct tw_material *materials;  /* the file's, then a grey default if needed */
+    struct tw_material *materials;  /* the file's, a grey default if needed, then colours
+                                       baked from base-colour textures */
     uint32_t material_count;
     struct tw_gltf_instance *instances;
     uint32_t instance_count;
@@ -104,8 +105,11 @@ struct tw_gltf_scene {
 
 /* Imports the default scene (else scene 0, else every root node) of the
  * .gltf or .glb file at path (binary or JSON is told by the content).
- * Buffers in external files must lie inside the file's folder; images are
- * ignored. Every reference, accessor range, index and node transform is
+ * Buffers and images in external files must lie inside the file's folder.
+ * Textures are not kept: a PNG base-colour texture is sampled at each
+ * triangle's centroid and its primitive split into one material per colour
+ * (a texture that cannot be read leaves the base colour, with a warning).
+ * Every reference, accessor range, index and node transform is
  * checked, node hierarchies must be trees (no cycles, one parent per node),
  * primitives must be triangles (lists, strips or fans). settings may be
  * NULL. On bad input returns TW_ERR_FORMAT, TW_ERR_IO or TW_ERR_LIMIT and
