@@ -213,12 +213,17 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
     int rc = parse_sweep(spec, &param, values, &count, err, err_size);
     if (rc)
         return rc;
-    /* The base run: every method with its defaults. */
+    /* The base run: every method with its defaults. Its charts must not pick
+     * up the sweep.csv of an earlier run in the same folder. */
+    char file[1100];
+    snprintf(file, sizeof(file), "%s/sweep.csv", run->out);
+    if (unlink(file) != 0 && errno != ENOENT) {
+        snprintf(err, err_size, "%s: cannot remove: %s", file, strerror(errno));
+        return TW_ERR_IO;
+    }
     rc = tw_run_execute(run, ctx, err, err_size);
     if (rc)
         return rc;
-    char file[1100];
-    snprintf(file, sizeof(file), "%s/sweep.csv", run->out);
     FILE *csv = fopen(file, "w");
     if (!csv) {
         snprintf(err, err_size, "%s: cannot write: %s", file, strerror(errno));
