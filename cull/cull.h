@@ -275,6 +275,26 @@ bool tw_tilequery_was_visible(const struct tw_tilequery *tq, struct tw_cell cell
 /* Heap bytes held. */
 size_t tw_tilequery_bytes(const struct tw_tilequery *tq);
 
+/* ---- debugging: the cells of the last frame (read-only; the viewer) --------------- */
+
+/* What the last tw_tilequery_frame() made of a cell it reached (the colours
+ * of Figure 6 in the paper). */
+enum tw_tilequery_cell_state {
+    TW_TILEQUERY_CELL_START = 0,    /* where propagation began: visible without a query */
+    TW_TILEQUERY_CELL_FREE,         /* near-plane rule: visible without a query */
+    TW_TILEQUERY_CELL_VISIBLE,      /* queried, waited on, found visible */
+    TW_TILEQUERY_CELL_OCCLUDED,     /* queried, waited on, found hidden: propagation stopped */
+    TW_TILEQUERY_CELL_POSTPONED,    /* drawn on last frame's word, its result read later */
+};
+
+typedef void (*tw_tilequery_cell_fn)(void *user, struct tw_cell cell,
+                                     enum tw_tilequery_cell_state state);
+
+/* Calls fn for every cell that the last tw_tilequery_frame() rendered or
+ * queried (start cell first, then in issue order); cells it never reached
+ * are not reported. Changes nothing; valid until the next frame. */
+void tw_tilequery_last_cells(const struct tw_tilequery *tq, tw_tilequery_cell_fn fn, void *user);
+
 #ifdef __cplusplus
 }
 #endif

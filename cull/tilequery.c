@@ -24,6 +24,10 @@ struct tw_tilequery {
     struct tw_cull_cell *cells;    /* scratch for finding the start cell */
     size_t cell_cap;
     uint64_t last_prune;
+    /* For tw_tilequery_last_cells(): the last frame and its start cell. */
+    uint64_t last_frame;
+    struct tw_cell last_start;
+    bool last_started;
 };
 
 void tw_tilequery_default_settings(struct tw_tilequery_settings *s)
@@ -260,7 +264,11 @@ int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
     }
 
     struct tw_cell start;
+    tq->last_frame = f;
+    tq->last_started = false;
     if (find_start(&fc, &start)) {
+        tq->last_start = start;
+        tq->last_started = true;
         tw_cell_map_set(tq->queried, start, f);
         st.tiles_free++;
         visit(&fc, start);
@@ -311,4 +319,37 @@ int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
     if (stats)
         *stats = st;
     return fc.err;
+}
+
+void tw_tilequery_last_cells(const struct tw_tilequery *tq, tw_tilequery_cell_fn fn, void *user)
+{
+    if (!tq || !fn)
+        return;
+    if (tq->last_started)
+        fn(user, tq->last_start, TW_TILEQUERY_CELL_START);
+    /* The pending queue is reset only when the next frame starts, so [0,
+     * tail) still holds every cell queued in the last one. A postponed cell
+     * may have been marked invisible for the next frame already, so the
+     * postponed queue is asked first; the others were waited on, and the
+     * visible map holds their verdict. */
+    for (uint32_t k = 0; k < tq->tail; k++) {
+        const struct pending *p = &tq->queue[k];
+        enum tw_tilequery_cell_state state;
+        if (p->query == 0) {
+            state = TW_TILEQUERY_CELL_FREE;
+        } else {
+            bool postponed = false;
+            for (uint32_t q = 0; q < tq->postponed_count && !postponed; q++)
+                postponed = tq->postponed[q].cell.i == p->cell.i &&
+                            tq->postponed[q].cell.j == p->cell.j;
+            if (postponed) {
+                state = TW_TILEQUERY_CELL_POSTPONED;
+            } else {
+                state = tw_tilequery_was_visible(tq, p->cell, tq->last_frame)
+                            ? TW_TILEQUERY_CELL_VISIBLE
+                            : TW_TILEQUERY_CELL_OCCLUDED;
+            }
+        }
+        fn(user, p->cell, state);
+    }
 }

@@ -23,5 +23,12 @@ int tw_gl_load(struct tw_gl *gl, tw_gl_get_proc_fn get_proc, const struct tw_log
     } while (0);
     TW_GL_FUNCTIONS(TW_GL_LOAD)
 #undef TW_GL_LOAD
+#define TW_GL_LOAD_OPTIONAL(type, name) \
+    do { \
+        void *p = get_proc("gl" #name); \
+        memcpy(&gl->name, &p, sizeof(p)); \
+    } while (0);
+    TW_GL_OPTIONAL_FUNCTIONS(TW_GL_LOAD_OPTIONAL)
+#undef TW_GL_LOAD_OPTIONAL
     return TW_OK;
 }

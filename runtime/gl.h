@@ -77,16 +77,26 @@
     X(PFNGLREADBUFFERPROC, ReadBuffer) \
     X(PFNGLCLEARBUFFERUIVPROC, ClearBufferuiv) \
     X(PFNGLCLEARBUFFERFVPROC, ClearBufferfv) \
+    X(PFNGLGETSTRINGIPROC, GetStringi) \
+    X(PFNGLBLITFRAMEBUFFERPROC, BlitFramebuffer) \
+    X(PFNGLBLENDFUNCPROC, BlendFunc)
+
+/* Entry points the renderer can do without (NULL when the loader has none):
+ * glClipControl is core only since 4.5 (ARB_clip_control before). A loader
+ * may also hand out a pointer that the context cannot use, so the renderer
+ * checks the version or the extension before calling it. */
+#define TW_GL_OPTIONAL_FUNCTIONS(X) \
     X(PFNGLCLIPCONTROLPROC, ClipControl)
 
 struct tw_gl {
 #define TW_GL_MEMBER(type, name) type name;
     TW_GL_FUNCTIONS(TW_GL_MEMBER)
+    TW_GL_OPTIONAL_FUNCTIONS(TW_GL_MEMBER)
 #undef TW_GL_MEMBER
 };
 
-/* Loads every entry point; names the first missing one in the log and
- * returns TW_ERR_GL if any is missing. */
+/* Loads every entry point; names the first missing required one in the log
+ * and returns TW_ERR_GL if any is missing. Optional ones may stay NULL. */
 int tw_gl_load(struct tw_gl *gl, tw_gl_get_proc_fn get_proc, const struct tw_log *log);
 
 #endif

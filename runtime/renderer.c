@@ -27,8 +27,18 @@ struct tw_renderer {
     GLuint fbo, color_rb, depth_rb;
 
     GLuint id_program;
-    GLint ui_view_proj, ui_model, ui_offset, ui_id;
+    GLint ui_view_proj, ui_model, ui_offset, ui_id, ui_depth_map;
     GLuint id_fbo, id_rb, id_depth_rb;
+
+    /* Depth convention: reversed float depth (near = 1, far = 0) when
+     * glClipControl is there, else standard 24-bit depth (near = 0). */
+    bool reversed_z;
+
+    /* Debug drawing (tw_renderer_draw_debug): edges as screen-space quads,
+     * translucent faces. */
+    GLuint line_program, fill_program;
+    GLint ul_view_proj, ul_min, ul_max, ul_color, ul_viewport;
+    GLint uf_view_proj, uf_min, uf_max, uf_color;
 
     /* Query objects: handle h (> 0) names queries[h - 1]; released handles
      * go on a free list and are reused. */
@@ -43,6 +53,13 @@ struct tw_renderer {
     bool recording;
     struct tw_drawn_cluster *drawn;
     size_t drawn_count, drawn_cap;
+
+    /* Recording of query boxes for debugging: query_record[h - 1] is the
+     * index + 1 of handle h's first record this frame (0: none). */
+    bool recording_queries;
+    struct tw_renderer_query_box *query_boxes;
+    size_t query_box_count, query_box_cap;
+    uint32_t *query_record;
 };
 
 double tw_renderer_now_ms(void)
@@ -100,6 +117,7 @@ static const char *const id_gs =
     "layout(triangles) in;\n"
     "layout(triangle_strip, max_vertices = 3) out;\n"
     "flat out vec2 g_depth;\n"
+    "uniform vec2 u_depth_map;\n"
     "void main() {\n"
     "    vec2 range = vec2(0.0, 1.0);\n"
     "    if (gl_in[0].gl_Position.w > 0.0 && gl_in[1].gl_Position.w > 0.0 &&\n"
@@ -107,7 +125,7 @@ static const char *const id_gs =
     "        float z0 = gl_in[0].gl_Position.z / gl_in[0].gl_Position.w;\n"
     "        float z1 = gl_in[1].gl_Position.z / gl_in[1].gl_Position.w;\n"
     "        float z2 = gl_in[2].gl_Position.z / gl_in[2].gl_Position.w;\n"
-    "        range = vec2(min(z0, min(z1, z2)), max(z0, max(z1, z2)));\n"
+    "        range = vec2(min(z0, min(z1, z2)), max(z0, max(z1, z2))) * u_depth_map.x + u_depth_map.y;\n"
     "    }\n"
     "    for (int k = 0; k < 3; k++) {\n"
     "        g_depth = range;\n"
@@ -141,6 +159,36 @@ static const char *const box_fs =
     "#version 330 core\n"
     "out vec4 o_color;\n"
     "void main() { o_color = vec4(1.0); }\n";
+
+/* Debug edges: each line becomes a quad u_width pixels wide, so that boxes
+ * stay readable where a core profile offers only 1-pixel lines. An end
+ * behind the eye is first moved to just in front of it. */
+static const char *const line_gs =
+    "#version 330 core\n"
+    "layout(lines) in;\n"
+    "layout(triangle_strip, max_vertices = 4) out;\n"
+    "uniform vec3 u_viewport;\n"   /* width, height in pixels; line width in pixels */
+    "void main() {\n"
+    "    vec4 a = gl_in[0].gl_Position, b = gl_in[1].gl_Position;\n"
+    "    const float eps = 1e-3;\n"
+    "    if (a.w < eps && b.w < eps) return;\n"
+    "    if (a.w < eps) a = mix(a, b, (eps - a.w) / (b.w - a.w));\n"
+    "    else if (b.w < eps) b = mix(b, a, (eps - b.w) / (a.w - b.w));\n"
+    "    vec2 d = (b.xy / b.w - a.xy / a.w) * u_viewport.xy;\n"
+    "    if (dot(d, d) < 1e-12) d = vec2(1.0, 0.0);\n"
+    "    vec2 n = normalize(vec2(-d.y, d.x)) * u_viewport.z / u_viewport.xy;\n"
+    "    gl_Position = a + vec4(n * a.w, 0.0, 0.0); EmitVertex();\n"
+    "    gl_Position = a - vec4(n * a.w, 0.0, 0.0); EmitVertex();\n"
+    "    gl_Position = b + vec4(n * b.w, 0.0, 0.0); EmitVertex();\n"
+    "    gl_Position = b - vec4(n * b.w, 0.0, 0.0); EmitVertex();\n"
+    "    EndPrimitive();\n"
+    "}\n";
+
+static const char *const color_fs =
+    "#version 330 core\n"
+    "uniform vec4 u_color;\n"
+    "out vec4 o_color;\n"
+    "void main() { o_color = u_color; }\n";
 
 static GLuint compile(struct tw_renderer *r, GLenum type, const char *src)
 {
@@ -257,9 +305,12 @@ static void upload_box(struct tw_renderer *r)
     static const float corners[8 * 3] = {
         0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0, 0, 0, 1, 1, 0, 1, 0, 1, 1, 1, 1, 1,
     };
-    static const uint8_t faces[36] = {
+    /* 36 face indices (wound inwards: front faces are the inside), then
+     * 24 edge indices for debug drawing. */
+    static const uint8_t faces[36 + 24] = {
         0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5, 0, 2, 6, 0, 6, 4,
         1, 5, 7, 1, 7, 3, 0, 4, 5, 0, 5, 1, 2, 3, 7, 2, 7, 6,
+        0, 1, 1, 3, 3, 2, 2, 0, 4, 5, 5, 7, 7, 6, 6, 4, 0, 4, 1, 5, 3, 7, 2, 6,
     };
     gl->GenVertexArrays(1, &r->box_vao);
     gl->BindVertexArray(r->box_vao);
@@ -286,7 +337,8 @@ static int create_framebuffer(struct tw_renderer *r)
                                 r->color_rb);
     gl->GenRenderbuffers(1, &r->depth_rb);
     gl->BindRenderbuffer(GL_RENDERBUFFER, r->depth_rb);
-    gl->RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, (GLsizei)r->width,
+    const GLenum depth_format = r->reversed_z ? GL_DEPTH_COMPONENT32F : GL_DEPTH_COMPONENT24;
+    gl->RenderbufferStorage(GL_RENDERBUFFER, depth_format, (GLsizei)r->width,
                             (GLsizei)r->height);
     gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER,
                                 r->depth_rb);
@@ -303,7 +355,7 @@ static int create_framebuffer(struct tw_renderer *r)
     gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, r->id_rb);
     gl->GenRenderbuffers(1, &r->id_depth_rb);
     gl->BindRenderbuffer(GL_RENDERBUFFER, r->id_depth_rb);
-    gl->RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, (GLsizei)r->width,
+    gl->RenderbufferStorage(GL_RENDERBUFFER, depth_format, (GLsizei)r->width,
                             (GLsizei)r->height);
     gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER,
                                 r->id_depth_rb);
@@ -313,6 +365,18 @@ static int create_framebuffer(struct tw_renderer *r)
     }
     gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
     return TW_OK;
+}
+
+static bool has_extension(const struct tw_gl *gl, const char *name)
+{
+    GLint count = 0;
+    gl->GetIntegerv(GL_NUM_EXTENSIONS, &count);
+    for (GLint k = 0; k < count; k++) {
+        const GLubyte *e = gl->GetStringi(GL_EXTENSIONS, (GLuint)k);
+        if (e && strcmp((const char *)e, name) == 0)
+            return true;
+    }
+    return false;
 }
 
 int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t height, tw_gl_get_proc_fn get_proc,
@@ -340,11 +404,21 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
         goto fail;
     }
     /* Reversed depth needs [0, 1] clip depth: core since 4.5. */
-    gl->ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+    r->reversed_z = gl->ClipControl && (major * 10 + minor >= 45 || has_extension(gl, "GL_ARB_clip_control"));
+    if (r->reversed_z) {
+        gl->ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+    } else {
+        tw_log_printf(&r->log, TW_LOG_WARN,
+                      "OpenGL %d.%d has no glClipControl: standard 24-bit depth instead of "
+                      "reversed float depth (less precision far away)", major, minor);
+    }
     r->program = link_program(r, scene_vs, NULL, scene_fs);
     r->box_program = link_program(r, box_vs, NULL, box_fs);
     r->id_program = link_program(r, scene_vs, id_gs, id_fs);
-    if (!r->program || !r->box_program || !r->id_program) {
+    r->line_program = link_program(r, box_vs, line_gs, color_fs);
+    r->fill_program = link_program(r, box_vs, NULL, color_fs);
+    if (!r->program || !r->box_program || !r->id_program || !r->line_program ||
+        !r->fill_program) {
         err = TW_ERR_GL;
         goto fail;
     }
@@ -358,6 +432,23 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
     r->ui_model = gl->GetUniformLocation(r->id_program, "u_model");
     r->ui_offset = gl->GetUniformLocation(r->id_program, "u_offset");
     r->ui_id = gl->GetUniformLocation(r->id_program, "u_id");
+    r->ui_depth_map = gl->GetUniformLocation(r->id_program, "u_depth_map");
+    {
+        /* The ID pass clamps window depth to each triangle's NDC depth range. */
+        const float depth_map[2] = {r->reversed_z ? 1.0f : 0.5f, r->reversed_z ? 0.0f : 0.5f};
+        gl->UseProgram(r->id_program);
+        gl->Uniform2fv(r->ui_depth_map, 1, depth_map);
+        gl->UseProgram(0);
+    }
+    r->ul_view_proj = gl->GetUniformLocation(r->line_program, "u_view_proj");
+    r->ul_min = gl->GetUniformLocation(r->line_program, "u_min");
+    r->ul_max = gl->GetUniformLocation(r->line_program, "u_max");
+    r->ul_color = gl->GetUniformLocation(r->line_program, "u_color");
+    r->ul_viewport = gl->GetUniformLocation(r->line_program, "u_viewport");
+    r->uf_view_proj = gl->GetUniformLocation(r->fill_program, "u_view_proj");
+    r->uf_min = gl->GetUniformLocation(r->fill_program, "u_min");
+    r->uf_max = gl->GetUniformLocation(r->fill_program, "u_max");
+    r->uf_color = gl->GetUniformLocation(r->fill_program, "u_color");
     r->ub_view_proj = gl->GetUniformLocation(r->box_program, "u_view_proj");
     r->ub_min = gl->GetUniformLocation(r->box_program, "u_min");
     r->ub_max = gl->GetUniformLocation(r->box_program, "u_max");
@@ -407,7 +498,13 @@ void tw_renderer_destroy(struct tw_renderer *r)
             gl->DeleteProgram(r->program);
         if (r->box_program)
             gl->DeleteProgram(r->box_program);
+        if (r->line_program)
+            gl->DeleteProgram(r->line_program);
+        if (r->fill_program)
+            gl->DeleteProgram(r->fill_program);
     }
+    free(r->query_boxes);
+    free(r->query_record);
     free(r->drawn);
     free(r->queries);
     free(r->free_queries);
@@ -427,19 +524,25 @@ void tw_renderer_begin_frame(struct tw_renderer *r, const struct tw_view *v)
     gl->DepthMask(GL_TRUE);
     gl->ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
     gl->ClearColor(0.70f, 0.80f, 0.92f, 1.0f);
-    gl->ClearDepth(0.0);
+    gl->ClearDepth(r->reversed_z ? 0.0 : 1.0);
     gl->Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     gl->Enable(GL_DEPTH_TEST);
-    gl->DepthFunc(GL_GEQUAL);
+    gl->DepthFunc(r->reversed_z ? GL_GEQUAL : GL_LEQUAL);
+    const float *view_proj = r->reversed_z ? v->view_proj_rz : v->view_proj;
     gl->UseProgram(r->box_program);
-    gl->UniformMatrix4fv(r->ub_view_proj, 1, GL_FALSE, v->view_proj_rz);
+    gl->UniformMatrix4fv(r->ub_view_proj, 1, GL_FALSE, view_proj);
     gl->UseProgram(r->program);
-    gl->UniformMatrix4fv(r->u_view_proj, 1, GL_FALSE, v->view_proj_rz);
+    gl->UniformMatrix4fv(r->u_view_proj, 1, GL_FALSE, view_proj);
     gl->Uniform3fv(r->u_eye, 1, v->eye);
     const float fog[2] = {0.45f * v->view_distance, 0.9f * v->view_distance};
     gl->Uniform2fv(r->u_fog, 1, fog);
     r->mode = MODE_NONE;
     gl->BindVertexArray(r->vao);
+    if (r->query_box_count) {
+        for (size_t k = 0; k < r->query_box_count; k++)
+            r->query_record[r->query_boxes[k].query - 1] = 0;
+        r->query_box_count = 0;
+    }
 }
 
 void tw_renderer_end_frame(struct tw_renderer *r)
@@ -531,6 +634,35 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t prototype,
     r->counters.ms_backend += tw_renderer_now_ms() - t0;
 }
 
+/* Debugging: keeps the boxes of query handle, view-relative, until the
+ * next frame; its result is filled in when it is read. */
+static void record_query(struct tw_renderer *r, uint32_t handle, const struct tw_box *boxes,
+                         uint32_t count, const float offset[3])
+{
+    if (r->query_box_count + count > r->query_box_cap) {
+        size_t cap = r->query_box_cap ? r->query_box_cap : 1024;
+        while (cap < r->query_box_count + count)
+            cap *= 2;
+        struct tw_renderer_query_box *q = realloc(r->query_boxes, sizeof(*q) * cap);
+        if (!q)
+            return;
+        r->query_boxes = q;
+        r->query_box_cap = cap;
+    }
+    r->query_record[handle - 1] = (uint32_t)r->query_box_count + 1;
+    for (uint32_t k = 0; k < count; k++) {
+        struct tw_renderer_query_box *q = &r->query_boxes[r->query_box_count++];
+        for (int a = 0; a < 3; a++) {
+            q->min[a] = boxes[k].min[a] + offset[a];
+            q->max[a] = boxes[k].max[a] + offset[a];
+        }
+        q->query = handle;
+        q->boxes = count;
+        q->tile = boxes == &r->ts->common_box;
+        q->result = -1;
+    }
+}
+
 static uint32_t backend_issue(void *ctx, const struct tw_box *boxes, uint32_t count,
                               const float offset[3])
 {
@@ -551,6 +683,11 @@ static uint32_t backend_issue(void *ctx, const struct tw_box *boxes, uint32_t co
             if (!f)
                 return 0;
             r->free_queries = f;
+            uint32_t *rec = realloc(r->query_record, sizeof(*rec) * cap);
+            if (!rec)
+                return 0;
+            memset(rec + r->query_cap, 0, sizeof(*rec) * (cap - r->query_cap));
+            r->query_record = rec;
             r->query_cap = cap;
         }
         gl->GenQueries(1, &r->queries[r->query_count]);
@@ -583,6 +720,8 @@ static uint32_t backend_issue(void *ctx, const struct tw_box *boxes, uint32_t co
         gl->DrawElements(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, (const void *)0);
     }
     gl->EndQuery(GL_ANY_SAMPLES_PASSED);
+    if (r->recording_queries)
+        record_query(r, handle, boxes, count, offset);
     r->counters.queries++;
     r->counters.ms_backend += tw_renderer_now_ms() - t0;
     return handle;
@@ -603,6 +742,13 @@ static uint32_t backend_wait(void *ctx, uint32_t query)
     GLuint result = 0;
     r->gl.GetQueryObjectuiv(r->queries[query - 1], GL_QUERY_RESULT, &result);
     r->free_queries[r->free_count++] = query;
+    if (r->query_record[query - 1]) {
+        /* Recorded this frame (a V-query of the previous one is not). */
+        for (size_t k = r->query_record[query - 1] - 1;
+             k < r->query_box_count && r->query_boxes[k].query == query; k++)
+            r->query_boxes[k].result = result > 0;
+        r->query_record[query - 1] = 0;
+    }
     const double dt = tw_renderer_now_ms() - t0;
     r->counters.ms_wait += dt;
     r->counters.ms_backend += dt;
@@ -679,14 +825,15 @@ void tw_renderer_id_begin(struct tw_renderer *r, const struct tw_view *v)
     gl->DepthMask(GL_TRUE);
     const GLuint none[4] = {TW_RENDERER_NO_ID, 0, 0, 0};
     gl->ClearBufferuiv(GL_COLOR, 0, none);
-    const GLfloat far_depth = 0.0f;     /* reversed depth: far is 0 */
+    const GLfloat far_depth = r->reversed_z ? 0.0f : 1.0f;     /* reversed depth: far is 0 */
     gl->ClearBufferfv(GL_DEPTH, 0, &far_depth);
     gl->Enable(GL_DEPTH_TEST);
-    gl->DepthFunc(GL_GEQUAL);
+    gl->DepthFunc(r->reversed_z ? GL_GEQUAL : GL_LEQUAL);
     gl->Enable(GL_CULL_FACE);
     gl->CullFace(GL_BACK);
     gl->UseProgram(r->id_program);
-    gl->UniformMatrix4fv(r->ui_view_proj, 1, GL_FALSE, v->view_proj_rz);
+    gl->UniformMatrix4fv(r->ui_view_proj, 1, GL_FALSE,
+                         r->reversed_z ? v->view_proj_rz : v->view_proj);
     gl->BindVertexArray(r->vao);
     r->mode = MODE_NONE;
 }
@@ -723,4 +870,95 @@ void tw_renderer_id_read(struct tw_renderer *r, uint32_t *ids)
     gl->ReadPixels(0, 0, (GLsizei)r->width, (GLsizei)r->height, GL_RED_INTEGER, GL_UNSIGNED_INT,
                    ids);
     gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+}
+
+/* ---- debugging and the viewer ------------------------------------------------------ */
+
+void tw_renderer_record_queries(struct tw_renderer *r, bool on)
+{
+    r->recording_queries = on;
+}
+
+const struct tw_renderer_query_box *tw_renderer_queries(const struct tw_renderer *r, size_t *count)
+{
+    *count = r->query_box_count;
+    return r->query_boxes;
+}
+
+void tw_renderer_draw_debug(struct tw_renderer *r, const struct tw_view *v,
+                            const struct tw_renderer_debug_box *boxes, size_t count, bool fill,
+                            float line_px)
+{
+    if (count == 0)
+        return;
+    const struct tw_gl *gl = &r->gl;
+    const float *view_proj = r->reversed_z ? v->view_proj_rz : v->view_proj;
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+    gl->Viewport(0, 0, (GLsizei)r->width, (GLsizei)r->height);
+    gl->BindVertexArray(r->box_vao);
+    gl->ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    gl->DepthMask(GL_FALSE);
+    gl->Enable(GL_BLEND);
+    gl->BlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+    gl->DepthFunc(r->reversed_z ? GL_GEQUAL : GL_LEQUAL);
+    if (fill) {
+        /* Faces are wound inwards: culling front faces keeps the outside. */
+        gl->UseProgram(r->fill_program);
+        gl->UniformMatrix4fv(r->uf_view_proj, 1, GL_FALSE, view_proj);
+        gl->Enable(GL_CULL_FACE);
+        gl->CullFace(GL_FRONT);
+        gl->Enable(GL_DEPTH_TEST);
+        for (size_t k = 0; k < count; k++) {
+            gl->Uniform3fv(r->uf_min, 1, boxes[k].min);
+            gl->Uniform3fv(r->uf_max, 1, boxes[k].max);
+            gl->Uniform4fv(r->uf_color, 1, boxes[k].color);
+            gl->DrawElements(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, (const void *)0);
+        }
+    } else {
+        gl->UseProgram(r->line_program);
+        gl->UniformMatrix4fv(r->ul_view_proj, 1, GL_FALSE, view_proj);
+        gl->Disable(GL_CULL_FACE);
+        /* Hidden edges faint (x-ray), then visible edges at full strength. */
+        for (int pass = 0; pass < 2; pass++) {
+            if (pass == 0)
+                gl->Disable(GL_DEPTH_TEST);
+            else
+                gl->Enable(GL_DEPTH_TEST);
+            const float viewport[3] = {(float)r->width, (float)r->height,
+                                       pass == 0 ? line_px * 0.75f : line_px};
+            gl->Uniform3fv(r->ul_viewport, 1, viewport);
+            for (size_t k = 0; k < count; k++) {
+                float color[4];
+                memcpy(color, boxes[k].color, sizeof(color));
+                if (pass == 0)
+                    color[3] *= 0.25f;
+                gl->Uniform3fv(r->ul_min, 1, boxes[k].min);
+                gl->Uniform3fv(r->ul_max, 1, boxes[k].max);
+                gl->Uniform4fv(r->ul_color, 1, color);
+                gl->DrawElements(GL_LINES, 24, GL_UNSIGNED_BYTE, (const void *)36);
+            }
+        }
+    }
+    gl->Disable(GL_BLEND);
+    gl->Enable(GL_DEPTH_TEST);
+    gl->DepthMask(GL_TRUE);
+    gl->CullFace(GL_BACK);
+    r->mode = MODE_NONE;
+}
+
+void tw_renderer_blit(struct tw_renderer *r, uint32_t target, uint32_t width, uint32_t height)
+{
+    const struct tw_gl *gl = &r->gl;
+    gl->BindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo);
+    gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, target);
+    const bool same = width == r->width && height == r->height;
+    gl->BlitFramebuffer(0, 0, (GLint)r->width, (GLint)r->height, 0, 0, (GLint)width,
+                        (GLint)height, GL_COLOR_BUFFER_BIT, same ? GL_NEAREST : GL_LINEAR);
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+    r->mode = MODE_NONE;
+}
+
+bool tw_renderer_reversed_z(const struct tw_renderer *r)
+{
+    return r->reversed_z;
 }

@@ -59,4 +59,43 @@ int tw_renderer_read_rgb(struct tw_renderer *r, uint8_t *rgb);
 /* Monotonic time in milliseconds. */
 double tw_renderer_now_ms(void);
 
+/* ---- debugging and the viewer ------------------------------------------------------ */
+
+/* True when depth is reversed float depth (glClipControl present); false:
+ * standard 24-bit depth. */
+bool tw_renderer_reversed_z(const struct tw_renderer *r);
+
+/* One box of an occlusion query issued this frame, view-relative. */
+struct tw_renderer_query_box {
+    float min[3], max[3];
+    uint32_t query;      /* its handle (boxes of a multiquery share it) */
+    uint32_t boxes;      /* boxes in that query */
+    bool tile;           /* a tile query (the common box), else a node query */
+    int8_t result;       /* 1 visible, 0 hidden, -1 not read this frame */
+};
+
+/* Turns on or off the recording of query boxes (off by default; reset by
+ * tw_renderer_begin_frame). The array belongs to the renderer and lives
+ * until the next frame. */
+void tw_renderer_record_queries(struct tw_renderer *r, bool on);
+const struct tw_renderer_query_box *tw_renderer_queries(const struct tw_renderer *r, size_t *count);
+
+/* A box to draw for debugging: view-relative corners, a straight RGBA colour. */
+struct tw_renderer_debug_box {
+    float min[3], max[3];
+    float color[4];
+};
+
+/* Draws boxes over the frame's image with v's camera, after the frame (not
+ * timed, not counted): translucent faces, depth-tested without depth
+ * writes, when fill; else edges line_px wide, hidden parts faint. boxes is
+ * only read during the call. */
+void tw_renderer_draw_debug(struct tw_renderer *r, const struct tw_view *v,
+                            const struct tw_renderer_debug_box *boxes, size_t count, bool fill,
+                            float line_px);
+
+/* Copies the colour image into GL framebuffer target (0: a window's),
+ * scaled to width x height. */
+void tw_renderer_blit(struct tw_renderer *r, uint32_t target, uint32_t width, uint32_t height);
+
 #endif

@@ -189,6 +189,74 @@ int tw_path_translate(struct tw_path *p, int64_t di, int64_t dj);
 
 void tw_path_finish(struct tw_path *p);
 
+/* ---- debugging and the viewer -------------------------------------------------------- */
+
+/* Debug views, a mask for tw_world_set_debug(). */
+#define TW_DEBUG_CELLS   (1u << 0)  /* cells by tile-query state (the paper's Figure 6) */
+#define TW_DEBUG_NODES   (1u << 1)  /* BVH nodes that hold the clusters drawn */
+#define TW_DEBUG_QUERIES (1u << 2)  /* occlusion-query boxes issued this frame */
+#define TW_DEBUG_ALL     (TW_DEBUG_CELLS | TW_DEBUG_NODES | TW_DEBUG_QUERIES)
+
+enum tw_debug_kind {
+    /* Cells: a quad over the cell's footprint, just above the ground. */
+    TW_DEBUG_CELL_START = 0,    /* propagation began here, without a query */
+    TW_DEBUG_CELL_FREE,         /* visible without a query (near-plane rule) */
+    TW_DEBUG_CELL_VISIBLE,      /* queried and found visible (vfc, chc, oracle: something drawn) */
+    TW_DEBUG_CELL_POSTPONED,    /* drawn on last frame's word, its query read later */
+    TW_DEBUG_CELL_OCCLUDED,     /* queried and found hidden: propagation stopped there */
+    TW_DEBUG_CELL_NOT_REACHED,  /* in view, never queried (vfc, chc, oracle: nothing drawn) */
+    /* BVH nodes of the tiles drawn. */
+    TW_DEBUG_NODE_LEAF,         /* a leaf with a drawn cluster */
+    TW_DEBUG_NODE_INNER,        /* an ancestor of one */
+    /* Query boxes, by outcome. */
+    TW_DEBUG_QUERY_VISIBLE,
+    TW_DEBUG_QUERY_HIDDEN,
+    TW_DEBUG_QUERY_UNREAD,      /* not read within the frame (postponed, or a V-query) */
+    TW_DEBUG_KIND_COUNT
+};
+
+/* One box of a debug view, placed like geometry: tile-local coordinates of
+ * cell, so that a copy kept across frames stays where it was. */
+struct tw_debug_box {
+    struct tw_cell cell;
+    struct tw_box box;
+    uint16_t kind;              /* enum tw_debug_kind */
+    uint16_t level;             /* nodes: depth in the BVH; queries: boxes in the query */
+    bool tile_query;            /* queries: a tile query (the common box) */
+};
+
+/* Short name of a kind ("visible", "leaf", ...), and its colour (straight RGBA). */
+const char *tw_debug_kind_name(enum tw_debug_kind kind);
+void tw_debug_kind_color(enum tw_debug_kind kind, float rgba[4]);
+
+/* Chooses the debug views that tw_world_frame() records (mask of TW_DEBUG_*;
+ * 0, the default, records nothing). Recording is done after the timed part
+ * of the frame, except that TW_DEBUG_CELLS and TW_DEBUG_NODES record draws
+ * (as tw_world_record_draws() does) and TW_DEBUG_QUERIES records query boxes
+ * as they are issued: timings of such frames are not benchmark figures. */
+int tw_world_set_debug(struct tw_world *w, unsigned flags);
+
+/* The boxes the last tw_world_frame() recorded. The array belongs to the
+ * world and lives until the next frame. */
+const struct tw_debug_box *tw_world_debug_boxes(const struct tw_world *w, size_t *count);
+
+/* Draws boxes (the last frame's, or a copy kept from an earlier frame) over
+ * the last frame's image, seen from its camera and coloured by kind. Not
+ * timed; boxes is only read during the call. */
+int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, size_t count);
+
+/* Renders one frame from cam that draws exactly clusters, with no culling
+ * and no queries (a frozen culled set, looked at from elsewhere). Fills the
+ * drawing fields of *stats (may be NULL); leaves every method's temporal
+ * state alone. clusters is only read during the call. */
+int tw_world_frame_fixed(struct tw_world *w, const struct tw_camera *cam,
+                         const struct tw_drawn_cluster *clusters, size_t count,
+                         struct tw_frame_stats *stats);
+
+/* Copies the last frame's image into GL framebuffer target of the current
+ * context (0: the window's), scaled to width x height. */
+int tw_world_blit(struct tw_world *w, uint32_t target, uint32_t width, uint32_t height);
+
 #ifdef __cplusplus
 }
 #endif

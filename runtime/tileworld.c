@@ -538,8 +538,24 @@ int main(int argc, char **argv)
     } else if (strcmp(argv[1], "import") == 0) {
         return import(argc, argv);
     } else if (strcmp(argv[1], "view") == 0) {
-        fprintf(stderr, "tileworld: %s: not implemented in this build yet\n", argv[1]);
-        return EXIT_USAGE;
+        /* The window is tileworld-view, beside this program and built only
+         * with GLFW: a process of its own that links libGL, never libOSMesa. */
+        char viewer[PATH_MAX];
+        ssize_t n = readlink("/proc/self/exe", viewer, sizeof(viewer) - sizeof("tileworld-view"));
+        char *slash = n > 0 ? memchr(viewer, '/', (size_t)n) : NULL;
+        if (slash) {
+            viewer[n] = '\0';
+            strcpy(strrchr(viewer, '/') + 1, "tileworld-view");
+        }
+        if (!slash || access(viewer, X_OK) != 0) {
+            fprintf(stderr, "tileworld: view: this build has no viewer (no tileworld-view beside "
+                            "tileworld: GLFW was not found when it was built)\n");
+            return EXIT_USAGE;
+        }
+        argv[1] = viewer;
+        execv(viewer, argv + 1);
+        fprintf(stderr, "tileworld: view: cannot run %s: %s\n", viewer, strerror(errno));
+        return 1;
     } else {
         fprintf(stderr, "tileworld: unknown command '%s' (walk, bench, info, view, import)\n",
                 argv[1]);

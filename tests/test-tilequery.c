@@ -342,6 +342,76 @@ static void test_memory_bounded(void)
     free(fk);
 }
 
+/* tw_tilequery_last_cells() (the viewer's Figure 6 view) reports what the
+ * frame did: the start cell, cells found visible or hidden, cells drawn on
+ * last frame's word; the same cells the fake saw rendered and queried. */
+struct cell_log {
+    struct tw_cell cell[MAX_LOG];
+    enum tw_tilequery_cell_state state[MAX_LOG];
+    uint32_t count;
+};
+
+static void log_cell(void *user, struct tw_cell cell, enum tw_tilequery_cell_state state)
+{
+    struct cell_log *l = user;
+    if (l->count < MAX_LOG) {
+        l->cell[l->count] = cell;
+        l->state[l->count++] = state;
+    }
+}
+
+static int state_of(const struct cell_log *l, struct tw_cell c)
+{
+    for (uint32_t k = 0; k < l->count; k++)
+        if (l->cell[k].i == c.i && l->cell[k].j == c.j)
+            return (int)l->state[k];
+    return -1;
+}
+
+static void test_last_cells(void)
+{
+    struct fake *fk = calloc(1, sizeof(*fk));
+    struct cell_log *l = calloc(1, sizeof(*l));
+    struct tw_tilequery *tq = NULL;
+    CHECK(tw_tilequery_create(NULL, &tq) == TW_OK);
+    fk->wall_z = 10.0f;
+    fk->wall_h = 1000.0f;
+    struct tw_tilequery_stats st;
+    CHECK(run_frame(tq, fk, 1, 5.0f, 1.7f, 5.0f, 0.0f, 200.0f, &st) == TW_OK);
+    tw_tilequery_last_cells(tq, log_cell, l);
+    CHECK(l->count > 0 && l->state[0] == TW_TILEQUERY_CELL_START);
+    CHECK(state_of(l, (struct tw_cell){0, 0}) == TW_TILEQUERY_CELL_START);
+    CHECK(state_of(l, (struct tw_cell){0, 1}) == TW_TILEQUERY_CELL_OCCLUDED);
+    CHECK(state_of(l, (struct tw_cell){0, 2}) == -1);
+    uint32_t drawn = 0, queried = 0;
+    for (uint32_t k = 0; k < l->count; k++) {
+        const enum tw_tilequery_cell_state s = l->state[k];
+        drawn += s != TW_TILEQUERY_CELL_OCCLUDED;
+        queried += s == TW_TILEQUERY_CELL_VISIBLE || s == TW_TILEQUERY_CELL_OCCLUDED ||
+                   s == TW_TILEQUERY_CELL_POSTPONED;
+        CHECK(s == TW_TILEQUERY_CELL_OCCLUDED ? !was_rendered(fk, l->cell[k])
+                                              : was_rendered(fk, l->cell[k]));
+    }
+    CHECK(drawn == st.tiles_visible);
+    CHECK(queried == st.tiles_queried);
+    /* Nothing hidden, results late: frame 3 draws on frame 2's word. */
+    fk->wall_h = 0.0f;
+    fk->delay = 1;
+    CHECK(run_frame(tq, fk, 2, 5.0f, 1.7f, 5.0f, 0.0f, 40.0f, &st) == TW_OK);
+    CHECK(run_frame(tq, fk, 3, 5.0f, 1.7f, 5.0f, 0.0f, 40.0f, &st) == TW_OK);
+    CHECK(st.postponed > 0);
+    l->count = 0;
+    tw_tilequery_last_cells(tq, log_cell, l);
+    uint32_t postponed = 0;
+    for (uint32_t k = 0; k < l->count; k++)
+        postponed += l->state[k] == TW_TILEQUERY_CELL_POSTPONED;
+    CHECK(postponed == st.postponed);
+    CHECK(state_of(l, (struct tw_cell){0, 3}) == TW_TILEQUERY_CELL_POSTPONED);
+    tw_tilequery_destroy(tq);
+    free(l);
+    free(fk);
+}
+
 int main(void)
 {
     test_stops_behind_occluders();
@@ -349,6 +419,7 @@ int main(void)
     test_postponed();
     test_near_plane_rule();
     test_memory_bounded();
+    test_last_cells();
     if (failures) {
         fprintf(stderr, "test-tilequery: %d checks failed\n", failures);
         return 1;

@@ -4,7 +4,8 @@
 set -euo pipefail
 packages=(build-essential meson ninja-build pkg-config libembree-dev libosmesa6-dev
           mesa-common-dev libgl-dev libglfw3-dev libpng-dev libjson-c-dev gnuplot-nox
-          g++ libtinygltf-dev nlohmann-json3-dev)
+          g++ libtinygltf-dev nlohmann-json3-dev
+          xvfb xauth libgl1-mesa-dri)   # the viewer's test: a GLFW window under xvfb-run
 missing=()
 for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")

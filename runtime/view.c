@@ -1,0 +1,1362 @@
+/*
+ * tileworld-view: the interactive viewer (`tileworld view`, DESIGN.md §9).
+ * A GLFW window over the runtime: fly with the mouse and WASD, switch the
+ * culling method, and look at what the culling did (the tile-query state of
+ * each cell, the BVH nodes drawn, the query boxes), or freeze the culled set
+ * and fly around it.
+ *
+ * A program of its own so that it links libGL (through GLFW) and never
+ * libOSMesa: every GL call goes through entry points that glfwGetProcAddress
+ * hands out. Bad input: exit status 2 and one line on stderr; no window or
+ * no usable OpenGL: exit status 1.
+ */
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "runtime/gl.h"
+#include "runtime/report.h"
+#include "runtime/runtime.h"
+#include "tilesets/tilesets.h"
+
+#define EXIT_USAGE 2
+
+static const float pi_f = 3.14159265358979f;
+
+/* ---- options -------------------------------------------------------------------- */
+
+struct options {
+    const char *tileset;
+    const char *path;           /* NULL: keyboard and mouse */
+    const char *screenshot;
+    uint64_t seed;
+    uint32_t frames;            /* 0: until the window closes (or the path ends) */
+    uint32_t width, height;
+    enum tw_method method;
+    struct tw_cell start_cell;
+    int64_t repeat;
+    float view_distance;
+    unsigned debug;
+    uint32_t freeze_at;         /* 0: never */
+    bool no_overlay;
+    bool quiet;
+};
+
+static void usage(FILE *f)
+{
+    fputs("usage: tileworld view [--tileset NAME|FILE.json] [--seed N] [--method M] [--size WxH]\n"
+          "                      [--start-cell I,J] [--repeat P] [--view-distance M]\n"
+          "                      [--debug cells,nodes,queries|all] [--no-overlay]\n"
+          "                      [--path NAME|FILE.csv] [--frames N] [--screenshot FILE.png]\n"
+          "                      [--freeze-at N] [--quiet]\n"
+          "keys: mouse drag or Tab (captured mouse) to look; W A S D to fly, Q/E down/up, Shift\n"
+          "fast, wheel changes speed; 1-5 method (vfc, tilequery, chc, tilequery+chc, oracle);\n"
+          "C cells, B BVH nodes, X query boxes; F freeze the culled set; P screenshot;\n"
+          "H help; O overlay; Esc quits\n",
+          f);
+}
+
+static void fail_usage(const char *place, const char *fmt, const char *value)
+{
+    fprintf(stderr, "tileworld view: %s: ", place);
+    fprintf(stderr, fmt, value);
+    fputc('\n', stderr);
+    exit(EXIT_USAGE);
+}
+
+static uint64_t parse_u64(const char *opt, const char *s, uint64_t lo, uint64_t hi)
+{
+    char *end = NULL;
+    errno = 0;
+    if (!s || *s == '\0' || *s == '-' || *s == '+' || *s == ' ')
+        fail_usage(opt, "'%s' is not a non-negative whole number", s ? s : "");
+    unsigned long long v = strtoull(s, &end, 10);
+    if (*end != '\0')
+        fail_usage(opt, "'%s' is not a non-negative whole number", s);
+    if (errno == ERANGE || v < lo || v > hi) {
+        char msg[128];
+        snprintf(msg, sizeof(msg), "'%%s' is out of range [%llu, %llu]", (unsigned long long)lo,
+                 (unsigned long long)hi);
+        fail_usage(opt, msg, s);
+    }
+    return v;
+}
+
+static int64_t parse_i64(const char *opt, const char *s)
+{
+    char *end = NULL;
+    errno = 0;
+    if (!s || *s == '\0' || *s == ' ')
+        fail_usage(opt, "'%s' is not a whole number", s ? s : "");
+    long long v = strtoll(s, &end, 10);
+    if (*end != '\0')
+        fail_usage(opt, "'%s' is not a whole number", s);
+    if (errno == ERANGE)
+        fail_usage(opt, "'%s' does not fit in 64 bits", s);
+    return v;
+}
+
+static void parse_pair(const char *opt, const char *s, char sep, const char *form, char *a,
+                       size_t a_size, const char **b)
+{
+    const char *at = s ? strchr(s, sep) : NULL;
+    const size_t n = at ? (size_t)(at - s) : 0;
+    if (!at || n == 0 || n >= a_size)
+        fail_usage(opt, form, s ? s : "");
+    memcpy(a, s, n);
+    a[n] = '\0';
+    *b = at + 1;
+}
+
+static unsigned parse_debug(const char *opt, const char *s)
+{
+    char buf[128];
+    if (!s || *s == '\0' || strlen(s) >= sizeof(buf))
+        fail_usage(opt, "'%s' is not a list of debug views (cells, nodes, queries, all)", s ? s : "");
+    strcpy(buf, s);
+    unsigned mask = 0;
+    for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+        if (strcmp(tok, "cells") == 0)
+            mask |= TW_DEBUG_CELLS;
+        else if (strcmp(tok, "nodes") == 0)
+            mask |= TW_DEBUG_NODES;
+        else if (strcmp(tok, "queries") == 0)
+            mask |= TW_DEBUG_QUERIES;
+        else if (strcmp(tok, "all") == 0)
+            mask |= TW_DEBUG_ALL;
+        else if (strcmp(tok, "none") != 0)
+            fail_usage(opt, "unknown debug view '%s' (cells, nodes, queries, all, none)", tok);
+    }
+    return mask;
+}
+
+static bool takes_value(const char *option)
+{
+    static const char *const valued[] = {
+        "--tileset", "--seed", "--method", "--size", "--start-cell", "--repeat",
+        "--view-distance", "--debug", "--path", "--frames", "--screenshot", "--freeze-at",
+    };
+    for (size_t k = 0; k < sizeof(valued) / sizeof(valued[0]); k++)
+        if (strcmp(option, valued[k]) == 0)
+            return true;
+    return false;
+}
+
+static void parse_options(int argc, char **argv, struct options *o)
+{
+    memset(o, 0, sizeof(*o));
+    o->tileset = "city";
+    o->seed = 1;
+    o->width = 1280;
+    o->height = 720;
+    o->method = TW_METHOD_TILEQUERY_CHC;
+    o->view_distance = 600.0f;
+    for (int k = 1; k < argc; k++) {
+        const char *a = argv[k];
+        const char *v = k + 1 < argc ? argv[k + 1] : NULL;
+        bool takes = true;
+        char part[32];
+        const char *rest = NULL;
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            usage(stdout);
+            exit(0);
+        } else if (strcmp(a, "--no-overlay") == 0) {
+            o->no_overlay = true;
+            takes = false;
+        } else if (strcmp(a, "--quiet") == 0) {
+            o->quiet = true;
+            takes = false;
+        } else if (strncmp(a, "--", 2) != 0) {
+            fail_usage(a, "unexpected argument '%s'", a);
+        } else if (!takes_value(a)) {
+            fail_usage(a, "unknown option '%s' (see tileworld view --help)", a);
+        } else if (!v) {
+            fail_usage(a, "%s needs a value", a);
+        } else if (strcmp(a, "--tileset") == 0) {
+            o->tileset = v;
+        } else if (strcmp(a, "--seed") == 0) {
+            o->seed = parse_u64(a, v, 0, UINT64_MAX);
+        } else if (strcmp(a, "--method") == 0) {
+            if (tw_method_from_name(v, &o->method) != TW_OK || !tw_method_available(o->method))
+                fail_usage(a, "unknown method '%s' (vfc, tilequery, chc, tilequery+chc, oracle)", v);
+        } else if (strcmp(a, "--size") == 0) {
+            parse_pair(a, v, 'x', "'%s' is not of the form WIDTHxHEIGHT", part, sizeof(part), &rest);
+            o->width = (uint32_t)parse_u64(a, part, 16, 8192);
+            o->height = (uint32_t)parse_u64(a, rest, 16, 8192);
+        } else if (strcmp(a, "--start-cell") == 0) {
+            parse_pair(a, v, ',', "'%s' is not of the form I,J", part, sizeof(part), &rest);
+            o->start_cell.i = parse_i64(a, part);
+            o->start_cell.j = parse_i64(a, rest);
+            const int64_t limit = (int64_t)1 << 62;
+            if (o->start_cell.i > limit || o->start_cell.i < -limit || o->start_cell.j > limit ||
+                o->start_cell.j < -limit)
+                fail_usage(a, "'%s' lies outside +-2^62 cells", v);
+        } else if (strcmp(a, "--repeat") == 0) {
+            o->repeat = (int64_t)parse_u64(a, v, 1, (uint64_t)1 << 62);
+        } else if (strcmp(a, "--view-distance") == 0) {
+            o->view_distance = (float)parse_u64(a, v, 1, 100000);
+        } else if (strcmp(a, "--debug") == 0) {
+            o->debug = parse_debug(a, v);
+        } else if (strcmp(a, "--path") == 0) {
+            o->path = v;
+        } else if (strcmp(a, "--frames") == 0) {
+            o->frames = (uint32_t)parse_u64(a, v, 1, 10000000);
+        } else if (strcmp(a, "--screenshot") == 0) {
+            if (*v == '\0')
+                fail_usage(a, "%sthe file name is empty", "");
+            o->screenshot = v;
+        } else if (strcmp(a, "--freeze-at") == 0) {
+            o->freeze_at = (uint32_t)parse_u64(a, v, 1, 10000000);
+        } else {
+            fail_usage(a, "unknown option '%s' (see tileworld view --help)", a);
+        }
+        if (takes)
+            k++;
+    }
+}
+
+static void log_to_stderr(void *user, enum tw_log_level level, const char *msg)
+{
+    (void)user;
+    if (level <= TW_LOG_WARN)
+        fprintf(stderr, "tileworld view: %s\n", msg);
+}
+
+static struct tw_tileset *load_tileset(const struct options *o, const struct tw_log *log)
+{
+    struct tw_tileset *ts = NULL;
+    for (const char *const *n = tw_tilesets_builtin_names; *n; n++) {
+        if (strcmp(*n, o->tileset) == 0) {
+            int err = tw_tilesets_builtin(o->tileset, o->seed, 0, log, &ts);
+            if (err) {
+                fprintf(stderr, "tileworld view: --tileset %s: generation failed: %s\n",
+                        o->tileset, tw_error_to_str(err));
+                exit(1);
+            }
+            return ts;
+        }
+    }
+    if (access(o->tileset, F_OK) != 0)
+        fail_usage("--tileset", "unknown tileset '%s' (built-in: city, forest, hybrid; or a "
+                                "manifest file)", o->tileset);
+    /* The manifest loader has logged the one line naming the place. */
+    if (tw_tilesets_load_manifest(o->tileset, log, &ts))
+        exit(EXIT_USAGE);
+    return ts;
+}
+
+/* The path to fly (--path), or for the keyboard a one-key path: the start
+ * of the street path, where a camera is on a street at eye height. */
+static void load_path(const struct options *o, const struct tw_tileset *ts, struct tw_path *p)
+{
+    const float w = ts->footprint[0], d = ts->footprint[1];
+    const char *name = o->path ? o->path : "street";
+    bool builtin = false;
+    for (const char *const *n = tw_path_builtin_names; *n; n++)
+        builtin |= strcmp(*n, name) == 0;
+    int err;
+    if (builtin) {
+        const uint32_t frames = !o->path ? 1 : o->frames ? o->frames : 300;
+        err = tw_path_builtin(name, o->seed, frames, w, d, p);
+        if (err) {
+            fprintf(stderr, "tileworld view: --path %s: %s\n", name, tw_error_to_str(err));
+            exit(1);
+        }
+    } else {
+        char msg[1400];
+        err = tw_path_load_csv(name, o->frames, w, d, p, msg, sizeof(msg));
+        if (err) {
+            if (err == TW_ERR_IO && access(name, F_OK) != 0)
+                fail_usage("--path", "unknown path '%s' (street, flyover, forest, teleport, "
+                                     "spin, or a CSV file)", name);
+            fprintf(stderr, "tileworld view: %s\n", msg);
+            exit(EXIT_USAGE);
+        }
+    }
+    if (tw_path_translate(p, o->start_cell.i, o->start_cell.j))
+        fail_usage("--start-cell", "%sthe translated path overflows the grid", "");
+}
+
+/* ---- the bitmap font ------------------------------------------------------------ */
+
+/* ASCII 32-126, 5 x 8 pixels each: seven rows above the baseline and one
+ * for descenders, '#' for ink. Drawn by hand for this viewer. */
+enum { GLYPH_W = 5, GLYPH_H = 8, CELL_W = 6, CELL_H = 10, ATLAS_COLS = 16, ATLAS_ROWS = 6 };
+static const char *const font_glyphs[95] = {
+    /* ' '  */ "....." "....." "....." "....." "....." "....." "....." ".....",
+    /* '!'  */ "..#.." "..#.." "..#.." "..#.." "..#.." "....." "..#.." ".....",
+    /* '"'  */ ".#.#." ".#.#." "....." "....." "....." "....." "....." ".....",
+    /* '#'  */ ".#.#." ".#.#." "#####" ".#.#." "#####" ".#.#." ".#.#." ".....",
+    /* '$'  */ "..#.." ".####" "#.#.." ".###." "..#.#" "####." "..#.." ".....",
+    /* '%'  */ "##..." "##..#" "...#." "..#.." ".#..." "#..##" "...##" ".....",
+    /* '&'  */ ".##.." "#..#." "#.#.." ".#..." "#.#.#" "#..#." ".##.#" ".....",
+    /* '\'' */ "..#.." "..#.." "....." "....." "....." "....." "....." ".....",
+    /* '('  */ "...#." "..#.." ".#..." ".#..." ".#..." "..#.." "...#." ".....",
+    /* ')'  */ ".#..." "..#.." "...#." "...#." "...#." "..#.." ".#..." ".....",
+    /* '*'  */ "....." "..#.." "#.#.#" ".###." "#.#.#" "..#.." "....." ".....",
+    /* '+'  */ "....." "..#.." "..#.." "#####" "..#.." "..#.." "....." ".....",
+    /* ','  */ "....." "....." "....." "....." "....." ".##.." "..#.." ".#...",
+    /* '-'  */ "....." "....." "....." "#####" "....." "....." "....." ".....",
+    /* '.'  */ "....." "....." "....." "....." "....." ".##.." ".##.." ".....",
+    /* '/'  */ "....." "....#" "...#." "..#.." ".#..." "#...." "....." ".....",
+    /* '0'  */ ".###." "#...#" "#..##" "#.#.#" "##..#" "#...#" ".###." ".....",
+    /* '1'  */ "..#.." ".##.." "..#.." "..#.." "..#.." "..#.." ".###." ".....",
+    /* '2'  */ ".###." "#...#" "....#" "...#." "..#.." ".#..." "#####" ".....",
+    /* '3'  */ "#####" "...#." "..#.." "...#." "....#" "#...#" ".###." ".....",
+    /* '4'  */ "...#." "..##." ".#.#." "#..#." "#####" "...#." "...#." ".....",
+    /* '5'  */ "#####" "#...." "####." "....#" "....#" "#...#" ".###." ".....",
+    /* '6'  */ "..##." ".#..." "#...." "####." "#...#" "#...#" ".###." ".....",
+    /* '7'  */ "#####" "....#" "...#." "..#.." ".#..." ".#..." ".#..." ".....",
+    /* '8'  */ ".###." "#...#" "#...#" ".###." "#...#" "#...#" ".###." ".....",
+    /* '9'  */ ".###." "#...#" "#...#" ".####" "....#" "...#." ".##.." ".....",
+    /* ':'  */ "....." ".##.." ".##.." "....." ".##.." ".##.." "....." ".....",
+    /* ';'  */ "....." ".##.." ".##.." "....." ".##.." "..#.." ".#..." ".....",
+    /* '<'  */ "...#." "..#.." ".#..." "#...." ".#..." "..#.." "...#." ".....",
+    /* '='  */ "....." "....." "#####" "....." "#####" "....." "....." ".....",
+    /* '>'  */ ".#..." "..#.." "...#." "....#" "...#." "..#.." ".#..." ".....",
+    /* '?'  */ ".###." "#...#" "....#" "...#." "..#.." "....." "..#.." ".....",
+    /* '@'  */ ".###." "#...#" "....#" ".##.#" "#.#.#" "#.#.#" ".###." ".....",
+    /* 'A'  */ ".###." "#...#" "#...#" "#####" "#...#" "#...#" "#...#" ".....",
+    /* 'B'  */ "####." "#...#" "#...#" "####." "#...#" "#...#" "####." ".....",
+    /* 'C'  */ ".###." "#...#" "#...." "#...." "#...." "#...#" ".###." ".....",
+    /* 'D'  */ "###.." "#..#." "#...#" "#...#" "#...#" "#..#." "###.." ".....",
+    /* 'E'  */ "#####" "#...." "#...." "####." "#...." "#...." "#####" ".....",
+    /* 'F'  */ "#####" "#...." "#...." "####." "#...." "#...." "#...." ".....",
+    /* 'G'  */ ".###." "#...#" "#...." "#.###" "#...#" "#...#" ".####" ".....",
+    /* 'H'  */ "#...#" "#...#" "#...#" "#####" "#...#" "#...#" "#...#" ".....",
+    /* 'I'  */ ".###." "..#.." "..#.." "..#.." "..#.." "..#.." ".###." ".....",
+    /* 'J'  */ "..###" "...#." "...#." "...#." "...#." "#..#." ".##.." ".....",
+    /* 'K'  */ "#...#" "#..#." "#.#.." "##..." "#.#.." "#..#." "#...#" ".....",
+    /* 'L'  */ "#...." "#...." "#...." "#...." "#...." "#...." "#####" ".....",
+    /* 'M'  */ "#...#" "##.##" "#.#.#" "#.#.#" "#...#" "#...#" "#...#" ".....",
+    /* 'N'  */ "#...#" "#...#" "##..#" "#.#.#" "#..##" "#...#" "#...#" ".....",
+    /* 'O'  */ ".###." "#...#" "#...#" "#...#" "#...#" "#...#" ".###." ".....",
+    /* 'P'  */ "####." "#...#" "#...#" "####." "#...." "#...." "#...." ".....",
+    /* 'Q'  */ ".###." "#...#" "#...#" "#...#" "#.#.#" "#..#." ".##.#" ".....",
+    /* 'R'  */ "####." "#...#" "#...#" "####." "#.#.." "#..#." "#...#" ".....",
+    /* 'S'  */ ".####" "#...." "#...." ".###." "....#" "....#" "####." ".....",
+    /* 'T'  */ "#####" "..#.." "..#.." "..#.." "..#.." "..#.." "..#.." ".....",
+    /* 'U'  */ "#...#" "#...#" "#...#" "#...#" "#...#" "#...#" ".###." ".....",
+    /* 'V'  */ "#...#" "#...#" "#...#" "#...#" "#...#" ".#.#." "..#.." ".....",
+    /* 'W'  */ "#...#" "#...#" "#...#" "#.#.#" "#.#.#" "#.#.#" ".#.#." ".....",
+    /* 'X'  */ "#...#" "#...#" ".#.#." "..#.." ".#.#." "#...#" "#...#" ".....",
+    /* 'Y'  */ "#...#" "#...#" ".#.#." "..#.." "..#.." "..#.." "..#.." ".....",
+    /* 'Z'  */ "#####" "....#" "...#." "..#.." ".#..." "#...." "#####" ".....",
+    /* '['  */ ".###." ".#..." ".#..." ".#..." ".#..." ".#..." ".###." ".....",
+    /* '\\' */ "....." "#...." ".#..." "..#.." "...#." "....#" "....." ".....",
+    /* ']'  */ ".###." "...#." "...#." "...#." "...#." "...#." ".###." ".....",
+    /* '^'  */ "..#.." ".#.#." "#...#" "....." "....." "....." "....." ".....",
+    /* '_'  */ "....." "....." "....." "....." "....." "....." "#####" ".....",
+    /* '`'  */ ".#..." "..#.." "....." "....." "....." "....." "....." ".....",
+    /* 'a'  */ "....." "....." ".###." "....#" ".####" "#...#" ".####" ".....",
+    /* 'b'  */ "#...." "#...." "#.##." "##..#" "#...#" "#...#" "####." ".....",
+    /* 'c'  */ "....." "....." ".###." "#...." "#...." "#...#" ".###." ".....",
+    /* 'd'  */ "....#" "....#" ".##.#" "#..##" "#...#" "#...#" ".####" ".....",
+    /* 'e'  */ "....." "....." ".###." "#...#" "#####" "#...." ".###." ".....",
+    /* 'f'  */ "..##." ".#..#" ".#..." "###.." ".#..." ".#..." ".#..." ".....",
+    /* 'g'  */ "....." "....." ".####" "#...#" "#...#" ".####" "....#" ".###.",
+    /* 'h'  */ "#...." "#...." "#.##." "##..#" "#...#" "#...#" "#...#" ".....",
+    /* 'i'  */ "..#.." "....." ".##.." "..#.." "..#.." "..#.." ".###." ".....",
+    /* 'j'  */ "...#." "....." "..##." "...#." "...#." "...#." "#..#." ".##..",
+    /* 'k'  */ "#...." "#...." "#..#." "#.#.." "##..." "#.#.." "#..#." ".....",
+    /* 'l'  */ ".##.." "..#.." "..#.." "..#.." "..#.." "..#.." ".###." ".....",
+    /* 'm'  */ "....." "....." "##.#." "#.#.#" "#.#.#" "#.#.#" "#.#.#" ".....",
+    /* 'n'  */ "....." "....." "#.##." "##..#" "#...#" "#...#" "#...#" ".....",
+    /* 'o'  */ "....." "....." ".###." "#...#" "#...#" "#...#" ".###." ".....",
+    /* 'p'  */ "....." "....." "####." "#...#" "#...#" "####." "#...." "#....",
+    /* 'q'  */ "....." "....." ".####" "#...#" "#...#" ".####" "....#" "....#",
+    /* 'r'  */ "....." "....." "#.##." "##..#" "#...." "#...." "#...." ".....",
+    /* 's'  */ "....." "....." ".####" "#...." ".###." "....#" "####." ".....",
+    /* 't'  */ ".#..." ".#..." "###.." ".#..." ".#..." ".#..#" "..##." ".....",
+    /* 'u'  */ "....." "....." "#...#" "#...#" "#...#" "#..##" ".##.#" ".....",
+    /* 'v'  */ "....." "....." "#...#" "#...#" "#...#" ".#.#." "..#.." ".....",
+    /* 'w'  */ "....." "....." "#...#" "#...#" "#.#.#" "#.#.#" ".#.#." ".....",
+    /* 'x'  */ "....." "....." "#...#" ".#.#." "..#.." ".#.#." "#...#" ".....",
+    /* 'y'  */ "....." "....." "#...#" "#...#" "#...#" ".####" "....#" ".###.",
+    /* 'z'  */ "....." "....." "#####" "...#." "..#.." ".#..." "#####" ".....",
+    /* '{'  */ "...#." "..#.." "..#.." ".#..." "..#.." "..#.." "...#." ".....",
+    /* '|'  */ "..#.." "..#.." "..#.." "..#.." "..#.." "..#.." "..#.." ".....",
+    /* '}'  */ ".#..." "..#.." "..#.." "...#." "..#.." "..#.." ".#..." ".....",
+    /* '~'  */ "....." "....." ".#..." "#.#.#" "...#." "....." "....." ".....",
+};
+
+/* ---- the overlay: text and flat shapes as textured quads ------------------------ */
+
+/* GL entry points the overlay needs beyond the runtime's table. */
+#define VIEW_GL_FUNCTIONS(X) \
+    X(PFNGLGENTEXTURESPROC, GenTextures) \
+    X(PFNGLDELETETEXTURESPROC, DeleteTextures) \
+    X(PFNGLBINDTEXTUREPROC, BindTexture) \
+    X(PFNGLTEXIMAGE2DPROC, TexImage2D) \
+    X(PFNGLTEXPARAMETERIPROC, TexParameteri) \
+    X(PFNGLSCISSORPROC, Scissor) \
+    X(PFNGLDRAWARRAYSPROC, DrawArrays)
+
+struct view_gl {
+#define VIEW_GL_MEMBER(type, name) type name;
+    VIEW_GL_FUNCTIONS(VIEW_GL_MEMBER)
+#undef VIEW_GL_MEMBER
+};
+
+static void *glfw_get_proc(const char *name)
+{
+    /* As in runtime/gl.c: function pointer to data pointer, which POSIX allows. */
+    GLFWglproc f = glfwGetProcAddress(name);
+    void *p;
+    memcpy(&p, &f, sizeof(p));
+    return p;
+}
+
+static int view_gl_load(struct view_gl *vg)
+{
+#define VIEW_GL_LOAD(type, name) \
+    do { \
+        void *p = glfw_get_proc("gl" #name); \
+        if (!p) { \
+            fprintf(stderr, "tileworld view: OpenGL entry point gl%s is missing\n", #name); \
+            return TW_ERR_GL; \
+        } \
+        memcpy(&vg->name, &p, sizeof(p)); \
+    } while (0);
+    VIEW_GL_FUNCTIONS(VIEW_GL_LOAD)
+#undef VIEW_GL_LOAD
+    return TW_OK;
+}
+
+static const char *const overlay_vs =
+    "#version 330 core\n"
+    "layout(location = 0) in vec2 a_pos;\n"
+    "layout(location = 1) in vec2 a_uv;\n"
+    "layout(location = 2) in vec4 a_color;\n"
+    "uniform vec2 u_screen;\n"
+    "out vec2 v_uv;\n"
+    "out vec4 v_color;\n"
+    "void main() {\n"
+    "    v_uv = a_uv;\n"
+    "    v_color = a_color;\n"
+    "    gl_Position = vec4(a_pos.x / u_screen.x * 2.0 - 1.0, 1.0 - a_pos.y / u_screen.y * 2.0,\n"
+    "                       0.0, 1.0);\n"
+    "}\n";
+
+static const char *const overlay_fs =
+    "#version 330 core\n"
+    "uniform sampler2D u_font;\n"
+    "in vec2 v_uv;\n"
+    "in vec4 v_color;\n"
+    "out vec4 o_color;\n"
+    "void main() { o_color = vec4(v_color.rgb, v_color.a * texture(u_font, v_uv).r); }\n";
+
+enum { VERTEX_FLOATS = 8 };   /* x, y (pixels, top left origin), u, v, r, g, b, a */
+
+struct overlay {
+    struct tw_gl gl;
+    struct view_gl vg;
+    GLuint program, vao, vbo, texture;
+    GLint u_screen;
+    float *verts;
+    size_t count, cap;          /* vertices */
+    size_t clip_first;          /* vertices from here on are drawn inside clip */
+    int clip[4];                /* x, y, w, h in pixels, top left origin; w = 0: none */
+    float scale;                /* font pixels per texel */
+};
+
+static GLuint overlay_shader(const struct tw_gl *gl, GLenum type, const char *src)
+{
+    GLuint s = gl->CreateShader(type);
+    gl->ShaderSource(s, 1, &src, NULL);
+    gl->CompileShader(s);
+    GLint ok = 0;
+    gl->GetShaderiv(s, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+        char msg[1024] = "";
+        gl->GetShaderInfoLog(s, sizeof(msg), NULL, msg);
+        fprintf(stderr, "tileworld view: overlay shader failed to compile (a bug): %s\n", msg);
+        gl->DeleteShader(s);
+        return 0;
+    }
+    return s;
+}
+
+static int overlay_init(struct overlay *o)
+{
+    int err = tw_gl_load(&o->gl, glfw_get_proc, NULL);
+    if (!err)
+        err = view_gl_load(&o->vg);
+    if (err)
+        return err;
+    const struct tw_gl *gl = &o->gl;
+    GLuint vs = overlay_shader(gl, GL_VERTEX_SHADER, overlay_vs);
+    GLuint fs = overlay_shader(gl, GL_FRAGMENT_SHADER, overlay_fs);
+    if (!vs || !fs)
+        return TW_ERR_GL;
+    o->program = gl->CreateProgram();
+    gl->AttachShader(o->program, vs);
+    gl->AttachShader(o->program, fs);
+    gl->LinkProgram(o->program);
+    gl->DeleteShader(vs);
+    gl->DeleteShader(fs);
+    GLint ok = 0;
+    gl->GetProgramiv(o->program, GL_LINK_STATUS, &ok);
+    if (!ok) {
+        fprintf(stderr, "tileworld view: overlay shader failed to link (a bug)\n");
+        return TW_ERR_GL;
+    }
+    o->u_screen = gl->GetUniformLocation(o->program, "u_screen");
+
+    /* The atlas: 16 x 6 cells of CELL_W x CELL_H texels, glyph k at cell k,
+     * the last cell solid (for flat shapes). Top row first. */
+    enum { AW = ATLAS_COLS * CELL_W, AH = ATLAS_ROWS * CELL_H };
+    static uint8_t atlas[AH][AW];
+    memset(atlas, 0, sizeof(atlas));
+    for (int g = 0; g < 95; g++) {
+        const int cx = (g % ATLAS_COLS) * CELL_W, cy = (g / ATLAS_COLS) * CELL_H;
+        for (int y = 0; y < GLYPH_H; y++)
+            for (int x = 0; x < GLYPH_W; x++)
+                atlas[cy + y][cx + x] = font_glyphs[g][y * GLYPH_W + x] == '#' ? 255 : 0;
+    }
+    for (int y = 0; y < CELL_H; y++)
+        for (int x = 0; x < CELL_W; x++)
+            atlas[(95 / ATLAS_COLS) * CELL_H + y][(95 % ATLAS_COLS) * CELL_W + x] = 255;
+    o->vg.GenTextures(1, &o->texture);
+    o->vg.BindTexture(GL_TEXTURE_2D, o->texture);
+    gl->PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    o->vg.TexImage2D(GL_TEXTURE_2D, 0, GL_R8, AW, AH, 0, GL_RED, GL_UNSIGNED_BYTE, atlas);
+    o->vg.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    o->vg.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    o->vg.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    o->vg.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+
+    gl->GenVertexArrays(1, &o->vao);
+    gl->BindVertexArray(o->vao);
+    gl->GenBuffers(1, &o->vbo);
+    gl->BindBuffer(GL_ARRAY_BUFFER, o->vbo);
+    const GLsizei stride = VERTEX_FLOATS * sizeof(float);
+    gl->EnableVertexAttribArray(0);
+    gl->VertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, stride, (const void *)0);
+    gl->EnableVertexAttribArray(1);
+    gl->VertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, stride, (const void *)(2 * sizeof(float)));
+    gl->EnableVertexAttribArray(2);
+    gl->VertexAttribPointer(2, 4, GL_FLOAT, GL_FALSE, stride, (const void *)(4 * sizeof(float)));
+    gl->BindVertexArray(0);
+    const GLenum gl_err = gl->GetError();
+    if (gl_err != GL_NO_ERROR) {
+        fprintf(stderr, "tileworld view: OpenGL error 0x%x while setting up the overlay\n", gl_err);
+        return TW_ERR_GL;
+    }
+    return TW_OK;
+}
+
+static void overlay_finish(struct overlay *o)
+{
+    if (o->gl.DeleteBuffers) {
+        o->gl.DeleteBuffers(1, &o->vbo);
+        o->gl.DeleteVertexArrays(1, &o->vao);
+        if (o->program)
+            o->gl.DeleteProgram(o->program);
+    }
+    if (o->vg.DeleteTextures)
+        o->vg.DeleteTextures(1, &o->texture);
+    free(o->verts);
+}
+
+/* A quad with corners (x[k], y[k]) in order around it, texels uv[k]. */
+static void overlay_quad(struct overlay *o, const float x[4], const float y[4],
+                         const float u[4], const float v[4], const float color[4])
+{
+    if (o->count + 6 > o->cap) {
+        size_t cap = o->cap ? 2 * o->cap : 6 * 1024;
+        float *p = realloc(o->verts, sizeof(float) * VERTEX_FLOATS * cap);
+        if (!p)
+            return;   /* the overlay loses shapes, the frame goes on */
+        o->verts = p;
+        o->cap = cap;
+    }
+    static const int order[6] = {0, 1, 2, 0, 2, 3};
+    for (int k = 0; k < 6; k++) {
+        float *p = o->verts + VERTEX_FLOATS * o->count++;
+        const int c = order[k];
+        p[0] = x[c];
+        p[1] = y[c];
+        p[2] = u[c] / (ATLAS_COLS * CELL_W);
+        p[3] = v[c] / (ATLAS_ROWS * CELL_H);
+        memcpy(p + 4, color, 4 * sizeof(float));
+    }
+}
+
+static const float solid_u = (95 % ATLAS_COLS) * CELL_W + 3.0f;
+static const float solid_v = (95 / ATLAS_COLS) * CELL_H + 5.0f;
+
+static void overlay_shape(struct overlay *o, const float x[4], const float y[4], const float color[4])
+{
+    const float u[4] = {solid_u, solid_u, solid_u, solid_u};
+    const float v[4] = {solid_v, solid_v, solid_v, solid_v};
+    overlay_quad(o, x, y, u, v, color);
+}
+
+static void overlay_rect(struct overlay *o, float x0, float y0, float x1, float y1,
+                         const float color[4])
+{
+    const float x[4] = {x0, x1, x1, x0}, y[4] = {y0, y0, y1, y1};
+    overlay_shape(o, x, y, color);
+}
+
+static void overlay_line(struct overlay *o, float xa, float ya, float xb, float yb, float width,
+                         const float color[4])
+{
+    float dx = xb - xa, dy = yb - ya;
+    const float len = sqrtf(dx * dx + dy * dy);
+    if (len <= 0.0f)
+        return;
+    const float nx = -dy / len * 0.5f * width, ny = dx / len * 0.5f * width;
+    const float x[4] = {xa + nx, xb + nx, xb - nx, xa - nx};
+    const float y[4] = {ya + ny, yb + ny, yb - ny, ya - ny};
+    overlay_shape(o, x, y, color);
+}
+
+static float char_w(const struct overlay *o)
+{
+    return CELL_W * o->scale;
+}
+
+static float line_h(const struct overlay *o)
+{
+    return (CELL_H + 1) * o->scale;
+}
+
+/* Draws text at (x, y) (its cell's top left) with a dark shadow, so it
+ * reads over any scene; returns the x after it. */
+static float overlay_text(struct overlay *o, float x, float y, const float color[4], const char *s)
+{
+    static const float shadow[4] = {0.0f, 0.0f, 0.0f, 0.85f};
+    const float s1 = o->scale;
+    for (int pass = 0; pass < 2; pass++) {
+        float cx = x;
+        for (const char *c = s; *c; c++, cx += char_w(o)) {
+            int g = (unsigned char)*c;
+            if (g < 32 || g > 126)
+                g = '?';
+            g -= 32;
+            if (g == 0)
+                continue;
+            const float u0 = (float)((g % ATLAS_COLS) * CELL_W), v0 = (float)((g / ATLAS_COLS) * CELL_H);
+            const float px = pass == 0 ? cx + s1 : cx, py = pass == 0 ? y + s1 : y;
+            const float qx[4] = {px, px + GLYPH_W * s1, px + GLYPH_W * s1, px};
+            const float qy[4] = {py, py, py + GLYPH_H * s1, py + GLYPH_H * s1};
+            const float qu[4] = {u0, u0 + GLYPH_W, u0 + GLYPH_W, u0};
+            const float qv[4] = {v0, v0, v0 + GLYPH_H, v0 + GLYPH_H};
+            overlay_quad(o, qx, qy, qu, qv, pass == 0 ? shadow : color);
+        }
+    }
+    return x + (float)strlen(s) * char_w(o);
+}
+
+static void overlay_draw(struct overlay *o, int fb_w, int fb_h)
+{
+    const struct tw_gl *gl = &o->gl;
+    if (o->count > 0) {
+        gl->BindFramebuffer(GL_FRAMEBUFFER, 0);
+        gl->Viewport(0, 0, fb_w, fb_h);
+        gl->Disable(GL_DEPTH_TEST);
+        gl->Disable(GL_CULL_FACE);
+        gl->ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+        gl->Enable(GL_BLEND);
+        gl->BlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+        gl->UseProgram(o->program);
+        const float screen[2] = {(float)fb_w, (float)fb_h};
+        gl->Uniform2fv(o->u_screen, 1, screen);
+        o->vg.BindTexture(GL_TEXTURE_2D, o->texture);
+        gl->BindVertexArray(o->vao);
+        gl->BindBuffer(GL_ARRAY_BUFFER, o->vbo);
+        gl->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(sizeof(float) * VERTEX_FLOATS * o->count),
+                       o->verts, GL_STREAM_DRAW);
+        const size_t first = o->clip[2] > 0 ? o->clip_first : o->count;
+        o->vg.DrawArrays(GL_TRIANGLES, 0, (GLsizei)first);
+        if (first < o->count) {
+            gl->Enable(GL_SCISSOR_TEST);
+            o->vg.Scissor(o->clip[0], fb_h - o->clip[1] - o->clip[3], o->clip[2], o->clip[3]);
+            o->vg.DrawArrays(GL_TRIANGLES, (GLint)first, (GLsizei)(o->count - first));
+            gl->Disable(GL_SCISSOR_TEST);
+        }
+        /* Leave the state the renderer expects. */
+        gl->Disable(GL_BLEND);
+        gl->Enable(GL_DEPTH_TEST);
+        gl->BindVertexArray(0);
+    }
+    o->count = 0;
+    o->clip[2] = 0;
+}
+
+/* ---- the viewer ----------------------------------------------------------------- */
+
+struct viewer {
+    struct options opt;
+    GLFWwindow *win;
+    const struct tw_tileset *ts;
+    struct tw_world *world;
+    struct overlay ov;
+    struct tw_camera cam;
+    struct tw_frame_stats st;
+    unsigned debug;
+    bool show_overlay, show_help;
+    float speed;                 /* m/s, before Shift */
+    double fps;                  /* frames per second over the last half second */
+    double fps_since;
+    uint32_t fps_frames;
+
+    /* Mouse look: while the left button is down, or always when captured. */
+    bool looking, captured;
+    double mouse_x, mouse_y;
+
+    /* Freeze: the clusters drawn, and every debug view, at the moment of freezing. */
+    bool freeze_pending, frozen;
+    struct tw_drawn_cluster *frozen_set;
+    size_t frozen_count;
+    struct tw_debug_box *frozen_boxes, *shown_boxes;
+    size_t frozen_box_count;
+    struct tw_camera frozen_cam;
+    uint32_t frozen_frame;
+
+    bool screenshot_pending;
+    uint32_t screenshot_count;
+    uint64_t frame;
+};
+
+static void set_title(struct viewer *v)
+{
+    char title[256];
+    snprintf(title, sizeof(title), "tileworld view: %s, %s%s", v->ts->name,
+             tw_method_name(tw_world_settings(v->world)->method), v->frozen ? " (frozen)" : "");
+    glfwSetWindowTitle(v->win, title);
+}
+
+static void toggle_debug(struct viewer *v, unsigned flag)
+{
+    const unsigned debug = v->debug ^ flag;
+    if (tw_world_set_debug(v->world, debug) == TW_OK)
+        v->debug = debug;
+}
+
+static void unfreeze(struct viewer *v)
+{
+    v->frozen = false;
+    free(v->frozen_set);
+    free(v->frozen_boxes);
+    free(v->shown_boxes);
+    v->frozen_set = NULL;
+    v->frozen_boxes = v->shown_boxes = NULL;
+    v->frozen_count = v->frozen_box_count = 0;
+}
+
+static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods)
+{
+    (void)scancode;
+    (void)mods;
+    struct viewer *v = glfwGetWindowUserPointer(win);
+    if (action != GLFW_PRESS)
+        return;
+    switch (key) {
+    case GLFW_KEY_ESCAPE:
+        if (v->captured) {
+            v->captured = false;
+            glfwSetInputMode(win, GLFW_CURSOR, GLFW_CURSOR_NORMAL);
+        } else {
+            glfwSetWindowShouldClose(win, GLFW_TRUE);
+        }
+        break;
+    case GLFW_KEY_1: case GLFW_KEY_2: case GLFW_KEY_3: case GLFW_KEY_4: case GLFW_KEY_5: {
+        static const enum tw_method by_key[5] = {TW_METHOD_VFC, TW_METHOD_TILEQUERY, TW_METHOD_CHC,
+                                                 TW_METHOD_TILEQUERY_CHC, TW_METHOD_ORACLE};
+        if (tw_world_set_method(v->world, by_key[key - GLFW_KEY_1]) == TW_OK)
+            set_title(v);
+        break;
+    }
+    case GLFW_KEY_C:
+        toggle_debug(v, TW_DEBUG_CELLS);
+        break;
+    case GLFW_KEY_B:
+        toggle_debug(v, TW_DEBUG_NODES);
+        break;
+    case GLFW_KEY_X:
+        toggle_debug(v, TW_DEBUG_QUERIES);
+        break;
+    case GLFW_KEY_F:
+        if (v->frozen) {
+            unfreeze(v);
+            set_title(v);
+        } else {
+            v->freeze_pending = true;
+        }
+        break;
+    case GLFW_KEY_P:
+    case GLFW_KEY_F12:
+        v->screenshot_pending = true;
+        break;
+    case GLFW_KEY_H:
+    case GLFW_KEY_F1:
+        v->show_help = !v->show_help;
+        break;
+    case GLFW_KEY_O:
+        v->show_overlay = !v->show_overlay;
+        break;
+    case GLFW_KEY_TAB:
+        v->captured = !v->captured;
+        glfwSetInputMode(win, GLFW_CURSOR, v->captured ? GLFW_CURSOR_DISABLED : GLFW_CURSOR_NORMAL);
+        glfwGetCursorPos(win, &v->mouse_x, &v->mouse_y);
+        break;
+    default:
+        break;
+    }
+}
+
+static void on_mouse_button(GLFWwindow *win, int button, int action, int mods)
+{
+    (void)mods;
+    struct viewer *v = glfwGetWindowUserPointer(win);
+    if (button == GLFW_MOUSE_BUTTON_LEFT || button == GLFW_MOUSE_BUTTON_RIGHT) {
+        v->looking = action == GLFW_PRESS;
+        glfwGetCursorPos(win, &v->mouse_x, &v->mouse_y);
+    }
+}
+
+static void on_cursor(GLFWwindow *win, double x, double y)
+{
+    struct viewer *v = glfwGetWindowUserPointer(win);
+    if ((v->looking || v->captured) && !v->opt.path) {
+        const float sensitivity = 0.15f;   /* degrees per pixel */
+        /* Yaw grows towards +x, which lies to the left when looking along +z. */
+        v->cam.yaw -= (float)(x - v->mouse_x) * sensitivity;
+        v->cam.pitch -= (float)(y - v->mouse_y) * sensitivity;
+        v->cam.yaw = fmodf(v->cam.yaw, 360.0f);
+        if (v->cam.pitch > 89.0f)
+            v->cam.pitch = 89.0f;
+        if (v->cam.pitch < -89.0f)
+            v->cam.pitch = -89.0f;
+    }
+    v->mouse_x = x;
+    v->mouse_y = y;
+}
+
+static void on_scroll(GLFWwindow *win, double dx, double dy)
+{
+    (void)dx;
+    struct viewer *v = glfwGetWindowUserPointer(win);
+    v->speed *= powf(1.25f, (float)dy);
+    if (v->speed < 0.5f)
+        v->speed = 0.5f;
+    if (v->speed > 5000.0f)
+        v->speed = 5000.0f;
+}
+
+/* WASD flight along the view, Q/E down/up, Shift fast. The position stays a
+ * cell and a local offset: normalised every frame, so that flying any
+ * distance loses no precision. */
+static void fly(struct viewer *v, float dt)
+{
+    GLFWwindow *win = v->win;
+    const float yaw = v->cam.yaw * pi_f / 180.0f, pitch = v->cam.pitch * pi_f / 180.0f;
+    const float forward[3] = {sinf(yaw) * cosf(pitch), sinf(pitch), cosf(yaw) * cosf(pitch)};
+    const float right[3] = {-cosf(yaw), 0.0f, sinf(yaw)};
+    float move[3] = {0, 0, 0};
+    const float f = (float)(glfwGetKey(win, GLFW_KEY_W) == GLFW_PRESS) -
+                    (float)(glfwGetKey(win, GLFW_KEY_S) == GLFW_PRESS);
+    const float r = (float)(glfwGetKey(win, GLFW_KEY_D) == GLFW_PRESS) -
+                    (float)(glfwGetKey(win, GLFW_KEY_A) == GLFW_PRESS);
+    const float u = (float)(glfwGetKey(win, GLFW_KEY_E) == GLFW_PRESS) -
+                    (float)(glfwGetKey(win, GLFW_KEY_Q) == GLFW_PRESS);
+    for (int a = 0; a < 3; a++)
+        move[a] = f * forward[a] + r * right[a];
+    move[1] += u;
+    const bool fast = glfwGetKey(win, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS ||
+                      glfwGetKey(win, GLFW_KEY_RIGHT_SHIFT) == GLFW_PRESS;
+    const float step = v->speed * (fast ? 10.0f : 1.0f) * dt;
+    for (int a = 0; a < 3; a++)
+        v->cam.pos.local[a] += move[a] * step;
+    if (v->cam.pos.local[1] < 0.3f)
+        v->cam.pos.local[1] = 0.3f;
+    if (v->cam.pos.local[1] > 20000.0f)
+        v->cam.pos.local[1] = 20000.0f;
+    struct tw_world_pos p = v->cam.pos;
+    if (tw_tiles_normalize(&p, v->ts->footprint[0], v->ts->footprint[1]) == TW_OK)
+        v->cam.pos = p;
+}
+
+/* Takes the culled set of the frame just rendered (with every debug view
+ * recorded) as the frozen one. */
+static int take_freeze(struct viewer *v)
+{
+    size_t n = 0, nb = 0;
+    const struct tw_drawn_cluster *d = tw_world_drawn(v->world, &n);
+    const struct tw_debug_box *b = tw_world_debug_boxes(v->world, &nb);
+    v->frozen_set = malloc(sizeof(*d) * (n ? n : 1));
+    v->frozen_boxes = malloc(sizeof(*b) * (nb ? nb : 1));
+    v->shown_boxes = malloc(sizeof(*b) * (nb ? nb : 1));
+    if (!v->frozen_set || !v->frozen_boxes || !v->shown_boxes) {
+        unfreeze(v);
+        return TW_ERR_NOMEM;
+    }
+    if (n)
+        memcpy(v->frozen_set, d, sizeof(*d) * n);
+    if (nb)
+        memcpy(v->frozen_boxes, b, sizeof(*b) * nb);
+    v->frozen_count = n;
+    v->frozen_box_count = nb;
+    v->frozen_cam = v->cam;
+    v->frozen_frame = (uint32_t)v->frame + 1;
+    v->frozen = true;
+    set_title(v);
+    return TW_OK;
+}
+
+static unsigned view_of(uint16_t kind)
+{
+    if (kind <= TW_DEBUG_CELL_NOT_REACHED)
+        return TW_DEBUG_CELLS;
+    if (kind <= TW_DEBUG_NODE_INNER)
+        return TW_DEBUG_NODES;
+    return TW_DEBUG_QUERIES;
+}
+
+/* The debug boxes to show this frame: the last frame's, or while frozen the
+ * frozen ones of the views now on. */
+static const struct tw_debug_box *shown_boxes(struct viewer *v, size_t *count)
+{
+    if (!v->frozen)
+        return tw_world_debug_boxes(v->world, count);
+    size_t n = 0;
+    for (size_t k = 0; k < v->frozen_box_count; k++)
+        if (view_of(v->frozen_boxes[k].kind) & v->debug)
+            v->shown_boxes[n++] = v->frozen_boxes[k];
+    *count = n;
+    return v->shown_boxes;
+}
+
+static const float white[4] = {1.0f, 1.0f, 1.0f, 1.0f};
+static const float dim[4] = {0.70f, 0.74f, 0.80f, 1.0f};
+static const float accent[4] = {1.0f, 0.85f, 0.30f, 1.0f};
+static const float panel[4] = {0.0f, 0.0f, 0.0f, 0.55f};
+
+static void draw_panel_lines(struct overlay *o, float x, float y, char lines[][160], int count,
+                             const float colors[][4])
+{
+    size_t widest = 0;
+    for (int k = 0; k < count; k++)
+        if (strlen(lines[k]) > widest)
+            widest = strlen(lines[k]);
+    const float pad = 4.0f * o->scale;
+    overlay_rect(o, x, y, x + (float)widest * char_w(o) + 2 * pad,
+                 y + (float)count * line_h(o) + 2 * pad - o->scale, panel);
+    for (int k = 0; k < count; k++)
+        overlay_text(o, x + pad, y + pad + (float)k * line_h(o), colors[k], lines[k]);
+}
+
+static void draw_stats(struct viewer *v)
+{
+    struct overlay *o = &v->ov;
+    const struct tw_frame_stats *st = &v->st;
+    char lines[6][160];
+    float colors[6][4];
+    int n = 0;
+    if (v->frozen) {
+        snprintf(lines[n], sizeof(lines[n]), "FROZEN  %zu clusters of frame %u, drawn %.1f ms  [F] release",
+                 v->frozen_count, v->frozen_frame, st->ms_frame);
+        memcpy(colors[n++], accent, sizeof(accent));
+    } else {
+        char fps[16] = "  - fps";   /* until half a second has been measured */
+        if (v->fps > 0.0)
+            snprintf(fps, sizeof(fps), "%3.0f fps", v->fps);
+        snprintf(lines[n], sizeof(lines[n]), "%-13s %6.2f ms  cull %.2f  wait %.2f   %s",
+                 tw_method_name(st->method), st->ms_frame, st->ms_cull, st->ms_wait, fps);
+        memcpy(colors[n++], accent, sizeof(accent));
+    }
+    snprintf(lines[n], sizeof(lines[n]), "triangles %llu  clusters %u  draws %u  queries %u",
+             (unsigned long long)st->triangles, st->clusters, st->draws, st->queries);
+    memcpy(colors[n++], white, sizeof(white));
+    if (!v->frozen) {
+        snprintf(lines[n], sizeof(lines[n]),
+                 "tiles visible %u  queried %u  new %u  cached %u  cache %.2f MiB  mispredicted %u",
+                 st->tiles_visible, st->tiles_queried, st->tiles_new, st->tiles_cached,
+                 (double)st->cache_bytes / (1024.0 * 1024.0), st->predict_fail);
+        memcpy(colors[n++], white, sizeof(white));
+    }
+    snprintf(lines[n], sizeof(lines[n]), "cell %lld, %lld  at %.1f %.1f %.1f m  yaw %ld  pitch %ld",
+             (long long)v->cam.pos.cell.i, (long long)v->cam.pos.cell.j, v->cam.pos.local[0],
+             v->cam.pos.local[1], v->cam.pos.local[2], lroundf(v->cam.yaw), lroundf(v->cam.pitch));
+    memcpy(colors[n++], dim, sizeof(dim));
+    snprintf(lines[n], sizeof(lines[n]), "[1-5] method  [C] cells %s  [B] nodes %s  [X] queries %s  [H] help",
+             v->debug & TW_DEBUG_CELLS ? "ON" : "off", v->debug & TW_DEBUG_NODES ? "ON" : "off",
+             v->debug & TW_DEBUG_QUERIES ? "ON" : "off");
+    memcpy(colors[n++], dim, sizeof(dim));
+    const float margin = 6.0f * o->scale;
+    draw_panel_lines(o, margin, margin, lines, n, (const float(*)[4])colors);
+}
+
+static void draw_help(struct viewer *v, int fb_w, int fb_h)
+{
+    static const char *const help[] = {
+        "mouse drag   look (Tab: capture the mouse, Esc: release)",
+        "W A S D      fly forward, left, back, right",
+        "Q / E        down / up;  Shift: 10x faster;  wheel: speed",
+        "1 2 3 4 5    vfc, tilequery, chc, tilequery+chc, oracle",
+        "C            cells by tile-query state (and the map)",
+        "B            BVH nodes holding the clusters drawn",
+        "X            query boxes issued this frame",
+        "F            freeze the culled set, fly around it",
+        "P            screenshot (tileworld-view-N.png)",
+        "O            overlay on/off;  H help;  Esc quit",
+    };
+    enum { N = sizeof(help) / sizeof(help[0]) };
+    char lines[N][160];
+    float colors[N][4];
+    for (int k = 0; k < N; k++) {
+        snprintf(lines[k], sizeof(lines[k]), "%s", help[k]);
+        memcpy(colors[k], white, sizeof(white));
+    }
+    struct overlay *o = &v->ov;
+    const float w = 60.0f * char_w(o), h = (float)N * line_h(o);
+    draw_panel_lines(o, floorf(((float)fb_w - w) * 0.5f), floorf(((float)fb_h - h) * 0.5f), lines, N,
+                     (const float(*)[4])colors);
+}
+
+/* Colour swatches of the debug views on, along the bottom edge, wrapped
+ * into as many rows as the window's width needs. */
+static void draw_legend(struct viewer *v, int fb_w, int fb_h)
+{
+    struct overlay *o = &v->ov;
+    const float margin = 6.0f * o->scale, sw = 8.0f * o->scale, gap = 3.0f * o->scale;
+    int kinds[TW_DEBUG_KIND_COUNT], rows[TW_DEBUG_KIND_COUNT];
+    float widths[TW_DEBUG_KIND_COUNT];
+    int n = 0, row_count = 1;
+    float x = margin;
+    for (int k = 0; k < TW_DEBUG_KIND_COUNT; k++) {
+        if (!(view_of((uint16_t)k) & v->debug))
+            continue;
+        const float w = sw + gap + (float)strlen(tw_debug_kind_name((enum tw_debug_kind)k)) * char_w(o);
+        if (x > margin && x + w > (float)fb_w - margin) {
+            x = margin;
+            row_count++;
+        }
+        kinds[n] = k;
+        rows[n] = row_count - 1;
+        widths[n++] = w;
+        x += w + 2 * char_w(o);
+    }
+    const float top = (float)fb_h - margin - (float)row_count * line_h(o);
+    for (int r = 0; r < row_count; r++) {
+        float row_w = 0.0f;
+        for (int k = 0; k < n; k++)
+            if (rows[k] == r)
+                row_w += widths[k] + 2 * char_w(o);
+        const float y = top + (float)r * line_h(o);
+        overlay_rect(o, margin - 2 * o->scale, y - 2 * o->scale, margin + row_w - char_w(o),
+                     y + line_h(o) - o->scale, panel);
+    }
+    x = margin;
+    for (int k = 0; k < n; k++) {
+        if (k > 0 && rows[k] != rows[k - 1])
+            x = margin;
+        const float y = top + (float)rows[k] * line_h(o);
+        float c[4];
+        tw_debug_kind_color((enum tw_debug_kind)kinds[k], c);
+        c[3] = 1.0f;
+        overlay_rect(o, x, y, x + sw, y + GLYPH_H * o->scale, c);
+        overlay_text(o, x + sw + gap, y, white, tw_debug_kind_name((enum tw_debug_kind)kinds[k]));
+        x += widths[k] + 2 * char_w(o);
+    }
+}
+
+/* A map of the cells around the camera, heading up, coloured as the cells
+ * view (the paper's Figure 6), with the view's wedge; while frozen, also
+ * the frozen camera's. */
+static void draw_map(struct viewer *v, const struct tw_debug_box *boxes, size_t count, int fb_w)
+{
+    struct overlay *o = &v->ov;
+    const struct tw_world_settings *s = tw_world_settings(v->world);
+    const float size = floorf(fminf(150.0f * o->scale, 0.4f * (float)fb_w));
+    const float margin = 6.0f * o->scale;
+    const float x0 = (float)fb_w - margin - size, y0 = margin;
+    const float cx = x0 + size * 0.5f, cy = y0 + size * 0.5f;
+    const float mpp = 2.1f * s->view_distance / size;   /* metres per pixel */
+    const float yaw = v->cam.yaw * pi_f / 180.0f;
+    const float fx = sinf(yaw), fz = cosf(yaw), rx = -cosf(yaw), rz = sinf(yaw);
+    const float *fp = v->ts->footprint;
+    static const float frame_color[4] = {0.0f, 0.0f, 0.0f, 0.6f};
+    overlay_rect(o, x0, y0, x0 + size, y0 + size, frame_color);
+    o->clip_first = o->count;
+    o->clip[0] = (int)x0;
+    o->clip[1] = (int)y0;
+    o->clip[2] = (int)size;
+    o->clip[3] = (int)size;
+    for (size_t k = 0; k < count; k++) {
+        if (boxes[k].kind > TW_DEBUG_CELL_NOT_REACHED)
+            continue;
+        float off[3];
+        tw_tiles_cell_offset(boxes[k].cell, v->cam.pos.cell, fp[0], fp[1], off);
+        const float bx[4] = {boxes[k].box.min[0], boxes[k].box.max[0], boxes[k].box.max[0], boxes[k].box.min[0]};
+        const float bz[4] = {boxes[k].box.min[2], boxes[k].box.min[2], boxes[k].box.max[2], boxes[k].box.max[2]};
+        float qx[4], qy[4];
+        for (int c = 0; c < 4; c++) {
+            const float dx = off[0] + bx[c] - v->cam.pos.local[0];
+            const float dz = off[2] + bz[c] - v->cam.pos.local[2];
+            qx[c] = cx + (dx * rx + dz * rz) / mpp;
+            qy[c] = cy - (dx * fx + dz * fz) / mpp;
+        }
+        float color[4];
+        tw_debug_kind_color((enum tw_debug_kind)boxes[k].kind, color);
+        color[3] = 0.5f + 0.5f * color[3];
+        overlay_shape(o, qx, qy, color);
+    }
+    /* The wedge of a camera: its horizontal field of view out to the view distance. */
+    const float aspect = (float)s->width / (float)s->height;
+    const float half_h = atanf(tanf(s->fov_y * pi_f / 360.0f) * aspect);
+    const struct tw_camera *cams[2] = {&v->cam, v->frozen ? &v->frozen_cam : NULL};
+    static const float wedge_colors[2][4] = {{1.0f, 1.0f, 1.0f, 0.9f}, {1.0f, 0.85f, 0.3f, 0.9f}};
+    for (int c = 0; c < 2; c++) {
+        if (!cams[c])
+            continue;
+        float off[3];
+        tw_tiles_cell_offset(cams[c]->pos.cell, v->cam.pos.cell, fp[0], fp[1], off);
+        const float ex = off[0] + cams[c]->pos.local[0] - v->cam.pos.local[0];
+        const float ez = off[2] + cams[c]->pos.local[2] - v->cam.pos.local[2];
+        const float px = cx + (ex * rx + ez * rz) / mpp, py = cy - (ex * fx + ez * fz) / mpp;
+        const float cyaw = cams[c]->yaw * pi_f / 180.0f;
+        for (int side = -1; side <= 1; side += 2) {
+            const float a = cyaw + (float)side * half_h;
+            const float dx = sinf(a) * s->view_distance, dz = cosf(a) * s->view_distance;
+            overlay_line(o, px, py, px + (dx * rx + dz * rz) / mpp, py - (dx * fx + dz * fz) / mpp,
+                         1.5f * o->scale, wedge_colors[c]);
+        }
+        overlay_rect(o, px - 2 * o->scale, py - 2 * o->scale, px + 2 * o->scale, py + 2 * o->scale,
+                     wedge_colors[c]);
+    }
+}
+
+static int write_screenshot(struct viewer *v, const char *file, int fb_w, int fb_h)
+{
+    const struct tw_gl *gl = &v->ov.gl;
+    const size_t w = (size_t)fb_w, h = (size_t)fb_h;
+    uint8_t *rgba = malloc(w * h * 4), *rgb = malloc(w * h * 3);
+    if (!rgba || !rgb) {
+        free(rgba);
+        free(rgb);
+        fprintf(stderr, "tileworld view: out of memory for a screenshot\n");
+        return TW_ERR_NOMEM;
+    }
+    gl->BindFramebuffer(GL_FRAMEBUFFER, 0);
+    gl->ReadBuffer(GL_BACK);
+    gl->PixelStorei(GL_PACK_ALIGNMENT, 1);
+    gl->ReadPixels(0, 0, fb_w, fb_h, GL_RGBA, GL_UNSIGNED_BYTE, rgba);
+    for (size_t y = 0; y < h; y++)
+        for (size_t x = 0; x < w; x++)
+            memcpy(rgb + (y * w + x) * 3, rgba + ((h - 1 - y) * w + x) * 4, 3);
+    char err[1200];
+    const int rc = tw_report_write_png(file, rgb, (uint32_t)w, (uint32_t)h, err, sizeof(err));
+    if (rc)
+        fprintf(stderr, "tileworld view: %s\n", err);
+    else if (!v->opt.quiet)
+        fprintf(stderr, "tileworld view: wrote %s (%zux%zu)\n", file, w, h);
+    free(rgba);
+    free(rgb);
+    return rc;
+}
+
+static GLFWwindow *open_window(const struct options *o)
+{
+    /* 4.5 core first (glClipControl for reversed depth), then 3.3 core,
+     * where the renderer falls back to standard depth. */
+    static const int versions[2][2] = {{4, 5}, {3, 3}};
+    for (int k = 0; k < 2; k++) {
+        glfwDefaultWindowHints();
+        glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, versions[k][0]);
+        glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, versions[k][1]);
+        glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+        glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+        glfwWindowHint(GLFW_DEPTH_BITS, 0);   /* the renderer draws into its own framebuffer */
+        GLFWwindow *win = glfwCreateWindow((int)o->width, (int)o->height, "tileworld view", NULL, NULL);
+        if (win)
+            return win;
+    }
+    const char *why = NULL;
+    glfwGetError(&why);
+    fprintf(stderr, "tileworld view: cannot open an OpenGL 3.3 core window: %s\n",
+            why ? why : "unknown reason");
+    return NULL;
+}
+
+static void on_glfw_error(int code, const char *msg)
+{
+    /* Failures are reported where they happen (glfwGetError); a refused
+     * 4.5 context on the way to 3.3 is no error at all. */
+    (void)code;
+    (void)msg;
+}
+
+int main(int argc, char **argv)
+{
+    struct viewer v;
+    memset(&v, 0, sizeof(v));
+    parse_options(argc, argv, &v.opt);
+    const struct options *o = &v.opt;
+    const struct tw_log log = {log_to_stderr, NULL};
+    struct tw_tileset *ts = load_tileset(o, &log);
+    v.ts = ts;
+    struct tw_path path = {0};
+    load_path(o, ts, &path);
+    if (path.count == 0)
+        fail_usage("--path", "'%s' has no camera keys", o->path ? o->path : "street");
+    v.cam = path.keys[0];
+    /* Without a path, --frames alone bounds the run; with one, its length. */
+    const uint64_t frames = o->path ? path.count : o->frames;
+
+    int rc = 1;
+    glfwSetErrorCallback(on_glfw_error);
+    if (!glfwInit()) {
+        const char *why = NULL;
+        glfwGetError(&why);
+        fprintf(stderr, "tileworld view: cannot open a window (%s); without a display, run it "
+                        "under xvfb-run\n", why ? why : "GLFW failed to start");
+        tw_path_finish(&path);
+        tw_tileset_destroy(ts);
+        return 1;
+    }
+    v.win = open_window(o);
+    if (!v.win)
+        goto out;
+    glfwMakeContextCurrent(v.win);
+    glfwSwapInterval(frames ? 0 : 1);
+    glfwSetWindowUserPointer(v.win, &v);
+
+    struct tw_world_settings ws = {0};
+    ws.tileset = ts;
+    ws.selection.seed = o->seed;
+    ws.selection.repeat = o->repeat;
+    ws.method = o->method;
+    ws.width = o->width;
+    ws.height = o->height;
+    ws.view_distance = o->view_distance;
+    ws.get_proc = glfw_get_proc;
+    ws.log = log;
+    int err = tw_world_create(&ws, &v.world);
+    if (err) {
+        fprintf(stderr, "tileworld view: cannot set up the world: %s\n", tw_error_to_str(err));
+        goto out;
+    }
+    err = overlay_init(&v.ov);
+    if (err)
+        goto out;
+    v.debug = o->debug;
+    err = tw_world_set_debug(v.world, v.debug);
+    if (err)
+        goto out;
+    v.show_overlay = !o->no_overlay;
+    v.speed = 15.0f;
+    set_title(&v);
+    glfwSetKeyCallback(v.win, on_key);
+    glfwSetMouseButtonCallback(v.win, on_mouse_button);
+    glfwSetCursorPosCallback(v.win, on_cursor);
+    glfwSetScrollCallback(v.win, on_scroll);
+    glfwGetCursorPos(v.win, &v.mouse_x, &v.mouse_y);
+
+    double last = glfwGetTime(), ms_total = 0.0;
+    while (!glfwWindowShouldClose(v.win) && (!frames || v.frame < frames)) {
+        glfwPollEvents();
+        const double now = glfwGetTime();
+        const float dt = (float)fmin(now - last, 0.1);
+        last = now;
+        if (v.frame == 0) {
+            v.fps_since = now;
+        } else if (++v.fps_frames, now - v.fps_since >= 0.5) {
+            v.fps = v.fps_frames / (now - v.fps_since);
+            v.fps_since = now;
+            v.fps_frames = 0;
+        }
+        if (o->path)
+            v.cam = path.keys[v.frame];
+        else
+            fly(&v, dt);
+        if (o->freeze_at && v.frame + 1 == o->freeze_at && !v.frozen)
+            v.freeze_pending = true;
+
+        if (v.frozen) {
+            err = tw_world_frame_fixed(v.world, &v.cam, v.frozen_set, v.frozen_count, &v.st);
+        } else {
+            const bool freezing = v.freeze_pending;
+            if (freezing) {
+                tw_world_record_draws(v.world, true);
+                err = tw_world_set_debug(v.world, TW_DEBUG_ALL);
+            }
+            if (!err)
+                err = tw_world_frame(v.world, &v.cam, &v.st);
+            if (freezing) {
+                v.freeze_pending = false;
+                if (!err)
+                    err = take_freeze(&v);
+                tw_world_record_draws(v.world, false);
+                if (!err)
+                    err = tw_world_set_debug(v.world, v.debug);
+            }
+        }
+        if (err) {
+            fprintf(stderr, "tileworld view: frame %llu failed: %s\n",
+                    (unsigned long long)v.frame + 1, tw_error_to_str(err));
+            goto out;
+        }
+        ms_total += v.st.ms_frame;
+        size_t box_count = 0;
+        const struct tw_debug_box *boxes = shown_boxes(&v, &box_count);
+        if (box_count)
+            tw_world_draw_debug(v.world, boxes, box_count);
+        int fb_w = 0, fb_h = 0;
+        glfwGetFramebufferSize(v.win, &fb_w, &fb_h);
+        if (fb_w > 0 && fb_h > 0) {
+            tw_world_blit(v.world, 0, (uint32_t)fb_w, (uint32_t)fb_h);
+            v.ov.scale = fb_w >= 1200 && fb_h >= 600 ? 2.0f : 1.0f;
+            if (v.show_overlay) {
+                draw_stats(&v);
+                if (v.debug)
+                    draw_legend(&v, fb_w, fb_h);
+                if (v.debug & TW_DEBUG_CELLS)
+                    draw_map(&v, boxes, box_count, fb_w);
+            }
+            if (v.show_help)
+                draw_help(&v, fb_w, fb_h);
+            overlay_draw(&v.ov, fb_w, fb_h);
+        }
+        v.frame++;
+        if (v.screenshot_pending && fb_w > 0) {
+            char name[64];
+            snprintf(name, sizeof(name), "tileworld-view-%04u.png", ++v.screenshot_count);
+            write_screenshot(&v, name, fb_w, fb_h);
+            v.screenshot_pending = false;
+        }
+        /* --screenshot: after the last frame, or before the window closes. */
+        if (o->screenshot && ((frames && v.frame == frames) || glfwWindowShouldClose(v.win))) {
+            if (fb_w <= 0 || write_screenshot(&v, o->screenshot, fb_w, fb_h)) {
+                rc = EXIT_USAGE;
+                goto out;
+            }
+        }
+        glfwSwapBuffers(v.win);
+    }
+    if (!o->quiet)
+        fprintf(stderr, "tileworld view: %llu frames, %s, %.2f ms per frame on average\n",
+                (unsigned long long)v.frame, tw_method_name(tw_world_settings(v.world)->method),
+                v.frame ? ms_total / (double)v.frame : 0.0);
+    rc = 0;
+out:
+    unfreeze(&v);
+    overlay_finish(&v.ov);
+    tw_world_destroy(v.world);
+    if (v.win)
+        glfwDestroyWindow(v.win);
+    glfwTerminate();
+    tw_path_finish(&path);
+    tw_tileset_destroy(ts);
+    return rc;
+}
