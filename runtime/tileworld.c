@@ -13,11 +13,14 @@
 #include <unistd.h>
 
 #include "runtime/bench.h"
+#include "runtime/cli.h"
 #include "runtime/report.h"
 #include "runtime/runtime.h"
 #include "tilesets/tilesets.h"
 
-#define EXIT_USAGE 2
+#define EXIT_USAGE TW_CLI_EXIT_USAGE
+
+static const char program[] = "tileworld";
 
 struct options {
     const char *command;
@@ -71,125 +74,32 @@ static void usage(FILE *f)
 
 /* One line on stderr, then exit: bad input is the user's, so no stack of
  * messages and never a crash. */
-static void fail_usage(const char *place, const char *fmt, const char *value)
-{
-    fprintf(stderr, "tileworld: %s: ", place);
-    fprintf(stderr, fmt, value);
-    fputc('\n', stderr);
-    exit(EXIT_USAGE);
-}
-
-static uint64_t parse_u64(const char *opt, const char *s, uint64_t lo, uint64_t hi)
-{
-    char *end = NULL;
-    errno = 0;
-    if (!s || *s == '\0' || *s == '-' || *s == '+' || *s == ' ')
-        fail_usage(opt, "'%s' is not a non-negative whole number", s ? s : "");
-    unsigned long long v = strtoull(s, &end, 10);
-    if (*end != '\0')
-        fail_usage(opt, "'%s' is not a non-negative whole number", s);
-    if (errno == ERANGE || v < lo || v > hi) {
-        char msg[128];
-        snprintf(msg, sizeof(msg), "'%%s' is out of range [%llu, %llu]", (unsigned long long)lo,
-                 (unsigned long long)hi);
-        fail_usage(opt, msg, s);
-    }
-    return v;
-}
-
-static int64_t parse_i64(const char *opt, const char *s)
-{
-    char *end = NULL;
-    errno = 0;
-    if (!s || *s == '\0' || *s == ' ')
-        fail_usage(opt, "'%s' is not a whole number", s ? s : "");
-    long long v = strtoll(s, &end, 10);
-    if (*end != '\0')
-        fail_usage(opt, "'%s' is not a whole number", s);
-    if (errno == ERANGE)
-        fail_usage(opt, "'%s' does not fit in 64 bits", s);
-    return v;
-}
-
-static float parse_float(const char *opt, const char *s, float lo, float hi)
-{
-    char *end = NULL;
-    errno = 0;
-    if (!s || *s == '\0')
-        fail_usage(opt, "'%s' is not a number", "");
-    double v = strtod(s, &end);
-    if (*end != '\0' || end == s)
-        fail_usage(opt, "'%s' is not a number", s);
-    if (!isfinite(v) || errno == ERANGE)
-        fail_usage(opt, "'%s' is not a finite number", s);
-    if (v < lo || v > hi) {
-        char msg[128];
-        snprintf(msg, sizeof(msg), "'%%s' is out of range [%g, %g]", lo, hi);
-        fail_usage(opt, msg, s);
-    }
-    return (float)v;
-}
-
 static enum tw_method parse_method(const char *opt, const char *s)
 {
     enum tw_method m;
     if (tw_method_from_name(s, &m) != TW_OK)
-        fail_usage(opt, "unknown method '%s' (vfc, tilequery, chc, tilequery+chc, oracle)", s);
+        tw_cli_fail(program, opt, "unknown method '%s' (vfc, tilequery, chc, tilequery+chc, oracle)", s);
     if (!tw_method_available(m))
-        fail_usage(opt, "method '%s' is not implemented in this build yet", s);
+        tw_cli_fail(program, opt, "method '%s' is not implemented in this build yet", s);
     return m;
-}
-
-static void parse_size(const char *opt, const char *s, uint32_t *w, uint32_t *h)
-{
-    const char *x = s ? strchr(s, 'x') : NULL;
-    if (!x)
-        fail_usage(opt, "'%s' is not of the form WIDTHxHEIGHT", s ? s : "");
-    char wbuf[32];
-    size_t n = (size_t)(x - s);
-    if (n == 0 || n >= sizeof(wbuf))
-        fail_usage(opt, "'%s' is not of the form WIDTHxHEIGHT", s);
-    memcpy(wbuf, s, n);
-    wbuf[n] = '\0';
-    *w = (uint32_t)parse_u64(opt, wbuf, 16, 8192);
-    *h = (uint32_t)parse_u64(opt, x + 1, 16, 8192);
-}
-
-static void parse_cell(const char *opt, const char *s, struct tw_cell *c)
-{
-    const char *comma = s ? strchr(s, ',') : NULL;
-    if (!comma)
-        fail_usage(opt, "'%s' is not of the form I,J", s ? s : "");
-    char ibuf[32];
-    size_t n = (size_t)(comma - s);
-    if (n == 0 || n >= sizeof(ibuf))
-        fail_usage(opt, "'%s' is not of the form I,J", s);
-    memcpy(ibuf, s, n);
-    ibuf[n] = '\0';
-    c->i = parse_i64(opt, ibuf);
-    c->j = parse_i64(opt, comma + 1);
-    /* Keep cells where neighbour arithmetic cannot overflow. */
-    const int64_t limit = (int64_t)1 << 62;
-    if (c->i > limit || c->i < -limit || c->j > limit || c->j < -limit)
-        fail_usage(opt, "'%s' lies outside +-2^62 cells", s);
 }
 
 static void parse_methods(const char *opt, const char *s, struct options *o)
 {
     char buf[256];
     if (!s || strlen(s) >= sizeof(buf) || *s == '\0')
-        fail_usage(opt, "'%s' is not a comma-separated list of methods", s ? s : "");
+        tw_cli_fail(program, opt, "'%s' is not a comma-separated list of methods", s ? s : "");
     strcpy(buf, s);
     o->method_count = 0;
     for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
         enum tw_method m = parse_method(opt, tok);
         for (uint32_t k = 0; k < o->method_count; k++)
             if (o->methods[k] == m)
-                fail_usage(opt, "method '%s' is listed twice", tok);
+                tw_cli_fail(program, opt, "method '%s' is listed twice", tok);
         o->methods[o->method_count++] = m;
     }
     if (o->method_count == 0)
-        fail_usage(opt, "'%s' names no method", s);
+        tw_cli_fail(program, opt, "'%s' names no method", s);
     o->methods_given = true;
 }
 
@@ -220,65 +130,65 @@ static void parse_options(int argc, char **argv, struct options *o)
             usage(stdout);
             exit(0);
         } else if (strncmp(a, "--", 2) != 0) {
-            fail_usage(a, "unexpected argument '%s'", a);
+            tw_cli_fail(program, a, "unexpected argument '%s'", a);
         } else if (!v) {
-            fail_usage(a, "%s needs a value", a);
+            tw_cli_fail(program, a, "%s needs a value", a);
         } else if (strcmp(a, "--tileset") == 0) {
             o->tileset = v;
         } else if (strcmp(a, "--seed") == 0) {
-            o->seed = parse_u64(a, v, 0, UINT64_MAX);
+            o->seed = tw_cli_u64(program, a, v, 0, UINT64_MAX);
         } else if (strcmp(a, "--path") == 0) {
             o->path = v;
         } else if (strcmp(a, "--frames") == 0) {
-            o->frames = (uint32_t)parse_u64(a, v, 1, 10000000);
+            o->frames = (uint32_t)tw_cli_u64(program, a, v, 1, 10000000);
         } else if (strcmp(a, "--method") == 0) {
             o->method = parse_method(a, v);
         } else if (strcmp(a, "--methods") == 0) {
             parse_methods(a, v, o);
         } else if (strcmp(a, "--size") == 0) {
-            parse_size(a, v, &o->width, &o->height);
+            tw_cli_size(program, a, v, &o->width, &o->height);
         } else if (strcmp(a, "--start-cell") == 0) {
-            parse_cell(a, v, &o->start_cell);
+            tw_cli_cell(program, a, v, &o->start_cell);
         } else if (strcmp(a, "--repeat") == 0) {
-            o->repeat = (int64_t)parse_u64(a, v, 1, (uint64_t)1 << 62);
+            o->repeat = (int64_t)tw_cli_u64(program, a, v, 1, (uint64_t)1 << 62);
         } else if (strcmp(a, "--png-every") == 0) {
-            o->png_every = (uint32_t)parse_u64(a, v, 0, 10000000);
+            o->png_every = (uint32_t)tw_cli_u64(program, a, v, 0, 10000000);
         } else if (strcmp(a, "--view-distance") == 0) {
-            o->view_distance = parse_float(a, v, 1.0f, 100000.0f);
+            o->view_distance = tw_cli_float(program, a, v, 1.0f, 100000.0f);
         } else if (strcmp(a, "--cluster-triangles") == 0) {
-            o->cluster_triangles = (uint32_t)parse_u64(a, v, 16, 1000000);
+            o->cluster_triangles = (uint32_t)tw_cli_u64(program, a, v, 16, 1000000);
         } else if (strcmp(a, "--sweep") == 0) {
             char why[300];
             if (tw_run_sweep_check(v, why, sizeof(why)))
-                fail_usage(a, "%s", why + strlen("--sweep: "));
+                tw_cli_fail(program, a, "%s", why + strlen("--sweep: "));
             o->sweep = v;
         } else if (strcmp(a, "--scenario") == 0) {
             bool known = strcmp(v, "all") == 0;
             for (const char *const *n = tw_scenario_names; *n; n++)
                 known |= strcmp(*n, v) == 0;
             if (!known)
-                fail_usage(a, "unknown scenario '%s' (all, teleport, spin, inside-building, "
+                tw_cli_fail(program, a, "unknown scenario '%s' (all, teleport, spin, inside-building, "
                               "inside-common-box, grazing, far-origin, no-occluders)", v);
             o->scenario = v;
         } else if (strcmp(a, "--tile-neighbours") == 0) {
-            o->neighbours = (uint32_t)parse_u64(a, v, 4, 8);
+            o->neighbours = (uint32_t)tw_cli_u64(program, a, v, 4, 8);
             if (o->neighbours != 4 && o->neighbours != 8)
-                fail_usage(a, "'%s' is neither 4 nor 8", v);
+                tw_cli_fail(program, a, "'%s' is neither 4 nor 8", v);
         } else if (strcmp(a, "--evict-after") == 0) {
-            o->evict_after = (uint32_t)parse_u64(a, v, 1, 1000000);
+            o->evict_after = (uint32_t)tw_cli_u64(program, a, v, 1, 1000000);
         } else if (strcmp(a, "--chc-batch") == 0) {
-            o->chc_batch = (uint32_t)parse_u64(a, v, 1, 100000);
+            o->chc_batch = (uint32_t)tw_cli_u64(program, a, v, 1, 100000);
         } else if (strcmp(a, "--chc-nav") == 0) {
-            o->chc_nav = (uint32_t)parse_u64(a, v, 1, 1000);
+            o->chc_nav = (uint32_t)tw_cli_u64(program, a, v, 1, 1000);
         } else if (strcmp(a, "--threshold") == 0) {
-            o->threshold = (uint32_t)parse_u64(a, v, 0, 1000000);
+            o->threshold = (uint32_t)tw_cli_u64(program, a, v, 0, 1000000);
             o->threshold_given = true;
         } else if (strcmp(a, "--out") == 0) {
             if (*v == '\0')
-                fail_usage(a, "%sthe output folder name is empty", "");
+                tw_cli_fail(program, a, "%sthe output folder name is empty", "");
             o->out = v;
         } else {
-            fail_usage(a, "unknown option '%s' (see tileworld --help)", a);
+            tw_cli_fail(program, a, "unknown option '%s' (see tileworld --help)", a);
         }
         if (takes)
             k++;
@@ -307,7 +217,7 @@ static struct tw_tileset *load_tileset(const struct options *o, const struct tw_
         }
     }
     if (access(o->tileset, F_OK) != 0)
-        fail_usage("--tileset", "unknown tileset '%s' (built-in: city, forest, hybrid; or a "
+        tw_cli_fail(program, "--tileset", "unknown tileset '%s' (built-in: city, forest, hybrid; or a "
                                 "manifest file)", o->tileset);
     /* A manifest: its loader logs one line naming the file, the place and the reason. */
     const struct tw_manifest_settings ms = {.max_cluster_triangles = o->cluster_triangles};
@@ -354,7 +264,7 @@ static void load_path(const struct options *o, const struct tw_tileset *ts, stru
     if (err) {
         if (err == TW_ERR_IO && access(o->path, F_OK) != 0 && !strchr(o->path, '/') &&
             !strstr(o->path, ".csv"))
-            fail_usage("--path", "unknown path '%s' (built-in: street, flyover; or a CSV file)",
+            tw_cli_fail(program, "--path", "unknown path '%s' (built-in: street, flyover; or a CSV file)",
                        o->path);
         fprintf(stderr, "tileworld: %s\n", msg);
         exit(EXIT_USAGE);
@@ -565,11 +475,11 @@ int main(int argc, char **argv)
         return info(&o);
     if (strcmp(o.command, "walk") == 0) {
         if (o.methods_given)
-            fail_usage("--methods", "%s belongs to bench; walk takes --method", "--methods");
+            tw_cli_fail(program, "--methods", "%s belongs to bench; walk takes --method", "--methods");
         if (o.sweep)
-            fail_usage("--sweep", "%s belongs to bench", "--sweep");
+            tw_cli_fail(program, "--sweep", "%s belongs to bench", "--sweep");
         if (o.scenario)
-            fail_usage("--scenario", "%s belongs to bench", "--scenario");
+            tw_cli_fail(program, "--scenario", "%s belongs to bench", "--scenario");
     }
     return run(&o, strcmp(o.command, "bench") == 0);
 }

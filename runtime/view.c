@@ -21,12 +21,15 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "runtime/cli.h"
 #include "runtime/gl.h"
 #include "runtime/report.h"
 #include "runtime/runtime.h"
 #include "tilesets/tilesets.h"
 
-#define EXIT_USAGE 2
+#define EXIT_USAGE TW_CLI_EXIT_USAGE
+
+static const char program[] = "tileworld view";
 
 static const float pi_f = 3.14159265358979f;
 
@@ -63,63 +66,11 @@ static void usage(FILE *f)
           f);
 }
 
-static void fail_usage(const char *place, const char *fmt, const char *value)
-{
-    fprintf(stderr, "tileworld view: %s: ", place);
-    fprintf(stderr, fmt, value);
-    fputc('\n', stderr);
-    exit(EXIT_USAGE);
-}
-
-static uint64_t parse_u64(const char *opt, const char *s, uint64_t lo, uint64_t hi)
-{
-    char *end = NULL;
-    errno = 0;
-    if (!s || *s == '\0' || *s == '-' || *s == '+' || *s == ' ')
-        fail_usage(opt, "'%s' is not a non-negative whole number", s ? s : "");
-    unsigned long long v = strtoull(s, &end, 10);
-    if (*end != '\0')
-        fail_usage(opt, "'%s' is not a non-negative whole number", s);
-    if (errno == ERANGE || v < lo || v > hi) {
-        char msg[128];
-        snprintf(msg, sizeof(msg), "'%%s' is out of range [%llu, %llu]", (unsigned long long)lo,
-                 (unsigned long long)hi);
-        fail_usage(opt, msg, s);
-    }
-    return v;
-}
-
-static int64_t parse_i64(const char *opt, const char *s)
-{
-    char *end = NULL;
-    errno = 0;
-    if (!s || *s == '\0' || *s == ' ')
-        fail_usage(opt, "'%s' is not a whole number", s ? s : "");
-    long long v = strtoll(s, &end, 10);
-    if (*end != '\0')
-        fail_usage(opt, "'%s' is not a whole number", s);
-    if (errno == ERANGE)
-        fail_usage(opt, "'%s' does not fit in 64 bits", s);
-    return v;
-}
-
-static void parse_pair(const char *opt, const char *s, char sep, const char *form, char *a,
-                       size_t a_size, const char **b)
-{
-    const char *at = s ? strchr(s, sep) : NULL;
-    const size_t n = at ? (size_t)(at - s) : 0;
-    if (!at || n == 0 || n >= a_size)
-        fail_usage(opt, form, s ? s : "");
-    memcpy(a, s, n);
-    a[n] = '\0';
-    *b = at + 1;
-}
-
 static unsigned parse_debug(const char *opt, const char *s)
 {
     char buf[128];
     if (!s || *s == '\0' || strlen(s) >= sizeof(buf))
-        fail_usage(opt, "'%s' is not a list of debug views (cells, nodes, queries, all)", s ? s : "");
+        tw_cli_fail(program, opt, "'%s' is not a list of debug views (cells, nodes, queries, all)", s ? s : "");
     strcpy(buf, s);
     unsigned mask = 0;
     for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
@@ -132,7 +83,7 @@ static unsigned parse_debug(const char *opt, const char *s)
         else if (strcmp(tok, "all") == 0)
             mask |= TW_DEBUG_ALL;
         else if (strcmp(tok, "none") != 0)
-            fail_usage(opt, "unknown debug view '%s' (cells, nodes, queries, all, none)", tok);
+            tw_cli_fail(program, opt, "unknown debug view '%s' (cells, nodes, queries, all, none)", tok);
     }
     return mask;
 }
@@ -162,8 +113,6 @@ static void parse_options(int argc, char **argv, struct options *o)
         const char *a = argv[k];
         const char *v = k + 1 < argc ? argv[k + 1] : NULL;
         bool takes = true;
-        char part[32];
-        const char *rest = NULL;
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             usage(stdout);
             exit(0);
@@ -174,48 +123,40 @@ static void parse_options(int argc, char **argv, struct options *o)
             o->quiet = true;
             takes = false;
         } else if (strncmp(a, "--", 2) != 0) {
-            fail_usage(a, "unexpected argument '%s'", a);
+            tw_cli_fail(program, a, "unexpected argument '%s'", a);
         } else if (!takes_value(a)) {
-            fail_usage(a, "unknown option '%s' (see tileworld view --help)", a);
+            tw_cli_fail(program, a, "unknown option '%s' (see tileworld view --help)", a);
         } else if (!v) {
-            fail_usage(a, "%s needs a value", a);
+            tw_cli_fail(program, a, "%s needs a value", a);
         } else if (strcmp(a, "--tileset") == 0) {
             o->tileset = v;
         } else if (strcmp(a, "--seed") == 0) {
-            o->seed = parse_u64(a, v, 0, UINT64_MAX);
+            o->seed = tw_cli_u64(program, a, v, 0, UINT64_MAX);
         } else if (strcmp(a, "--method") == 0) {
             if (tw_method_from_name(v, &o->method) != TW_OK || !tw_method_available(o->method))
-                fail_usage(a, "unknown method '%s' (vfc, tilequery, chc, tilequery+chc, oracle)", v);
+                tw_cli_fail(program, a, "unknown method '%s' (vfc, tilequery, chc, tilequery+chc, oracle)", v);
         } else if (strcmp(a, "--size") == 0) {
-            parse_pair(a, v, 'x', "'%s' is not of the form WIDTHxHEIGHT", part, sizeof(part), &rest);
-            o->width = (uint32_t)parse_u64(a, part, 16, 8192);
-            o->height = (uint32_t)parse_u64(a, rest, 16, 8192);
+            tw_cli_size(program, a, v, &o->width, &o->height);
         } else if (strcmp(a, "--start-cell") == 0) {
-            parse_pair(a, v, ',', "'%s' is not of the form I,J", part, sizeof(part), &rest);
-            o->start_cell.i = parse_i64(a, part);
-            o->start_cell.j = parse_i64(a, rest);
-            const int64_t limit = (int64_t)1 << 62;
-            if (o->start_cell.i > limit || o->start_cell.i < -limit || o->start_cell.j > limit ||
-                o->start_cell.j < -limit)
-                fail_usage(a, "'%s' lies outside +-2^62 cells", v);
+            tw_cli_cell(program, a, v, &o->start_cell);
         } else if (strcmp(a, "--repeat") == 0) {
-            o->repeat = (int64_t)parse_u64(a, v, 1, (uint64_t)1 << 62);
+            o->repeat = (int64_t)tw_cli_u64(program, a, v, 1, (uint64_t)1 << 62);
         } else if (strcmp(a, "--view-distance") == 0) {
-            o->view_distance = (float)parse_u64(a, v, 1, 100000);
+            o->view_distance = tw_cli_float(program, a, v, 1.0f, 100000.0f);
         } else if (strcmp(a, "--debug") == 0) {
             o->debug = parse_debug(a, v);
         } else if (strcmp(a, "--path") == 0) {
             o->path = v;
         } else if (strcmp(a, "--frames") == 0) {
-            o->frames = (uint32_t)parse_u64(a, v, 1, 10000000);
+            o->frames = (uint32_t)tw_cli_u64(program, a, v, 1, 10000000);
         } else if (strcmp(a, "--screenshot") == 0) {
             if (*v == '\0')
-                fail_usage(a, "%sthe file name is empty", "");
+                tw_cli_fail(program, a, "%sthe file name is empty", "");
             o->screenshot = v;
         } else if (strcmp(a, "--freeze-at") == 0) {
-            o->freeze_at = (uint32_t)parse_u64(a, v, 1, 10000000);
+            o->freeze_at = (uint32_t)tw_cli_u64(program, a, v, 1, 10000000);
         } else {
-            fail_usage(a, "unknown option '%s' (see tileworld view --help)", a);
+            tw_cli_fail(program, a, "unknown option '%s' (see tileworld view --help)", a);
         }
         if (takes)
             k++;
@@ -244,7 +185,7 @@ static struct tw_tileset *load_tileset(const struct options *o, const struct tw_
         }
     }
     if (access(o->tileset, F_OK) != 0)
-        fail_usage("--tileset", "unknown tileset '%s' (built-in: city, forest, hybrid; or a "
+        tw_cli_fail(program, "--tileset", "unknown tileset '%s' (built-in: city, forest, hybrid; or a "
                                 "manifest file)", o->tileset);
     /* The manifest loader has logged the one line naming the place. */
     if (tw_tilesets_load_manifest(o->tileset, log, &ts))
@@ -274,14 +215,14 @@ static void load_path(const struct options *o, const struct tw_tileset *ts, stru
         err = tw_path_load_csv(name, o->frames, w, d, p, msg, sizeof(msg));
         if (err) {
             if (err == TW_ERR_IO && access(name, F_OK) != 0)
-                fail_usage("--path", "unknown path '%s' (street, flyover, forest, teleport, "
+                tw_cli_fail(program, "--path", "unknown path '%s' (street, flyover, forest, teleport, "
                                      "spin, or a CSV file)", name);
             fprintf(stderr, "tileworld view: %s\n", msg);
             exit(EXIT_USAGE);
         }
     }
     if (tw_path_translate(p, o->start_cell.i, o->start_cell.j))
-        fail_usage("--start-cell", "%sthe translated path overflows the grid", "");
+        tw_cli_fail(program, "--start-cell", "%sthe translated path overflows the grid", "");
 }
 
 /* ---- the bitmap font ------------------------------------------------------------ */
@@ -1209,7 +1150,7 @@ int main(int argc, char **argv)
     struct tw_path path = {0};
     load_path(o, ts, &path);
     if (path.count == 0)
-        fail_usage("--path", "'%s' has no camera keys", o->path ? o->path : "street");
+        tw_cli_fail(program, "--path", "'%s' has no camera keys", o->path ? o->path : "street");
     v.cam = path.keys[0];
     /* Without a path, --frames alone bounds the run; with one, its length. */
     const uint64_t frames = o->path ? path.count : o->frames;
