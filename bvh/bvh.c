@@ -10,7 +10,7 @@
  * boxes and triangle counts, and computes the tight-box lists. The stage
  * leaf array becomes tw_bvh.cluster_order as is.
  */
-#include "bvh/bvh.h"
+#include "tileworld/bvh.h"
 
 #include <assert.h>
 #include <math.h>

@@ -17,7 +17,7 @@
  *   vqueries  issued V-queries, read when ready or deferred to the next frame;
  *   render    clusters to draw, flushed before every query batch.
  */
-#include "cull/cull.h"
+#include "tileworld/cull.h"
 
 #include <assert.h>
 #include <math.h>

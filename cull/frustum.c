@@ -1,5 +1,5 @@
 /* Frusta, the view, cell enumeration and per-tile frustum culling (cull.h). */
-#include "cull/cull.h"
+#include "tileworld/cull.h"
 
 #include <math.h>
 #include <stdlib.h>

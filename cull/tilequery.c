@@ -1,5 +1,5 @@
 /* Tile-query propagation with pending and postponed queues (DESIGN §4). */
-#include "cull/cull.h"
+#include "tileworld/cull.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -1,5 +1,5 @@
-/* The headless OSMesa context (runtime.h). */
-#include "runtime/runtime.h"
+/* The headless OSMesa context (context.h). */
+#include "tileworld/context.h"
 
 #include <GL/osmesa.h>
 #include <stdlib.h>

@@ -8,7 +8,7 @@
 
 #include <GL/glcorearb.h>
 
-#include "runtime/runtime.h"
+#include "tileworld/runtime.h"
 
 #define TW_GL_FUNCTIONS(X) \
     X(PFNGLGETERRORPROC, GetError) \

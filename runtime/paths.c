@@ -1,5 +1,5 @@
 /* Camera paths: the built-in ones and path CSV files (runtime.h). */
-#include "runtime/runtime.h"
+#include "tileworld/runtime.h"
 
 #include <errno.h>
 #include <math.h>

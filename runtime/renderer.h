@@ -8,7 +8,7 @@
 #define TW_RUNTIME_RENDERER_H
 
 #include "runtime/gl.h"
-#include "runtime/runtime.h"
+#include "tileworld/runtime.h"
 
 /* Counters the renderer keeps for the current frame. */
 struct tw_render_counters {

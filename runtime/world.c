@@ -1,6 +1,6 @@
 /* The world: a tileset on the infinite grid, drawn with a method (runtime.h). */
 #include "runtime/renderer.h"
-#include "runtime/runtime.h"
+#include "tileworld/runtime.h"
 
 #include <math.h>
 #include <stdlib.h>

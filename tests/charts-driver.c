@@ -5,7 +5,7 @@
  */
 #include <stdio.h>
 
-#include "runtime/charts.h"
+#include "tools/tileworld/charts.h"
 
 int main(int argc, char **argv)
 {

@@ -5,7 +5,7 @@
  * on the command line (files, or folders walked recursively), each from
  * memory and also by path (so that external buffers are exercised), and
  * counts how many import. The seed corpus is ../shared/assets/bad. */
-#include "tilesets/tilesets.h"
+#include "tileworld/tilesets.h"
 
 #include <stdio.h>
 #include <stdlib.h>

@@ -3,7 +3,7 @@
  * folder, so that valid names load real glTF files). Built with libFuzzer
  * when TW_LIBFUZZER is defined; otherwise a plain main runs the inputs named
  * on the command line (files, or folders walked recursively). */
-#include "tilesets/tilesets.h"
+#include "tileworld/tilesets.h"
 
 #include <stdio.h>
 #include <stdlib.h>

@@ -9,8 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "bvh/bvh.h"
-#include "tilesets/tilesets.h"
+#include "tileworld/bvh.h"
+#include "tileworld/tilesets.h"
 
 static int failures;
 

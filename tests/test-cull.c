@@ -3,7 +3,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "cull/cull.h"
+#include "tileworld/cull.h"
 #include "tests/check.h"
 
 static struct tw_box box(float x0, float y0, float z0, float x1, float y1, float z1)

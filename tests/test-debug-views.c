@@ -6,8 +6,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "runtime/runtime.h"
-#include "tilesets/tilesets.h"
+#include "tileworld/context.h"
+#include "tileworld/runtime.h"
+#include "tileworld/tilesets.h"
 #include "tests/check.h"
 
 enum { W = 320, H = 180, FRAMES = 8 };

@@ -10,7 +10,7 @@
  * shipped in SOURCE_ROOT/tilesets load. Prints a table of the bad files,
  * imported vs refused, reasons grouped. Plain C: main returns 0 when every
  * check holds. A missing SHARED_DIR is a failure, never a skip. */
-#include "tilesets/tilesets.h"
+#include "tileworld/tilesets.h"
 
 #include <dirent.h>
 #include <math.h>

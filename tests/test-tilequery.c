@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cull/cull.h"
+#include "tileworld/cull.h"
 #include "tests/check.h"
 
 enum { MAX_QUERIES = 100000, MAX_LOG = 4096 };

@@ -4,7 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "tiles/tiles.h"
+#include "tileworld/tiles.h"
 #include "tests/check.h"
 
 static uint64_t rng_state = 0x1234567;

@@ -1,6 +1,6 @@
 /* Tests of the tilesets module: the procedural city, forest and hybrid and
  * the built-in registry. Plain C: main returns 0 when every check holds. */
-#include "tilesets/tilesets.h"
+#include "tileworld/tilesets.h"
 
 #include <math.h>
 #include <stdio.h>

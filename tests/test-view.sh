@@ -5,14 +5,14 @@
 # every method, the hand-over from `tileworld view`, and the fallback to
 # standard depth when the context has no glClipControl.
 # Usage: test-view.sh TILEWORLD-VIEW PNG-CHECK TILEWORLD
-# xvfb-run missing is a failure, not a skip: tools/setup.sh installs it.
+# xvfb-run missing is a failure, not a skip: scripts/setup.sh installs it.
 set -uo pipefail
 view=$1
 check=$2
 tileworld=$3
 
 if ! command -v xvfb-run >/dev/null 2>&1; then
-    echo "test-view: xvfb-run is missing: install xvfb and xauth (tools/setup.sh)" >&2
+    echo "test-view: xvfb-run is missing: install xvfb and xauth (scripts/setup.sh)" >&2
     exit 1
 fi
 tmp=$(mktemp -d)

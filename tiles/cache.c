@@ -1,5 +1,5 @@
 /* The cell map and the tile cache (tiles.h). */
-#include "tiles/tiles.h"
+#include "tileworld/tiles.h"
 
 #include <stdlib.h>
 #include <string.h>

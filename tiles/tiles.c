@@ -1,5 +1,5 @@
 /* Errors, logging, boxes, grid math and selection (tiles.h). */
-#include "tiles/tiles.h"
+#include "tileworld/tiles.h"
 
 #include <float.h>
 #include <math.h>

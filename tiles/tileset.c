@@ -1,5 +1,5 @@
 /* The tileset model: builder, cluster split, boxes (tiles.h). */
-#include "tiles/tiles.h"
+#include "tileworld/tiles.h"
 
 #include <math.h>
 #include <stdio.h>

@@ -1,5 +1,5 @@
 /* The registry of built-in tilesets (tilesets.h). */
-#include "tilesets/tilesets.h"
+#include "tileworld/tilesets.h"
 
 #include <string.h>
 

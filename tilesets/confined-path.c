@@ -9,7 +9,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "tiles/tiles.h"
+#include "tileworld/tiles.h"
 
 static bool is_alpha(char c)
 {

@@ -24,7 +24,7 @@
 #include <string>
 #include <vector>
 
-#include "tiles/tiles.h"
+#include "tileworld/tiles.h"
 #include "tilesets/gltf-shim.h"
 
 static_assert(sizeof(int) == sizeof(int32_t), "glTF indices are passed as int");

@@ -39,7 +39,7 @@
  * meshes are shared by every placement. Every error is one line naming the
  * manifest, the place in it (e.g. prototypes[2].objects[0].gltf) and the
  * reason. */
-#include "tilesets/tilesets.h"
+#include "tileworld/tilesets.h"
 
 #include <errno.h>
 #include <json-c/json.h>

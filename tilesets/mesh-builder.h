@@ -9,7 +9,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "tiles/tiles.h"
+#include "tileworld/tiles.h"
 
 /* A small PRNG (splitmix64) seeded from tw_tiles_hash(): generators take all
  * their randomness from it, so a seed gives the same world everywhere. */

@@ -15,7 +15,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "tilesets/tilesets.h"
+#include "tileworld/tilesets.h"
 
 /* ---- the city's block generator (city.c) ---------------------------------------- */
 

@@ -1,5 +1,5 @@
 /* Charts of a bench run through gnuplot (charts.h). */
-#include "runtime/charts.h"
+#include "tools/tileworld/charts.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -20,7 +20,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "tiles/tiles.h"
+#include "tileworld/tiles.h"
 
 #define MAX_METHODS 16
 #define MAX_NAME 64

@@ -9,7 +9,7 @@
 
 #include <stdint.h>
 
-#include "tiles/tiles.h"
+#include "tileworld/tiles.h"
 
 #ifdef __cplusplus
 extern "C" {

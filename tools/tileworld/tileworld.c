@@ -12,11 +12,12 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "runtime/bench.h"
-#include "runtime/cli.h"
-#include "runtime/report.h"
-#include "runtime/runtime.h"
-#include "tilesets/tilesets.h"
+#include "tools/tileworld/bench.h"
+#include "tools/cli.h"
+#include "tools/tileworld/report.h"
+#include "tileworld/context.h"
+#include "tileworld/runtime.h"
+#include "tileworld/tilesets.h"
 
 #define EXIT_USAGE TW_CLI_EXIT_USAGE
 

@@ -1,5 +1,5 @@
 /* frames.csv, summary.json, summary.md and PNG snapshots (report.h). */
-#include "runtime/report.h"
+#include "tools/tileworld/report.h"
 
 #include <errno.h>
 #include <json-c/json.h>

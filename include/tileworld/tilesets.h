@@ -10,7 +10,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
-#include "tiles/tiles.h"
+#include "tileworld/tiles.h"
 
 #ifdef __cplusplus
 extern "C" {

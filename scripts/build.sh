@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Installs what is missing, configures build/ (once) and builds it.
-# Extra arguments go to `meson setup`, e.g. tools/build.sh -Dwerror=true.
+# Extra arguments go to `meson setup`, e.g. scripts/build.sh -Dwerror=true.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-tools/setup.sh
+scripts/setup.sh
 if [ ! -f build/build.ninja ]; then
     meson setup build "$@" >/dev/null
 elif [ $# -gt 0 ]; then

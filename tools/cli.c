@@ -1,5 +1,5 @@
 /* Command-line values for the tileworld programs (cli.h). */
-#include "runtime/cli.h"
+#include "tools/cli.h"
 
 #include <errno.h>
 #include <math.h>

@@ -18,8 +18,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "bvh/bvh.h"
-#include "tiles/tiles.h"
+#include "tileworld/bvh.h"
+#include "tileworld/tiles.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -1,5 +1,5 @@
 /* Runs, sweeps and stability scenarios of the tileworld command (bench.h). */
-#include "runtime/bench.h"
+#include "tools/tileworld/bench.h"
 
 #include <errno.h>
 #include <math.h>
@@ -10,7 +10,7 @@
 
 #include <json-c/json.h>
 
-#include "runtime/charts.h"
+#include "tools/tileworld/charts.h"
 
 static void progress(const struct tw_run *run, uint32_t done, uint32_t total, double mean_ms)
 {

@@ -7,8 +7,9 @@
 #ifndef TW_RUNTIME_BENCH_H
 #define TW_RUNTIME_BENCH_H
 
-#include "runtime/report.h"
-#include "runtime/runtime.h"
+#include "tools/tileworld/report.h"
+#include "tileworld/context.h"
+#include "tileworld/runtime.h"
 
 /* Called after every frame of every method (may be NULL). */
 typedef void (*tw_run_frame_fn)(void *user, uint32_t frame_index, struct tw_world *w,

@@ -10,7 +10,7 @@
 #include <stdint.h>
 #include <stdnoreturn.h>
 
-#include "tiles/tiles.h"
+#include "tileworld/tiles.h"
 
 #define TW_CLI_EXIT_USAGE 2
 

@@ -21,11 +21,11 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "runtime/cli.h"
+#include "tools/cli.h"
 #include "runtime/gl.h"
-#include "runtime/report.h"
-#include "runtime/runtime.h"
-#include "tilesets/tilesets.h"
+#include "tools/tileworld/report.h"
+#include "tileworld/runtime.h"
+#include "tileworld/tilesets.h"
 
 #define EXIT_USAGE TW_CLI_EXIT_USAGE
 

@@ -2,7 +2,6 @@
  * runtime: the public API of tileworld, what the `tileworld` command and a
  * host world generator use (DESIGN.md §2).
  *
- *   tw_context_create_headless()  an OSMesa OpenGL 3.3+ core context
  *   tw_world_create()             a world: a tileset on the infinite grid,
  *                                 drawn with a culling method
  *   tw_world_frame()              renders one frame from a camera
@@ -19,31 +18,16 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "bvh/bvh.h"
-#include "cull/cull.h"
-#include "tiles/tiles.h"
+#include "tileworld/bvh.h"
+#include "tileworld/cull.h"
+#include "tileworld/tiles.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-/* ---- GL contexts -------------------------------------------------------------- */
-
 /* Returns the address of a GL entry point, or NULL. */
 typedef void *(*tw_gl_get_proc_fn)(const char *name);
-
-/* A headless OpenGL context rendering into memory (OSMesa, llvmpipe). */
-struct tw_context;
-
-/* Creates a 3.3+ core context with a width x height framebuffer and makes it
- * current on the calling thread. log is copied (may be NULL). */
-int tw_context_create_headless(uint32_t width, uint32_t height,
-                               const struct tw_log *log, struct tw_context **out);
-/* The loader of the context's GL entry points. */
-tw_gl_get_proc_fn tw_context_get_proc(const struct tw_context *ctx);
-/* Makes the context current again (after another context was). */
-int tw_context_make_current(struct tw_context *ctx);
-void tw_context_destroy(struct tw_context *ctx);
 
 /* ---- methods (DESIGN §6) -------------------------------------------------------- */
 

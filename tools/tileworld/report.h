@@ -8,7 +8,7 @@
 
 #include <stdio.h>
 
-#include "runtime/runtime.h"
+#include "tileworld/runtime.h"
 
 /* Per-method accumulation of frame statistics. */
 struct tw_method_summary {
