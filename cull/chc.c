@@ -361,7 +361,7 @@ static void flush_render(struct pass *p)
     struct tw_chc *chc = p->chc;
     if (chc->render_count == 0)
         return;
-    p->be->draw(p->be->ctx, p->tile->cell, p->tile->prototype, p->tile->offset, chc->render,
+    p->be->draw(p->be->ctx, p->tile->cell, p->tile->content, p->tile->offset, chc->render,
                 (uint32_t)chc->render_count);
     chc->render_count = 0;
 }
@@ -670,7 +670,7 @@ static void draw_everything(const struct pass *p)
         if (!(tw_cull_box_distance(p->v, &n->box, p->tile->offset) <= p->v->view_distance) ||
             tw_cull_frustum_box(&p->v->frustum, &n->box, p->tile->offset) == TW_CULL_OUTSIDE)
             continue;
-        p->be->draw(p->be->ctx, p->tile->cell, p->tile->prototype, p->tile->offset,
+        p->be->draw(p->be->ctx, p->tile->cell, p->tile->content, p->tile->offset,
                     &p->bvh->cluster_order[n->first_cluster], n->cluster_count);
         p->chc->stats.clusters_drawn += n->cluster_count;
     }

@@ -105,6 +105,9 @@ void tw_cull_view_setup(struct tw_view *v, struct tw_cell cell, const float eye[
     };
     v->cell = cell;
     memcpy(v->eye, eye, sizeof(v->eye));
+    memcpy(v->view, view, sizeof(v->view));
+    memcpy(v->proj, proj, sizeof(v->proj));
+    memcpy(v->proj_rz, proj_rz, sizeof(v->proj_rz));
     mat4_mul(proj, view, v->view_proj);
     mat4_mul(proj_rz, view, v->view_proj_rz);
     tw_cull_frustum_from_matrix(v->view_proj, &v->frustum);

@@ -57,6 +57,8 @@ struct tw_renderer {
     /* Recording of query boxes for debugging: query_record[h - 1] is the
      * index + 1 of handle h's first record this frame (0: none). */
     bool recording_queries;
+    const struct tw_box *tile_query_box;   /* queries on this box are tile queries */
+    bool deterministic;    /* no query is ready before it is waited on */
     struct tw_renderer_query_box *query_boxes;
     size_t query_box_count, query_box_cap;
     uint32_t *query_record;
@@ -547,6 +549,11 @@ void tw_renderer_begin_frame(struct tw_renderer *r, const struct tw_view *v)
 
 void tw_renderer_end_frame(struct tw_renderer *r)
 {
+    r->gl.Flush();
+}
+
+void tw_renderer_finish(struct tw_renderer *r)
+{
     r->gl.Finish();
 }
 
@@ -658,7 +665,7 @@ static void record_query(struct tw_renderer *r, uint32_t handle, const struct tw
         }
         q->query = handle;
         q->boxes = count;
-        q->tile = boxes == &r->ts->common_box;
+        q->tile = boxes == r->tile_query_box;
         q->result = -1;
     }
 }
@@ -731,6 +738,8 @@ static bool backend_ready(void *ctx, uint32_t query)
 {
     struct tw_renderer *r = ctx;
     GLuint available = 0;
+    if (r->deterministic)
+        return false;
     r->gl.GetQueryObjectuiv(r->queries[query - 1], GL_QUERY_RESULT_AVAILABLE, &available);
     return available != 0;
 }
@@ -956,6 +965,16 @@ void tw_renderer_blit(struct tw_renderer *r, uint32_t target, uint32_t width, ui
                         (GLint)height, GL_COLOR_BUFFER_BIT, same ? GL_NEAREST : GL_LINEAR);
     gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
     r->mode = MODE_NONE;
+}
+
+void tw_renderer_set_deterministic(struct tw_renderer *r, bool on)
+{
+    r->deterministic = on;
+}
+
+void tw_renderer_set_tile_query_box(struct tw_renderer *r, const struct tw_box *box)
+{
+    r->tile_query_box = box;
 }
 
 bool tw_renderer_reversed_z(const struct tw_renderer *r)

@@ -31,8 +31,10 @@ void tw_renderer_destroy(struct tw_renderer *r);
 /* Binds the framebuffer, clears it and sets the view for the frame; resets
  * the counters. view_distance drives the fog. */
 void tw_renderer_begin_frame(struct tw_renderer *r, const struct tw_view *v);
-/* Waits for the GPU to finish the frame (glFinish). */
+/* Ends the frame: sends its work to the GPU (glFlush), without waiting. */
 void tw_renderer_end_frame(struct tw_renderer *r);
+/* Waits for the GPU to finish everything sent (glFinish). */
+void tw_renderer_finish(struct tw_renderer *r);
 
 /* The query backend drawing into this renderer. */
 struct tw_query_backend tw_renderer_backend(struct tw_renderer *r);
@@ -73,6 +75,14 @@ struct tw_renderer_query_box {
     bool tile;           /* a tile query (the common box), else a node query */
     int8_t result;       /* 1 visible, 0 hidden, -1 not read this frame */
 };
+
+/* On: the backend reports no query as ready before it is waited on, so
+ * that what the methods do does not depend on the GPU's timing. */
+void tw_renderer_set_deterministic(struct tw_renderer *r, bool on);
+
+/* Queries whose box is box (the pointer, as the tile-query propagation
+ * passes it) are recorded as tile queries. box is borrowed. */
+void tw_renderer_set_tile_query_box(struct tw_renderer *r, const struct tw_box *box);
 
 /* Turns on or off the recording of query boxes (off by default; reset by
  * tw_renderer_begin_frame). The array belongs to the renderer and lives

@@ -421,7 +421,7 @@ static struct world *world_create(struct tree *t, const struct tw_chc_settings *
     w->tree = t;
     w->tile_count = 1;
     w->tile[0] = (struct tw_chc_tile){
-        .cell = {0, 0}, .prototype = 3, .proto = &t->proto, .bvh = &t->bvh,
+        .cell = {0, 0}, .content = 3, .proto = &t->proto, .bvh = &t->bvh,
         .state = w->state[0], .offset = {0, 0, 0}, .tag = TAG_A,
     };
     w->eye[0] = 0.0f;

@@ -225,7 +225,7 @@ int main(void)
         return 1;
     }
     test_off(ctx, ts);
-    for (int m = 0; m < TW_METHOD_COUNT; m++)
+    for (int m = TW_METHOD_FIRST; m < TW_METHOD_COUNT; m++)
         test_records(ctx, ts, (enum tw_method)m);
     test_fixed(ctx, ts);
     tw_tileset_destroy(ts);

@@ -234,15 +234,35 @@ bool tw_tile_cache_find(const struct tw_tile_cache *c, struct tw_cell cell,
     return true;
 }
 
+/* Frees slot k's instance; its handles go stale. */
+static void release(struct tw_tile_cache *c, uint32_t k)
+{
+    struct slot *s = &c->slots[k];
+    tw_cell_map_remove(c->by_cell, s->info.cell);
+    free(s->state);
+    s->state = NULL;
+    c->state_bytes -= s->info.state_bytes;
+    s->generation++;        /* odd (alive) -> even (free): old handles go stale */
+    s->next_free = c->free_head;
+    c->free_head = k;
+    c->live--;
+}
+
 int tw_tile_cache_acquire(struct tw_tile_cache *c, struct tw_cell cell, uint32_t prototype,
                           size_t state_bytes, uint64_t frame, struct tw_tile_handle *out,
                           bool *created)
 {
     if (tw_tile_cache_find(c, cell, out)) {
         struct slot *s = &c->slots[out->slot];
-        s->info.visible_frame = frame;
-        *created = false;
-        return TW_OK;
+        if (s->info.prototype == prototype && s->info.state_bytes == state_bytes) {
+            s->info.visible_frame = frame;
+            *created = false;
+            return TW_OK;
+        }
+        /* The cell shows other content than when its instance was made (an
+         * impure selection, or content the host changed): the old state
+         * describes another tree. Drop it, and start afresh. */
+        release(c, out->slot);
     }
     uint32_t index;
     if (c->free_head != UINT32_MAX) {
@@ -321,14 +341,7 @@ uint32_t tw_tile_cache_evict(struct tw_tile_cache *c, uint64_t frame)
         struct slot *s = &c->slots[k];
         if ((s->generation & 1u) == 0 || s->info.visible_frame + c->evict_after >= frame)
             continue;
-        tw_cell_map_remove(c->by_cell, s->info.cell);
-        free(s->state);
-        s->state = NULL;
-        c->state_bytes -= s->info.state_bytes;
-        s->generation++;        /* odd (alive) -> even (free): old handles go stale */
-        s->next_free = c->free_head;
-        c->free_head = k;
-        c->live--;
+        release(c, k);
         evicted++;
     }
     return evicted;

@@ -63,6 +63,9 @@ struct tw_view {
     float view_proj[16];        /* column-major, view-relative world -> clip (GL, z in [-w, w]) */
     float view_proj_rz[16];     /* the same with reversed depth, z in [0, w], near -> w: for a
                                    float depth buffer with glClipControl(ZERO_TO_ONE) */
+    float view[16];             /* column-major, view-relative world -> eye space */
+    float proj[16];             /* eye -> clip (GL); view_proj = proj * view */
+    float proj_rz[16];          /* eye -> clip, reversed depth; view_proj_rz = proj_rz * view */
     struct tw_frustum frustum;
     float near_plane;           /* metres */
     float near_radius;          /* eye to the near plane's corners, metres */
@@ -119,10 +122,10 @@ struct tw_query_backend {
     /* Blocks until the result is available, releases the query and returns
      * the number of samples that passed (for GL_ANY_SAMPLES_PASSED: 0 or 1). */
     uint32_t (*wait)(void *ctx, uint32_t query);
-    /* Draws clusters (indices into the prototype's clusters) of the tile
-     * showing prototype at cell, placed at offset. Arrays are only read
-     * during the call. */
-    void (*draw)(void *ctx, struct tw_cell cell, uint32_t prototype,
+    /* Draws clusters (indices into the tile's clusters) of the tile at cell
+     * whose content is content (struct tw_cull_tile), placed at offset.
+     * Arrays are only read during the call. */
+    void (*draw)(void *ctx, struct tw_cell cell, uint32_t content,
                  const float offset[3], const uint32_t *clusters,
                  uint32_t count);
     /* Sends issued work to the GPU. */
@@ -183,7 +186,7 @@ struct tw_chc_stats {
 /* One tile to traverse. */
 struct tw_chc_tile {
     struct tw_cell cell;
-    uint32_t prototype;
+    uint32_t content;                 /* handed to be->draw */
     const struct tw_prototype *proto;
     const struct tw_bvh *bvh;
     struct tw_chc_node_state *state;  /* bvh->node_count entries */
@@ -274,6 +277,128 @@ bool tw_tilequery_was_visible(const struct tw_tilequery *tq, struct tw_cell cell
 
 /* Heap bytes held. */
 size_t tw_tilequery_bytes(const struct tw_tilequery *tq);
+
+/* ---- the method drivers: one frame over the grid, top-down ------------------------ */
+
+/* A cell's tile as a frame culls and draws it. The pointers are borrowed
+ * from the tile source and stay valid until the end of the frame. */
+struct tw_cull_tile {
+    const struct tw_prototype *proto;   /* its instances and clusters, tile-local */
+    const struct tw_bvh *bvh;           /* over proto's clusters */
+    uint32_t content;                   /* what the backend draws (a fixed tileset: the
+                                           prototype index); also names the content, so
+                                           that a cached tile instance made for other
+                                           content is made afresh */
+};
+
+/* Where a frame finds the tile of a cell. */
+struct tw_tile_source {
+    void *ctx;
+    /* Fills *out with the tile at cell. Returns TW_OK or a negative error
+     * (the frame stops with it). Called on the frame's thread. */
+    int (*get)(void *ctx, struct tw_cell cell, struct tw_cull_tile *out);
+};
+
+/* The grid a frame culls: footprint, the common box (tile-local; every tile
+ * lies inside it: it is the tile query's box) and the source of its tiles. */
+struct tw_cull_grid {
+    float footprint[2];
+    struct tw_box common_box;
+    struct tw_tile_source source;
+};
+
+/* A fixed tileset as a tile source: cell -> prototype by selection, drawn as
+ * content = prototype index. Borrowed pointers, which must outlive the
+ * source; bvhs has one BVH per prototype. A selection callback returning a
+ * prototype out of range is an error (logged, TW_ERR_INVALID). */
+struct tw_cull_fixed {
+    const struct tw_tileset *tileset;
+    const struct tw_selection *selection;
+    struct tw_bvh *const *bvhs;
+    const struct tw_log *log;           /* may be NULL */
+};
+struct tw_tile_source tw_cull_fixed_source(const struct tw_cull_fixed *f);
+/* The grid of a fixed tileset (its footprint and common box). */
+struct tw_cull_grid tw_cull_fixed_grid(const struct tw_cull_fixed *f);
+
+/* The cells in view of one frame, enumerated once (tw_cull_cells_in_view)
+ * and kept for whoever needs them in that frame. Zero-initialise; free with
+ * tw_cull_cells_finish(). */
+struct tw_cull_cells {
+    struct tw_cull_cell *cells;
+    size_t count, cap;
+    bool valid;
+    struct tw_cell cell;                /* the view they are for */
+    float view_proj[16];
+    float view_distance;
+};
+/* The cells in view of v, front to back: enumerated on the first call for
+ * a view, then given back until the view (cell, matrix, view distance)
+ * changes. */
+int tw_cull_cells_of_frame(struct tw_cull_cells *c, const struct tw_view *v,
+                           const struct tw_cull_grid *g);
+void tw_cull_cells_finish(struct tw_cull_cells *c);
+
+/* One cluster of one tile: what a frame drew, or a set to draw. */
+struct tw_drawn_cluster {
+    struct tw_cell cell;
+    uint32_t prototype;                 /* the tile's content (struct tw_cull_tile) */
+    uint32_t cluster;
+};
+
+enum tw_cull_method {
+    TW_CULL_VFC = 0,        /* every cluster in the frustum of every cell in view */
+    TW_CULL_TILEQUERY,      /* §4, visible tiles drawn whole (frustum-culled) */
+    TW_CULL_CHC,            /* CHC++ in every cell in view, front to back */
+    TW_CULL_TILEQUERY_CHC,  /* §4 with CHC++ inside each visible tile */
+    TW_CULL_GIVEN,          /* exactly the set of tw_cull_driver_give() */
+    TW_CULL_METHOD_COUNT
+};
+
+struct tw_cull_driver_settings {
+    enum tw_cull_method method;
+    uint32_t evict_after_frames;        /* tile instances unseen this long go; default 60 */
+    struct tw_chc_settings chc;
+    struct tw_tilequery_settings tilequery;
+};
+
+/* Counters of one frame. */
+struct tw_cull_frame_stats {
+    uint32_t tiles_queried;
+    uint32_t tiles_visible;             /* tiles with something drawn (tile queries:
+                                           tiles rendered) */
+    uint32_t tiles_new;                 /* tile instances made this frame */
+    uint32_t tiles_cached;
+    uint64_t cache_bytes;               /* the tile cache's heap bytes */
+    uint32_t predict_fail;
+};
+
+/* A method with its temporal state: the tile cache of its instances, its
+ * CHC++ engine and its propagation state. Methods that alternate frame by
+ * frame each have their own driver. Holds queries across frames. */
+struct tw_cull_driver;
+
+int tw_cull_driver_create(const struct tw_cull_driver_settings *s, struct tw_cull_driver **out);
+/* Accepts NULL. Queries in flight are abandoned unread. */
+void tw_cull_driver_destroy(struct tw_cull_driver *d);
+
+/* For TW_CULL_GIVEN: the clusters the next frame draws, in runs of one tile
+ * (one draw call per run). set is borrowed until that frame is done. */
+void tw_cull_driver_give(struct tw_cull_driver *d, const struct tw_drawn_cluster *set,
+                         size_t count);
+
+/* Runs one frame of v (v->frame increases by one per call of this driver):
+ * everything found visible is drawn through be before it returns. cells
+ * holds (or receives) the frame's cells in view. */
+int tw_cull_driver_frame(struct tw_cull_driver *d, const struct tw_view *v,
+                         const struct tw_cull_grid *g, const struct tw_query_backend *be,
+                         struct tw_cull_cells *cells, struct tw_cull_frame_stats *stats);
+
+enum tw_cull_method tw_cull_driver_method(const struct tw_cull_driver *d);
+/* The driver's propagation engine (NULL for methods without tile queries). */
+const struct tw_tilequery *tw_cull_driver_tilequery(const struct tw_cull_driver *d);
+/* Heap bytes held by the driver (the tile cache, the engines, scratch). */
+size_t tw_cull_driver_bytes(const struct tw_cull_driver *d);
 
 /* ---- debugging: the cells of the last frame (read-only; the viewer) --------------- */
 

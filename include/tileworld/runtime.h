@@ -32,23 +32,33 @@ typedef void *(*tw_gl_get_proc_fn)(const char *name);
 /* ---- methods (DESIGN §6) -------------------------------------------------------- */
 
 enum tw_method {
-    TW_METHOD_VFC = 0,
+    TW_METHOD_DEFAULT = 0,      /* the default of DESIGN §6: tilequery+chc */
+    TW_METHOD_VFC,
     TW_METHOD_TILEQUERY,
     TW_METHOD_CHC,
     TW_METHOD_TILEQUERY_CHC,
     TW_METHOD_ORACLE,
     TW_METHOD_COUNT
 };
+/* The first real method: loops over methods run [TW_METHOD_FIRST, TW_METHOD_COUNT). */
+#define TW_METHOD_FIRST TW_METHOD_VFC
 
-/* "vfc", "tilequery", "chc", "tilequery+chc", "oracle". */
+/* "vfc", "tilequery", "chc", "tilequery+chc", "oracle" ("default" for
+ * TW_METHOD_DEFAULT). */
 const char *tw_method_name(enum tw_method m);
-/* Parses a method name; returns TW_ERR_INVALID for an unknown one. */
+/* Parses a method name (not "default"); returns TW_ERR_INVALID for an
+ * unknown one. */
 int tw_method_from_name(const char *name, enum tw_method *out);
+/* TW_METHOD_DEFAULT resolved; every other value as it is. */
+enum tw_method tw_method_resolve(enum tw_method m);
 /* True if the method is implemented in this build. */
 bool tw_method_available(enum tw_method m);
-/* True for methods that must never miss a visible pixel (all but an
- * aggressive threshold T > 0). */
-bool tw_method_conservative(enum tw_method m);
+
+struct tw_world_settings;
+/* True if method m under settings s (NULL: the defaults) must never miss a
+ * visible pixel: every method, unless its occlusion queries cull below a
+ * visibility threshold T > 0 (contribution culling, DESIGN §7). */
+bool tw_method_conservative(enum tw_method m, const struct tw_world_settings *s);
 
 /* ---- the world ------------------------------------------------------------------ */
 
@@ -65,13 +75,17 @@ struct tw_camera {
 struct tw_world_settings {
     const struct tw_tileset *tileset;  /* borrowed; must outlive the world */
     struct tw_selection selection;     /* which prototype each cell shows */
-    enum tw_method method;             /* default TW_METHOD_VFC (0) */
+    enum tw_method method;             /* default (0): tilequery+chc */
     uint32_t width, height;            /* default 640 x 360 */
     float fov_y;                       /* vertical field of view, degrees; default 60 */
     float near_plane;                  /* metres; default 0.2 */
     float view_distance;               /* metres; default 600 */
     uint32_t evict_after_frames;       /* tile cache; default 60 */
     bool verify;                       /* run the oracle's ID pass every frame (untimed) */
+    bool deterministic;                /* no query result counts as ready before it is
+                                          waited on: a run's counts then do not depend
+                                          on the GPU's timing (tests, comparisons);
+                                          slower, as latency is no longer hidden */
     struct tw_chc_settings chc;
     struct tw_tilequery_settings tilequery;
     struct tw_bvh_settings bvh;
@@ -87,7 +101,7 @@ void tw_world_default_settings(struct tw_world_settings *s);
 struct tw_frame_stats {
     uint64_t frame;
     enum tw_method method;
-    double ms_frame;         /* wall time, including glFinish */
+    double ms_frame;         /* wall time of the frame (see tw_world_frame, tw_world_finish) */
     double ms_cull;          /* CPU time of culling, outside draws and waits */
     double ms_wait;          /* time blocked on query results */
     uint64_t triangles;
@@ -117,20 +131,42 @@ void tw_world_destroy(struct tw_world *w);
 int tw_world_set_method(struct tw_world *w, enum tw_method m);
 
 /* Renders one frame from cam with the current method and fills *stats
- * (may be NULL). Returns TW_ERR_INVALID for a camera with non-finite values. */
+ * (may be NULL). Returns TW_ERR_INVALID for a camera with non-finite values.
+ * The frame's work is sent to the GPU (glFlush), not waited for: a host
+ * that wants the time to a finished frame calls tw_world_finish() next
+ * (stats->ms_frame is then that time). With settings.verify the frame is
+ * finished before the oracle's ID pass, and ms_frame is its time to finish.
+ *
+ * GL state: the world renders into framebuffers of its own and leaves the
+ * host's GL state as it found it: the framebuffer, renderbuffer, program,
+ * vertex array and array-buffer bindings, viewport, clip control, the
+ * depth, cull, blend, scissor, stencil and polygon state, write masks,
+ * clear values and pack alignment are saved on entry and restored on exit
+ * of every call that draws or reads (tw_world_create included). Query
+ * objects it owns stay in flight across frames. */
 int tw_world_frame(struct tw_world *w, const struct tw_camera *cam,
                    struct tw_frame_stats *stats);
+
+/* Waits for the GPU to finish the last frame (glFinish) and adds the time
+ * waited to stats->ms_frame (stats may be NULL). */
+int tw_world_finish(struct tw_world *w, struct tw_frame_stats *stats);
+
+/* The view of the last frame (TW_ERR_STATE before the first): its camera
+ * cell, which is the origin of the frame's coordinates (view-relative
+ * metres, DESIGN §3), and its matrices: view, proj (GL clip depth) and
+ * proj_rz (reversed depth, which the world's own images use when
+ * tw_world_reversed_z()), so that a host can draw its own things over a
+ * frame: place them at (their cell - view.cell) * footprint + local. */
+int tw_world_last_view(const struct tw_world *w, struct tw_view *out);
+/* True when the world renders with reversed float depth (glClipControl). */
+bool tw_world_reversed_z(const struct tw_world *w);
 
 /* Copies the last frame's image as RGB8, top row first, into rgb
  * (width * height * 3 bytes, owned by the caller). */
 int tw_world_read_rgb(struct tw_world *w, uint8_t *rgb);
 
-/* One drawn cluster: which tile, which cluster of its prototype. */
-struct tw_drawn_cluster {
-    struct tw_cell cell;
-    uint32_t prototype;
-    uint32_t cluster;
-};
+/* struct tw_drawn_cluster (cull.h): which tile, which cluster of its
+ * prototype. */
 
 /* Turns on or off the recording of every cluster drawn in a frame (for the
  * accuracy oracle and tests; off by default: it costs time). */

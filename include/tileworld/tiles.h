@@ -319,7 +319,9 @@ void tw_tile_cache_destroy(struct tw_tile_cache *c);
 bool tw_tile_cache_find(const struct tw_tile_cache *c, struct tw_cell cell,
                         struct tw_tile_handle *out);
 /* Finds the instance at cell or creates it with state_bytes zeroed bytes of
- * state, and marks it visible at frame. *created tells which happened. */
+ * state, and marks it visible at frame. *created tells which happened. An
+ * instance made for other content (another prototype, another state size)
+ * is dropped and made afresh (*created is true; its old handles go stale). */
 int tw_tile_cache_acquire(struct tw_tile_cache *c, struct tw_cell cell, uint32_t prototype,
                           size_t state_bytes, uint64_t frame, struct tw_tile_handle *out,
                           bool *created);

@@ -63,6 +63,9 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
             rc = tw_world_set_method(world, run->methods[m]);
             if (!rc)
                 rc = tw_world_frame(world, &run->path->keys[f], &st);
+            /* A frame's time ends when the GPU has finished it. */
+            if (!rc)
+                rc = tw_world_finish(world, &st);
             if (rc) {
                 snprintf(err, err_size, "frame %u with %s failed: %s", f + 1,
                          tw_method_name(run->methods[m]), tw_error_to_str(rc));
@@ -357,7 +360,7 @@ static void check_no_missed(struct scenario_result *r, const struct tw_run *run)
 {
     for (uint32_t m = 0; m < run->method_count; m++) {
         const enum tw_method me = run->methods[m];
-        if (!tw_method_conservative(me))
+        if (!tw_method_conservative(me, &run->world))
             continue;
         const struct tw_method_figures *fg = &run->figures[me];
         struct check *c = add_check(r);

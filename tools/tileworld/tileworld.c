@@ -319,7 +319,7 @@ static int run(const struct options *o, bool bench)
         memcpy(r.methods, o->methods, sizeof(r.methods));
         r.method_count = o->method_count;
     } else {
-        for (int m = 0; m < TW_METHOD_COUNT; m++)
+        for (int m = TW_METHOD_FIRST; m < TW_METHOD_COUNT; m++)
             r.methods[r.method_count++] = (enum tw_method)m;
     }
     struct tw_world_settings *ws = &r.world;

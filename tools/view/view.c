@@ -1234,6 +1234,8 @@ int main(int argc, char **argv)
             }
             if (!err)
                 err = tw_world_frame(v.world, &v.cam, &v.st);
+            if (!err)
+                err = tw_world_finish(v.world, &v.st);
             if (freezing) {
                 v.freeze_pending = false;
                 if (!err)

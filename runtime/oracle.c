@@ -1,0 +1,176 @@
+/*
+ * The accuracy oracle (DESIGN §8): every cluster that vfc would draw,
+ * rendered into an object-ID buffer with the normal pass's transform, then
+ * each cluster's visible pixels counted. The ID pass is vfc's own driver
+ * drawing through a backend whose draw renders ids.
+ */
+#include "runtime/world-private.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+int tw_oracle_init(struct tw_world *w)
+{
+    struct tw_oracle *o = &w->oracle;
+    const struct tw_cull_driver_settings vfc = {.method = TW_CULL_VFC};
+    o->ids = malloc(sizeof(uint32_t) * w->s.width * w->s.height);
+    if (!o->ids)
+        return TW_ERR_NOMEM;
+    int err = tw_cell_map_create(&o->tiles);
+    if (!err)
+        err = tw_cull_driver_create(&vfc, &o->vfc);
+    return err;
+}
+
+void tw_oracle_finish(struct tw_oracle *o)
+{
+    tw_cull_driver_destroy(o->vfc);
+    free(o->entries);
+    free(o->visible);
+    free(o->pixels);
+    free(o->drawn);
+    free(o->ids);
+    tw_cell_map_destroy(o->tiles);
+    memset(o, 0, sizeof(*o));
+}
+
+static int grow(void **array, size_t *cap, size_t need, size_t elem)
+{
+    if (need <= *cap)
+        return TW_OK;
+    size_t n = *cap ? *cap : 4096;
+    while (n < need)
+        n *= 2;
+    void *p = realloc(*array, n * elem);
+    if (!p)
+        return TW_ERR_NOMEM;
+    *array = p;
+    *cap = n;
+    return TW_OK;
+}
+
+struct id_backend {
+    struct tw_world *w;
+};
+
+/* Draws a tile's clusters with ids o->count, o->count + 1, ... */
+static void id_draw(void *ctx, struct tw_cell cell, uint32_t content, const float offset[3],
+                    const uint32_t *clusters, uint32_t count)
+{
+    struct tw_world *w = ((struct id_backend *)ctx)->w;
+    struct tw_oracle *o = &w->oracle;
+    if (o->err)
+        return;
+    o->err = grow((void **)&o->entries, &o->cap, o->count + count, sizeof(*o->entries));
+    if (!o->err)
+        o->err = tw_cell_map_set(o->tiles, cell, ((uint64_t)o->count << 32) | count);
+    if (o->err)
+        return;
+    tw_renderer_id_draw(w->renderer, content, offset, clusters, count, (uint32_t)o->count);
+    for (uint32_t c = 0; c < count; c++)
+        o->entries[o->count++] = (struct tw_drawn_cluster){cell, content, clusters[c]};
+}
+
+/* vfc issues no query; these are never called. */
+static uint32_t id_issue(void *ctx, const struct tw_box *boxes, uint32_t count,
+                         const float offset[3])
+{
+    struct tw_world *w = ((struct id_backend *)ctx)->w;
+    w->oracle.err = TW_ERR_STATE;
+    return 1;
+}
+
+static bool id_ready(void *ctx, uint32_t query)
+{
+    return true;
+}
+
+static uint32_t id_wait(void *ctx, uint32_t query)
+{
+    return 1;
+}
+
+static void id_flush(void *ctx)
+{
+}
+
+int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
+{
+    struct tw_oracle *o = &w->oracle;
+    o->count = 0;
+    o->err = TW_OK;
+    tw_cell_map_clear(o->tiles);
+    tw_renderer_id_begin(w->renderer, v);
+    struct id_backend ib = {w};
+    const struct tw_query_backend be = {&ib, id_issue, id_ready, id_wait, id_draw, id_flush};
+    int err = tw_cull_driver_frame(o->vfc, v, &w->grid, &be, &w->cells, NULL);
+    if (!err)
+        err = o->err;
+    if (err)
+        return err;
+    if (o->count > o->per_id_cap) {
+        free(o->pixels);
+        free(o->drawn);
+        o->pixels = malloc(sizeof(*o->pixels) * o->count);
+        o->drawn = malloc(o->count);
+        o->per_id_cap = o->pixels && o->drawn ? o->count : 0;
+        if (!o->per_id_cap)
+            return TW_ERR_NOMEM;
+    }
+    memset(o->pixels, 0, sizeof(*o->pixels) * o->count);
+    tw_renderer_id_read(w->renderer, o->ids);
+    const size_t npix = (size_t)w->s.width * w->s.height;
+    for (size_t k = 0; k < npix; k++)
+        if (o->ids[k] < o->count)
+            o->pixels[o->ids[k]]++;
+    /* The oracle method's set: the clusters with visible pixels, tile by tile. */
+    o->visible_count = 0;
+    err = grow((void **)&o->visible, &o->visible_cap, o->count, sizeof(*o->visible));
+    if (err)
+        return err;
+    for (size_t k = 0; k < o->count; k++)
+        if (o->pixels[k] > 0)
+            o->visible[o->visible_count++] = o->entries[k];
+    return TW_OK;
+}
+
+void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
+{
+    struct tw_oracle *o = &w->oracle;
+    const struct tw_tileset *ts = w->s.tileset;
+    memset(o->drawn, 0, o->count);
+    size_t n = 0;
+    const struct tw_drawn_cluster *d = tw_world_drawn(w, &n);
+    for (size_t k = 0; k < n; k++) {
+        const uint64_t *range = tw_cell_map_find(o->tiles, d[k].cell);
+        const struct tw_cluster *cl = &ts->prototypes[d[k].prototype].clusters[d[k].cluster];
+        if (!range) {
+            /* Drawn where vfc would draw nothing: wasted. */
+            st->overdraw_triangles += cl->triangle_count;
+            continue;
+        }
+        /* Ids of a tile are its clusters in ascending order: binary search. */
+        const uint32_t first = (uint32_t)(*range >> 32), end = first + (uint32_t)*range;
+        uint32_t lo = first, hi = end;
+        while (lo < hi) {
+            const uint32_t mid = lo + (hi - lo) / 2;
+            if (o->entries[mid].cluster < d[k].cluster)
+                lo = mid + 1;
+            else
+                hi = mid;
+        }
+        if (lo < end && o->entries[lo].cluster == d[k].cluster) {
+            if (!o->drawn[lo] && o->pixels[lo] == 0)
+                st->overdraw_triangles += cl->triangle_count;
+            o->drawn[lo] = 1;
+        } else {
+            st->overdraw_triangles += cl->triangle_count;
+        }
+    }
+    for (size_t id = 0; id < o->count; id++) {
+        if (o->drawn[id] || o->pixels[id] == 0)
+            continue;
+        st->missed_pixels += o->pixels[id];
+        st->missed_clusters++;
+    }
+}

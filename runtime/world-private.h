@@ -1,0 +1,78 @@
+/*
+ * The world's insides, shared by its files: world.c (the API and the frame),
+ * oracle.c (the accuracy oracle, DESIGN §8) and debug.c (debug views).
+ * Private to runtime/.
+ */
+#ifndef TW_RUNTIME_WORLD_PRIVATE_H
+#define TW_RUNTIME_WORLD_PRIVATE_H
+
+#include "runtime/renderer.h"
+#include "tileworld/cull.h"
+#include "tileworld/runtime.h"
+
+/* The accuracy oracle: every cluster vfc would draw, rendered into an
+ * object-ID buffer; id k names entries[k]. */
+struct tw_oracle {
+    struct tw_cull_driver *vfc;     /* enumerates what the ID pass draws */
+    struct tw_drawn_cluster *entries;
+    size_t count, cap;
+    struct tw_drawn_cluster *visible;  /* entries with visible pixels, in id order */
+    size_t visible_count, visible_cap;
+    uint32_t *pixels;               /* visible pixels per id */
+    uint8_t *drawn;                 /* per id: drawn by the method */
+    size_t per_id_cap;
+    uint32_t *ids;                  /* the ID buffer, width * height */
+    struct tw_cell_map *tiles;      /* cell -> first id << 32 | cluster count */
+    int err;                        /* of the ID backend's draws */
+};
+
+/* Per-method state: its driver (tile cache, CHC++, propagation) and frame count. */
+struct method_state {
+    struct tw_cull_driver *driver;
+    uint64_t frame;
+};
+
+struct tw_debug_state {
+    unsigned flags;
+    struct tw_debug_box *boxes;
+    size_t count, cap;
+    struct tw_cell_map *seen;       /* cells reported this frame */
+    uint32_t **leaf_of;             /* per prototype: cluster -> its BVH leaf */
+    uint32_t *stamp;                /* per node: the tile that last marked it */
+    uint32_t stamp_now;
+    struct tw_renderer_debug_box *draw;
+    size_t draw_cap;
+};
+
+struct tw_world {
+    struct tw_world_settings s;
+    struct tw_renderer *renderer;
+    struct tw_bvh **bvhs;           /* one per prototype */
+    struct tw_cull_fixed fixed;     /* the tileset as a tile source */
+    struct tw_cull_grid grid;
+    struct tw_cull_cells cells;     /* the cells in view of the current view */
+    enum tw_method method;
+    struct method_state methods[TW_METHOD_COUNT];
+    struct tw_cull_driver *fixed_set;  /* tw_world_frame_fixed */
+    bool record_draws;
+    struct tw_oracle oracle;
+
+    struct tw_view last_view;
+    bool has_view;
+    struct tw_debug_state debug;    /* untouched while debug.flags is 0 */
+};
+
+/* oracle.c */
+int tw_oracle_init(struct tw_world *w);
+void tw_oracle_finish(struct tw_oracle *o);
+/* The ID pass of view v: which clusters have visible pixels, how many. Untimed. */
+int tw_oracle_pass(struct tw_world *w, const struct tw_view *v);
+/* Compares what the last frame drew with the last ID pass. */
+void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st);
+
+/* debug.c */
+void tw_debug_finish(struct tw_world *w);
+/* After the timed part of a frame: the boxes of the debug views that are on. */
+int tw_debug_collect(struct tw_world *w, const struct method_state *ms, const struct tw_view *v);
+
+#endif
