@@ -311,8 +311,10 @@ int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, si
                 r->color[3] *= 1.0f / (1.0f + 0.25f * (float)b->level);
             }
         }
+        tw_renderer_enter(w->renderer);
         tw_renderer_draw_debug(w->renderer, v, w->debug.draw, n, layers[layer].fill,
                                layers[layer].line_px);
+        tw_renderer_leave(w->renderer);
     }
     return TW_OK;
 }

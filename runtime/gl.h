@@ -79,7 +79,15 @@
     X(PFNGLCLEARBUFFERFVPROC, ClearBufferfv) \
     X(PFNGLGETSTRINGIPROC, GetStringi) \
     X(PFNGLBLITFRAMEBUFFERPROC, BlitFramebuffer) \
-    X(PFNGLBLENDFUNCPROC, BlendFunc)
+    X(PFNGLBLENDFUNCPROC, BlendFunc) \
+    X(PFNGLBLENDFUNCSEPARATEPROC, BlendFuncSeparate) \
+    X(PFNGLGETBOOLEANVPROC, GetBooleanv) \
+    X(PFNGLGETFLOATVPROC, GetFloatv) \
+    X(PFNGLGETDOUBLEVPROC, GetDoublev) \
+    X(PFNGLISENABLEDPROC, IsEnabled) \
+    X(PFNGLFRONTFACEPROC, FrontFace) \
+    X(PFNGLPOLYGONMODEPROC, PolygonMode) \
+    X(PFNGLDEPTHRANGEPROC, DepthRange)
 
 /* Entry points the renderer can do without (NULL when the loader has none):
  * glClipControl is core only since 4.5 (ARB_clip_control before). A loader
@@ -94,6 +102,32 @@ struct tw_gl {
     TW_GL_OPTIONAL_FUNCTIONS(TW_GL_MEMBER)
 #undef TW_GL_MEMBER
 };
+
+/* The host's GL state that the world changes, saved on entry into the
+ * library and restored on exit (runtime.h, tw_world_frame). */
+struct tw_gl_state {
+    GLint draw_fbo, read_fbo, renderbuffer, program, vertex_array, array_buffer;
+    GLint pixel_pack_buffer, pixel_unpack_buffer;
+    GLint viewport[4];
+    GLint depth_func, cull_face_mode, front_face, polygon_mode[2];
+    GLint blend_src_rgb, blend_dst_rgb, blend_src_alpha, blend_dst_alpha;
+    GLint pack_alignment, pack_row_length, pack_skip_rows, pack_skip_pixels;
+    GLint clip_origin, clip_depth_mode;
+    GLboolean depth_mask, color_mask[4];
+    GLfloat clear_color[4];
+    GLdouble clear_depth, depth_range[2];
+    uint32_t enabled;       /* bit k: capability k of tw_gl_state_capabilities was enabled */
+};
+
+/* Saves the state of s that the library changes, then sets the state the
+ * library relies on (no scissor, stencil, blending, polygon offset,
+ * rasteriser discard, sRGB conversion, primitive restart, logic op or depth
+ * clamp; counter-clockwise front faces, filled polygons, depth range [0, 1],
+ * no pixel buffers bound, plain pack layout). has_clip_control: the
+ * context's glClipControl may be called. */
+void tw_gl_state_enter(const struct tw_gl *gl, bool has_clip_control, struct tw_gl_state *s);
+/* Restores what tw_gl_state_enter() saved. */
+void tw_gl_state_leave(const struct tw_gl *gl, bool has_clip_control, const struct tw_gl_state *s);
 
 /* Loads every entry point; names the first missing required one in the log
  * and returns TW_ERR_GL if any is missing. Optional ones may stay NULL. */

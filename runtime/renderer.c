@@ -59,6 +59,12 @@ struct tw_renderer {
     bool recording_queries;
     const struct tw_box *tile_query_box;   /* queries on this box are tile queries */
     bool deterministic;    /* no query is ready before it is waited on */
+
+    /* The host's GL state, saved while the library is inside a call. */
+    struct tw_gl_state host_state;
+    uint32_t entered;
+    bool has_clip_control;
+    bool gl_loaded;        /* every entry point of the table is there */
     struct tw_renderer_query_box *query_boxes;
     size_t query_box_count, query_box_cap;
     uint32_t *query_record;
@@ -395,6 +401,7 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
     int err = tw_gl_load(&r->gl, get_proc, &r->log);
     if (err)
         goto fail;
+    r->gl_loaded = true;
     const struct tw_gl *gl = &r->gl;
     GLint major = 0, minor = 0;
     gl->GetIntegerv(GL_MAJOR_VERSION, &major);
@@ -406,10 +413,11 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
         goto fail;
     }
     /* Reversed depth needs [0, 1] clip depth: core since 4.5. */
-    r->reversed_z = gl->ClipControl && (major * 10 + minor >= 45 || has_extension(gl, "GL_ARB_clip_control"));
-    if (r->reversed_z) {
-        gl->ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
-    } else {
+    r->has_clip_control = gl->ClipControl &&
+                          (major * 10 + minor >= 45 || has_extension(gl, "GL_ARB_clip_control"));
+    r->reversed_z = r->has_clip_control;
+    tw_renderer_enter(r);
+    if (!r->reversed_z) {
         tw_log_printf(&r->log, TW_LOG_WARN,
                       "OpenGL %d.%d has no glClipControl: standard 24-bit depth instead of "
                       "reversed float depth (less precision far away)", major, minor);
@@ -467,11 +475,32 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
         err = TW_ERR_GL;
         goto fail;
     }
+    tw_renderer_leave(r);
     *out = r;
     return TW_OK;
 fail:
+    if (r->entered)
+        tw_renderer_leave(r);
     tw_renderer_destroy(r);
     return err;
+}
+
+void tw_renderer_enter(struct tw_renderer *r)
+{
+    if (r->entered++ > 0)
+        return;
+    tw_gl_state_enter(&r->gl, r->has_clip_control, &r->host_state);
+    if (r->reversed_z)
+        r->gl.ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+    r->mode = MODE_NONE;
+}
+
+void tw_renderer_leave(struct tw_renderer *r)
+{
+    if (r->entered == 0 || --r->entered > 0)
+        return;
+    tw_gl_state_leave(&r->gl, r->has_clip_control, &r->host_state);
+    r->mode = MODE_NONE;
 }
 
 void tw_renderer_destroy(struct tw_renderer *r)
@@ -479,7 +508,8 @@ void tw_renderer_destroy(struct tw_renderer *r)
     if (!r)
         return;
     const struct tw_gl *gl = &r->gl;
-    if (gl->DeleteBuffers) {
+    if (r->gl_loaded) {
+        tw_renderer_enter(r);
         if (r->query_count)
             gl->DeleteQueries((GLsizei)r->query_count, r->queries);
         gl->DeleteBuffers(1, &r->vbo);
@@ -504,6 +534,7 @@ void tw_renderer_destroy(struct tw_renderer *r)
             gl->DeleteProgram(r->line_program);
         if (r->fill_program)
             gl->DeleteProgram(r->fill_program);
+        tw_renderer_leave(r);
     }
     free(r->query_boxes);
     free(r->query_record);

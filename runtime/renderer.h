@@ -28,6 +28,12 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
                        const struct tw_log *log, struct tw_renderer **out);
 void tw_renderer_destroy(struct tw_renderer *r);
 
+/* Every call below that draws or reads runs between enter and leave: enter
+ * saves the host's GL state (the first of nested calls) and sets what the
+ * renderer relies on; leave restores it (the last). */
+void tw_renderer_enter(struct tw_renderer *r);
+void tw_renderer_leave(struct tw_renderer *r);
+
 /* Binds the framebuffer, clears it and sets the view for the frame; resets
  * the counters. view_distance drives the fog. */
 void tw_renderer_begin_frame(struct tw_renderer *r, const struct tw_view *v);

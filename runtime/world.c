@@ -264,10 +264,8 @@ static void collect_counters(const struct tw_world *w, struct tw_frame_stats *st
     st->queries = rc->queries;
 }
 
-int tw_world_frame(struct tw_world *w, const struct tw_camera *cam, struct tw_frame_stats *out)
+static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_frame_stats *out)
 {
-    if (!w || !cam)
-        return TW_ERR_INVALID;
     struct tw_view v;
     int err = setup_view(w, cam, &v);
     if (err)
@@ -335,6 +333,16 @@ int tw_world_frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fr
     return TW_OK;
 }
 
+int tw_world_frame(struct tw_world *w, const struct tw_camera *cam, struct tw_frame_stats *out)
+{
+    if (!w || !cam)
+        return TW_ERR_INVALID;
+    tw_renderer_enter(w->renderer);
+    const int err = frame(w, cam, out);
+    tw_renderer_leave(w->renderer);
+    return err;
+}
+
 int tw_world_finish(struct tw_world *w, struct tw_frame_stats *st)
 {
     if (!w)
@@ -350,7 +358,10 @@ int tw_world_read_rgb(struct tw_world *w, uint8_t *rgb)
 {
     if (!w || !rgb)
         return TW_ERR_INVALID;
-    return tw_renderer_read_rgb(w->renderer, rgb);
+    tw_renderer_enter(w->renderer);
+    const int err = tw_renderer_read_rgb(w->renderer, rgb);
+    tw_renderer_leave(w->renderer);
+    return err;
 }
 
 void tw_world_record_draws(struct tw_world *w, bool on)
@@ -384,12 +395,10 @@ bool tw_world_reversed_z(const struct tw_world *w)
     return w && tw_renderer_reversed_z(w->renderer);
 }
 
-int tw_world_frame_fixed(struct tw_world *w, const struct tw_camera *cam,
-                         const struct tw_drawn_cluster *clusters, size_t count,
-                         struct tw_frame_stats *out)
+static int frame_fixed(struct tw_world *w, const struct tw_camera *cam,
+                       const struct tw_drawn_cluster *clusters, size_t count,
+                       struct tw_frame_stats *out)
 {
-    if (!w || !cam || (count && !clusters))
-        return TW_ERR_INVALID;
     struct tw_view v;
     int err = setup_view(w, cam, &v);
     if (err)
@@ -430,10 +439,24 @@ int tw_world_frame_fixed(struct tw_world *w, const struct tw_camera *cam,
     return TW_OK;
 }
 
+int tw_world_frame_fixed(struct tw_world *w, const struct tw_camera *cam,
+                         const struct tw_drawn_cluster *clusters, size_t count,
+                         struct tw_frame_stats *out)
+{
+    if (!w || !cam || (count && !clusters))
+        return TW_ERR_INVALID;
+    tw_renderer_enter(w->renderer);
+    const int err = frame_fixed(w, cam, clusters, count, out);
+    tw_renderer_leave(w->renderer);
+    return err;
+}
+
 int tw_world_blit(struct tw_world *w, uint32_t target, uint32_t width, uint32_t height)
 {
     if (!w || width == 0 || height == 0 || width > 16384 || height > 16384)
         return TW_ERR_INVALID;
+    tw_renderer_enter(w->renderer);
     tw_renderer_blit(w->renderer, target, width, height);
+    tw_renderer_leave(w->renderer);
     return TW_OK;
 }

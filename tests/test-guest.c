@@ -1,0 +1,219 @@
+/*
+ * A good guest in a host's GL context (runtime.h, tw_world_frame): a host
+ * sets GL state of its own, in every way the world's drawing could be
+ * disturbed by it or could disturb it; the world's calls leave that state
+ * exactly as they found it, and their images are the same as in a context
+ * with default state.
+ */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "runtime/gl.h"
+#include "tests/check.h"
+#include "tileworld/context.h"
+#include "tileworld/runtime.h"
+#include "tileworld/tilesets.h"
+
+enum { W = 160, H = 96, FRAMES = 6 };
+
+struct host {
+    GLuint fbo, rb, program, vao, vbo, pbo;
+};
+
+static GLuint host_program(const struct tw_gl *gl)
+{
+    static const char *vs = "#version 330 core\nvoid main() { gl_Position = vec4(0.0); }\n";
+    static const char *fs = "#version 330 core\nout vec4 c;\nvoid main() { c = vec4(1.0); }\n";
+    GLuint p = gl->CreateProgram();
+    const char *src[2] = {vs, fs};
+    const GLenum type[2] = {GL_VERTEX_SHADER, GL_FRAGMENT_SHADER};
+    for (int k = 0; k < 2; k++) {
+        GLuint s = gl->CreateShader(type[k]);
+        gl->ShaderSource(s, 1, &src[k], NULL);
+        gl->CompileShader(s);
+        gl->AttachShader(p, s);
+        gl->DeleteShader(s);
+    }
+    gl->LinkProgram(p);
+    return p;
+}
+
+/* State no renderer would leave by accident. */
+static void set_host_state(const struct tw_gl *gl, struct host *h)
+{
+    gl->GenRenderbuffers(1, &h->rb);
+    gl->BindRenderbuffer(GL_RENDERBUFFER, h->rb);
+    gl->RenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, 8, 8);
+    gl->GenFramebuffers(1, &h->fbo);
+    gl->BindFramebuffer(GL_FRAMEBUFFER, h->fbo);
+    gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, h->rb);
+    h->program = host_program(gl);
+    gl->UseProgram(h->program);
+    gl->GenVertexArrays(1, &h->vao);
+    gl->BindVertexArray(h->vao);
+    gl->GenBuffers(1, &h->vbo);
+    gl->BindBuffer(GL_ARRAY_BUFFER, h->vbo);
+    gl->GenBuffers(1, &h->pbo);
+    gl->BindBuffer(GL_PIXEL_PACK_BUFFER, h->pbo);
+    gl->BufferData(GL_PIXEL_PACK_BUFFER, 64, NULL, GL_STREAM_READ);
+    gl->Viewport(1, 2, 3, 4);
+    gl->Enable(GL_SCISSOR_TEST);
+    gl->Enable(GL_BLEND);
+    gl->Enable(GL_STENCIL_TEST);
+    gl->Enable(GL_POLYGON_OFFSET_FILL);
+    gl->Disable(GL_DEPTH_TEST);
+    gl->Enable(GL_CULL_FACE);
+    gl->CullFace(GL_FRONT);
+    gl->FrontFace(GL_CW);
+    gl->PolygonMode(GL_FRONT_AND_BACK, GL_LINE);
+    gl->DepthFunc(GL_GREATER);
+    gl->DepthMask(GL_FALSE);
+    gl->ColorMask(GL_TRUE, GL_FALSE, GL_TRUE, GL_FALSE);
+    gl->BlendFuncSeparate(GL_ONE, GL_ONE, GL_ZERO, GL_SRC_COLOR);
+    gl->ClearColor(0.25f, 0.5f, 0.75f, 1.0f);
+    gl->ClearDepth(0.5);
+    gl->DepthRange(0.2, 0.8);
+    gl->PixelStorei(GL_PACK_ALIGNMENT, 2);
+    gl->PixelStorei(GL_PACK_ROW_LENGTH, 7);
+    if (gl->ClipControl)
+        gl->ClipControl(GL_UPPER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
+}
+
+static void snapshot(const struct tw_gl *gl, struct tw_gl_state *s)
+{
+    /* tw_gl_state_enter() reads every field; leave puts them back unchanged. */
+    tw_gl_state_enter(gl, gl->ClipControl != NULL, s);
+    tw_gl_state_leave(gl, gl->ClipControl != NULL, s);
+}
+
+static int states_differ(const struct tw_gl_state *a, const struct tw_gl_state *b)
+{
+    int n = 0;
+#define SAME(field) \
+    do { \
+        if (memcmp(&a->field, &b->field, sizeof(a->field)) != 0) { \
+            fprintf(stderr, "GL state changed: %s\n", #field); \
+            n++; \
+        } \
+    } while (0)
+    SAME(draw_fbo);
+    SAME(read_fbo);
+    SAME(renderbuffer);
+    SAME(program);
+    SAME(vertex_array);
+    SAME(array_buffer);
+    SAME(pixel_pack_buffer);
+    SAME(pixel_unpack_buffer);
+    SAME(viewport);
+    SAME(depth_func);
+    SAME(cull_face_mode);
+    SAME(front_face);
+    SAME(polygon_mode);
+    SAME(blend_src_rgb);
+    SAME(blend_dst_rgb);
+    SAME(blend_src_alpha);
+    SAME(blend_dst_alpha);
+    SAME(pack_alignment);
+    SAME(pack_row_length);
+    SAME(clip_origin);
+    SAME(clip_depth_mode);
+    SAME(depth_mask);
+    SAME(color_mask);
+    SAME(clear_color);
+    SAME(clear_depth);
+    SAME(depth_range);
+    SAME(enabled);
+#undef SAME
+    return n;
+}
+
+static struct tw_camera camera(int f)
+{
+    struct tw_camera c = {.pos = {.cell = {0, 0}, .local = {7.0f, 1.7f, 5.0f + 4.0f * (float)f}}};
+    c.yaw = 10.0f * (float)f;
+    return c;
+}
+
+/* Runs the world's calls; the last frame's image goes into rgb. */
+static int run_world(struct tw_context *ctx, const struct tw_tileset *ts, uint8_t *rgb,
+                     const struct tw_gl *gl, const struct tw_gl_state *host)
+{
+    struct tw_world_settings s = {0};
+    s.tileset = ts;
+    s.width = W;
+    s.height = H;
+    s.get_proc = tw_context_get_proc(ctx);
+    s.deterministic = true;
+    struct tw_world *w = NULL;
+    int changed = 0;
+    struct tw_gl_state now;
+    CHECK(tw_world_create(&s, &w) == TW_OK);
+    if (!w)
+        return 1;
+    if (host) {
+        snapshot(gl, &now);
+        changed += states_differ(host, &now);
+    }
+    CHECK(tw_world_set_debug(w, TW_DEBUG_ALL) == TW_OK);
+    for (int f = 0; f < FRAMES; f++) {
+        struct tw_frame_stats st;
+        const struct tw_camera cam = camera(f);
+        CHECK(tw_world_frame(w, &cam, &st) == TW_OK);
+        CHECK(tw_world_finish(w, &st) == TW_OK);
+        CHECK(st.triangles > 0);
+        if (host) {
+            snapshot(gl, &now);
+            changed += states_differ(host, &now);
+        }
+    }
+    size_t n = 0;
+    const struct tw_debug_box *boxes = tw_world_debug_boxes(w, &n);
+    CHECK(tw_world_read_rgb(w, rgb) == TW_OK);
+    CHECK(tw_world_draw_debug(w, boxes, n) == TW_OK);
+    CHECK(tw_world_blit(w, 0, W, H) == TW_OK);
+    if (host) {
+        snapshot(gl, &now);
+        changed += states_differ(host, &now);
+    }
+    tw_world_destroy(w);
+    if (host) {
+        snapshot(gl, &now);
+        changed += states_differ(host, &now);
+    }
+    return changed;
+}
+
+int main(void)
+{
+    struct tw_context *ctx = NULL;
+    struct tw_tileset *ts = NULL;
+    uint8_t *plain = malloc(W * H * 3), *guest = malloc(W * H * 3);
+    struct tw_gl gl;
+    if (tw_context_create_headless(W, H, NULL, &ctx) != TW_OK ||
+        tw_tilesets_builtin("city", 1, 0, NULL, &ts) != TW_OK || !plain || !guest ||
+        tw_gl_load(&gl, tw_context_get_proc(ctx), NULL) != TW_OK) {
+        fprintf(stderr, "test-guest: cannot set up\n");
+        return 1;
+    }
+    /* In a context with default state: the reference image. */
+    CHECK(run_world(ctx, ts, plain, &gl, NULL) == 0);
+
+    /* In a host's state: the same image, and the state as it was. */
+    struct host h;
+    set_host_state(&gl, &h);
+    struct tw_gl_state before;
+    snapshot(&gl, &before);
+    CHECK(before.enabled != 0 && before.viewport[2] == 3 && before.pack_row_length == 7);
+    const int changed = run_world(ctx, ts, guest, &gl, &before);
+    CHECK(changed == 0);
+    CHECK(memcmp(plain, guest, W * H * 3) == 0);
+    CHECK(gl.GetError() == GL_NO_ERROR);
+    printf("guest: %d GL state fields changed by the world's calls; images %s\n", changed,
+           memcmp(plain, guest, W * H * 3) == 0 ? "identical" : "differ");
+    free(plain);
+    free(guest);
+    tw_tileset_destroy(ts);
+    tw_context_destroy(ctx);
+    return failures ? 1 : 0;
+}
