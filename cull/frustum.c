@@ -112,16 +112,39 @@ void tw_cull_view_setup(struct tw_view *v, struct tw_cell cell, const float eye[
     mat4_mul(proj_rz, view, v->view_proj_rz);
     tw_cull_frustum_from_matrix(v->view_proj, &v->frustum);
     v->near_plane = near_plane;
+    v->far_plane = far_plane;
     /* The near plane's corners lie up to n * sqrt(1 + tx^2 + ty^2) from the
      * eye; keep that radius for the near-plane rule. */
     const float ty = 1.0f / t, tx = ty * aspect;
     v->near_radius = n * sqrtf(1.0f + tx * tx + ty * ty);
 }
 
+struct tw_box tw_cull_query_box(const float eye[3], const struct tw_box *b, const float offset[3])
+{
+    struct tw_box q;
+    float d2 = 0.0f;
+    for (int a = 0; a < 3; a++) {
+        q.min[a] = b->min[a] + (offset ? offset[a] : 0.0f);
+        q.max[a] = b->max[a] + (offset ? offset[a] : 0.0f);
+        const float e = eye[a] < q.min[a] ? q.min[a] - eye[a]
+                                          : (eye[a] > q.max[a] ? eye[a] - q.max[a] : 0.0f);
+        d2 += e * e;
+    }
+    const float margin = TW_CULL_QUERY_MARGIN_M + TW_CULL_QUERY_MARGIN_PER_M * sqrtf(d2);
+    for (int a = 0; a < 3; a++) {
+        q.min[a] -= margin;
+        q.max[a] += margin;
+    }
+    return q;
+}
+
 bool tw_cull_near_box(const struct tw_view *v, const struct tw_box *b, const float offset[3])
 {
     const float r = v->near_radius > v->near_plane ? v->near_radius : v->near_plane;
-    const float d = tw_cull_box_distance(v, b, offset);
+    /* The box a query would draw, margin included (DESIGN §5): that is the
+     * box the near plane must not cut. */
+    const struct tw_box q = tw_cull_query_box(v->eye, b, offset);
+    const float d = tw_cull_box_distance(v, &q, NULL);
     /* A little slack over the exact radius: a box that the near plane cuts
      * must never be queried. */
     return d <= r * 1.01f + 1e-4f;

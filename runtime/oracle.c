@@ -6,6 +6,7 @@
  */
 #include "runtime/world-private.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -13,8 +14,11 @@ int tw_oracle_init(struct tw_world *w)
 {
     struct tw_oracle *o = &w->oracle;
     const struct tw_cull_driver_settings vfc = {.method = TW_CULL_VFC};
-    o->ids = malloc(sizeof(uint32_t) * w->s.width * w->s.height);
-    if (!o->ids)
+    const size_t npix = (size_t)w->s.width * w->s.height;
+    o->ids = malloc(sizeof(*o->ids) * npix);
+    o->id_depth = malloc(sizeof(*o->id_depth) * npix);
+    o->depth = malloc(sizeof(*o->depth) * npix);
+    if (!o->ids || !o->id_depth || !o->depth)
         return TW_ERR_NOMEM;
     int err = tw_cell_map_create(&o->tiles);
     if (!err)
@@ -30,6 +34,9 @@ void tw_oracle_finish(struct tw_oracle *o)
     free(o->pixels);
     free(o->drawn);
     free(o->ids);
+    free(o->id_depth);
+    free(o->depth);
+    free(o->missed_per_id);
     tw_cell_map_destroy(o->tiles);
     memset(o, 0, sizeof(*o));
 }
@@ -111,14 +118,16 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
     if (o->count > o->per_id_cap) {
         free(o->pixels);
         free(o->drawn);
+        free(o->missed_per_id);
         o->pixels = malloc(sizeof(*o->pixels) * o->count);
         o->drawn = malloc(o->count);
-        o->per_id_cap = o->pixels && o->drawn ? o->count : 0;
+        o->missed_per_id = malloc(sizeof(*o->missed_per_id) * o->count);
+        o->per_id_cap = o->pixels && o->drawn && o->missed_per_id ? o->count : 0;
         if (!o->per_id_cap)
             return TW_ERR_NOMEM;
     }
     memset(o->pixels, 0, sizeof(*o->pixels) * o->count);
-    tw_renderer_id_read(w->renderer, o->ids);
+    tw_renderer_id_read(w->renderer, o->ids, o->id_depth);
     const size_t npix = (size_t)w->s.width * w->s.height;
     for (size_t k = 0; k < npix; k++)
         if (o->ids[k] < o->count)
@@ -134,11 +143,40 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
     return TW_OK;
 }
 
+/* Eye distance (metres along the view axis) of window depth d. */
+static double eye_distance(double d, double n, double f, bool reversed)
+{
+    if (reversed)   /* d = n (f / z - 1) / (f - n) */
+        return f * n / (d * (f - n) + n);
+    const double z_ndc = 2.0 * d - 1.0;
+    return 2.0 * f * n / ((f + n) - z_ndc * (f - n));
+}
+
+/* Whether depths a and b name one surface for a user: their eye distances
+ * differ by at most tol of the nearer one, or (fixed-point depth) by two
+ * steps of the buffer at most. */
+static bool same_surface(float a, float b, const struct tw_oracle_depth *dm)
+{
+    if (a == b)
+        return true;
+    const double za = eye_distance(a, dm->n, dm->f, dm->reversed);
+    const double zb = eye_distance(b, dm->n, dm->f, dm->reversed);
+    const double near = za < zb ? za : zb;
+    double slack = dm->tol * near;
+    if (!dm->reversed) {
+        /* 24-bit depth: two steps of 2^-24, in metres at this distance. */
+        const double step = 2.0 / 16777216.0;
+        slack += fabs(eye_distance(a + step, dm->n, dm->f, false) - za);
+    }
+    return fabs(za - zb) <= slack;
+}
+
 void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
 {
     struct tw_oracle *o = &w->oracle;
     const struct tw_tileset *ts = w->s.tileset;
     memset(o->drawn, 0, o->count);
+    memset(o->missed_per_id, 0, sizeof(*o->missed_per_id) * o->count);
     size_t n = 0;
     const struct tw_drawn_cluster *d = tw_world_drawn(w, &n);
     for (size_t k = 0; k < n; k++) {
@@ -167,10 +205,34 @@ void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
             st->overdraw_triangles += cl->triangle_count;
         }
     }
-    for (size_t id = 0; id < o->count; id++) {
-        if (o->drawn[id] || o->pixels[id] == 0)
+    /* Pixel by pixel: an undrawn visible cluster is an error only where what
+     * the method shows instead lies farther; where the two surfaces touch
+     * (a depth tie), the user sees the same thing. */
+    tw_renderer_read_depth(w->renderer, o->depth);
+    const struct tw_view *v = &w->last_view;
+    const struct tw_oracle_depth dm = {
+        .n = v->near_plane,
+        .f = v->far_plane,
+        .reversed = tw_renderer_reversed_z(w->renderer),
+        .tol = w->s.verify_tolerance,
+    };
+    const size_t npix = (size_t)w->s.width * w->s.height;
+    for (size_t k = 0; k < npix; k++) {
+        const bool same = same_surface(o->depth[k], o->id_depth[k], &dm);
+        st->depth_errors += !same;
+        const uint32_t id = o->ids[k];
+        if (id >= o->count || o->drawn[id] || same)
             continue;
-        st->missed_pixels += o->pixels[id];
+        /* Reversed depth grows towards the eye; standard depth away from it. */
+        const bool farther = dm.reversed ? o->depth[k] < o->id_depth[k]
+                                         : o->depth[k] > o->id_depth[k];
+        if (farther)
+            o->missed_per_id[id]++;
+    }
+    for (size_t id = 0; id < o->count; id++) {
+        if (o->missed_per_id[id] == 0)
+            continue;
+        st->missed_pixels += o->missed_per_id[id];
         st->missed_clusters++;
     }
 }

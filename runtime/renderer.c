@@ -27,7 +27,7 @@ struct tw_renderer {
     GLuint fbo, color_rb, depth_rb;
 
     GLuint id_program;
-    GLint ui_view_proj, ui_model, ui_offset, ui_id, ui_depth_map;
+    GLint ui_view_proj, ui_model, ui_offset, ui_id;
     GLuint id_fbo, id_rb, id_depth_rb;
 
     /* Depth convention: reversed float depth (near = 1, far = 0) when
@@ -59,6 +59,8 @@ struct tw_renderer {
     bool recording_queries;
     const struct tw_box *tile_query_box;   /* queries on this box are tile queries */
     bool deterministic;    /* no query is ready before it is waited on */
+    GLenum query_target;   /* GL_ANY_SAMPLES_PASSED, or GL_SAMPLES_PASSED to count them */
+    float mutate_shrink;   /* testing: query boxes shrunk by this fraction */
 
     /* The host's GL state, saved while the library is inside a call. */
     struct tw_gl_state host_state;
@@ -74,6 +76,13 @@ double tw_renderer_now_ms(void)
 {
     struct timespec t;
     clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
+}
+
+double tw_renderer_cpu_ms(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
     return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
 }
 
@@ -113,43 +122,16 @@ static const char *const scene_fs =
     "    o_color = vec4(mix(c, vec3(0.70, 0.80, 0.92), f), 1.0);\n"
     "}\n";
 
-/* The ID pass shares scene_vs, whose position is invariant: a cluster covers
- * the same pixels in both passes. Its geometry shader hands each triangle's
- * window-depth range to the fragment shader, which clamps to it: a
- * rasteriser may extrapolate depth for a sample on the edge of a sliver
- * triangle seen edge-on, and such a spike can poke one pixel through a much
- * nearer surface. The oracle measures true visibility, so it must not count
- * those as visible. */
-static const char *const id_gs =
-    "#version 330 core\n"
-    "layout(triangles) in;\n"
-    "layout(triangle_strip, max_vertices = 3) out;\n"
-    "flat out vec2 g_depth;\n"
-    "uniform vec2 u_depth_map;\n"
-    "void main() {\n"
-    "    vec2 range = vec2(0.0, 1.0);\n"
-    "    if (gl_in[0].gl_Position.w > 0.0 && gl_in[1].gl_Position.w > 0.0 &&\n"
-    "        gl_in[2].gl_Position.w > 0.0) {\n"
-    "        float z0 = gl_in[0].gl_Position.z / gl_in[0].gl_Position.w;\n"
-    "        float z1 = gl_in[1].gl_Position.z / gl_in[1].gl_Position.w;\n"
-    "        float z2 = gl_in[2].gl_Position.z / gl_in[2].gl_Position.w;\n"
-    "        range = vec2(min(z0, min(z1, z2)), max(z0, max(z1, z2))) * u_depth_map.x + u_depth_map.y;\n"
-    "    }\n"
-    "    for (int k = 0; k < 3; k++) {\n"
-    "        g_depth = range;\n"
-    "        gl_Position = gl_in[k].gl_Position;\n"
-    "        EmitVertex();\n"
-    "    }\n"
-    "    EndPrimitive();\n"
-    "}\n";
-
+/* The ID pass shares scene_vs (whose position is invariant) and the normal
+ * pass's depth function, culling and clip control, and has no geometry
+ * shader: it rasterises exactly the fragments, at exactly the depths, that
+ * the normal pass would for the same clusters (DESIGN §8), so that the
+ * oracle sees what the user sees. */
 static const char *const id_fs =
     "#version 330 core\n"
-    "flat in vec2 g_depth;\n"
     "uniform uint u_id;\n"
     "out uint o_id;\n"
     "void main() {\n"
-    "    gl_FragDepth = clamp(gl_FragCoord.z, g_depth.x, g_depth.y);\n"
     "    o_id = u_id;\n"
     "}\n";
 
@@ -396,6 +378,7 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
     if (log)
         r->log = *log;
     r->ts = ts;
+    r->query_target = GL_ANY_SAMPLES_PASSED;
     r->width = width;
     r->height = height;
     int err = tw_gl_load(&r->gl, get_proc, &r->log);
@@ -424,7 +407,7 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
     }
     r->program = link_program(r, scene_vs, NULL, scene_fs);
     r->box_program = link_program(r, box_vs, NULL, box_fs);
-    r->id_program = link_program(r, scene_vs, id_gs, id_fs);
+    r->id_program = link_program(r, scene_vs, NULL, id_fs);
     r->line_program = link_program(r, box_vs, line_gs, color_fs);
     r->fill_program = link_program(r, box_vs, NULL, color_fs);
     if (!r->program || !r->box_program || !r->id_program || !r->line_program ||
@@ -442,14 +425,6 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
     r->ui_model = gl->GetUniformLocation(r->id_program, "u_model");
     r->ui_offset = gl->GetUniformLocation(r->id_program, "u_offset");
     r->ui_id = gl->GetUniformLocation(r->id_program, "u_id");
-    r->ui_depth_map = gl->GetUniformLocation(r->id_program, "u_depth_map");
-    {
-        /* The ID pass clamps window depth to each triangle's NDC depth range. */
-        const float depth_map[2] = {r->reversed_z ? 1.0f : 0.5f, r->reversed_z ? 0.0f : 0.5f};
-        gl->UseProgram(r->id_program);
-        gl->Uniform2fv(r->ui_depth_map, 1, depth_map);
-        gl->UseProgram(0);
-    }
     r->ul_view_proj = gl->GetUniformLocation(r->line_program, "u_view_proj");
     r->ul_min = gl->GetUniformLocation(r->line_program, "u_min");
     r->ul_max = gl->GetUniformLocation(r->line_program, "u_max");
@@ -701,6 +676,27 @@ static void record_query(struct tw_renderer *r, uint32_t handle, const struct tw
     }
 }
 
+/* The mutation of tw_world_settings.mutate_query_shrink: b shrunk by f of
+ * its size on every axis, about its centre. */
+static void shrink(struct tw_box *b, float f)
+{
+    for (int a = 0; a < 3; a++) {
+        const float c = 0.5f * (b->min[a] + b->max[a]), h = 0.5f * (b->max[a] - b->min[a]);
+        b->min[a] = c - h * (1.0f - f);
+        b->max[a] = c + h * (1.0f - f);
+    }
+}
+
+/* A query that could not be made: logged, counted, and read as visible. */
+static uint32_t no_query(struct tw_renderer *r, double t0)
+{
+    if (r->counters.query_failures++ == 0)
+        tw_log_printf(&r->log, TW_LOG_ERROR,
+                      "out of memory for occlusion queries: boxes are taken as visible");
+    r->counters.ms_backend += tw_renderer_now_ms() - t0;
+    return TW_QUERY_VISIBLE;
+}
+
 static uint32_t backend_issue(void *ctx, const struct tw_box *boxes, uint32_t count,
                               const float offset[3])
 {
@@ -714,16 +710,14 @@ static uint32_t backend_issue(void *ctx, const struct tw_box *boxes, uint32_t co
         if (r->query_count == r->query_cap) {
             uint32_t cap = r->query_cap ? r->query_cap * 2 : 256;
             GLuint *q = realloc(r->queries, sizeof(*q) * cap);
-            if (!q)
-                return 0;
-            r->queries = q;
-            uint32_t *f = realloc(r->free_queries, sizeof(*f) * cap);
-            if (!f)
-                return 0;
-            r->free_queries = f;
-            uint32_t *rec = realloc(r->query_record, sizeof(*rec) * cap);
+            if (q)
+                r->queries = q;
+            uint32_t *f = q ? realloc(r->free_queries, sizeof(*f) * cap) : NULL;
+            if (f)
+                r->free_queries = f;
+            uint32_t *rec = f ? realloc(r->query_record, sizeof(*rec) * cap) : NULL;
             if (!rec)
-                return 0;
+                return no_query(r, t0);
             memset(rec + r->query_cap, 0, sizeof(*rec) * (cap - r->query_cap));
             r->query_record = rec;
             r->query_cap = cap;
@@ -732,32 +726,17 @@ static uint32_t backend_issue(void *ctx, const struct tw_box *boxes, uint32_t co
         handle = ++r->query_count;
     }
     enter_query_mode(r);
-    gl->BeginQuery(GL_ANY_SAMPLES_PASSED, r->queries[handle - 1]);
+    gl->BeginQuery(r->query_target, r->queries[handle - 1]);
     for (uint32_t k = 0; k < count; k++) {
-        /* A surface lying on its own box's face (a facade is its building's
-         * box side) ties with the box in depth, and rounding could then fail
-         * the query: the box is drawn a little larger, by a margin that
-         * grows with distance as the depth error does. (A margin of a
-         * quarter pixel was measured too: 20% more triangles, no pixel
-         * fewer missed.) */
-        float lo[3], hi[3], d2 = 0.0f;
-        for (int a = 0; a < 3; a++) {
-            lo[a] = boxes[k].min[a] + offset[a];
-            hi[a] = boxes[k].max[a] + offset[a];
-            const float e = r->eye[a] < lo[a] ? lo[a] - r->eye[a]
-                                             : (r->eye[a] > hi[a] ? r->eye[a] - hi[a] : 0.0f);
-            d2 += e * e;
-        }
-        const float margin = 0.005f + 2e-5f * sqrtf(d2);
-        for (int a = 0; a < 3; a++) {
-            lo[a] -= margin;
-            hi[a] += margin;
-        }
+        struct tw_box q = tw_cull_query_box(r->eye, &boxes[k], offset);
+        if (r->mutate_shrink > 0.0f)
+            shrink(&q, r->mutate_shrink);
+        const float *lo = q.min, *hi = q.max;
         gl->Uniform3fv(r->ub_min, 1, lo);
         gl->Uniform3fv(r->ub_max, 1, hi);
         gl->DrawElements(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, (const void *)0);
     }
-    gl->EndQuery(GL_ANY_SAMPLES_PASSED);
+    gl->EndQuery(r->query_target);
     if (r->recording_queries)
         record_query(r, handle, boxes, count, offset);
     r->counters.queries++;
@@ -769,6 +748,8 @@ static bool backend_ready(void *ctx, uint32_t query)
 {
     struct tw_renderer *r = ctx;
     GLuint available = 0;
+    if (query == TW_QUERY_VISIBLE)
+        return true;
     if (r->deterministic)
         return false;
     r->gl.GetQueryObjectuiv(r->queries[query - 1], GL_QUERY_RESULT_AVAILABLE, &available);
@@ -778,6 +759,8 @@ static bool backend_ready(void *ctx, uint32_t query)
 static uint32_t backend_wait(void *ctx, uint32_t query)
 {
     struct tw_renderer *r = ctx;
+    if (query == TW_QUERY_VISIBLE)
+        return UINT32_MAX;
     const double t0 = tw_renderer_now_ms();
     GLuint result = 0;
     r->gl.GetQueryObjectuiv(r->queries[query - 1], GL_QUERY_RESULT, &result);
@@ -901,7 +884,7 @@ void tw_renderer_id_draw(struct tw_renderer *r, uint32_t prototype, const float 
     }
 }
 
-void tw_renderer_id_read(struct tw_renderer *r, uint32_t *ids)
+void tw_renderer_id_read(struct tw_renderer *r, uint32_t *ids, float *depth)
 {
     const struct tw_gl *gl = &r->gl;
     gl->BindFramebuffer(GL_FRAMEBUFFER, r->id_fbo);
@@ -909,7 +892,19 @@ void tw_renderer_id_read(struct tw_renderer *r, uint32_t *ids)
     gl->PixelStorei(GL_PACK_ALIGNMENT, 4);
     gl->ReadPixels(0, 0, (GLsizei)r->width, (GLsizei)r->height, GL_RED_INTEGER, GL_UNSIGNED_INT,
                    ids);
+    if (depth)
+        gl->ReadPixels(0, 0, (GLsizei)r->width, (GLsizei)r->height, GL_DEPTH_COMPONENT, GL_FLOAT,
+                       depth);
     gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+}
+
+void tw_renderer_read_depth(struct tw_renderer *r, float *depth)
+{
+    const struct tw_gl *gl = &r->gl;
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+    gl->PixelStorei(GL_PACK_ALIGNMENT, 4);
+    gl->ReadPixels(0, 0, (GLsizei)r->width, (GLsizei)r->height, GL_DEPTH_COMPONENT, GL_FLOAT,
+                   depth);
 }
 
 /* ---- debugging and the viewer ------------------------------------------------------ */
@@ -1001,6 +996,16 @@ void tw_renderer_blit(struct tw_renderer *r, uint32_t target, uint32_t width, ui
 void tw_renderer_set_deterministic(struct tw_renderer *r, bool on)
 {
     r->deterministic = on;
+}
+
+void tw_renderer_set_count_samples(struct tw_renderer *r, bool on)
+{
+    r->query_target = on ? GL_SAMPLES_PASSED : GL_ANY_SAMPLES_PASSED;
+}
+
+void tw_renderer_set_mutation(struct tw_renderer *r, float shrink_fraction)
+{
+    r->mutate_shrink = shrink_fraction;
 }
 
 void tw_renderer_set_tile_query_box(struct tw_renderer *r, const struct tw_box *box)

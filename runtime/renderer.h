@@ -18,6 +18,7 @@ struct tw_render_counters {
     uint32_t queries;
     double ms_wait;       /* blocked in wait() */
     double ms_backend;    /* inside draw()/issue()/wait() in all */
+    uint32_t query_failures;  /* queries that could not be made (read as visible) */
 };
 
 struct tw_renderer;
@@ -51,21 +52,28 @@ const struct tw_render_counters *tw_renderer_counters(const struct tw_renderer *
 void tw_renderer_record_draws(struct tw_renderer *r, bool on);
 const struct tw_drawn_cluster *tw_renderer_drawn(const struct tw_renderer *r, size_t *count);
 
-/* The oracle's object-ID pass (DESIGN §8), into its own R32UI buffer:
- * begin clears it to TW_RENDERER_NO_ID; draw renders clusters with ids
- * first_id, first_id + 1, ...; read copies width * height ids (bottom row
- * first). Not counted in the frame's counters. */
+/* The oracle's object-ID pass (DESIGN §8), into its own R32UI buffer and
+ * depth buffer: begin clears it to TW_RENDERER_NO_ID; draw renders clusters
+ * with ids first_id, first_id + 1, ... through the normal pass's vertex
+ * shader and depth state; read copies width * height ids and (depth not
+ * NULL) window depths, bottom row first. Not counted in the frame's
+ * counters. */
 #define TW_RENDERER_NO_ID UINT32_MAX
 void tw_renderer_id_begin(struct tw_renderer *r, const struct tw_view *v);
 void tw_renderer_id_draw(struct tw_renderer *r, uint32_t prototype, const float offset[3],
                          const uint32_t *clusters, uint32_t count, uint32_t first_id);
-void tw_renderer_id_read(struct tw_renderer *r, uint32_t *ids);
+void tw_renderer_id_read(struct tw_renderer *r, uint32_t *ids, float *depth);
+/* Reads the frame's window depth, width * height floats, bottom row first
+ * (reversed float depth: near 1, far 0; else standard, near 0). */
+void tw_renderer_read_depth(struct tw_renderer *r, float *depth);
 
 /* Reads the colour buffer as RGB8, top row first. */
 int tw_renderer_read_rgb(struct tw_renderer *r, uint8_t *rgb);
 
 /* Monotonic time in milliseconds. */
 double tw_renderer_now_ms(void);
+/* CPU time of the process, every thread, in milliseconds. */
+double tw_renderer_cpu_ms(void);
 
 /* ---- debugging and the viewer ------------------------------------------------------ */
 
@@ -85,6 +93,13 @@ struct tw_renderer_query_box {
 /* On: the backend reports no query as ready before it is waited on, so
  * that what the methods do does not depend on the GPU's timing. */
 void tw_renderer_set_deterministic(struct tw_renderer *r, bool on);
+
+/* On: queries count the samples that pass (GL_SAMPLES_PASSED), for a
+ * visibility threshold T > 0; off (the default): they only say whether any
+ * passed (GL_ANY_SAMPLES_PASSED), which a GPU may answer sooner. */
+void tw_renderer_set_count_samples(struct tw_renderer *r, bool on);
+/* Testing only: every query box shrunk by shrink_fraction of its size. */
+void tw_renderer_set_mutation(struct tw_renderer *r, float shrink_fraction);
 
 /* Queries whose box is box (the pointer, as the tile-query propagation
  * passes it) are recorded as tile queries. box is borrowed. */

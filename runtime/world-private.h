@@ -22,6 +22,9 @@ struct tw_oracle {
     uint8_t *drawn;                 /* per id: drawn by the method */
     size_t per_id_cap;
     uint32_t *ids;                  /* the ID buffer, width * height */
+    float *id_depth;                /* its depth */
+    float *depth;                   /* the method's frame's depth */
+    uint32_t *missed_per_id;        /* missed pixels per id (compare) */
     struct tw_cell_map *tiles;      /* cell -> first id << 32 | cluster count */
     int err;                        /* of the ID backend's draws */
 };
@@ -60,6 +63,14 @@ struct tw_world {
     struct tw_view last_view;
     bool has_view;
     struct tw_debug_state debug;    /* untouched while debug.flags is 0 */
+};
+
+/* How the oracle compares depths: the frame's near and far planes, the
+ * depth convention, the relative tolerance. */
+struct tw_oracle_depth {
+    double n, f;
+    bool reversed;
+    double tol;
 };
 
 /* oracle.c */

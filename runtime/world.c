@@ -82,6 +82,8 @@ void tw_world_default_settings(struct tw_world_settings *s)
         s->view_distance = 600.0f;
     if (s->evict_after_frames == 0)
         s->evict_after_frames = 60;
+    if (!(s->verify_tolerance > 0.0f))
+        s->verify_tolerance = TW_VERIFY_TOLERANCE;
     tw_chc_default_settings(&s->chc);
     tw_tilequery_default_settings(&s->tilequery);
     tw_bvh_default_settings(&s->bvh);
@@ -121,7 +123,9 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
     }
     if (settings->width > 16384 || settings->height > 16384 || !isfinite(settings->fov_y) ||
         settings->fov_y >= 179.0f || !isfinite(settings->view_distance) ||
-        !isfinite(settings->near_plane) || (unsigned)settings->method >= TW_METHOD_COUNT) {
+        !isfinite(settings->near_plane) || (unsigned)settings->method >= TW_METHOD_COUNT ||
+        !(settings->verify_tolerance >= 0.0f && settings->verify_tolerance < 1.0f) ||
+        !(settings->mutate_query_shrink >= 0.0f && settings->mutate_query_shrink < 1.0f)) {
         tw_log_printf(log, TW_LOG_ERROR, "tw_world_create: settings out of range");
         return TW_ERR_INVALID;
     }
@@ -153,6 +157,8 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
     w->grid = tw_cull_fixed_grid(&w->fixed);
     tw_renderer_set_tile_query_box(w->renderer, &w->grid.common_box);
     tw_renderer_set_deterministic(w->renderer, w->s.deterministic);
+    tw_renderer_set_count_samples(w->renderer, w->s.chc.threshold > 0 || w->s.tilequery.threshold > 0);
+    tw_renderer_set_mutation(w->renderer, w->s.mutate_query_shrink);
     const struct tw_cull_driver_settings given = {.method = TW_CULL_GIVEN};
     err = tw_oracle_init(w);
     if (!err)
@@ -291,7 +297,7 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
             return err;
         tw_cull_driver_give(ms->driver, w->oracle.visible, w->oracle.visible_count);
     }
-    const double t0 = tw_renderer_now_ms();
+    const double t0 = tw_renderer_now_ms(), cpu0 = tw_renderer_cpu_ms();
     tw_renderer_begin_frame(w->renderer, &v);
     const struct tw_query_backend be = tw_renderer_backend(w->renderer);
     struct tw_cull_frame_stats cs = {0};
@@ -311,12 +317,14 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     if (st.ms_cull < 0.0)
         st.ms_cull = 0.0;
     st.ms_frame = tw_renderer_now_ms() - t0;
+    st.cpu_ms = tw_renderer_cpu_ms() - cpu0;
 
     if (verify) {
         /* The frame's time ends where the GPU is done with it; the ID pass
          * after it is not the method's work. */
         tw_renderer_finish(w->renderer);
         st.ms_frame = tw_renderer_now_ms() - t0;
+        st.cpu_ms = tw_renderer_cpu_ms() - cpu0;
         if (w->method != TW_METHOD_ORACLE)
             err = tw_oracle_pass(w, &v);
         if (err)
@@ -347,10 +355,12 @@ int tw_world_finish(struct tw_world *w, struct tw_frame_stats *st)
 {
     if (!w)
         return TW_ERR_INVALID;
-    const double t0 = tw_renderer_now_ms();
+    const double t0 = tw_renderer_now_ms(), cpu0 = tw_renderer_cpu_ms();
     tw_renderer_finish(w->renderer);
-    if (st)
+    if (st) {
         st->ms_frame += tw_renderer_now_ms() - t0;
+        st->cpu_ms += tw_renderer_cpu_ms() - cpu0;
+    }
     return TW_OK;
 }
 

@@ -68,6 +68,7 @@ struct tw_view {
     float proj_rz[16];          /* eye -> clip, reversed depth; view_proj_rz = proj_rz * view */
     struct tw_frustum frustum;
     float near_plane;           /* metres */
+    float far_plane;            /* metres */
     float near_radius;          /* eye to the near plane's corners, metres */
     float view_distance;        /* metres; tiles whose box lies farther are not drawn */
     uint64_t frame;             /* frame number, starting at 1 */
@@ -81,9 +82,20 @@ void tw_cull_view_setup(struct tw_view *v, struct tw_cell cell,
                         float fov_y_deg, float aspect, float near_plane,
                         float far_plane);
 
-/* True if the camera is inside box b moved by offset, or within near-plane
- * distance of it: such a box may be clipped by the near plane, so an
- * occlusion query on it can wrongly return 0 samples (DESIGN §4 step 1). */
+/* The box that an occlusion query on box b (moved by offset, view-relative)
+ * draws: b grown on every side by TW_CULL_QUERY_MARGIN_M plus
+ * TW_CULL_QUERY_MARGIN_PER_M times its distance from eye. A surface lying on
+ * its own box's face (a facade is its building's box side) ties with the
+ * box in depth, and rounding could then fail the query; the margin grows
+ * with distance as the depth error does. */
+#define TW_CULL_QUERY_MARGIN_M 0.005f
+#define TW_CULL_QUERY_MARGIN_PER_M 2e-5f
+struct tw_box tw_cull_query_box(const float eye[3], const struct tw_box *b, const float offset[3]);
+
+/* True if the camera is inside the query box of b moved by offset
+ * (tw_cull_query_box, margin included), or within near-plane distance of
+ * it: such a box may be clipped by the near plane, so an occlusion query on
+ * it can wrongly return 0 samples (DESIGN §4 step 1). */
 bool tw_cull_near_box(const struct tw_view *v, const struct tw_box *b,
                       const float offset[3]);
 
@@ -110,7 +122,11 @@ size_t tw_cull_cells_in_view(const struct tw_view *v,
 /* ---- the query backend (DESIGN §5) ----------------------------------------- */
 
 /* Query handles are non-zero. Every issued query is read exactly once with
- * wait(), which also releases it; a query may stay unread across frames. */
+ * wait(), which also releases it; a query may stay unread across frames. A
+ * backend that cannot make a query (out of memory) says so in its log and
+ * returns TW_QUERY_VISIBLE, which is ready at once and reads as visible
+ * (UINT32_MAX samples): culling then errs on the side of drawing. */
+#define TW_QUERY_VISIBLE UINT32_MAX
 struct tw_query_backend {
     void *ctx;
     /* Issues one occlusion query drawing count tile-local boxes moved by

@@ -82,6 +82,12 @@ struct tw_world_settings {
     float view_distance;               /* metres; default 600 */
     uint32_t evict_after_frames;       /* tile cache; default 60 */
     bool verify;                       /* run the oracle's ID pass every frame (untimed) */
+    float verify_tolerance;            /* relative depth difference that --verify takes for
+                                          a real one (DESIGN §8); default
+                                          TW_VERIFY_TOLERANCE */
+    float mutate_query_shrink;         /* testing only: every query box shrunk by this
+                                          fraction of its size, a deliberately broken
+                                          culler that the accuracy checks must catch */
     bool deterministic;                /* no query result counts as ready before it is
                                           waited on: a run's counts then do not depend
                                           on the GPU's timing (tests, comparisons);
@@ -92,6 +98,11 @@ struct tw_world_settings {
     tw_gl_get_proc_fn get_proc;        /* loader of the current context; required */
     struct tw_log log;                 /* copied; zeroed: silent */
 };
+
+/* The default of tw_world_settings.verify_tolerance: two surfaces whose eye
+ * distances differ by less than this fraction are one surface to a user (a
+ * depth tie between touching clusters), see DESIGN §8 and README. */
+#define TW_VERIFY_TOLERANCE 1e-5f
 
 /* Resolves the defaults of every zero field of s. */
 void tw_world_default_settings(struct tw_world_settings *s);
@@ -114,9 +125,14 @@ struct tw_frame_stats {
     uint32_t tiles_cached;
     uint64_t cache_bytes;
     uint32_t predict_fail;
-    uint64_t missed_pixels;
-    uint32_t missed_clusters;
+    uint64_t missed_pixels;  /* pixels of a cluster the method did not draw, where what
+                                it shows lies farther (beyond verify_tolerance) */
+    uint32_t missed_clusters;/* clusters with a missed pixel */
     uint64_t overdraw_triangles;
+    double cpu_ms;           /* process CPU time of the frame, every thread (including
+                                the GPU's, on a software rasteriser) */
+    uint64_t depth_errors;   /* pixels whose depth differs from the oracle's beyond
+                                verify_tolerance, either way */
 };
 
 struct tw_world;
@@ -148,7 +164,8 @@ int tw_world_frame(struct tw_world *w, const struct tw_camera *cam,
                    struct tw_frame_stats *stats);
 
 /* Waits for the GPU to finish the last frame (glFinish) and adds the time
- * waited to stats->ms_frame (stats may be NULL). */
+ * waited to stats->ms_frame and its CPU time to stats->cpu_ms (stats may be
+ * NULL). */
 int tw_world_finish(struct tw_world *w, struct tw_frame_stats *stats);
 
 /* The view of the last frame (TW_ERR_STATE before the first): its camera
