@@ -10,6 +10,7 @@
 
 #include <json-c/json.h>
 
+#include "tools/cli.h"
 #include "tools/tileworld/charts.h"
 
 static void progress(const struct tw_run *run, uint32_t done, uint32_t total, double mean_ms)
@@ -139,13 +140,22 @@ static int parse_sweep(const char *spec, enum sweep_param *param, double *values
     *count = 0;
     const char *s = eq + 1;
     while (*s) {
-        char *end = NULL;
-        errno = 0;
-        const double v = strtod(s, &end);
-        if (end == s || (*end != ',' && *end != '\0') || !isfinite(v) || errno == ERANGE) {
-            snprintf(err, err_size, "--sweep: '%s' has a value that is not a finite number", spec);
+        /* Each value a plain decimal number, as on the command line. */
+        char text[64];
+        const char *end = strchr(s, ',');
+        const size_t len = end ? (size_t)(end - s) : strlen(s);
+        snprintf(text, sizeof(text), "%.*s", (int)(len < sizeof(text) ? len : sizeof(text) - 1), s);
+        if (len >= sizeof(text) || !tw_cli_is_number(text, TW_CLI_DECIMAL)) {
+            snprintf(err, err_size, "--sweep: '%s': '%s' is not a decimal number such as 10 or 0.5",
+                     spec, text);
             return TW_ERR_INVALID;
         }
+        const double v = strtod(text, NULL);
+        if (!isfinite(v)) {
+            snprintf(err, err_size, "--sweep: '%s': '%s' is out of range", spec, text);
+            return TW_ERR_INVALID;
+        }
+        end = s + len;
         const bool whole = v == floor(v);
         bool ok = true;
         switch (*param) {

@@ -36,20 +36,12 @@ static const float pi_f = 3.14159265358979f;
 /* ---- options -------------------------------------------------------------------- */
 
 struct options {
-    const char *tileset;
-    const char *path;           /* NULL: keyboard and mouse */
+    struct tw_cli cli;          /* tileset, path (NULL: keyboard and mouse), frames (0: until
+                                 * the window closes or the path ends), quiet, world settings */
     const char *screenshot;
-    uint64_t seed;
-    uint32_t frames;            /* 0: until the window closes (or the path ends) */
-    uint32_t width, height;
-    enum tw_method method;
-    struct tw_cell start_cell;
-    int64_t repeat;
-    float view_distance;
     unsigned debug;
     uint32_t freeze_at;         /* 0: never */
     bool no_overlay;
-    bool quiet;
 };
 
 static void usage(FILE *f)
@@ -59,6 +51,7 @@ static void usage(FILE *f)
           "                      [--debug cells,nodes,queries|all] [--no-overlay]\n"
           "                      [--path NAME|FILE.csv] [--frames N] [--screenshot FILE.png]\n"
           "                      [--freeze-at N] [--quiet]\n"
+          "options take their value as --opt VALUE or --opt=VALUE; numbers are plain decimal digits\n"
           "keys: mouse drag or Tab (captured mouse) to look; W A S D to fly, Q/E down/up, Shift\n"
           "fast, wheel changes speed; 1-5 method (vfc, tilequery, chc, tilequery+chc, oracle);\n"
           "C cells, B BVH nodes, X query boxes; F freeze the culled set; P screenshot;\n"
@@ -70,7 +63,8 @@ static unsigned parse_debug(const char *opt, const char *s)
 {
     char buf[128];
     if (!s || *s == '\0' || strlen(s) >= sizeof(buf))
-        tw_cli_fail(program, opt, "'%s' is not a list of debug views (cells, nodes, queries, all)", s ? s : "");
+        tw_cli_fail(program, opt, "'%s' is not a list of debug views (cells, nodes, queries, all)",
+                    s ? s : "");
     strcpy(buf, s);
     unsigned mask = 0;
     for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
@@ -88,141 +82,45 @@ static unsigned parse_debug(const char *opt, const char *s)
     return mask;
 }
 
-static bool takes_value(const char *option)
+enum {
+    OPT_DEBUG = TW_CLI_OPT_PROGRAM,
+    OPT_NO_OVERLAY,
+    OPT_SCREENSHOT,
+    OPT_FREEZE_AT,
+};
+
+static const struct option options_table[] = {
+    TW_CLI_COMMON_OPTIONS,
+    {"debug", required_argument, NULL, OPT_DEBUG},
+    {"no-overlay", no_argument, NULL, OPT_NO_OVERLAY},
+    {"screenshot", required_argument, NULL, OPT_SCREENSHOT},
+    {"freeze-at", required_argument, NULL, OPT_FREEZE_AT},
+    {NULL, 0, NULL, 0},
+};
+
+static void apply_option(void *user, int opt, const char *name, const char *v)
 {
-    static const char *const valued[] = {
-        "--tileset", "--seed", "--method", "--size", "--start-cell", "--repeat",
-        "--view-distance", "--debug", "--path", "--frames", "--screenshot", "--freeze-at",
-    };
-    for (size_t k = 0; k < sizeof(valued) / sizeof(valued[0]); k++)
-        if (strcmp(option, valued[k]) == 0)
-            return true;
-    return false;
+    struct options *o = user;
+    switch (opt) {
+    case OPT_DEBUG: o->debug = parse_debug(name, v); break;
+    case OPT_NO_OVERLAY: o->no_overlay = true; break;
+    case OPT_SCREENSHOT:
+        if (*v == '\0')
+            tw_cli_fail(program, name, "the file name is empty");
+        o->screenshot = v;
+        break;
+    case OPT_FREEZE_AT: o->freeze_at = (uint32_t)tw_cli_u64(program, name, v, 1, 10000000); break;
+    default: tw_cli_fail(program, name, "unknown option '%s' (see tileworld view --help)", name);
+    }
 }
 
 static void parse_options(int argc, char **argv, struct options *o)
 {
     memset(o, 0, sizeof(*o));
-    o->tileset = "city";
-    o->seed = 1;
-    o->width = 1280;
-    o->height = 720;
-    o->method = TW_METHOD_TILEQUERY_CHC;
-    o->view_distance = 600.0f;
-    for (int k = 1; k < argc; k++) {
-        const char *a = argv[k];
-        const char *v = k + 1 < argc ? argv[k + 1] : NULL;
-        bool takes = true;
-        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
-            usage(stdout);
-            exit(0);
-        } else if (strcmp(a, "--no-overlay") == 0) {
-            o->no_overlay = true;
-            takes = false;
-        } else if (strcmp(a, "--quiet") == 0) {
-            o->quiet = true;
-            takes = false;
-        } else if (strncmp(a, "--", 2) != 0) {
-            tw_cli_fail(program, a, "unexpected argument '%s'", a);
-        } else if (!takes_value(a)) {
-            tw_cli_fail(program, a, "unknown option '%s' (see tileworld view --help)", a);
-        } else if (!v) {
-            tw_cli_fail(program, a, "%s needs a value", a);
-        } else if (strcmp(a, "--tileset") == 0) {
-            o->tileset = v;
-        } else if (strcmp(a, "--seed") == 0) {
-            o->seed = tw_cli_u64(program, a, v, 0, UINT64_MAX);
-        } else if (strcmp(a, "--method") == 0) {
-            if (tw_method_from_name(v, &o->method) != TW_OK || !tw_method_available(o->method))
-                tw_cli_fail(program, a, "unknown method '%s' (vfc, tilequery, chc, tilequery+chc, oracle)", v);
-        } else if (strcmp(a, "--size") == 0) {
-            tw_cli_size(program, a, v, &o->width, &o->height);
-        } else if (strcmp(a, "--start-cell") == 0) {
-            tw_cli_cell(program, a, v, &o->start_cell);
-        } else if (strcmp(a, "--repeat") == 0) {
-            o->repeat = (int64_t)tw_cli_u64(program, a, v, 1, (uint64_t)1 << 62);
-        } else if (strcmp(a, "--view-distance") == 0) {
-            o->view_distance = tw_cli_float(program, a, v, 1.0f, 100000.0f);
-        } else if (strcmp(a, "--debug") == 0) {
-            o->debug = parse_debug(a, v);
-        } else if (strcmp(a, "--path") == 0) {
-            o->path = v;
-        } else if (strcmp(a, "--frames") == 0) {
-            o->frames = (uint32_t)tw_cli_u64(program, a, v, 1, 10000000);
-        } else if (strcmp(a, "--screenshot") == 0) {
-            if (*v == '\0')
-                tw_cli_fail(program, a, "%sthe file name is empty", "");
-            o->screenshot = v;
-        } else if (strcmp(a, "--freeze-at") == 0) {
-            o->freeze_at = (uint32_t)tw_cli_u64(program, a, v, 1, 10000000);
-        } else {
-            tw_cli_fail(program, a, "unknown option '%s' (see tileworld view --help)", a);
-        }
-        if (takes)
-            k++;
-    }
-}
-
-static void log_to_stderr(void *user, enum tw_log_level level, const char *msg)
-{
-    (void)user;
-    if (level <= TW_LOG_WARN)
-        fprintf(stderr, "tileworld view: %s\n", msg);
-}
-
-static struct tw_tileset *load_tileset(const struct options *o, const struct tw_log *log)
-{
-    struct tw_tileset *ts = NULL;
-    for (const char *const *n = tw_tilesets_builtin_names; *n; n++) {
-        if (strcmp(*n, o->tileset) == 0) {
-            int err = tw_tilesets_builtin(o->tileset, o->seed, 0, log, &ts);
-            if (err) {
-                fprintf(stderr, "tileworld view: --tileset %s: generation failed: %s\n",
-                        o->tileset, tw_error_to_str(err));
-                exit(1);
-            }
-            return ts;
-        }
-    }
-    if (access(o->tileset, F_OK) != 0)
-        tw_cli_fail(program, "--tileset", "unknown tileset '%s' (built-in: city, forest, hybrid; or a "
-                                "manifest file)", o->tileset);
-    /* The manifest loader has logged the one line naming the place. */
-    if (tw_tilesets_load_manifest(o->tileset, log, &ts))
-        exit(EXIT_USAGE);
-    return ts;
-}
-
-/* The path to fly (--path), or for the keyboard a one-key path: the start
- * of the street path, where a camera is on a street at eye height. */
-static void load_path(const struct options *o, const struct tw_tileset *ts, struct tw_path *p)
-{
-    const float w = ts->footprint[0], d = ts->footprint[1];
-    const char *name = o->path ? o->path : "street";
-    bool builtin = false;
-    for (const char *const *n = tw_path_builtin_names; *n; n++)
-        builtin |= strcmp(*n, name) == 0;
-    int err;
-    if (builtin) {
-        const uint32_t frames = !o->path ? 1 : o->frames ? o->frames : 300;
-        err = tw_path_builtin(name, o->seed, frames, w, d, p);
-        if (err) {
-            fprintf(stderr, "tileworld view: --path %s: %s\n", name, tw_error_to_str(err));
-            exit(1);
-        }
-    } else {
-        char msg[1400];
-        err = tw_path_load_csv(name, o->frames, w, d, p, msg, sizeof(msg));
-        if (err) {
-            if (err == TW_ERR_IO && access(name, F_OK) != 0)
-                tw_cli_fail(program, "--path", "unknown path '%s' (street, flyover, forest, teleport, "
-                                     "spin, or a CSV file)", name);
-            fprintf(stderr, "tileworld view: %s\n", msg);
-            exit(EXIT_USAGE);
-        }
-    }
-    if (tw_path_translate(p, o->start_cell.i, o->start_cell.j))
-        tw_cli_fail(program, "--start-cell", "%sthe translated path overflows the grid", "");
+    tw_cli_init(&o->cli, program);
+    o->cli.world.width = 1280;
+    o->cli.world.height = 720;
+    tw_cli_parse(&o->cli, argc, argv, options_table, apply_option, o, usage);
 }
 
 /* ---- the bitmap font ------------------------------------------------------------ */
@@ -769,7 +667,7 @@ static void on_mouse_button(GLFWwindow *win, int button, int action, int mods)
 static void on_cursor(GLFWwindow *win, double x, double y)
 {
     struct viewer *v = glfwGetWindowUserPointer(win);
-    if ((v->looking || v->captured) && !v->opt.path) {
+    if ((v->looking || v->captured) && !v->opt.cli.path) {
         const float sensitivity = 0.15f;   /* degrees per pixel */
         /* Yaw grows towards +x, which lies to the left when looking along +z. */
         v->cam.yaw -= (float)(x - v->mouse_x) * sensitivity;
@@ -1100,7 +998,7 @@ static int write_screenshot(struct viewer *v, const char *file, int fb_w, int fb
     const int rc = tw_report_write_png(file, rgb, (uint32_t)w, (uint32_t)h, err, sizeof(err));
     if (rc)
         fprintf(stderr, "tileworld view: %s\n", err);
-    else if (!v->opt.quiet)
+    else if (!v->opt.cli.quiet)
         fprintf(stderr, "tileworld view: wrote %s (%zux%zu)\n", file, w, h);
     free(rgba);
     free(rgb);
@@ -1119,7 +1017,7 @@ static GLFWwindow *open_window(const struct options *o)
         glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
         glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
         glfwWindowHint(GLFW_DEPTH_BITS, 0);   /* the renderer draws into its own framebuffer */
-        GLFWwindow *win = glfwCreateWindow((int)o->width, (int)o->height, "tileworld view", NULL, NULL);
+        GLFWwindow *win = glfwCreateWindow((int)o->cli.world.width, (int)o->cli.world.height, "tileworld view", NULL, NULL);
         if (win)
             return win;
     }
@@ -1144,16 +1042,20 @@ int main(int argc, char **argv)
     memset(&v, 0, sizeof(v));
     parse_options(argc, argv, &v.opt);
     const struct options *o = &v.opt;
-    const struct tw_log log = {log_to_stderr, NULL};
-    struct tw_tileset *ts = load_tileset(o, &log);
+    const struct tw_log log = {tw_cli_log, &v.opt.cli};
+    struct tw_tileset *ts = tw_cli_load_tileset(&o->cli, 0, &log);
     v.ts = ts;
+    /* With --path, the path to fly; for the keyboard, a one-key path: the
+     * start of the street path, where a camera is on a street at eye height. */
     struct tw_path path = {0};
-    load_path(o, ts, &path);
+    const char *path_name = o->cli.path ? o->cli.path : "street";
+    tw_cli_load_path(&o->cli, path_name, !o->cli.path ? 1 : o->cli.frames ? o->cli.frames : 300, ts,
+                     &path);
     if (path.count == 0)
-        tw_cli_fail(program, "--path", "'%s' has no camera keys", o->path ? o->path : "street");
+        tw_cli_fail(program, "--path", "'%s' has no camera keys", path_name);
     v.cam = path.keys[0];
     /* Without a path, --frames alone bounds the run; with one, its length. */
-    const uint64_t frames = o->path ? path.count : o->frames;
+    const uint64_t frames = o->cli.path ? path.count : o->cli.frames;
 
     int rc = 1;
     glfwSetErrorCallback(on_glfw_error);
@@ -1173,14 +1075,8 @@ int main(int argc, char **argv)
     glfwSwapInterval(frames ? 0 : 1);
     glfwSetWindowUserPointer(v.win, &v);
 
-    struct tw_world_settings ws = {0};
+    struct tw_world_settings ws = o->cli.world;
     ws.tileset = ts;
-    ws.selection.seed = o->seed;
-    ws.selection.repeat = o->repeat;
-    ws.method = o->method;
-    ws.width = o->width;
-    ws.height = o->height;
-    ws.view_distance = o->view_distance;
     ws.get_proc = glfw_get_proc;
     ws.log = log;
     int err = tw_world_create(&ws, &v.world);
@@ -1217,7 +1113,7 @@ int main(int argc, char **argv)
             v.fps_since = now;
             v.fps_frames = 0;
         }
-        if (o->path)
+        if (o->cli.path)
             v.cam = path.keys[v.frame];
         else
             fly(&v, dt);
@@ -1285,7 +1181,7 @@ int main(int argc, char **argv)
         }
         glfwSwapBuffers(v.win);
     }
-    if (!o->quiet)
+    if (!o->cli.quiet)
         fprintf(stderr, "tileworld view: %llu frames, %s, %.2f ms per frame on average\n",
                 (unsigned long long)v.frame, tw_method_name(tw_world_settings(v.world)->method),
                 v.frame ? ms_total / (double)v.frame : 0.0);
