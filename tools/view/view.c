@@ -23,7 +23,7 @@
 
 #include "tools/cli.h"
 #include "runtime/gl.h"
-#include "tools/tileworld/report.h"
+#include "tools/outfile.h"
 #include "tileworld/runtime.h"
 #include "tileworld/tilesets.h"
 
@@ -995,7 +995,7 @@ static int write_screenshot(struct viewer *v, const char *file, int fb_w, int fb
         for (size_t x = 0; x < w; x++)
             memcpy(rgb + (y * w + x) * 3, rgba + ((h - 1 - y) * w + x) * 4, 3);
     char err[1200];
-    const int rc = tw_report_write_png(file, rgb, (uint32_t)w, (uint32_t)h, err, sizeof(err));
+    const int rc = tw_outfile_write_png(file, rgb, (uint32_t)w, (uint32_t)h, err, sizeof(err));
     if (rc)
         fprintf(stderr, "tileworld view: %s\n", err);
     else if (!v->opt.cli.quiet)
