@@ -12,6 +12,8 @@
  */
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
+#include <GL/glcorearb.h>
+#include <stb/stb_easy_font.h>
 
 #include <errno.h>
 #include <math.h>
@@ -22,7 +24,6 @@
 #include <unistd.h>
 
 #include "tools/cli.h"
-#include "runtime/gl.h"
 #include "tools/outfile.h"
 #include "tileworld/runtime.h"
 #include "tileworld/tilesets.h"
@@ -123,119 +124,45 @@ static void parse_options(int argc, char **argv, struct options *o)
     tw_cli_parse(&o->cli, argc, argv, options_table, apply_option, o, usage);
 }
 
-/* ---- the bitmap font ------------------------------------------------------------ */
+/* ---- the overlay: text (stb_easy_font) and flat shapes as triangles ------------ */
 
-/* ASCII 32-126, 5 x 8 pixels each: seven rows above the baseline and one
- * for descenders, '#' for ink. Drawn by hand for this viewer. */
-enum { GLYPH_W = 5, GLYPH_H = 8, CELL_W = 6, CELL_H = 10, ATLAS_COLS = 16, ATLAS_ROWS = 6 };
-static const char *const font_glyphs[95] = {
-    /* ' '  */ "....." "....." "....." "....." "....." "....." "....." ".....",
-    /* '!'  */ "..#.." "..#.." "..#.." "..#.." "..#.." "....." "..#.." ".....",
-    /* '"'  */ ".#.#." ".#.#." "....." "....." "....." "....." "....." ".....",
-    /* '#'  */ ".#.#." ".#.#." "#####" ".#.#." "#####" ".#.#." ".#.#." ".....",
-    /* '$'  */ "..#.." ".####" "#.#.." ".###." "..#.#" "####." "..#.." ".....",
-    /* '%'  */ "##..." "##..#" "...#." "..#.." ".#..." "#..##" "...##" ".....",
-    /* '&'  */ ".##.." "#..#." "#.#.." ".#..." "#.#.#" "#..#." ".##.#" ".....",
-    /* '\'' */ "..#.." "..#.." "....." "....." "....." "....." "....." ".....",
-    /* '('  */ "...#." "..#.." ".#..." ".#..." ".#..." "..#.." "...#." ".....",
-    /* ')'  */ ".#..." "..#.." "...#." "...#." "...#." "..#.." ".#..." ".....",
-    /* '*'  */ "....." "..#.." "#.#.#" ".###." "#.#.#" "..#.." "....." ".....",
-    /* '+'  */ "....." "..#.." "..#.." "#####" "..#.." "..#.." "....." ".....",
-    /* ','  */ "....." "....." "....." "....." "....." ".##.." "..#.." ".#...",
-    /* '-'  */ "....." "....." "....." "#####" "....." "....." "....." ".....",
-    /* '.'  */ "....." "....." "....." "....." "....." ".##.." ".##.." ".....",
-    /* '/'  */ "....." "....#" "...#." "..#.." ".#..." "#...." "....." ".....",
-    /* '0'  */ ".###." "#...#" "#..##" "#.#.#" "##..#" "#...#" ".###." ".....",
-    /* '1'  */ "..#.." ".##.." "..#.." "..#.." "..#.." "..#.." ".###." ".....",
-    /* '2'  */ ".###." "#...#" "....#" "...#." "..#.." ".#..." "#####" ".....",
-    /* '3'  */ "#####" "...#." "..#.." "...#." "....#" "#...#" ".###." ".....",
-    /* '4'  */ "...#." "..##." ".#.#." "#..#." "#####" "...#." "...#." ".....",
-    /* '5'  */ "#####" "#...." "####." "....#" "....#" "#...#" ".###." ".....",
-    /* '6'  */ "..##." ".#..." "#...." "####." "#...#" "#...#" ".###." ".....",
-    /* '7'  */ "#####" "....#" "...#." "..#.." ".#..." ".#..." ".#..." ".....",
-    /* '8'  */ ".###." "#...#" "#...#" ".###." "#...#" "#...#" ".###." ".....",
-    /* '9'  */ ".###." "#...#" "#...#" ".####" "....#" "...#." ".##.." ".....",
-    /* ':'  */ "....." ".##.." ".##.." "....." ".##.." ".##.." "....." ".....",
-    /* ';'  */ "....." ".##.." ".##.." "....." ".##.." "..#.." ".#..." ".....",
-    /* '<'  */ "...#." "..#.." ".#..." "#...." ".#..." "..#.." "...#." ".....",
-    /* '='  */ "....." "....." "#####" "....." "#####" "....." "....." ".....",
-    /* '>'  */ ".#..." "..#.." "...#." "....#" "...#." "..#.." ".#..." ".....",
-    /* '?'  */ ".###." "#...#" "....#" "...#." "..#.." "....." "..#.." ".....",
-    /* '@'  */ ".###." "#...#" "....#" ".##.#" "#.#.#" "#.#.#" ".###." ".....",
-    /* 'A'  */ ".###." "#...#" "#...#" "#####" "#...#" "#...#" "#...#" ".....",
-    /* 'B'  */ "####." "#...#" "#...#" "####." "#...#" "#...#" "####." ".....",
-    /* 'C'  */ ".###." "#...#" "#...." "#...." "#...." "#...#" ".###." ".....",
-    /* 'D'  */ "###.." "#..#." "#...#" "#...#" "#...#" "#..#." "###.." ".....",
-    /* 'E'  */ "#####" "#...." "#...." "####." "#...." "#...." "#####" ".....",
-    /* 'F'  */ "#####" "#...." "#...." "####." "#...." "#...." "#...." ".....",
-    /* 'G'  */ ".###." "#...#" "#...." "#.###" "#...#" "#...#" ".####" ".....",
-    /* 'H'  */ "#...#" "#...#" "#...#" "#####" "#...#" "#...#" "#...#" ".....",
-    /* 'I'  */ ".###." "..#.." "..#.." "..#.." "..#.." "..#.." ".###." ".....",
-    /* 'J'  */ "..###" "...#." "...#." "...#." "...#." "#..#." ".##.." ".....",
-    /* 'K'  */ "#...#" "#..#." "#.#.." "##..." "#.#.." "#..#." "#...#" ".....",
-    /* 'L'  */ "#...." "#...." "#...." "#...." "#...." "#...." "#####" ".....",
-    /* 'M'  */ "#...#" "##.##" "#.#.#" "#.#.#" "#...#" "#...#" "#...#" ".....",
-    /* 'N'  */ "#...#" "#...#" "##..#" "#.#.#" "#..##" "#...#" "#...#" ".....",
-    /* 'O'  */ ".###." "#...#" "#...#" "#...#" "#...#" "#...#" ".###." ".....",
-    /* 'P'  */ "####." "#...#" "#...#" "####." "#...." "#...." "#...." ".....",
-    /* 'Q'  */ ".###." "#...#" "#...#" "#...#" "#.#.#" "#..#." ".##.#" ".....",
-    /* 'R'  */ "####." "#...#" "#...#" "####." "#.#.." "#..#." "#...#" ".....",
-    /* 'S'  */ ".####" "#...." "#...." ".###." "....#" "....#" "####." ".....",
-    /* 'T'  */ "#####" "..#.." "..#.." "..#.." "..#.." "..#.." "..#.." ".....",
-    /* 'U'  */ "#...#" "#...#" "#...#" "#...#" "#...#" "#...#" ".###." ".....",
-    /* 'V'  */ "#...#" "#...#" "#...#" "#...#" "#...#" ".#.#." "..#.." ".....",
-    /* 'W'  */ "#...#" "#...#" "#...#" "#.#.#" "#.#.#" "#.#.#" ".#.#." ".....",
-    /* 'X'  */ "#...#" "#...#" ".#.#." "..#.." ".#.#." "#...#" "#...#" ".....",
-    /* 'Y'  */ "#...#" "#...#" ".#.#." "..#.." "..#.." "..#.." "..#.." ".....",
-    /* 'Z'  */ "#####" "....#" "...#." "..#.." ".#..." "#...." "#####" ".....",
-    /* '['  */ ".###." ".#..." ".#..." ".#..." ".#..." ".#..." ".###." ".....",
-    /* '\\' */ "....." "#...." ".#..." "..#.." "...#." "....#" "....." ".....",
-    /* ']'  */ ".###." "...#." "...#." "...#." "...#." "...#." ".###." ".....",
-    /* '^'  */ "..#.." ".#.#." "#...#" "....." "....." "....." "....." ".....",
-    /* '_'  */ "....." "....." "....." "....." "....." "....." "#####" ".....",
-    /* '`'  */ ".#..." "..#.." "....." "....." "....." "....." "....." ".....",
-    /* 'a'  */ "....." "....." ".###." "....#" ".####" "#...#" ".####" ".....",
-    /* 'b'  */ "#...." "#...." "#.##." "##..#" "#...#" "#...#" "####." ".....",
-    /* 'c'  */ "....." "....." ".###." "#...." "#...." "#...#" ".###." ".....",
-    /* 'd'  */ "....#" "....#" ".##.#" "#..##" "#...#" "#...#" ".####" ".....",
-    /* 'e'  */ "....." "....." ".###." "#...#" "#####" "#...." ".###." ".....",
-    /* 'f'  */ "..##." ".#..#" ".#..." "###.." ".#..." ".#..." ".#..." ".....",
-    /* 'g'  */ "....." "....." ".####" "#...#" "#...#" ".####" "....#" ".###.",
-    /* 'h'  */ "#...." "#...." "#.##." "##..#" "#...#" "#...#" "#...#" ".....",
-    /* 'i'  */ "..#.." "....." ".##.." "..#.." "..#.." "..#.." ".###." ".....",
-    /* 'j'  */ "...#." "....." "..##." "...#." "...#." "...#." "#..#." ".##..",
-    /* 'k'  */ "#...." "#...." "#..#." "#.#.." "##..." "#.#.." "#..#." ".....",
-    /* 'l'  */ ".##.." "..#.." "..#.." "..#.." "..#.." "..#.." ".###." ".....",
-    /* 'm'  */ "....." "....." "##.#." "#.#.#" "#.#.#" "#.#.#" "#.#.#" ".....",
-    /* 'n'  */ "....." "....." "#.##." "##..#" "#...#" "#...#" "#...#" ".....",
-    /* 'o'  */ "....." "....." ".###." "#...#" "#...#" "#...#" ".###." ".....",
-    /* 'p'  */ "....." "....." "####." "#...#" "#...#" "####." "#...." "#....",
-    /* 'q'  */ "....." "....." ".####" "#...#" "#...#" ".####" "....#" "....#",
-    /* 'r'  */ "....." "....." "#.##." "##..#" "#...." "#...." "#...." ".....",
-    /* 's'  */ "....." "....." ".####" "#...." ".###." "....#" "####." ".....",
-    /* 't'  */ ".#..." ".#..." "###.." ".#..." ".#..." ".#..#" "..##." ".....",
-    /* 'u'  */ "....." "....." "#...#" "#...#" "#...#" "#..##" ".##.#" ".....",
-    /* 'v'  */ "....." "....." "#...#" "#...#" "#...#" ".#.#." "..#.." ".....",
-    /* 'w'  */ "....." "....." "#...#" "#...#" "#.#.#" "#.#.#" ".#.#." ".....",
-    /* 'x'  */ "....." "....." "#...#" ".#.#." "..#.." ".#.#." "#...#" ".....",
-    /* 'y'  */ "....." "....." "#...#" "#...#" "#...#" ".####" "....#" ".###.",
-    /* 'z'  */ "....." "....." "#####" "...#." "..#.." ".#..." "#####" ".....",
-    /* '{'  */ "...#." "..#.." "..#.." ".#..." "..#.." "..#.." "...#." ".....",
-    /* '|'  */ "..#.." "..#.." "..#.." "..#.." "..#.." "..#.." "..#.." ".....",
-    /* '}'  */ ".#..." "..#.." "..#.." "...#." "..#.." "..#.." ".#..." ".....",
-    /* '~'  */ "....." "....." ".#..." "#.#.#" "...#." "....." "....." ".....",
-};
-
-/* ---- the overlay: text and flat shapes as textured quads ------------------------ */
-
-/* GL entry points the overlay needs beyond the runtime's table. */
+/* The viewer's own GL entry points, from glfwGetProcAddress: the runtime's
+ * table is private to the library. */
 #define VIEW_GL_FUNCTIONS(X) \
-    X(PFNGLGENTEXTURESPROC, GenTextures) \
-    X(PFNGLDELETETEXTURESPROC, DeleteTextures) \
-    X(PFNGLBINDTEXTUREPROC, BindTexture) \
-    X(PFNGLTEXIMAGE2DPROC, TexImage2D) \
-    X(PFNGLTEXPARAMETERIPROC, TexParameteri) \
+    X(PFNGLGETERRORPROC, GetError) \
+    X(PFNGLVIEWPORTPROC, Viewport) \
+    X(PFNGLENABLEPROC, Enable) \
+    X(PFNGLDISABLEPROC, Disable) \
+    X(PFNGLCOLORMASKPROC, ColorMask) \
+    X(PFNGLBLENDFUNCPROC, BlendFunc) \
     X(PFNGLSCISSORPROC, Scissor) \
+    X(PFNGLREADPIXELSPROC, ReadPixels) \
+    X(PFNGLREADBUFFERPROC, ReadBuffer) \
+    X(PFNGLPIXELSTOREIPROC, PixelStorei) \
+    X(PFNGLBINDFRAMEBUFFERPROC, BindFramebuffer) \
+    X(PFNGLGENBUFFERSPROC, GenBuffers) \
+    X(PFNGLDELETEBUFFERSPROC, DeleteBuffers) \
+    X(PFNGLBINDBUFFERPROC, BindBuffer) \
+    X(PFNGLBUFFERDATAPROC, BufferData) \
+    X(PFNGLGENVERTEXARRAYSPROC, GenVertexArrays) \
+    X(PFNGLDELETEVERTEXARRAYSPROC, DeleteVertexArrays) \
+    X(PFNGLBINDVERTEXARRAYPROC, BindVertexArray) \
+    X(PFNGLENABLEVERTEXATTRIBARRAYPROC, EnableVertexAttribArray) \
+    X(PFNGLVERTEXATTRIBPOINTERPROC, VertexAttribPointer) \
+    X(PFNGLCREATESHADERPROC, CreateShader) \
+    X(PFNGLSHADERSOURCEPROC, ShaderSource) \
+    X(PFNGLCOMPILESHADERPROC, CompileShader) \
+    X(PFNGLGETSHADERIVPROC, GetShaderiv) \
+    X(PFNGLGETSHADERINFOLOGPROC, GetShaderInfoLog) \
+    X(PFNGLDELETESHADERPROC, DeleteShader) \
+    X(PFNGLCREATEPROGRAMPROC, CreateProgram) \
+    X(PFNGLATTACHSHADERPROC, AttachShader) \
+    X(PFNGLLINKPROGRAMPROC, LinkProgram) \
+    X(PFNGLGETPROGRAMIVPROC, GetProgramiv) \
+    X(PFNGLDELETEPROGRAMPROC, DeleteProgram) \
+    X(PFNGLUSEPROGRAMPROC, UseProgram) \
+    X(PFNGLGETUNIFORMLOCATIONPROC, GetUniformLocation) \
+    X(PFNGLUNIFORM2FVPROC, Uniform2fv) \
     X(PFNGLDRAWARRAYSPROC, DrawArrays)
 
 struct view_gl {
@@ -246,7 +173,7 @@ struct view_gl {
 
 static void *glfw_get_proc(const char *name)
 {
-    /* As in runtime/gl.c: function pointer to data pointer, which POSIX allows. */
+    /* Function pointer to data pointer, which POSIX allows. */
     GLFWglproc f = glfwGetProcAddress(name);
     void *p;
     memcpy(&p, &f, sizeof(p));
@@ -272,13 +199,10 @@ static int view_gl_load(struct view_gl *vg)
 static const char *const overlay_vs =
     "#version 330 core\n"
     "layout(location = 0) in vec2 a_pos;\n"
-    "layout(location = 1) in vec2 a_uv;\n"
-    "layout(location = 2) in vec4 a_color;\n"
+    "layout(location = 1) in vec4 a_color;\n"
     "uniform vec2 u_screen;\n"
-    "out vec2 v_uv;\n"
     "out vec4 v_color;\n"
     "void main() {\n"
-    "    v_uv = a_uv;\n"
     "    v_color = a_color;\n"
     "    gl_Position = vec4(a_pos.x / u_screen.x * 2.0 - 1.0, 1.0 - a_pos.y / u_screen.y * 2.0,\n"
     "                       0.0, 1.0);\n"
@@ -286,27 +210,32 @@ static const char *const overlay_vs =
 
 static const char *const overlay_fs =
     "#version 330 core\n"
-    "uniform sampler2D u_font;\n"
-    "in vec2 v_uv;\n"
     "in vec4 v_color;\n"
     "out vec4 o_color;\n"
-    "void main() { o_color = vec4(v_color.rgb, v_color.a * texture(u_font, v_uv).r); }\n";
+    "void main() { o_color = v_color; }\n";
 
-enum { VERTEX_FLOATS = 8 };   /* x, y (pixels, top left origin), u, v, r, g, b, a */
+enum {
+    VERTEX_FLOATS = 6,          /* x, y (pixels, top left origin), r, g, b, a */
+    FONT_LINE = 12,             /* stb_easy_font's line height, in font pixels */
+    FONT_HEIGHT = 8,            /* its glyphs' height above the baseline and a little below */
+    TEXT_MAX = 256,             /* characters drawn of one string */
+};
 
 struct overlay {
-    struct tw_gl gl;
-    struct view_gl vg;
-    GLuint program, vao, vbo, texture;
+    struct view_gl gl;
+    GLuint program, vao, vbo;
     GLint u_screen;
     float *verts;
     size_t count, cap;          /* vertices */
     size_t clip_first;          /* vertices from here on are drawn inside clip */
     int clip[4];                /* x, y, w, h in pixels, top left origin; w = 0: none */
-    float scale;                /* font pixels per texel */
+    float scale;                /* screen pixels per font pixel */
+    /* stb_easy_font's quads of one string: 4 vertices of x, y, z and 4
+     * colour bytes, about 270 bytes a character. */
+    float quads[TEXT_MAX * 300 / sizeof(float)];
 };
 
-static GLuint overlay_shader(const struct tw_gl *gl, GLenum type, const char *src)
+static GLuint overlay_shader(const struct view_gl *gl, GLenum type, const char *src)
 {
     GLuint s = gl->CreateShader(type);
     gl->ShaderSource(s, 1, &src, NULL);
@@ -325,12 +254,10 @@ static GLuint overlay_shader(const struct tw_gl *gl, GLenum type, const char *sr
 
 static int overlay_init(struct overlay *o)
 {
-    int err = tw_gl_load(&o->gl, glfw_get_proc, NULL);
-    if (!err)
-        err = view_gl_load(&o->vg);
+    int err = view_gl_load(&o->gl);
     if (err)
         return err;
-    const struct tw_gl *gl = &o->gl;
+    const struct view_gl *gl = &o->gl;
     GLuint vs = overlay_shader(gl, GL_VERTEX_SHADER, overlay_vs);
     GLuint fs = overlay_shader(gl, GL_FRAGMENT_SHADER, overlay_fs);
     if (!vs || !fs)
@@ -349,29 +276,6 @@ static int overlay_init(struct overlay *o)
     }
     o->u_screen = gl->GetUniformLocation(o->program, "u_screen");
 
-    /* The atlas: 16 x 6 cells of CELL_W x CELL_H texels, glyph k at cell k,
-     * the last cell solid (for flat shapes). Top row first. */
-    enum { AW = ATLAS_COLS * CELL_W, AH = ATLAS_ROWS * CELL_H };
-    static uint8_t atlas[AH][AW];
-    memset(atlas, 0, sizeof(atlas));
-    for (int g = 0; g < 95; g++) {
-        const int cx = (g % ATLAS_COLS) * CELL_W, cy = (g / ATLAS_COLS) * CELL_H;
-        for (int y = 0; y < GLYPH_H; y++)
-            for (int x = 0; x < GLYPH_W; x++)
-                atlas[cy + y][cx + x] = font_glyphs[g][y * GLYPH_W + x] == '#' ? 255 : 0;
-    }
-    for (int y = 0; y < CELL_H; y++)
-        for (int x = 0; x < CELL_W; x++)
-            atlas[(95 / ATLAS_COLS) * CELL_H + y][(95 % ATLAS_COLS) * CELL_W + x] = 255;
-    o->vg.GenTextures(1, &o->texture);
-    o->vg.BindTexture(GL_TEXTURE_2D, o->texture);
-    gl->PixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    o->vg.TexImage2D(GL_TEXTURE_2D, 0, GL_R8, AW, AH, 0, GL_RED, GL_UNSIGNED_BYTE, atlas);
-    o->vg.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    o->vg.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    o->vg.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-    o->vg.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-
     gl->GenVertexArrays(1, &o->vao);
     gl->BindVertexArray(o->vao);
     gl->GenBuffers(1, &o->vbo);
@@ -380,9 +284,7 @@ static int overlay_init(struct overlay *o)
     gl->EnableVertexAttribArray(0);
     gl->VertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, stride, (const void *)0);
     gl->EnableVertexAttribArray(1);
-    gl->VertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, stride, (const void *)(2 * sizeof(float)));
-    gl->EnableVertexAttribArray(2);
-    gl->VertexAttribPointer(2, 4, GL_FLOAT, GL_FALSE, stride, (const void *)(4 * sizeof(float)));
+    gl->VertexAttribPointer(1, 4, GL_FLOAT, GL_FALSE, stride, (const void *)(2 * sizeof(float)));
     gl->BindVertexArray(0);
     const GLenum gl_err = gl->GetError();
     if (gl_err != GL_NO_ERROR) {
@@ -400,14 +302,11 @@ static void overlay_finish(struct overlay *o)
         if (o->program)
             o->gl.DeleteProgram(o->program);
     }
-    if (o->vg.DeleteTextures)
-        o->vg.DeleteTextures(1, &o->texture);
     free(o->verts);
 }
 
-/* A quad with corners (x[k], y[k]) in order around it, texels uv[k]. */
-static void overlay_quad(struct overlay *o, const float x[4], const float y[4],
-                         const float u[4], const float v[4], const float color[4])
+/* A flat quad with corners (x[k], y[k]) in order around it. */
+static void overlay_shape(struct overlay *o, const float x[4], const float y[4], const float color[4])
 {
     if (o->count + 6 > o->cap) {
         size_t cap = o->cap ? 2 * o->cap : 6 * 1024;
@@ -420,23 +319,10 @@ static void overlay_quad(struct overlay *o, const float x[4], const float y[4],
     static const int order[6] = {0, 1, 2, 0, 2, 3};
     for (int k = 0; k < 6; k++) {
         float *p = o->verts + VERTEX_FLOATS * o->count++;
-        const int c = order[k];
-        p[0] = x[c];
-        p[1] = y[c];
-        p[2] = u[c] / (ATLAS_COLS * CELL_W);
-        p[3] = v[c] / (ATLAS_ROWS * CELL_H);
-        memcpy(p + 4, color, 4 * sizeof(float));
+        p[0] = x[order[k]];
+        p[1] = y[order[k]];
+        memcpy(p + 2, color, 4 * sizeof(float));
     }
-}
-
-static const float solid_u = (95 % ATLAS_COLS) * CELL_W + 3.0f;
-static const float solid_v = (95 / ATLAS_COLS) * CELL_H + 5.0f;
-
-static void overlay_shape(struct overlay *o, const float x[4], const float y[4], const float color[4])
-{
-    const float u[4] = {solid_u, solid_u, solid_u, solid_u};
-    const float v[4] = {solid_v, solid_v, solid_v, solid_v};
-    overlay_quad(o, x, y, u, v, color);
 }
 
 static void overlay_rect(struct overlay *o, float x0, float y0, float x1, float y1,
@@ -459,46 +345,52 @@ static void overlay_line(struct overlay *o, float xa, float ya, float xb, float 
     overlay_shape(o, x, y, color);
 }
 
-static float char_w(const struct overlay *o)
+/* s as stb_easy_font takes it: printable ASCII only (it indexes its tables
+ * by character), at most TEXT_MAX characters. */
+static void font_text(const char *s, char out[TEXT_MAX + 1])
 {
-    return CELL_W * o->scale;
+    size_t n = 0;
+    for (; s[n] && n < TEXT_MAX; n++)
+        out[n] = s[n] >= 32 && s[n] <= 126 ? s[n] : '?';
+    out[n] = '\0';
+}
+
+static float text_width(const struct overlay *o, const char *s)
+{
+    char text[TEXT_MAX + 1];
+    font_text(s, text);
+    return (float)stb_easy_font_width(text) * o->scale;
 }
 
 static float line_h(const struct overlay *o)
 {
-    return (CELL_H + 1) * o->scale;
+    return FONT_LINE * o->scale;
 }
 
-/* Draws text at (x, y) (its cell's top left) with a dark shadow, so it
- * reads over any scene; returns the x after it. */
-static float overlay_text(struct overlay *o, float x, float y, const float color[4], const char *s)
+/* Draws text with its top left at (x, y), over a dark shadow so that it
+ * reads over any scene. */
+static void overlay_text(struct overlay *o, float x, float y, const float color[4], const char *s)
 {
     static const float shadow[4] = {0.0f, 0.0f, 0.0f, 0.85f};
-    const float s1 = o->scale;
+    char text[TEXT_MAX + 1];
+    font_text(s, text);
+    const int quads = stb_easy_font_print(0.0f, 0.0f, text, NULL, o->quads, sizeof(o->quads));
+    const float k = o->scale;
     for (int pass = 0; pass < 2; pass++) {
-        float cx = x;
-        for (const char *c = s; *c; c++, cx += char_w(o)) {
-            int g = (unsigned char)*c;
-            if (g < 32 || g > 126)
-                g = '?';
-            g -= 32;
-            if (g == 0)
-                continue;
-            const float u0 = (float)((g % ATLAS_COLS) * CELL_W), v0 = (float)((g / ATLAS_COLS) * CELL_H);
-            const float px = pass == 0 ? cx + s1 : cx, py = pass == 0 ? y + s1 : y;
-            const float qx[4] = {px, px + GLYPH_W * s1, px + GLYPH_W * s1, px};
-            const float qy[4] = {py, py, py + GLYPH_H * s1, py + GLYPH_H * s1};
-            const float qu[4] = {u0, u0 + GLYPH_W, u0 + GLYPH_W, u0};
-            const float qv[4] = {v0, v0, v0 + GLYPH_H, v0 + GLYPH_H};
-            overlay_quad(o, qx, qy, qu, qv, pass == 0 ? shadow : color);
+        const float px = pass == 0 ? x + k : x, py = pass == 0 ? y + k : y;
+        for (int q = 0; q < quads; q++) {
+            /* 4 vertices of 16 bytes: x, y, z, colour. */
+            const float *v = o->quads + q * 16;
+            const float qx[4] = {px + v[0] * k, px + v[4] * k, px + v[8] * k, px + v[12] * k};
+            const float qy[4] = {py + v[1] * k, py + v[5] * k, py + v[9] * k, py + v[13] * k};
+            overlay_shape(o, qx, qy, pass == 0 ? shadow : color);
         }
     }
-    return x + (float)strlen(s) * char_w(o);
 }
 
 static void overlay_draw(struct overlay *o, int fb_w, int fb_h)
 {
-    const struct tw_gl *gl = &o->gl;
+    const struct view_gl *gl = &o->gl;
     if (o->count > 0) {
         gl->BindFramebuffer(GL_FRAMEBUFFER, 0);
         gl->Viewport(0, 0, fb_w, fb_h);
@@ -510,17 +402,16 @@ static void overlay_draw(struct overlay *o, int fb_w, int fb_h)
         gl->UseProgram(o->program);
         const float screen[2] = {(float)fb_w, (float)fb_h};
         gl->Uniform2fv(o->u_screen, 1, screen);
-        o->vg.BindTexture(GL_TEXTURE_2D, o->texture);
         gl->BindVertexArray(o->vao);
         gl->BindBuffer(GL_ARRAY_BUFFER, o->vbo);
         gl->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(sizeof(float) * VERTEX_FLOATS * o->count),
                        o->verts, GL_STREAM_DRAW);
         const size_t first = o->clip[2] > 0 ? o->clip_first : o->count;
-        o->vg.DrawArrays(GL_TRIANGLES, 0, (GLsizei)first);
+        gl->DrawArrays(GL_TRIANGLES, 0, (GLsizei)first);
         if (first < o->count) {
             gl->Enable(GL_SCISSOR_TEST);
-            o->vg.Scissor(o->clip[0], fb_h - o->clip[1] - o->clip[3], o->clip[2], o->clip[3]);
-            o->vg.DrawArrays(GL_TRIANGLES, (GLint)first, (GLsizei)(o->count - first));
+            gl->Scissor(o->clip[0], fb_h - o->clip[1] - o->clip[3], o->clip[2], o->clip[3]);
+            gl->DrawArrays(GL_TRIANGLES, (GLint)first, (GLsizei)(o->count - first));
             gl->Disable(GL_SCISSOR_TEST);
         }
         /* Leave the state the renderer expects. */
@@ -781,16 +672,20 @@ static const float dim[4] = {0.70f, 0.74f, 0.80f, 1.0f};
 static const float accent[4] = {1.0f, 0.85f, 0.30f, 1.0f};
 static const float panel[4] = {0.0f, 0.0f, 0.0f, 0.55f};
 
+static float widest_line(const struct overlay *o, char lines[][160], int count)
+{
+    float widest = 0.0f;
+    for (int k = 0; k < count; k++)
+        widest = fmaxf(widest, text_width(o, lines[k]));
+    return widest;
+}
+
 static void draw_panel_lines(struct overlay *o, float x, float y, char lines[][160], int count,
                              const float colors[][4])
 {
-    size_t widest = 0;
-    for (int k = 0; k < count; k++)
-        if (strlen(lines[k]) > widest)
-            widest = strlen(lines[k]);
     const float pad = 4.0f * o->scale;
-    overlay_rect(o, x, y, x + (float)widest * char_w(o) + 2 * pad,
-                 y + (float)count * line_h(o) + 2 * pad - o->scale, panel);
+    overlay_rect(o, x, y, x + widest_line(o, lines, count) + 2 * pad,
+                 y + (float)count * line_h(o) + 2 * pad - 3 * o->scale, panel);
     for (int k = 0; k < count; k++)
         overlay_text(o, x + pad, y + pad + (float)k * line_h(o), colors[k], lines[k]);
 }
@@ -838,29 +733,35 @@ static void draw_stats(struct viewer *v)
 
 static void draw_help(struct viewer *v, int fb_w, int fb_h)
 {
-    static const char *const help[] = {
-        "mouse drag   look (Tab: capture the mouse, Esc: release)",
-        "W A S D      fly forward, left, back, right",
-        "Q / E        down / up;  Shift: 10x faster;  wheel: speed",
-        "1 2 3 4 5    vfc, tilequery, chc, tilequery+chc, oracle",
-        "C            cells by tile-query state (and the map)",
-        "B            BVH nodes holding the clusters drawn",
-        "X            query boxes issued this frame",
-        "F            freeze the culled set, fly around it",
-        "P            screenshot (tileworld-view-N.png)",
-        "O            overlay on/off;  H help;  Esc quit",
+    /* Keys and what they do, in two columns (the font is proportional). */
+    static const char *const help[][2] = {
+        {"mouse drag", "look (Tab: capture the mouse, Esc: release)"},
+        {"W A S D", "fly forward, left, back, right"},
+        {"Q / E", "down / up;  Shift: 10x faster;  wheel: speed"},
+        {"1 2 3 4 5", "vfc, tilequery, chc, tilequery+chc, oracle"},
+        {"C", "cells by tile-query state (and the map)"},
+        {"B", "BVH nodes holding the clusters drawn"},
+        {"X", "query boxes issued this frame"},
+        {"F", "freeze the culled set, fly around it"},
+        {"P", "screenshot (tileworld-view-N.png)"},
+        {"O", "overlay on/off;  H help;  Esc quit"},
     };
     enum { N = sizeof(help) / sizeof(help[0]) };
-    char lines[N][160];
-    float colors[N][4];
-    for (int k = 0; k < N; k++) {
-        snprintf(lines[k], sizeof(lines[k]), "%s", help[k]);
-        memcpy(colors[k], white, sizeof(white));
-    }
     struct overlay *o = &v->ov;
-    const float w = 60.0f * char_w(o), h = (float)N * line_h(o);
-    draw_panel_lines(o, floorf(((float)fb_w - w) * 0.5f), floorf(((float)fb_h - h) * 0.5f), lines, N,
-                     (const float(*)[4])colors);
+    float key_w = 0.0f, text_w = 0.0f;
+    for (int k = 0; k < N; k++) {
+        key_w = fmaxf(key_w, text_width(o, help[k][0]));
+        text_w = fmaxf(text_w, text_width(o, help[k][1]));
+    }
+    const float pad = 4.0f * o->scale, gap = 12.0f * o->scale;
+    const float w = key_w + gap + text_w + 2 * pad, h = (float)N * line_h(o) + 2 * pad;
+    const float x = floorf(((float)fb_w - w) * 0.5f), y = floorf(((float)fb_h - h) * 0.5f);
+    overlay_rect(o, x, y, x + w, y + h - 3 * o->scale, panel);
+    for (int k = 0; k < N; k++) {
+        const float ty = y + pad + (float)k * line_h(o);
+        overlay_text(o, x + pad, ty, accent, help[k][0]);
+        overlay_text(o, x + pad + key_w + gap, ty, white, help[k][1]);
+    }
 }
 
 /* Colour swatches of the debug views on, along the bottom edge, wrapped
@@ -869,6 +770,7 @@ static void draw_legend(struct viewer *v, int fb_w, int fb_h)
 {
     struct overlay *o = &v->ov;
     const float margin = 6.0f * o->scale, sw = 8.0f * o->scale, gap = 3.0f * o->scale;
+    const float space = 12.0f * o->scale;   /* between entries */
     int kinds[TW_DEBUG_KIND_COUNT], rows[TW_DEBUG_KIND_COUNT];
     float widths[TW_DEBUG_KIND_COUNT];
     int n = 0, row_count = 1;
@@ -876,7 +778,7 @@ static void draw_legend(struct viewer *v, int fb_w, int fb_h)
     for (int k = 0; k < TW_DEBUG_KIND_COUNT; k++) {
         if (!(view_of((uint16_t)k) & v->debug))
             continue;
-        const float w = sw + gap + (float)strlen(tw_debug_kind_name((enum tw_debug_kind)k)) * char_w(o);
+        const float w = sw + gap + text_width(o, tw_debug_kind_name((enum tw_debug_kind)k));
         if (x > margin && x + w > (float)fb_w - margin) {
             x = margin;
             row_count++;
@@ -884,16 +786,16 @@ static void draw_legend(struct viewer *v, int fb_w, int fb_h)
         kinds[n] = k;
         rows[n] = row_count - 1;
         widths[n++] = w;
-        x += w + 2 * char_w(o);
+        x += w + space;
     }
     const float top = (float)fb_h - margin - (float)row_count * line_h(o);
     for (int r = 0; r < row_count; r++) {
         float row_w = 0.0f;
         for (int k = 0; k < n; k++)
             if (rows[k] == r)
-                row_w += widths[k] + 2 * char_w(o);
+                row_w += widths[k] + space;
         const float y = top + (float)r * line_h(o);
-        overlay_rect(o, margin - 2 * o->scale, y - 2 * o->scale, margin + row_w - char_w(o),
+        overlay_rect(o, margin - 2 * o->scale, y - 2 * o->scale, margin + row_w - space / 2,
                      y + line_h(o) - o->scale, panel);
     }
     x = margin;
@@ -904,9 +806,9 @@ static void draw_legend(struct viewer *v, int fb_w, int fb_h)
         float c[4];
         tw_debug_kind_color((enum tw_debug_kind)kinds[k], c);
         c[3] = 1.0f;
-        overlay_rect(o, x, y, x + sw, y + GLYPH_H * o->scale, c);
+        overlay_rect(o, x, y, x + sw, y + FONT_HEIGHT * o->scale, c);
         overlay_text(o, x + sw + gap, y, white, tw_debug_kind_name((enum tw_debug_kind)kinds[k]));
-        x += widths[k] + 2 * char_w(o);
+        x += widths[k] + space;
     }
 }
 
@@ -978,7 +880,7 @@ static void draw_map(struct viewer *v, const struct tw_debug_box *boxes, size_t 
 
 static int write_screenshot(struct viewer *v, const char *file, int fb_w, int fb_h)
 {
-    const struct tw_gl *gl = &v->ov.gl;
+    const struct view_gl *gl = &v->ov.gl;
     const size_t w = (size_t)fb_w, h = (size_t)fb_h;
     uint8_t *rgba = malloc(w * h * 4), *rgb = malloc(w * h * 3);
     if (!rgba || !rgb) {
