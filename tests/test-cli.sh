@@ -179,6 +179,23 @@ else
 fi
 
 # ---- output that never lies ----------------------------------------------------
+# expect_write_error NAME PATTERN CMD...: exit status 1 and exactly one
+# stderr line matching the extended regex PATTERN.
+expect_write_error() {
+    local name=$1 pattern=$2
+    shift 2
+    "$@" 2>"$tmp/err"
+    local rc=$?
+    if [ "$rc" -eq 1 ] && [ "$(wc -l <"$tmp/err")" -eq 1 ] && grep -Eq -- "$pattern" "$tmp/err"; then
+        ok
+    else
+        bad "$name: exit $rc, stderr: $(cat "$tmp/err")"
+    fi
+}
+# limited BLOCKS CMD...: CMD with files limited to BLOCKS kB; SIGXFSZ is
+# ignored, so that a write past the limit fails with EFBIG.
+limited() { ( trap '' XFSZ; ulimit -f "$1"; shift; exec "$@" ); }
+
 # no_temporaries DIR: no .NAME.tmp left.
 no_temporaries() { [ -z "$(ls -A "$1" | grep '\.tmp$')" ] && ok || bad "temporaries left in $1: $(ls -A "$1")"; }
 
@@ -193,12 +210,8 @@ echo mine >"$out/notes.txt"
 echo mine >"$out/frame-1.png"
 mkdir -p "$out/chart-data" && echo mine >"$out/chart-data/mine.txt"
 : >"$out/chart-sweep.png"            # an earlier bench's, to be removed
-( trap '' XFSZ; ulimit -f 2; exec "$tw" walk --frames 40 --size 96x54 --png-every 0 --quiet --out "$out" ) \
-    2>"$tmp/err"
-rc=$?
-if [ "$rc" -eq 1 ] && [ "$(wc -l <"$tmp/err")" -eq 1 ] &&
-   grep -q "^tileworld: $out/frames.csv: cannot write: File too large$" "$tmp/err"; then ok; else
-    bad "write error: exit $rc, stderr: $(cat "$tmp/err")"; fi
+expect_write_error "write error" "^tileworld: $out/frames.csv: cannot write: File too large$" \
+    limited 2 "$tw" walk --frames 40 --size 96x54 --png-every 0 --quiet --out "$out"
 for f in frames.csv summary.json frame-00000.png frame-00010.png chart-sweep.png; do
     [ ! -e "$out/$f" ] && ok || bad "a failed run left $f"
 done
@@ -207,22 +220,15 @@ no_temporaries "$out"
     bad "a run removed files it did not write: $(ls -A "$out")"
 
 # A PNG that cannot be written stops the run at once, naming the PNG.
-( trap '' XFSZ; ulimit -f 8; exec "$tw" walk --frames 3 --size 640x360 --png-every 1 --quiet --out "$out" ) \
-    2>"$tmp/err"
-rc=$?
-if [ "$rc" -eq 1 ] && [ "$(wc -l <"$tmp/err")" -eq 1 ] &&
-   grep -Eq "^tileworld: $out/frame-0000[0-2].png: cannot write: File too large$" "$tmp/err"; then ok; else
-    bad "PNG write error: exit $rc, stderr: $(cat "$tmp/err")"; fi
+expect_write_error "PNG write error" "^tileworld: $out/frame-0000[0-2].png: cannot write: File too large$" \
+    limited 8 "$tw" walk --frames 3 --size 640x360 --png-every 1 --quiet --out "$out"
 no_temporaries "$out"
 
 # A real full disk, where a small tmpfs can be mounted (as root; else skipped).
 if [ "$(id -u)" -eq 0 ] && mkdir -p "$tmp/small" &&
    mount -t tmpfs -o size=64k tmpfs "$tmp/small" 2>/dev/null; then
-    "$tw" walk --frames 20 --size 160x90 --png-every 1 --quiet --out "$tmp/small/run" 2>"$tmp/err"
-    rc=$?
-    if [ "$rc" -eq 1 ] && [ "$(wc -l <"$tmp/err")" -eq 1 ] &&
-       grep -q ": cannot write: No space left on device$" "$tmp/err"; then ok; else
-        bad "full disk: exit $rc, stderr: $(cat "$tmp/err")"; fi
+    expect_write_error "full disk" ": cannot write: No space left on device$" \
+        "$tw" walk --frames 20 --size 160x90 --png-every 1 --quiet --out "$tmp/small/run"
     [ ! -e "$tmp/small/run/frames.csv" ] && [ ! -e "$tmp/small/run/summary.json" ] && ok ||
         bad "full disk: summaries left"
     for f in "$tmp"/small/run/frame-*.png; do
