@@ -120,7 +120,10 @@ static void put_string(struct tw_outfile *o, const char *s)
     tw_outfile_printf(o, "'");
     for (; *s; s++) {
         const char c = (unsigned char)*s < 0x20 || *s == 0x7f ? '?' : *s;
-        tw_outfile_printf(o, c == '\'' ? "''" : "%c", c);
+        if (c == '\'')
+            tw_outfile_printf(o, "''");
+        else
+            tw_outfile_printf(o, "%c", c);
     }
     tw_outfile_printf(o, "'");
 }
