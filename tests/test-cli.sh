@@ -7,6 +7,9 @@
 # run, a failed run leave no half-written or stale file under a final name).
 set -u
 tw=${1:?usage: test-cli.sh PATH/TO/tileworld}
+# Under the sanitizer CI run, LeakSanitizer would add its list of the
+# suppressions used (OSMesa's) to stderr, whose lines are counted here.
+export LSAN_OPTIONS="${LSAN_OPTIONS:+$LSAN_OPTIONS:}print_suppressions=0"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 passed=0
