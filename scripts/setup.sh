@@ -5,6 +5,7 @@ set -euo pipefail
 packages=(build-essential meson ninja-build pkg-config libembree-dev libosmesa6-dev
           mesa-common-dev libgl-dev libglfw3-dev libpng-dev libjson-c-dev gnuplot-nox
           g++ libtinygltf-dev nlohmann-json3-dev
+          libstb-dev                    # the viewer's overlay text (stb_easy_font)
           xvfb xauth libgl1-mesa-dri)   # the viewer's test: a GLFW window under xvfb-run
 missing=()
 for p in "${packages[@]}"; do

@@ -1,9 +1,15 @@
 #!/usr/bin/env bash
 # The tileworld command's contract (DESIGN.md §9): bad input exits non-zero
-# with exactly one line on stderr and never crashes; a walk writes its
-# reports; a walk far from the origin writes the same PNGs, byte for byte.
+# with exactly one line on stderr and never crashes; options take their
+# value as --opt VALUE and --opt=VALUE; numbers are plain decimal digits; a
+# walk writes its reports; a walk far from the origin writes the same PNGs,
+# byte for byte; output files are whole or absent (a full disk, a killed
+# run, a failed run leave no half-written or stale file under a final name).
 set -u
 tw=${1:?usage: test-cli.sh PATH/TO/tileworld}
+# Under the sanitizer CI run, LeakSanitizer would add its list of the
+# suppressions used (OSMesa's) to stderr, whose lines are counted here.
+export LSAN_OPTIONS="${LSAN_OPTIONS:+$LSAN_OPTIONS:}print_suppressions=0"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 passed=0
@@ -65,6 +71,57 @@ expect_usage_error bench --methods vfc,vfc
 expect_usage_error bench --methods ,
 expect_usage_error walk --methods vfc "${small[@]}"
 
+# --opt=value works as --opt value does, for the same checks.
+expect_usage_error walk --size=12x "${small[@]:2}"
+expect_usage_error walk --frames=0
+expect_usage_error walk --method=nope
+expect_usage_error walk --out=
+expect_usage_error walk --verify=yes
+expect_usage_error walk --bogus=1
+expect_usage_error walk --frames
+expect_usage_error walk --chc 5          # ambiguous: --chc-batch, --chc-nav
+expect_usage_error walk -x
+expect_usage_error walk -- --frames 2
+expect_usage_error import
+expect_usage_error info --tileset city extra
+
+# Numbers mean what they say: plain decimal digits only.
+for v in 0x10 inf nan 1e400 1e3 ' 5' '5 ' +5 '' 1. .5 1,5 ０; do
+    expect_usage_error walk --view-distance "$v"
+done
+for v in 0x10 +5 ' 5' 1e2 010x 5.0 -0; do
+    expect_usage_error walk --frames "$v"
+done
+expect_usage_error walk --start-cell +1,0
+expect_usage_error walk --start-cell 0x1,0
+expect_usage_error bench --sweep T=0x10
+expect_usage_error bench --sweep view_distance=1e3
+expect_usage_error bench --sweep T=inf
+"$tw" walk --view-distance 0x10 2>"$tmp/err"
+grep -q -- "--view-distance: '0x10' is not a decimal number" "$tmp/err" && ok || bad "0x10: $(cat "$tmp/err")"
+"$tw" walk --frames=99999999999999999999 2>"$tmp/err"
+grep -q -- "--frames: '99999999999999999999' is out of range \[1, 10000000\]" "$tmp/err" && ok ||
+    bad "range message: $(cat "$tmp/err")"
+
+# Control characters from argv are escaped in messages.
+expect_usage_error walk --tileset "$(printf 'a\033[31mb')"
+"$tw" walk --tileset "$(printf 'a\033[31mb')" 2>"$tmp/err"
+if grep -q "a\\\\x1b\[31mb" "$tmp/err" && ! grep -q "$(printf '\033')" "$tmp/err"; then ok; else
+    bad "control characters not escaped: $(od -c "$tmp/err" | head -3)"; fi
+expect_usage_error $'wa\nlk'
+expect_usage_error walk $'--fr\x01ames' 2
+
+# --help prints the usage on stdout, exit 0.
+if "$tw" walk --help >"$tmp/out" 2>"$tmp/err" && grep -q '^usage: tileworld walk' "$tmp/out" &&
+   [ ! -s "$tmp/err" ]; then ok; else bad "walk --help"; fi
+if "$tw" --help >"$tmp/out" && grep -q -- '--opt=VALUE' "$tmp/out"; then ok; else bad "--help"; fi
+
+# --opt=value is applied as --opt value is.
+if "$tw" walk --size=96x54 --frames=3 --png-every=0 --quiet --method=vfc --out="$tmp/eq" 2>"$tmp/err" &&
+   [ "$(wc -l <"$tmp/eq/frames.csv")" -eq 4 ] && grep -q '"size": "96x54"' "$tmp/eq/summary.json" &&
+   [ "$(tail -n +2 "$tmp/eq/frames.csv" | cut -d, -f2 | sort -u)" = vfc ]; then ok; else
+    bad "walk with --opt=value: $(cat "$tmp/err")"; fi
+
 # Malformed path files: the message names the file and the line.
 printf 'cell_i,cell_j,x,y,z,yaw,pitch\n0,0,1,1.7,1,0,nan\n' >"$tmp/nan.csv"
 printf '0,0,1,1.7,1,0,0\n' >"$tmp/noheader.csv"
@@ -123,6 +180,92 @@ if "$tw" info --tileset city >"$tmp/info" 2>"$tmp/err"; then
 else
     bad "info failed: $(cat "$tmp/err")"
 fi
+
+# ---- output that never lies ----------------------------------------------------
+# expect_write_error NAME PATTERN CMD...: exit status 1 and exactly one
+# stderr line matching the extended regex PATTERN.
+expect_write_error() {
+    local name=$1 pattern=$2
+    shift 2
+    "$@" 2>"$tmp/err"
+    local rc=$?
+    if [ "$rc" -eq 1 ] && [ "$(wc -l <"$tmp/err")" -eq 1 ] && grep -Eq -- "$pattern" "$tmp/err"; then
+        ok
+    else
+        bad "$name: exit $rc, stderr: $(cat "$tmp/err")"
+    fi
+}
+# limited BLOCKS CMD...: CMD with files limited to BLOCKS kB; SIGXFSZ is
+# ignored, so that a write past the limit fails with EFBIG.
+limited() { ( trap '' XFSZ; ulimit -f "$1"; shift; exec "$@" ); }
+
+# no_temporaries DIR: no .NAME.tmp left.
+no_temporaries() { [ -z "$(ls -A "$1" | grep '\.tmp$')" ] && ok || bad "temporaries left in $1: $(ls -A "$1")"; }
+
+# A run removes what an earlier one left, and only that: a failed run
+# leaves no stale summary.json beside nothing. A full disk is an output
+# file size limit here (ulimit -f, with SIGXFSZ ignored so that write fails
+# with EFBIG): deterministic and needs no root.
+out="$tmp/never"
+if "$tw" walk --frames 30 --size 96x54 --png-every 10 --quiet --out "$out" 2>"$tmp/err"; then ok; else
+    bad "walk into $out: $(cat "$tmp/err")"; fi
+echo mine >"$out/notes.txt"
+echo mine >"$out/frame-1.png"
+mkdir -p "$out/chart-data" && echo mine >"$out/chart-data/mine.txt"
+: >"$out/chart-sweep.png"            # an earlier bench's, to be removed
+expect_write_error "write error" "^tileworld: $out/frames.csv: cannot write: File too large$" \
+    limited 2 "$tw" walk --frames 40 --size 96x54 --png-every 0 --quiet --out "$out"
+for f in frames.csv summary.json frame-00000.png frame-00010.png chart-sweep.png; do
+    [ ! -e "$out/$f" ] && ok || bad "a failed run left $f"
+done
+no_temporaries "$out"
+[ -f "$out/notes.txt" ] && [ -f "$out/frame-1.png" ] && [ -f "$out/chart-data/mine.txt" ] && ok ||
+    bad "a run removed files it did not write: $(ls -A "$out")"
+
+# A PNG that cannot be written stops the run at once, naming the PNG.
+expect_write_error "PNG write error" "^tileworld: $out/frame-0000[0-2].png: cannot write: File too large$" \
+    limited 8 "$tw" walk --frames 3 --size 640x360 --png-every 1 --quiet --out "$out"
+no_temporaries "$out"
+
+# A real full disk, where a small tmpfs can be mounted (as root; else skipped).
+if [ "$(id -u)" -eq 0 ] && mkdir -p "$tmp/small" &&
+   mount -t tmpfs -o size=64k tmpfs "$tmp/small" 2>/dev/null; then
+    expect_write_error "full disk" ": cannot write: No space left on device$" \
+        "$tw" walk --frames 20 --size 160x90 --png-every 1 --quiet --out "$tmp/small/run"
+    [ ! -e "$tmp/small/run/frames.csv" ] && [ ! -e "$tmp/small/run/summary.json" ] && ok ||
+        bad "full disk: summaries left"
+    for f in "$tmp"/small/run/frame-*.png; do
+        [ -e "$f" ] || continue
+        cmp -s <(head -c 8 "$f") <(printf '\211PNG\r\n\032\n') && ok || bad "full disk: $f is not whole"
+    done
+    no_temporaries "$tmp/small/run"
+    umount "$tmp/small"
+else
+    echo "skip: no tmpfs to fill (not root, or mount refused)"
+fi
+
+# A killed run leaves no file under a final name that it had not finished:
+# no frames.csv, no summary.json; only its hidden temporary, which the next
+# run removes.
+killed="$tmp/killed"
+"$tw" walk --frames 100000 --size 96x54 --png-every 0 --quiet --out "$killed" 2>/dev/null &
+pid=$!
+for _ in $(seq 1 600); do
+    [ -s "$killed/.frames.csv.tmp" ] && break
+    sleep 0.1
+done
+kill -KILL "$pid" 2>/dev/null
+wait "$pid" 2>/dev/null
+if [ -s "$killed/.frames.csv.tmp" ] && [ ! -e "$killed/frames.csv" ] && [ ! -e "$killed/summary.json" ]; then
+    ok; else bad "after a kill: $(ls -A "$killed" 2>&1)"; fi
+if "$tw" walk --frames 2 --size 96x54 --png-every 0 --quiet --out "$killed" 2>"$tmp/err" &&
+   [ "$(wc -l <"$killed/frames.csv")" -eq 3 ] && [ -f "$killed/summary.json" ]; then ok; else
+    bad "walk after a kill: $(cat "$tmp/err")"; fi
+no_temporaries "$killed"
+
+# The output folder cannot be made: bad input, exit 2, one line.
+: >"$tmp/a-file"
+expect_usage_error walk "${small[@]}" --out "$tmp/a-file/sub"
 
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]

@@ -1,48 +1,121 @@
-/* Command-line values for the tileworld programs (cli.h). */
+/* Command lines of the tileworld programs (cli.h). */
 #include "tools/cli.h"
 
 #include <errno.h>
 #include <math.h>
-#include <stdio.h>
+#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
-noreturn void tw_cli_fail(const char *program, const char *place, const char *fmt,
-                          const char *value)
+char *tw_cli_escape(const char *s, char *out, size_t out_size)
 {
-    fprintf(stderr, "%s: %s: ", program, place);
-    fprintf(stderr, fmt, value);
-    fputc('\n', stderr);
+    static const char hex[] = "0123456789abcdef";
+    size_t n = 0;
+    for (; s && *s; s++) {
+        const unsigned char c = (unsigned char)*s;
+        char e[4];
+        size_t len = 1;
+        e[0] = (char)c;
+        if (c < 0x20 || c == 0x7f) {
+            e[0] = '\\';
+            e[1] = 'x';
+            e[2] = hex[c >> 4];
+            e[3] = hex[c & 15];
+            len = 4;
+        } else if (c == '\\') {
+            e[1] = '\\';
+            len = 2;
+        }
+        if (n + len >= out_size)
+            break;
+        memcpy(out + n, e, len);
+        n += len;
+    }
+    if (out_size)
+        out[n] = '\0';
+    return out;
+}
+
+static void vmessage(const char *program, const char *place, const char *fmt, va_list ap)
+{
+    char text[2048], escaped[4 * sizeof(text)];
+    vsnprintf(text, sizeof(text), fmt, ap);
+    if (place) {
+        char where[4 * 256];
+        fprintf(stderr, "%s: %s: %s\n", program, tw_cli_escape(place, where, sizeof(where)),
+                tw_cli_escape(text, escaped, sizeof(escaped)));
+    } else {
+        fprintf(stderr, "%s: %s\n", program, tw_cli_escape(text, escaped, sizeof(escaped)));
+    }
+}
+
+void tw_cli_message(const char *program, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vmessage(program, NULL, fmt, ap);
+    va_end(ap);
+}
+
+noreturn void tw_cli_fail(const char *program, const char *place, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vmessage(program, place, fmt, ap);
+    va_end(ap);
     exit(TW_CLI_EXIT_USAGE);
+}
+
+static bool is_digit(char c)
+{
+    return c >= '0' && c <= '9';
+}
+
+bool tw_cli_is_number(const char *s, enum tw_cli_number form)
+{
+    if (!s)
+        return false;
+    if (form != TW_CLI_COUNT && *s == '-')
+        s++;
+    size_t digits = 0;
+    while (is_digit(*s)) {
+        s++;
+        digits++;
+    }
+    if (form == TW_CLI_DECIMAL && *s == '.' && digits > 0) {
+        s++;
+        size_t fraction = 0;
+        while (is_digit(*s)) {
+            s++;
+            fraction++;
+        }
+        if (fraction == 0)
+            return false;
+    }
+    return digits > 0 && *s == '\0';
 }
 
 uint64_t tw_cli_u64(const char *program, const char *opt, const char *s, uint64_t lo, uint64_t hi)
 {
-    char *end = NULL;
+    if (!tw_cli_is_number(s, TW_CLI_COUNT))
+        tw_cli_fail(program, opt, "'%s' is not a whole number of decimal digits in [%llu, %llu]",
+                    s ? s : "", (unsigned long long)lo, (unsigned long long)hi);
     errno = 0;
-    if (!s || *s == '\0' || *s == '-' || *s == '+' || *s == ' ')
-        tw_cli_fail(program, opt, "'%s' is not a non-negative whole number", s ? s : "");
-    unsigned long long v = strtoull(s, &end, 10);
-    if (*end != '\0')
-        tw_cli_fail(program, opt, "'%s' is not a non-negative whole number", s);
-    if (errno == ERANGE || v < lo || v > hi) {
-        char msg[128];
-        snprintf(msg, sizeof(msg), "'%%s' is out of range [%llu, %llu]", (unsigned long long)lo,
-                 (unsigned long long)hi);
-        tw_cli_fail(program, opt, msg, s);
-    }
+    const unsigned long long v = strtoull(s, NULL, 10);
+    if (errno == ERANGE || v < lo || v > hi)
+        tw_cli_fail(program, opt, "'%s' is out of range [%llu, %llu]", s, (unsigned long long)lo,
+                    (unsigned long long)hi);
     return v;
 }
 
 int64_t tw_cli_i64(const char *program, const char *opt, const char *s)
 {
-    char *end = NULL;
+    if (!tw_cli_is_number(s, TW_CLI_INTEGER))
+        tw_cli_fail(program, opt, "'%s' is not a whole number of decimal digits (with '-' when "
+                    "negative)", s ? s : "");
     errno = 0;
-    if (!s || *s == '\0' || *s == ' ')
-        tw_cli_fail(program, opt, "'%s' is not a whole number", s ? s : "");
-    long long v = strtoll(s, &end, 10);
-    if (*end != '\0')
-        tw_cli_fail(program, opt, "'%s' is not a whole number", s);
+    const long long v = strtoll(s, NULL, 10);
     if (errno == ERANGE)
         tw_cli_fail(program, opt, "'%s' does not fit in 64 bits", s);
     return v;
@@ -50,20 +123,13 @@ int64_t tw_cli_i64(const char *program, const char *opt, const char *s)
 
 float tw_cli_float(const char *program, const char *opt, const char *s, float lo, float hi)
 {
-    char *end = NULL;
+    if (!tw_cli_is_number(s, TW_CLI_DECIMAL))
+        tw_cli_fail(program, opt, "'%s' is not a decimal number such as 600 or 12.5 (in [%g, %g])",
+                    s ? s : "", lo, hi);
     errno = 0;
-    if (!s || *s == '\0')
-        tw_cli_fail(program, opt, "'%s' is not a number", "");
-    double v = strtod(s, &end);
-    if (*end != '\0' || end == s)
-        tw_cli_fail(program, opt, "'%s' is not a number", s);
-    if (!isfinite(v) || errno == ERANGE)
-        tw_cli_fail(program, opt, "'%s' is not a finite number", s);
-    if (v < lo || v > hi) {
-        char msg[128];
-        snprintf(msg, sizeof(msg), "'%%s' is out of range [%g, %g]", lo, hi);
-        tw_cli_fail(program, opt, msg, s);
-    }
+    const double v = strtod(s, NULL);
+    if (errno == ERANGE || !isfinite(v) || v < lo || v > hi)
+        tw_cli_fail(program, opt, "'%s' is out of range [%g, %g]", s, lo, hi);
     return (float)v;
 }
 
@@ -74,7 +140,7 @@ static void split_pair(const char *program, const char *opt, const char *s, char
     const char *at = s ? strchr(s, sep) : NULL;
     const size_t n = at ? (size_t)(at - s) : 0;
     if (!at || n == 0 || n >= 32)
-        tw_cli_fail(program, opt, form, s ? s : "");
+        tw_cli_fail(program, opt, "'%s' is not of the form %s", s ? s : "", form);
     memcpy(first, s, n);
     first[n] = '\0';
     *second = at + 1;
@@ -84,7 +150,7 @@ void tw_cli_size(const char *program, const char *opt, const char *s, uint32_t *
 {
     char first[32];
     const char *second;
-    split_pair(program, opt, s, 'x', "'%s' is not of the form WIDTHxHEIGHT", first, &second);
+    split_pair(program, opt, s, 'x', "WIDTHxHEIGHT", first, &second);
     *w = (uint32_t)tw_cli_u64(program, opt, first, 16, 8192);
     *h = (uint32_t)tw_cli_u64(program, opt, second, 16, 8192);
 }
@@ -93,11 +159,189 @@ void tw_cli_cell(const char *program, const char *opt, const char *s, struct tw_
 {
     char first[32];
     const char *second;
-    split_pair(program, opt, s, ',', "'%s' is not of the form I,J", first, &second);
+    split_pair(program, opt, s, ',', "I,J", first, &second);
     c->i = tw_cli_i64(program, opt, first);
     c->j = tw_cli_i64(program, opt, second);
     /* Keep cells where neighbour arithmetic cannot overflow. */
     const int64_t limit = (int64_t)1 << 62;
     if (c->i > limit || c->i < -limit || c->j > limit || c->j < -limit)
         tw_cli_fail(program, opt, "'%s' lies outside +-2^62 cells", s);
+}
+
+enum tw_method tw_cli_method(const char *program, const char *opt, const char *s)
+{
+    enum tw_method m;
+    if (tw_method_from_name(s, &m) != TW_OK)
+        tw_cli_fail(program, opt, "unknown method '%s' (vfc, tilequery, chc, tilequery+chc, oracle)",
+                    s);
+    if (!tw_method_available(m))
+        tw_cli_fail(program, opt, "method '%s' is not implemented in this build yet", s);
+    return m;
+}
+
+void tw_cli_log(void *user, enum tw_log_level level, const char *msg)
+{
+    const struct tw_cli *c = user;
+    if (level <= TW_LOG_WARN)
+        tw_cli_message(c->program, "%s", msg);
+}
+
+struct tw_tileset *tw_cli_load_tileset(const struct tw_cli *c, uint32_t cluster_triangles,
+                                       const struct tw_log *log)
+{
+    struct tw_tileset *ts = NULL;
+    for (const char *const *n = tw_tilesets_builtin_names; *n; n++) {
+        if (strcmp(*n, c->tileset) != 0)
+            continue;
+        const int err = tw_tilesets_builtin(c->tileset, c->world.selection.seed, cluster_triangles,
+                                            log, &ts);
+        if (err) {
+            tw_cli_message(c->program, "--tileset %s: generation failed: %s", c->tileset,
+                           tw_error_to_str(err));
+            exit(1);
+        }
+        return ts;
+    }
+    if (access(c->tileset, F_OK) != 0)
+        tw_cli_fail(c->program, "--tileset", "unknown tileset '%s' (built-in: city, forest, hybrid; "
+                    "or a manifest file)", c->tileset);
+    /* A manifest: its loader logs one line naming the file, the place and the reason. */
+    const struct tw_manifest_settings ms = {.max_cluster_triangles = cluster_triangles};
+    const int err = tw_tilesets_load_manifest_ex(c->tileset, &ms, log, &ts);
+    if (err)
+        exit(err == TW_ERR_NOMEM ? 1 : TW_CLI_EXIT_USAGE);
+    return ts;
+}
+
+void tw_cli_load_path(const struct tw_cli *c, const char *name, uint32_t frames,
+                      const struct tw_tileset *ts, struct tw_path *p)
+{
+    const float w = ts->footprint[0], d = ts->footprint[1];
+    bool builtin = false;
+    for (const char *const *n = tw_path_builtin_names; *n; n++)
+        builtin |= strcmp(*n, name) == 0;
+    if (builtin) {
+        const int err = tw_path_builtin(name, c->world.selection.seed, frames, w, d, p);
+        if (err) {
+            tw_cli_message(c->program, "--path %s: %s", name, tw_error_to_str(err));
+            exit(1);
+        }
+    } else {
+        char msg[1400];
+        const int err = tw_path_load_csv(name, c->frames, w, d, p, msg, sizeof(msg));
+        if (err) {
+            if (err == TW_ERR_IO && access(name, F_OK) != 0 && !strchr(name, '/') &&
+                !strstr(name, ".csv"))
+                tw_cli_fail(c->program, "--path", "unknown path '%s' (built-in: street, flyover, "
+                            "forest, teleport, spin; or a CSV file)", name);
+            tw_cli_message(c->program, "%s", msg);
+            exit(TW_CLI_EXIT_USAGE);
+        }
+    }
+    if (tw_path_translate(p, c->start_cell.i, c->start_cell.j))
+        tw_cli_fail(c->program, "--start-cell", "the translated path overflows the grid");
+}
+
+void tw_cli_init(struct tw_cli *c, const char *program)
+{
+    memset(c, 0, sizeof(*c));
+    c->program = program;
+    c->tileset = "city";
+    c->world.selection.seed = 1;
+    c->world.method = TW_METHOD_TILEQUERY_CHC;
+    c->world.view_distance = 600.0f;
+}
+
+/* Applies a shared option; false for a program's own. */
+static bool apply_common(struct tw_cli *c, int opt, const char *place, const char *arg)
+{
+    const char *p = c->program;
+    struct tw_world_settings *ws = &c->world;
+    switch (opt) {
+    case TW_CLI_OPT_TILESET: c->tileset = arg; break;
+    case TW_CLI_OPT_SEED: ws->selection.seed = tw_cli_u64(p, place, arg, 0, UINT64_MAX); break;
+    case TW_CLI_OPT_PATH: c->path = arg; break;
+    case TW_CLI_OPT_FRAMES: c->frames = (uint32_t)tw_cli_u64(p, place, arg, 1, 10000000); break;
+    case TW_CLI_OPT_METHOD: ws->method = tw_cli_method(p, place, arg); break;
+    case TW_CLI_OPT_SIZE: tw_cli_size(p, place, arg, &ws->width, &ws->height); break;
+    case TW_CLI_OPT_START_CELL: tw_cli_cell(p, place, arg, &c->start_cell); break;
+    case TW_CLI_OPT_REPEAT:
+        ws->selection.repeat = (int64_t)tw_cli_u64(p, place, arg, 1, (uint64_t)1 << 62);
+        break;
+    case TW_CLI_OPT_VIEW_DISTANCE:
+        ws->view_distance = tw_cli_float(p, place, arg, 1.0f, 100000.0f);
+        break;
+    case TW_CLI_OPT_QUIET: c->quiet = true; break;
+    default: return false;
+    }
+    return true;
+}
+
+static const struct option *find_option(const struct option *options, int val)
+{
+    for (const struct option *o = options; o->name; o++)
+        if (o->val == val)
+            return o;
+    return NULL;
+}
+
+/* "--name" of an argument such as "--name=value". */
+static void option_word(const char *arg, char *out, size_t size)
+{
+    const char *eq = strchr(arg, '=');
+    const size_t n = eq ? (size_t)(eq - arg) : strlen(arg);
+    snprintf(out, size, "%.*s", (int)n, arg);
+}
+
+/* How many long options start with the name of "--name[=value]". */
+static int prefix_matches(const struct option *options, const char *word)
+{
+    if (strncmp(word, "--", 2) != 0)
+        return 0;
+    const size_t n = strlen(word + 2);
+    int count = 0;
+    for (const struct option *o = options; o->name; o++)
+        count += strncmp(o->name, word + 2, n) == 0;
+    return count;
+}
+
+void tw_cli_parse(struct tw_cli *c, int argc, char **argv, const struct option *options,
+                  tw_cli_apply_fn apply, void *user, void (*usage)(FILE *f))
+{
+    const char *p = c->program;
+    opterr = 0;
+    optind = 1;
+    for (;;) {
+        int index = -1;
+        const int opt = getopt_long(argc, argv, ":h", options, &index);
+        if (opt == -1)
+            break;
+        char word[128];
+        if (opt == '?') {
+            option_word(argv[optind - 1], word, sizeof(word));
+            const struct option *flag = optopt ? find_option(options, optopt) : NULL;
+            if (flag && flag->has_arg == no_argument)
+                tw_cli_fail(p, word, "takes no value");
+            if (prefix_matches(options, word) > 1)
+                tw_cli_fail(p, word, "ambiguous option '%s' (see %s --help)", word, p);
+            tw_cli_fail(p, word, "unknown option '%s' (see %s --help)", word, p);
+        }
+        const struct option *o = opt == ':' ? find_option(options, optopt)
+                                 : index >= 0 ? &options[index] : find_option(options, opt);
+        if (o)
+            snprintf(word, sizeof(word), "--%s", o->name);
+        else
+            option_word(argv[optind - 1], word, sizeof(word));
+        if (opt == ':')
+            tw_cli_fail(p, word, "needs a value");
+        if (opt == 'h') {
+            usage(stdout);
+            exit(0);
+        }
+        if (!apply_common(c, opt, word, optarg))
+            apply(user, opt, word, optarg);
+    }
+    if (optind < argc)
+        tw_cli_fail(p, argv[optind], "unexpected argument '%s' (options start with --)",
+                    argv[optind]);
 }

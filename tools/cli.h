@@ -1,32 +1,147 @@
 /*
- * Command-line values for the tileworld programs (tileworld, tileworld-view).
- * Bad input is the user's: each parser ends the program with exit status
- * TW_CLI_EXIT_USAGE and one line "PROGRAM: PLACE: reason" on stderr, never a
- * crash. Linked into the executables only, never into a library: it exits.
+ * Command lines of the tileworld programs (tileworld, tileworld-view), as
+ * dav1d's tools/dav1d_cli_parse.c: a getopt_long table of the options the
+ * programs share (TW_CLI_COMMON_OPTIONS), which each program extends with
+ * its own, and one parser per kind of value. The options fill a
+ * struct tw_world_settings, the library's own settings.
+ *
+ * Bad input is the user's: a parser ends the program with exit status
+ * TW_CLI_EXIT_USAGE and exactly one line "PROGRAM: PLACE: reason" on
+ * stderr (control characters escaped as \xHH), never a crash. getopt's own
+ * messages are silenced. Linked into the executables only: it exits.
+ *
+ * Numbers mean what they say: only plain decimal digits (no sign where a
+ * count is asked, no spaces, no 0x, no exponent, no inf or nan).
  */
-#ifndef TW_RUNTIME_CLI_H
-#define TW_RUNTIME_CLI_H
+#ifndef TW_TOOLS_CLI_H
+#define TW_TOOLS_CLI_H
 
+#include <getopt.h>
+#include <stdbool.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdnoreturn.h>
 
-#include "tileworld/tiles.h"
+#include "tileworld/runtime.h"
+#include "tileworld/tilesets.h"
 
 #define TW_CLI_EXIT_USAGE 2
 
-/* Prints "program: place: " and fmt with value for its one %s, then exits. */
-noreturn void tw_cli_fail(const char *program, const char *place, const char *fmt,
-                          const char *value);
+/* getopt_long values of the shared options; a program numbers its own from
+ * TW_CLI_OPT_PROGRAM on. */
+enum {
+    TW_CLI_OPT_TILESET = 256,
+    TW_CLI_OPT_SEED,
+    TW_CLI_OPT_PATH,
+    TW_CLI_OPT_FRAMES,
+    TW_CLI_OPT_METHOD,
+    TW_CLI_OPT_SIZE,
+    TW_CLI_OPT_START_CELL,
+    TW_CLI_OPT_REPEAT,
+    TW_CLI_OPT_VIEW_DISTANCE,
+    TW_CLI_OPT_QUIET,
+    TW_CLI_OPT_PROGRAM = 512,
+};
 
-/* A whole number in [lo, hi] (no sign, no spaces). */
+/* The first entries of a program's struct option table. */
+#define TW_CLI_COMMON_OPTIONS \
+    {"tileset", required_argument, NULL, TW_CLI_OPT_TILESET}, \
+    {"seed", required_argument, NULL, TW_CLI_OPT_SEED}, \
+    {"path", required_argument, NULL, TW_CLI_OPT_PATH}, \
+    {"frames", required_argument, NULL, TW_CLI_OPT_FRAMES}, \
+    {"method", required_argument, NULL, TW_CLI_OPT_METHOD}, \
+    {"size", required_argument, NULL, TW_CLI_OPT_SIZE}, \
+    {"start-cell", required_argument, NULL, TW_CLI_OPT_START_CELL}, \
+    {"repeat", required_argument, NULL, TW_CLI_OPT_REPEAT}, \
+    {"view-distance", required_argument, NULL, TW_CLI_OPT_VIEW_DISTANCE}, \
+    {"quiet", no_argument, NULL, TW_CLI_OPT_QUIET}, \
+    {"help", no_argument, NULL, 'h'}
+
+/* What the shared options set. */
+struct tw_cli {
+    const char *program;             /* "tileworld", for messages; borrowed */
+    struct tw_world_settings world;  /* seed, repeat, method, size, view distance, and what a
+                                      * program's own options add */
+    const char *tileset;             /* a built-in name or a manifest file; borrowed from argv */
+    const char *path;                /* a built-in path or a CSV file; NULL: none given */
+    uint32_t frames;                 /* 0: the path's length */
+    struct tw_cell start_cell;
+    bool quiet;
+};
+
+/* Defaults: tileset city, seed 1, method tilequery+chc, view distance
+ * 600 m; the program sets its own size and path. */
+void tw_cli_init(struct tw_cli *c, const char *program);
+
+/* Applies one of a program's own options: opt is its getopt_long value,
+ * name its long name (for messages, "--name"), arg its value or NULL. */
+typedef void (*tw_cli_apply_fn)(void *user, int opt, const char *name, const char *arg);
+
+/* Parses argv[1..argc-1] with getopt_long over options (which starts with
+ * TW_CLI_COMMON_OPTIONS and ends with a zeroed entry): --opt=value and
+ * --opt value alike. Shared options go into c, the others to apply;
+ * --help / -h prints usage to stdout and exits 0. An unknown or ambiguous
+ * option, a missing value or an argument that is not an option fails. */
+void tw_cli_parse(struct tw_cli *c, int argc, char **argv, const struct option *options,
+                  tw_cli_apply_fn apply, void *user, void (*usage)(FILE *f));
+
+/* Prints "program: " and the formatted text on stderr as one line, with
+ * control characters escaped. */
+void tw_cli_message(const char *program, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+
+/* Prints "program: place: " and the formatted reason as one line (escaped),
+ * then exits with TW_CLI_EXIT_USAGE. */
+noreturn void tw_cli_fail(const char *program, const char *place, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+
+/* Writes s into out (out_size bytes) with control characters, DEL and
+ * backslashes escaped as \xHH and \\ (cut to fit). Returns out. */
+char *tw_cli_escape(const char *s, char *out, size_t out_size);
+
+/* The forms of a plain decimal number. */
+enum tw_cli_number {
+    TW_CLI_COUNT,     /* digits only: 0, 42 */
+    TW_CLI_INTEGER,   /* digits with an optional leading '-' */
+    TW_CLI_DECIMAL,   /* an integer with an optional fraction: -1.5, 600, 0.25 */
+};
+
+/* True when s is a plain decimal number of that form, and nothing else. */
+bool tw_cli_is_number(const char *s, enum tw_cli_number form);
+
+/* A whole number in [lo, hi]. */
 uint64_t tw_cli_u64(const char *program, const char *opt, const char *s, uint64_t lo, uint64_t hi);
 /* A signed 64-bit whole number. */
 int64_t tw_cli_i64(const char *program, const char *opt, const char *s);
-/* A finite number in [lo, hi]. */
+/* A decimal number in [lo, hi]. */
 float tw_cli_float(const char *program, const char *opt, const char *s, float lo, float hi);
 /* WIDTHxHEIGHT, each in [16, 8192]. */
 void tw_cli_size(const char *program, const char *opt, const char *s, uint32_t *w, uint32_t *h);
 /* I,J within +-2^62 cells, where neighbour arithmetic cannot overflow. */
 void tw_cli_cell(const char *program, const char *opt, const char *s, struct tw_cell *c);
+/* A method implemented in this build. */
+enum tw_method tw_cli_method(const char *program, const char *opt, const char *s);
+
+/* A logger that prints warnings and errors as tw_cli_message() lines;
+ * user is the struct tw_cli. */
+void tw_cli_log(void *user, enum tw_log_level level, const char *msg);
+
+/* The tileset of --tileset (a built-in one, made with clusters of at most
+ * cluster_triangles, 0: the default; or a manifest): the caller owns it.
+ * Exits on failure (status 2 for bad input, 1 otherwise). */
+struct tw_tileset *tw_cli_load_tileset(const struct tw_cli *c, uint32_t cluster_triangles,
+                                       const struct tw_log *log);
+
+/* The camera path name (a built-in one of frames keys, or a CSV file of
+ * c->frames rows, 0: all), moved by --start-cell, into *p (the caller
+ * finishes it). Exits on failure. */
+void tw_cli_load_path(const struct tw_cli *c, const char *name, uint32_t frames,
+                      const struct tw_tileset *ts, struct tw_path *p);
 
 #endif

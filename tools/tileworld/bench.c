@@ -10,7 +10,10 @@
 
 #include <json-c/json.h>
 
+#include "tools/cli.h"
+#include "tools/outfile.h"
 #include "tools/tileworld/charts.h"
+#include "tools/tileworld/outputs.h"
 
 static void progress(const struct tw_run *run, uint32_t done, uint32_t total, double mean_ms)
 {
@@ -23,6 +26,29 @@ static void progress(const struct tw_run *run, uint32_t done, uint32_t total, do
     if (done == total)
         fputc('\n', stderr);
     fflush(stderr);
+}
+
+/* Draws the charts of a bench run; gnuplot missing or failing is one
+ * warning line, a file that cannot be written an error. */
+static int draw_charts(const struct tw_run *run, const struct tw_chart_sweep *sweep, char *err,
+                       size_t err_size)
+{
+    const struct tw_chart_run chart = {
+        .dir = run->out,
+        .tileset = run->tileset_name,
+        .path = run->path_name,
+        .width = run->world.width,
+        .height = run->world.height,
+        .verified = run->world.verify,
+        .methods = run->methods,
+        .method_count = run->method_count,
+        .figures = run->figures,
+        .sweep = sweep,
+    };
+    const int rc = tw_charts_write(&chart, err, err_size);
+    if (rc == TW_CHARTS_NOT_DRAWN)
+        tw_cli_message("tileworld", "warning: %s", err);
+    return rc < 0 ? rc : TW_OK;
 }
 
 int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t err_size)
@@ -51,7 +77,11 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     report.width = ws.width;
     report.height = ws.height;
     report.seed = ws.selection.seed;
-    rc = tw_report_open(&report, run->out, err, err_size);
+    /* What an earlier run left here would pass for this one's. */
+    rc = tw_outputs_remove_stale(run->out, err, err_size);
+    if (rc)
+        goto out;
+    rc = tw_report_open(&report, run->out, run->bench, err, err_size);
     if (rc)
         goto out;
     double total_ms = 0.0;
@@ -72,11 +102,9 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
                 goto out;
             }
             total_ms += st.ms_frame;
-            rc = tw_report_add(&report, &st);
-            if (rc) {
-                snprintf(err, err_size, "out of memory");
+            rc = tw_report_add(&report, &st, err, err_size);
+            if (rc)
                 goto out;
-            }
             if (run->on_frame)
                 run->on_frame(run->on_frame_user, f, world, &st);
             if (run->png_every > 0 && f % run->png_every == 0) {
@@ -87,8 +115,11 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
                 else
                     snprintf(file, sizeof(file), "%s/frame-%05u.png", run->out, f);
                 rc = tw_world_read_rgb(world, rgb);
-                if (!rc)
-                    rc = tw_report_write_png(file, rgb, ws.width, ws.height, err, err_size);
+                if (rc)
+                    snprintf(err, err_size, "%s: cannot read the image: %s", file,
+                             tw_error_to_str(rc));
+                else
+                    rc = tw_outfile_write_png(file, rgb, ws.width, ws.height, err, err_size);
                 if (rc)
                     goto out;
             }
@@ -96,13 +127,8 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
         progress(run, f + 1, run->path->count, total_ms / ((f + 1) * (double)run->method_count));
     }
     rc = tw_report_close(&report, run->bench, run->figures, err, err_size);
-    if (rc)
-        goto out;
-    if (run->bench) {
-        char why[512];
-        if (tw_charts_write(run->out, why, sizeof(why)) != TW_OK)
-            fprintf(stderr, "tileworld: warning: no charts: %s\n", why);
-    }
+    if (!rc && run->bench && !run->defer_charts)
+        rc = draw_charts(run, NULL, err, err_size);
 out:
     tw_report_abort(&report);
     free(rgb);
@@ -142,13 +168,22 @@ static int parse_sweep(const char *spec, enum sweep_param *param, double *values
     *count = 0;
     const char *s = eq + 1;
     while (*s) {
-        char *end = NULL;
-        errno = 0;
-        const double v = strtod(s, &end);
-        if (end == s || (*end != ',' && *end != '\0') || !isfinite(v) || errno == ERANGE) {
-            snprintf(err, err_size, "--sweep: '%s' has a value that is not a finite number", spec);
+        /* Each value a plain decimal number, as on the command line. */
+        char text[64];
+        const char *end = strchr(s, ',');
+        const size_t len = end ? (size_t)(end - s) : strlen(s);
+        snprintf(text, sizeof(text), "%.*s", (int)(len < sizeof(text) ? len : sizeof(text) - 1), s);
+        if (len >= sizeof(text) || !tw_cli_is_number(text, TW_CLI_DECIMAL)) {
+            snprintf(err, err_size, "--sweep: '%s': '%s' is not a decimal number such as 10 or 0.5",
+                     spec, text);
             return TW_ERR_INVALID;
         }
+        const double v = strtod(text, NULL);
+        if (!isfinite(v)) {
+            snprintf(err, err_size, "--sweep: '%s': '%s' is out of range", spec, text);
+            return TW_ERR_INVALID;
+        }
+        end = s + len;
         const bool whole = v == floor(v);
         bool ok = true;
         switch (*param) {
@@ -216,24 +251,26 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
     int rc = parse_sweep(spec, &param, values, &count, err, err_size);
     if (rc)
         return rc;
-    /* The base run: every method with its defaults. Its charts must not pick
-     * up the sweep.csv of an earlier run in the same folder. */
-    char file[1100];
-    snprintf(file, sizeof(file), "%s/sweep.csv", run->out);
-    if (unlink(file) != 0 && errno != ENOENT) {
-        snprintf(err, err_size, "%s: cannot remove: %s", file, strerror(errno));
-        return TW_ERR_IO;
-    }
-    rc = tw_run_execute(run, ctx, err, err_size);
+    /* The base run: every method with its defaults; its charts come with
+     * the sweep's. */
+    struct tw_run base = *run;
+    base.defer_charts = true;
+    rc = tw_run_execute(&base, ctx, err, err_size);
     if (rc)
         return rc;
-    FILE *csv = fopen(file, "w");
-    if (!csv) {
-        snprintf(err, err_size, "%s: cannot write: %s", file, strerror(errno));
-        return TW_ERR_IO;
+    memcpy(run->figures, base.figures, sizeof(run->figures));
+    struct tw_method_figures (*figures)[TW_METHOD_COUNT] = calloc(count, sizeof(*figures));
+    if (!figures) {
+        snprintf(err, err_size, "out of memory");
+        return TW_ERR_NOMEM;
     }
-    fputs("method,param,value,mean_ms,median_ms,p95_ms,mean_triangles,mean_queries,"
-          "missed_pixels_total,mean_overdraw_triangles\n", csv);
+    char file[1100];
+    snprintf(file, sizeof(file), "%s/sweep.csv", run->out);
+    struct tw_outfile csv;
+    rc = tw_outfile_open(&csv, file, err, err_size);
+    if (!rc)
+        tw_outfile_printf(&csv, "method,param,value,mean_ms,median_ms,p95_ms,mean_triangles,"
+                                "mean_queries,missed_pixels_total,mean_overdraw_triangles\n");
     for (uint32_t k = 0; k < count && !rc; k++) {
         char dir[1100];
         snprintf(dir, sizeof(dir), "%s/sweep-%s-%g", run->out, sweep_names[param], values[k]);
@@ -254,23 +291,25 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
         }
         rc = tw_run_execute(&r, ctx, err, err_size);
         tw_tileset_destroy(own);
+        memcpy(figures[k], r.figures, sizeof(figures[k]));
         for (uint32_t m = 0; m < r.method_count && !rc; m++) {
             const struct tw_method_figures *fg = &r.figures[r.methods[m]];
-            fprintf(csv, "%s,%s,%g,%.3f,%.3f,%.3f,%.1f,%.2f,%llu,%.1f\n",
-                    tw_method_name(r.methods[m]), sweep_names[param], values[k], fg->mean_ms,
-                    fg->median_ms, fg->p95_ms, fg->mean_triangles, fg->mean_queries,
-                    (unsigned long long)fg->missed_pixels_total, fg->mean_overdraw_triangles);
+            tw_outfile_printf(&csv, "%s,%s,%g,%.3f,%.3f,%.3f,%.1f,%.2f,%llu,%.1f\n",
+                              tw_method_name(r.methods[m]), sweep_names[param], values[k],
+                              fg->mean_ms, fg->median_ms, fg->p95_ms, fg->mean_triangles,
+                              fg->mean_queries, (unsigned long long)fg->missed_pixels_total,
+                              fg->mean_overdraw_triangles);
         }
     }
-    if (fclose(csv) != 0 && !rc) {
-        snprintf(err, err_size, "%s: write error", file);
-        rc = TW_ERR_IO;
-    }
+    if (!rc)
+        rc = tw_outfile_commit(&csv, err, err_size);
+    tw_outfile_discard(&csv);
     if (!rc && run->bench) {
-        char why[512];
-        if (tw_charts_write(run->out, why, sizeof(why)) != TW_OK)
-            fprintf(stderr, "tileworld: warning: no charts: %s\n", why);
+        const struct tw_chart_sweep sweep = {sweep_names[param], count, values,
+                                             (const struct tw_method_figures(*)[TW_METHOD_COUNT])figures};
+        rc = draw_charts(run, &sweep, err, err_size);
     }
+    free(figures);
     return rc;
 }
 
@@ -558,10 +597,13 @@ int tw_run_scenarios(struct tw_run *run, struct tw_context *ctx, const char *nam
                  "inside-building, inside-common-box, grazing, far-origin, no-occluders)", name);
         return TW_ERR_INVALID;
     }
+    rc = tw_outputs_remove_stale(run->out, err, err_size);
+    if (rc)
+        return rc;
     const int e = tw_report_make_dirs(run->out);
     if (e) {
         snprintf(err, err_size, "%s: cannot create the output folder: %s", run->out, strerror(e));
-        return TW_ERR_IO;
+        return TW_ERR_INVALID;
     }
     for (const char *const *n = tw_scenario_names; *n && !rc; n++) {
         if (strcmp(name, "all") != 0 && strcmp(name, *n) != 0)
@@ -574,41 +616,42 @@ int tw_run_scenarios(struct tw_run *run, struct tw_context *ctx, const char *nam
         return rc;
     char file[1100];
     snprintf(file, sizeof(file), "%s/scenarios.md", run->out);
-    FILE *f = fopen(file, "w");
-    if (!f) {
-        snprintf(err, err_size, "%s: cannot write: %s", file, strerror(errno));
-        return TW_ERR_IO;
-    }
+    struct tw_outfile f;
+    rc = tw_outfile_open(&f, file, err, err_size);
+    if (rc)
+        return rc;
     *all_held = true;
-    fprintf(f, "# tileworld stability scenarios: %s, %ux%u, seed %llu\n\n", run->tileset_name,
-            run->world.width, run->world.height, (unsigned long long)run->world.selection.seed);
-    fprintf(f, "Every conservative method runs under --verify (the oracle's ID pass) on each "
-               "scenario; folders scenario-NAME/ hold the frames, summaries and charts.\n\n");
-    fprintf(f, "| scenario | what breaks | what must hold | figure | held |\n|---|---|---|---|---|\n");
+    tw_outfile_printf(&f, "# tileworld stability scenarios: %s, %ux%u, seed %llu\n\n",
+                      run->tileset_name, run->world.width, run->world.height,
+                      (unsigned long long)run->world.selection.seed);
+    tw_outfile_printf(&f, "Every conservative method runs under --verify (the oracle's ID pass) on "
+                          "each scenario; folders scenario-NAME/ hold the frames, summaries and "
+                          "charts.\n\n");
+    tw_outfile_printf(&f, "| scenario | what breaks | what must hold | figure | held |\n"
+                          "|---|---|---|---|---|\n");
     for (uint32_t k = 0; k < count; k++)
         for (uint32_t c = 0; c < results[k].check_count; c++) {
             const struct check *ch = &results[k].checks[c];
-            fprintf(f, "| %s | %s | %s | %s | %s |\n", results[k].name, results[k].breaks, ch->what,
-                    ch->figure, ch->held ? "yes" : "**no**");
+            tw_outfile_printf(&f, "| %s | %s | %s | %s | %s |\n", results[k].name, results[k].breaks,
+                              ch->what, ch->figure, ch->held ? "yes" : "**no**");
             *all_held &= ch->held;
         }
-    fprintf(f, "\n## Frame time per method (ms; ratios within one scenario only)\n\n"
-               "| scenario | method | mean | median | p99 | max | triangles | tiles/frame | missed pixels |\n"
-               "|---|---|---|---|---|---|---|---|---|\n");
+    tw_outfile_printf(&f, "\n## Frame time per method (ms; ratios within one scenario only)\n\n"
+                          "| scenario | method | mean | median | p99 | max | triangles | tiles/frame "
+                          "| missed pixels |\n|---|---|---|---|---|---|---|---|---|\n");
     for (uint32_t k = 0; k < count; k++)
         for (int m = 0; m < TW_METHOD_COUNT; m++) {
             const struct tw_method_figures *fg = &results[k].figures[m];
             if (!fg->used)
                 continue;
-            fprintf(f, "| %s | %s | %.2f | %.2f | %.2f | %.2f | %.0f | %.1f | %llu |\n",
-                    results[k].name, tw_method_name((enum tw_method)m), fg->mean_ms, fg->median_ms,
-                    fg->p99_ms, fg->max_ms, fg->mean_triangles, fg->mean_tiles_visible,
-                    (unsigned long long)fg->missed_pixels_total);
+            tw_outfile_printf(&f, "| %s | %s | %.2f | %.2f | %.2f | %.2f | %.0f | %.1f | %llu |\n",
+                              results[k].name, tw_method_name((enum tw_method)m), fg->mean_ms,
+                              fg->median_ms, fg->p99_ms, fg->max_ms, fg->mean_triangles,
+                              fg->mean_tiles_visible, (unsigned long long)fg->missed_pixels_total);
         }
-    if (fclose(f) != 0) {
-        snprintf(err, err_size, "%s: write error", file);
-        return TW_ERR_IO;
-    }
+    rc = tw_outfile_commit(&f, err, err_size);
+    if (rc)
+        return rc;
     json_object *root = json_object_new_object();
     json_object *list = json_object_new_array();
     for (uint32_t k = 0; k < count; k++) {
@@ -629,11 +672,7 @@ int tw_run_scenarios(struct tw_run *run, struct tw_context *ctx, const char *nam
     json_object_object_add(root, "scenarios", list);
     json_object_object_add(root, "all_held", json_object_new_boolean(*all_held));
     snprintf(file, sizeof(file), "%s/scenarios.json", run->out);
-    const int bad = json_object_to_file_ext(file, root, JSON_C_TO_STRING_PRETTY);
+    rc = tw_report_write_json(file, root, JSON_C_TO_STRING_PRETTY, err, err_size);
     json_object_put(root);
-    if (bad) {
-        snprintf(err, err_size, "%s: cannot write", file);
-        return TW_ERR_IO;
-    }
-    return TW_OK;
+    return rc;
 }

@@ -1,11 +1,16 @@
 /*
  * Runs of the tileworld command: one walk or bench over a path with one or
  * several methods (alternating frame by frame), parameter sweeps, and the
- * stability scenarios of DESIGN.md §11. Private to runtime/ (used by
- * tileworld.c).
+ * stability scenarios of DESIGN.md §11.
+ *
+ * Every run first removes what an earlier run left in its folder
+ * (outputs.h), then writes each file whole or not at all (outfile.h): a
+ * failed run leaves the complete files it wrote before the failure (frame
+ * PNGs) and none of the summaries; a killed one, at most hidden .NAME.tmp
+ * files besides.
  */
-#ifndef TW_RUNTIME_BENCH_H
-#define TW_RUNTIME_BENCH_H
+#ifndef TW_TOOLS_BENCH_H
+#define TW_TOOLS_BENCH_H
 
 #include "tools/tileworld/report.h"
 #include "tileworld/context.h"
@@ -26,6 +31,7 @@ struct tw_run {
     const char *out;                    /* output folder */
     uint32_t png_every;
     bool bench;                         /* summary.md, PNG names with the method, charts */
+    bool defer_charts;                  /* a bench whose caller draws the charts (a sweep) */
     bool quiet;
     tw_run_frame_fn on_frame;
     void *on_frame_user;
@@ -36,7 +42,9 @@ struct tw_run {
 /* Runs every frame of run->path with every method, writing frames.csv,
  * summary.json (and summary.md and charts for a bench) into run->out. The
  * context must be current and as large as run->world's size. On failure
- * returns a negative code with a one-line reason in err. */
+ * returns a negative code with a one-line reason in err: TW_ERR_INVALID
+ * when the output folder cannot be made, TW_ERR_IO when a file cannot be
+ * written. */
 int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t err_size);
 
 /* Makes a tileset again with another cluster size (for sweeps); returns a

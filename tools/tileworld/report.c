@@ -1,10 +1,9 @@
-/* frames.csv, summary.json, summary.md and PNG snapshots (report.h). */
+/* frames.csv, the per-method chart data, summary.json and summary.md (report.h). */
 #include "tools/tileworld/report.h"
 
 #include <errno.h>
 #include <json-c/json.h>
 #include <math.h>
-#include <png.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -38,7 +37,24 @@ static const char *const csv_header =
     "tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,"
     "missed_clusters,overdraw_triangles\n";
 
-int tw_report_open(struct tw_report *r, const char *dir, char *err, size_t err_size)
+/* A row of frames.csv as the row of a gnuplot data file: blank-separated,
+ * without the method (its file says it). */
+static void csv_to_data(const char *csv, char *out, size_t size)
+{
+    size_t n = 0;
+    int field = 0;
+    for (const char *c = csv; *c && n + 1 < size; c++) {
+        if (*c == ',')
+            field++;
+        if (field == 1)
+            continue;
+        out[n++] = *c == ',' ? ' ' : *c;
+    }
+    out[n] = '\0';
+}
+
+int tw_report_open(struct tw_report *r, const char *dir, bool chart_data, char *err,
+                   size_t err_size)
 {
     struct tw_report keep = *r;
     memset(r, 0, sizeof(*r));
@@ -47,39 +63,80 @@ int tw_report_open(struct tw_report *r, const char *dir, char *err, size_t err_s
     r->width = keep.width;
     r->height = keep.height;
     r->seed = keep.seed;
+    r->chart_data = chart_data;
     int e = tw_report_make_dirs(dir);
     if (e) {
         snprintf(err, err_size, "%s: cannot create the output folder: %s", dir, strerror(e));
-        return TW_ERR_IO;
+        return TW_ERR_INVALID;
     }
     snprintf(r->dir, sizeof(r->dir), "%s", dir);
     char file[1100];
-    snprintf(file, sizeof(file), "%s/frames.csv", dir);
-    r->frames_csv = fopen(file, "w");
-    if (!r->frames_csv) {
-        snprintf(err, err_size, "%s: cannot write: %s", file, strerror(errno));
-        return TW_ERR_IO;
+    if (chart_data) {
+        snprintf(file, sizeof(file), "%s/" TW_REPORT_CHART_DATA, dir);
+        if (mkdir(file, 0777) != 0 && errno != EEXIST) {
+            snprintf(err, err_size, "%s: cannot create: %s", file, strerror(errno));
+            return TW_ERR_IO;
+        }
     }
-    fputs(csv_header, r->frames_csv);
+    snprintf(file, sizeof(file), "%s/frames.csv", dir);
+    int rc = tw_outfile_open(&r->frames_csv, file, err, err_size);
+    if (rc)
+        return rc;
+    r->open = true;
+    if (!tw_outfile_printf(&r->frames_csv, "%s", csv_header))
+        return tw_outfile_report(&r->frames_csv, err, err_size);
     return TW_OK;
 }
 
-int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st)
+/* The chart data file of a method, opened with its header on first use. */
+static struct tw_outfile *chart_frames(struct tw_report *r, enum tw_method m, char *err,
+                                       size_t err_size)
 {
-    fprintf(r->frames_csv,
-            "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu\n",
-            (unsigned long long)st->frame, tw_method_name(st->method), st->ms_frame, st->ms_cull,
-            st->ms_wait, (unsigned long long)st->triangles, st->clusters, st->draws, st->queries,
-            st->tiles_queried, st->tiles_visible, st->tiles_new, st->tiles_cached,
-            (unsigned long long)st->cache_bytes, st->predict_fail,
-            (unsigned long long)st->missed_pixels, st->missed_clusters,
-            (unsigned long long)st->overdraw_triangles);
+    struct tw_outfile *o = &r->chart_frames[m];
+    if (o->f)
+        return o;
+    char file[1100], header[512];
+    snprintf(file, sizeof(file), "%s/" TW_REPORT_CHART_DATA "/frames-%s.dat", r->dir,
+             tw_method_name(m));
+    if (tw_outfile_open(o, file, err, err_size))
+        return NULL;
+    csv_to_data(csv_header, header, sizeof(header));
+    tw_outfile_printf(o, "# %s: one row per frame, columns as in frames.csv\n%s",
+                      tw_method_name(m), header);
+    return o;
+}
+
+int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st, char *err,
+                  size_t err_size)
+{
+    char row[512];
+    snprintf(row, sizeof(row),
+             "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu\n",
+             (unsigned long long)st->frame, tw_method_name(st->method), st->ms_frame, st->ms_cull,
+             st->ms_wait, (unsigned long long)st->triangles, st->clusters, st->draws, st->queries,
+             st->tiles_queried, st->tiles_visible, st->tiles_new, st->tiles_cached,
+             (unsigned long long)st->cache_bytes, st->predict_fail,
+             (unsigned long long)st->missed_pixels, st->missed_clusters,
+             (unsigned long long)st->overdraw_triangles);
+    if (!tw_outfile_printf(&r->frames_csv, "%s", row))
+        return tw_outfile_report(&r->frames_csv, err, err_size);
+    if (r->chart_data) {
+        struct tw_outfile *o = chart_frames(r, st->method, err, err_size);
+        if (!o)
+            return TW_ERR_IO;
+        char data[512];
+        csv_to_data(row, data, sizeof(data));
+        if (!tw_outfile_printf(o, "%s", data))
+            return tw_outfile_report(o, err, err_size);
+    }
     struct tw_method_summary *m = &r->methods[st->method];
     if (m->frames == m->cap) {
         uint32_t cap = m->cap ? m->cap * 2 : 256;
         double *ms = realloc(m->ms, sizeof(*ms) * cap);
-        if (!ms)
+        if (!ms) {
+            snprintf(err, err_size, "out of memory");
             return TW_ERR_NOMEM;
+        }
         m->ms = ms;
         m->cap = cap;
     }
@@ -102,6 +159,17 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st)
     if (st->ms_frame > m->ms_max)
         m->ms_max = st->ms_frame;
     return TW_OK;
+}
+
+int tw_report_write_json(const char *file, struct json_object *root, int flags, char *err,
+                         size_t err_size)
+{
+    const char *text = json_object_to_json_string_ext(root, flags);
+    if (!text) {
+        snprintf(err, err_size, "%s: out of memory", file);
+        return TW_ERR_NOMEM;
+    }
+    return tw_outfile_write_all(file, text, strlen(text), err, err_size);
 }
 
 static int compare_double(const void *a, const void *b)
@@ -152,12 +220,14 @@ static json_object *number(double v, int decimals)
 int tw_report_close(struct tw_report *r, bool markdown,
                     struct tw_method_figures figures[TW_METHOD_COUNT], char *err, size_t err_size)
 {
-    int rc = TW_OK;
-    if (r->frames_csv && fclose(r->frames_csv) != 0) {
-        snprintf(err, err_size, "%s/frames.csv: write error", r->dir);
-        rc = TW_ERR_IO;
+    int rc = tw_outfile_commit(&r->frames_csv, err, err_size);
+    for (int k = 0; k < TW_METHOD_COUNT && !rc; k++)
+        if (r->chart_frames[k].f)
+            rc = tw_outfile_commit(&r->chart_frames[k], err, err_size);
+    if (rc) {
+        tw_report_abort(r);
+        return rc;
     }
-    r->frames_csv = NULL;
 
     struct row rows[TW_METHOD_COUNT];
     int nrows = 0;
@@ -228,30 +298,26 @@ int tw_report_close(struct tw_report *r, bool markdown,
     json_object_object_add(root, "seed", json_object_new_int64((int64_t)r->seed));
     char file[1100];
     snprintf(file, sizeof(file), "%s/summary.json", r->dir);
-    if (json_object_to_file_ext(file, root, JSON_C_TO_STRING_PRETTY | JSON_C_TO_STRING_SPACED) != 0 &&
-        rc == TW_OK) {
-        snprintf(err, err_size, "%s: cannot write: %s", file, json_util_get_last_err());
-        rc = TW_ERR_IO;
-    }
+    rc = tw_report_write_json(file, root, JSON_C_TO_STRING_PRETTY | JSON_C_TO_STRING_SPACED, err,
+                              err_size);
     json_object_put(root);
 
     if (markdown && rc == TW_OK) {
         snprintf(file, sizeof(file), "%s/summary.md", r->dir);
-        FILE *f = fopen(file, "w");
-        if (!f) {
-            snprintf(err, err_size, "%s: cannot write: %s", file, strerror(errno));
-            rc = TW_ERR_IO;
-        } else {
+        struct tw_outfile f;
+        rc = tw_outfile_open(&f, file, err, err_size);
+        if (!rc) {
             const struct row *vfc = NULL, *oracle = NULL;
             for (int k = 0; k < nrows; k++) {
                 if (rows[k].method == TW_METHOD_VFC) vfc = &rows[k];
                 if (rows[k].method == TW_METHOD_ORACLE) oracle = &rows[k];
             }
-            fprintf(f, "# tileworld bench: %s, path %s, %ux%u, seed %llu\n\n", r->tileset, r->path,
-                    r->width, r->height, (unsigned long long)r->seed);
-            fprintf(f, "| method | frames | mean ms | median ms | p95 ms | p99 ms | triangles | "
-                       "queries | missed pixels | time / vfc | triangles / vfc | time / oracle |\n");
-            fprintf(f, "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+            tw_outfile_printf(&f, "# tileworld bench: %s, path %s, %ux%u, seed %llu\n\n", r->tileset,
+                              r->path, r->width, r->height, (unsigned long long)r->seed);
+            tw_outfile_printf(&f, "| method | frames | mean ms | median ms | p95 ms | p99 ms | "
+                                  "triangles | queries | missed pixels | time / vfc | "
+                                  "triangles / vfc | time / oracle |\n");
+            tw_outfile_printf(&f, "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
             for (int k = 0; k < nrows; k++) {
                 const struct row *row = &rows[k];
                 const struct tw_method_summary *m = &r->methods[row->method];
@@ -262,17 +328,15 @@ int tw_report_close(struct tw_report *r, bool markdown,
                     snprintf(tv, sizeof(tv), "%.3f", row->triangles / vfc->triangles);
                 if (oracle && oracle->mean > 0.0)
                     snprintf(ro, sizeof(ro), "%.3f", row->mean / oracle->mean);
-                fprintf(f, "| %s | %u | %.2f | %.2f | %.2f | %.2f | %.0f | %.1f | %llu | %s | %s | %s |\n",
-                        row->name, m->frames, row->mean, row->median, row->p95, row->p99,
-                        row->triangles, row->queries, (unsigned long long)m->missed_pixels_total,
-                        rv, tv, ro);
+                tw_outfile_printf(&f, "| %s | %u | %.2f | %.2f | %.2f | %.2f | %.0f | %.1f | %llu | "
+                                      "%s | %s | %s |\n",
+                                  row->name, m->frames, row->mean, row->median, row->p95, row->p99,
+                                  row->triangles, row->queries,
+                                  (unsigned long long)m->missed_pixels_total, rv, tv, ro);
             }
-            fprintf(f, "\nRatios compare methods measured side by side in this one run; absolute "
-                       "times depend on the machine.\n");
-            if (fclose(f) != 0) {
-                snprintf(err, err_size, "%s: write error", file);
-                rc = TW_ERR_IO;
-            }
+            tw_outfile_printf(&f, "\nRatios compare methods measured side by side in this one run; "
+                                  "absolute times depend on the machine.\n");
+            rc = tw_outfile_commit(&f, err, err_size);
         }
     }
     tw_report_abort(r);
@@ -281,48 +345,11 @@ int tw_report_close(struct tw_report *r, bool markdown,
 
 void tw_report_abort(struct tw_report *r)
 {
-    if (r->frames_csv)
-        fclose(r->frames_csv);
-    r->frames_csv = NULL;
+    tw_outfile_discard(&r->frames_csv);
     for (int k = 0; k < TW_METHOD_COUNT; k++) {
+        tw_outfile_discard(&r->chart_frames[k]);
         free(r->methods[k].ms);
         memset(&r->methods[k], 0, sizeof(r->methods[k]));
     }
-}
-
-int tw_report_write_png(const char *file, const uint8_t *rgb, uint32_t width, uint32_t height,
-                        char *err, size_t err_size)
-{
-    FILE *f = fopen(file, "wb");
-    if (!f) {
-        snprintf(err, err_size, "%s: cannot write: %s", file, strerror(errno));
-        return TW_ERR_IO;
-    }
-    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
-    png_infop info = png ? png_create_info_struct(png) : NULL;
-    if (!png || !info) {
-        png_destroy_write_struct(&png, &info);
-        fclose(f);
-        snprintf(err, err_size, "%s: libpng could not start", file);
-        return TW_ERR_NOMEM;
-    }
-    if (setjmp(png_jmpbuf(png))) {
-        png_destroy_write_struct(&png, &info);
-        fclose(f);
-        snprintf(err, err_size, "%s: libpng failed while writing", file);
-        return TW_ERR_IO;
-    }
-    png_init_io(png, f);
-    png_set_IHDR(png, info, width, height, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
-                 PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-    png_write_info(png, info);
-    for (uint32_t y = 0; y < height; y++)
-        png_write_row(png, (png_const_bytep)(rgb + (size_t)y * width * 3));
-    png_write_end(png, NULL);
-    png_destroy_write_struct(&png, &info);
-    if (fclose(f) != 0) {
-        snprintf(err, err_size, "%s: write error", file);
-        return TW_ERR_IO;
-    }
-    return TW_OK;
+    r->open = false;
 }

@@ -1,14 +1,19 @@
 /*
- * Reports of a walk or a bench run (DESIGN.md §9): frames.csv written as
- * frames come, summary.json and summary.md at the end, PNG snapshots.
- * Private to runtime/ (used by the tileworld command).
+ * Reports of a walk or a bench run (DESIGN.md §9): frames.csv (and, for the
+ * charts of a bench, chart-data/frames-METHOD.dat: the same rows, one file
+ * per method) written as frames come, summary.json and summary.md at the
+ * end. Every file is written whole or not at all (outfile.h).
  */
-#ifndef TW_RUNTIME_REPORT_H
-#define TW_RUNTIME_REPORT_H
+#ifndef TW_TOOLS_REPORT_H
+#define TW_TOOLS_REPORT_H
 
 #include <stdio.h>
 
 #include "tileworld/runtime.h"
+#include "tools/outfile.h"
+
+/* The folder of the chart data, inside a run's folder. */
+#define TW_REPORT_CHART_DATA "chart-data"
 
 /* Per-method accumulation of frame statistics. */
 struct tw_method_summary {
@@ -44,7 +49,10 @@ struct tw_method_figures {
 
 struct tw_report {
     char dir[1024];
-    FILE *frames_csv;
+    bool open;
+    struct tw_outfile frames_csv;
+    bool chart_data;
+    struct tw_outfile chart_frames[TW_METHOD_COUNT];
     struct tw_method_summary methods[TW_METHOD_COUNT];
     /* What the run was, for summary.json. */
     char tileset[256];
@@ -53,25 +61,31 @@ struct tw_report {
     uint64_t seed;
 };
 
-/* Creates dir (and its parents) if needed and opens dir/frames.csv. On
- * failure writes "DIR: reason" into err. */
-int tw_report_open(struct tw_report *r, const char *dir, char *err, size_t err_size);
-/* Appends one frames.csv row and accumulates it. */
-int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st);
-/* Writes summary.json (and summary.md when markdown is true), closes
- * frames.csv and frees everything. figures (may be NULL) receives each
- * method's figures, indexed by method. */
+/* Creates dir (and its parents) if needed and starts dir/frames.csv (and
+ * with chart_data, dir/chart-data/). On failure writes "DIR: reason" into
+ * err: TW_ERR_INVALID when the folder cannot be made, else TW_ERR_IO. */
+int tw_report_open(struct tw_report *r, const char *dir, bool chart_data, char *err,
+                   size_t err_size);
+/* Appends one row and accumulates it; on a failed write returns TW_ERR_IO
+ * with "FILE: cannot write: reason" in err. */
+int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st, char *err,
+                  size_t err_size);
+/* Completes frames.csv (and the chart data), then writes summary.json (and
+ * summary.md when markdown is true) and frees everything. figures (may be
+ * NULL) receives each method's figures, indexed by method. */
 int tw_report_close(struct tw_report *r, bool markdown,
                     struct tw_method_figures figures[TW_METHOD_COUNT], char *err, size_t err_size);
-/* Frees without writing summaries (after a failure). */
+/* Frees and removes the unfinished files, writing no summary (after a
+ * failure). */
 void tw_report_abort(struct tw_report *r);
+
+/* Writes a JSON document (json-c's flags) as file, whole or not at all. */
+struct json_object;
+int tw_report_write_json(const char *file, struct json_object *root, int flags, char *err,
+                         size_t err_size);
 
 /* Creates dir and its parents; returns 0 or an errno value. */
 int tw_report_make_dirs(const char *dir);
-
-/* Writes an RGB8 image (top row first) as PNG. */
-int tw_report_write_png(const char *file, const uint8_t *rgb, uint32_t width, uint32_t height,
-                        char *err, size_t err_size);
 
 /* Percentile p in [0, 100] of n values (sorted in place), nearest rank. */
 double tw_report_percentile(double *values, uint32_t n, double p);

@@ -24,32 +24,16 @@
 static const char program[] = "tileworld";
 
 struct options {
+    struct tw_cli cli;          /* tileset, path, frames, quiet and the world's settings */
     const char *command;
-    const char *tileset;
-    const char *path;
     const char *out;
-    uint64_t seed;
-    uint32_t frames;        /* 0: the path's length */
-    uint32_t width, height;
-    enum tw_method method;
     bool methods_given;
     enum tw_method methods[TW_METHOD_COUNT];
     uint32_t method_count;
-    struct tw_cell start_cell;
-    int64_t repeat;
-    bool verify;
     uint32_t png_every;
-    float view_distance;
     uint32_t cluster_triangles;
-    bool quiet;
     const char *sweep;
     const char *scenario;
-    uint32_t neighbours;
-    uint32_t evict_after;
-    uint32_t chc_batch;
-    uint32_t chc_nav;
-    uint32_t threshold;
-    bool threshold_given;
 };
 
 static const uint32_t default_frames = 300;
@@ -65,6 +49,8 @@ static void usage(FILE *f)
           "                        [--scenario NAME|all]\n"
           "       tileworld info   [--tileset NAME|FILE.json] [--seed N] [--cluster-triangles N]\n"
           "       tileworld import FILE.gltf|FILE.glb\n"
+          "       tileworld view   [options of tileworld view --help]\n"
+          "options take their value as --opt VALUE or --opt=VALUE; numbers are plain decimal digits\n"
           "tilesets: city, forest, hybrid, or a manifest; paths: street, flyover, forest, teleport,\n"
           "spin, or a CSV file; methods: vfc, tilequery, chc, tilequery+chc (default), oracle\n"
           "sweep parameters: n_av, b, T, cluster_triangles, evict_after, view_distance, neighbours\n"
@@ -73,17 +59,37 @@ static void usage(FILE *f)
           f);
 }
 
-/* One line on stderr, then exit: bad input is the user's, so no stack of
- * messages and never a crash. */
-static enum tw_method parse_method(const char *opt, const char *s)
-{
-    enum tw_method m;
-    if (tw_method_from_name(s, &m) != TW_OK)
-        tw_cli_fail(program, opt, "unknown method '%s' (vfc, tilequery, chc, tilequery+chc, oracle)", s);
-    if (!tw_method_available(m))
-        tw_cli_fail(program, opt, "method '%s' is not implemented in this build yet", s);
-    return m;
-}
+enum {
+    OPT_OUT = TW_CLI_OPT_PROGRAM,
+    OPT_VERIFY,
+    OPT_PNG_EVERY,
+    OPT_METHODS,
+    OPT_CLUSTER_TRIANGLES,
+    OPT_SWEEP,
+    OPT_SCENARIO,
+    OPT_NEIGHBOURS,
+    OPT_EVICT_AFTER,
+    OPT_CHC_BATCH,
+    OPT_CHC_NAV,
+    OPT_THRESHOLD,
+};
+
+static const struct option options_table[] = {
+    TW_CLI_COMMON_OPTIONS,
+    {"out", required_argument, NULL, OPT_OUT},
+    {"verify", no_argument, NULL, OPT_VERIFY},
+    {"png-every", required_argument, NULL, OPT_PNG_EVERY},
+    {"methods", required_argument, NULL, OPT_METHODS},
+    {"cluster-triangles", required_argument, NULL, OPT_CLUSTER_TRIANGLES},
+    {"sweep", required_argument, NULL, OPT_SWEEP},
+    {"scenario", required_argument, NULL, OPT_SCENARIO},
+    {"tile-neighbours", required_argument, NULL, OPT_NEIGHBOURS},
+    {"evict-after", required_argument, NULL, OPT_EVICT_AFTER},
+    {"chc-batch", required_argument, NULL, OPT_CHC_BATCH},
+    {"chc-nav", required_argument, NULL, OPT_CHC_NAV},
+    {"threshold", required_argument, NULL, OPT_THRESHOLD},
+    {NULL, 0, NULL, 0},
+};
 
 static void parse_methods(const char *opt, const char *s, struct options *o)
 {
@@ -93,7 +99,7 @@ static void parse_methods(const char *opt, const char *s, struct options *o)
     strcpy(buf, s);
     o->method_count = 0;
     for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
-        enum tw_method m = parse_method(opt, tok);
+        enum tw_method m = tw_cli_method(program, opt, tok);
         for (uint32_t k = 0; k < o->method_count; k++)
             if (o->methods[k] == m)
                 tw_cli_fail(program, opt, "method '%s' is listed twice", tok);
@@ -104,139 +110,82 @@ static void parse_methods(const char *opt, const char *s, struct options *o)
     o->methods_given = true;
 }
 
+static void apply_option(void *user, int opt, const char *name, const char *v)
+{
+    struct options *o = user;
+    struct tw_world_settings *ws = &o->cli.world;
+    switch (opt) {
+    case OPT_OUT:
+        if (*v == '\0')
+            tw_cli_fail(program, name, "the output folder name is empty");
+        o->out = v;
+        break;
+    case OPT_VERIFY: ws->verify = true; break;
+    case OPT_PNG_EVERY: o->png_every = (uint32_t)tw_cli_u64(program, name, v, 0, 10000000); break;
+    case OPT_METHODS: parse_methods(name, v, o); break;
+    case OPT_CLUSTER_TRIANGLES:
+        o->cluster_triangles = (uint32_t)tw_cli_u64(program, name, v, 16, 1000000);
+        break;
+    case OPT_SWEEP: {
+        char why[300];
+        if (tw_run_sweep_check(v, why, sizeof(why)))
+            tw_cli_fail(program, name, "%s", why + strlen("--sweep: "));
+        o->sweep = v;
+        break;
+    }
+    case OPT_SCENARIO: {
+        bool known = strcmp(v, "all") == 0;
+        for (const char *const *n = tw_scenario_names; *n; n++)
+            known |= strcmp(*n, v) == 0;
+        if (!known)
+            tw_cli_fail(program, name, "unknown scenario '%s' (all, teleport, spin, inside-building, "
+                        "inside-common-box, grazing, far-origin, no-occluders)", v);
+        o->scenario = v;
+        break;
+    }
+    case OPT_NEIGHBOURS:
+        ws->tilequery.neighbours = (uint32_t)tw_cli_u64(program, name, v, 4, 8);
+        if (ws->tilequery.neighbours != 4 && ws->tilequery.neighbours != 8)
+            tw_cli_fail(program, name, "'%s' is neither 4 nor 8", v);
+        break;
+    case OPT_EVICT_AFTER:
+        ws->evict_after_frames = (uint32_t)tw_cli_u64(program, name, v, 1, 1000000);
+        break;
+    case OPT_CHC_BATCH: ws->chc.batch_size = (uint32_t)tw_cli_u64(program, name, v, 1, 100000); break;
+    case OPT_CHC_NAV: ws->chc.assumed_visible = (uint32_t)tw_cli_u64(program, name, v, 1, 1000); break;
+    case OPT_THRESHOLD:
+        ws->chc.threshold = (uint32_t)tw_cli_u64(program, name, v, 0, 1000000);
+        ws->tilequery.threshold = ws->chc.threshold;
+        break;
+    default:
+        tw_cli_fail(program, name, "unknown option '%s' (see tileworld --help)", name);
+    }
+}
+
 static void parse_options(int argc, char **argv, struct options *o)
 {
     memset(o, 0, sizeof(*o));
-    o->tileset = "city";
-    o->path = "street";
+    tw_cli_init(&o->cli, program);
+    o->cli.world.width = 640;
+    o->cli.world.height = 360;
     o->out = "out";
-    o->seed = 1;
-    o->width = 640;
-    o->height = 360;
-    o->method = TW_METHOD_TILEQUERY_CHC;
     o->png_every = 50;
-    o->view_distance = 600.0f;
-    o->command = argv[1];
-    for (int k = 2; k < argc; k++) {
-        const char *a = argv[k];
-        const char *v = k + 1 < argc ? argv[k + 1] : NULL;
-        bool takes = true;
-        if (strcmp(a, "--verify") == 0) {
-            o->verify = true;
-            takes = false;
-        } else if (strcmp(a, "--quiet") == 0) {
-            o->quiet = true;
-            takes = false;
-        } else if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
-            usage(stdout);
-            exit(0);
-        } else if (strncmp(a, "--", 2) != 0) {
-            tw_cli_fail(program, a, "unexpected argument '%s'", a);
-        } else if (!v) {
-            tw_cli_fail(program, a, "%s needs a value", a);
-        } else if (strcmp(a, "--tileset") == 0) {
-            o->tileset = v;
-        } else if (strcmp(a, "--seed") == 0) {
-            o->seed = tw_cli_u64(program, a, v, 0, UINT64_MAX);
-        } else if (strcmp(a, "--path") == 0) {
-            o->path = v;
-        } else if (strcmp(a, "--frames") == 0) {
-            o->frames = (uint32_t)tw_cli_u64(program, a, v, 1, 10000000);
-        } else if (strcmp(a, "--method") == 0) {
-            o->method = parse_method(a, v);
-        } else if (strcmp(a, "--methods") == 0) {
-            parse_methods(a, v, o);
-        } else if (strcmp(a, "--size") == 0) {
-            tw_cli_size(program, a, v, &o->width, &o->height);
-        } else if (strcmp(a, "--start-cell") == 0) {
-            tw_cli_cell(program, a, v, &o->start_cell);
-        } else if (strcmp(a, "--repeat") == 0) {
-            o->repeat = (int64_t)tw_cli_u64(program, a, v, 1, (uint64_t)1 << 62);
-        } else if (strcmp(a, "--png-every") == 0) {
-            o->png_every = (uint32_t)tw_cli_u64(program, a, v, 0, 10000000);
-        } else if (strcmp(a, "--view-distance") == 0) {
-            o->view_distance = tw_cli_float(program, a, v, 1.0f, 100000.0f);
-        } else if (strcmp(a, "--cluster-triangles") == 0) {
-            o->cluster_triangles = (uint32_t)tw_cli_u64(program, a, v, 16, 1000000);
-        } else if (strcmp(a, "--sweep") == 0) {
-            char why[300];
-            if (tw_run_sweep_check(v, why, sizeof(why)))
-                tw_cli_fail(program, a, "%s", why + strlen("--sweep: "));
-            o->sweep = v;
-        } else if (strcmp(a, "--scenario") == 0) {
-            bool known = strcmp(v, "all") == 0;
-            for (const char *const *n = tw_scenario_names; *n; n++)
-                known |= strcmp(*n, v) == 0;
-            if (!known)
-                tw_cli_fail(program, a, "unknown scenario '%s' (all, teleport, spin, inside-building, "
-                              "inside-common-box, grazing, far-origin, no-occluders)", v);
-            o->scenario = v;
-        } else if (strcmp(a, "--tile-neighbours") == 0) {
-            o->neighbours = (uint32_t)tw_cli_u64(program, a, v, 4, 8);
-            if (o->neighbours != 4 && o->neighbours != 8)
-                tw_cli_fail(program, a, "'%s' is neither 4 nor 8", v);
-        } else if (strcmp(a, "--evict-after") == 0) {
-            o->evict_after = (uint32_t)tw_cli_u64(program, a, v, 1, 1000000);
-        } else if (strcmp(a, "--chc-batch") == 0) {
-            o->chc_batch = (uint32_t)tw_cli_u64(program, a, v, 1, 100000);
-        } else if (strcmp(a, "--chc-nav") == 0) {
-            o->chc_nav = (uint32_t)tw_cli_u64(program, a, v, 1, 1000);
-        } else if (strcmp(a, "--threshold") == 0) {
-            o->threshold = (uint32_t)tw_cli_u64(program, a, v, 0, 1000000);
-            o->threshold_given = true;
-        } else if (strcmp(a, "--out") == 0) {
-            if (*v == '\0')
-                tw_cli_fail(program, a, "%sthe output folder name is empty", "");
-            o->out = v;
-        } else {
-            tw_cli_fail(program, a, "unknown option '%s' (see tileworld --help)", a);
-        }
-        if (takes)
-            k++;
-    }
-}
-
-static void log_to_stderr(void *user, enum tw_log_level level, const char *msg)
-{
-    (void)user;
-    if (level <= TW_LOG_WARN)
-        fprintf(stderr, "tileworld: %s\n", msg);
-}
-
-static struct tw_tileset *load_tileset(const struct options *o, const struct tw_log *log)
-{
-    for (const char *const *n = tw_tilesets_builtin_names; *n; n++) {
-        if (strcmp(*n, o->tileset) == 0) {
-            struct tw_tileset *ts = NULL;
-            int err = tw_tilesets_builtin(o->tileset, o->seed, o->cluster_triangles, log, &ts);
-            if (err) {
-                fprintf(stderr, "tileworld: --tileset %s: generation failed: %s\n", o->tileset,
-                        tw_error_to_str(err));
-                exit(1);
-            }
-            return ts;
-        }
-    }
-    if (access(o->tileset, F_OK) != 0)
-        tw_cli_fail(program, "--tileset", "unknown tileset '%s' (built-in: city, forest, hybrid; or a "
-                                "manifest file)", o->tileset);
-    /* A manifest: its loader logs one line naming the file, the place and the reason. */
-    const struct tw_manifest_settings ms = {.max_cluster_triangles = o->cluster_triangles};
-    struct tw_tileset *ts = NULL;
-    const int err = tw_tilesets_load_manifest_ex(o->tileset, &ms, log, &ts);
-    if (err)
-        exit(err == TW_ERR_NOMEM ? 1 : EXIT_USAGE);
-    return ts;
+    o->command = argv[0];
+    tw_cli_parse(&o->cli, argc, argv, options_table, apply_option, o, usage);
+    if (!o->cli.path)
+        o->cli.path = "street";
 }
 
 /* tileworld import FILE: validate one glTF file and summarise it. */
 static int import(int argc, char **argv)
 {
     if (argc != 3 || argv[2][0] == '-') {
-        fprintf(stderr, "tileworld: import: expected one file: tileworld import FILE.gltf|FILE.glb\n");
+        tw_cli_message(program, "import: expected one file: tileworld import FILE.gltf|FILE.glb");
         return EXIT_USAGE;
     }
-    const struct tw_log log = {log_to_stderr, NULL};
+    struct tw_cli cli;
+    tw_cli_init(&cli, program);
+    const struct tw_log log = {tw_cli_log, &cli};
     struct tw_gltf_scene *scene = NULL;
     const int err = tw_gltf_import(argv[2], NULL, &log, &scene);
     if (err)
@@ -244,37 +193,6 @@ static int import(int argc, char **argv)
     tw_gltf_print_summary(scene, stdout);
     tw_gltf_scene_destroy(scene);
     return 0;
-}
-
-static void load_path(const struct options *o, const struct tw_tileset *ts, struct tw_path *p)
-{
-    const float w = ts->footprint[0], d = ts->footprint[1];
-    int err;
-    for (const char *const *n = tw_path_builtin_names; *n; n++) {
-        if (strcmp(*n, o->path) == 0) {
-            err = tw_path_builtin(o->path, o->seed, o->frames ? o->frames : default_frames, w, d, p);
-            if (err) {
-                fprintf(stderr, "tileworld: --path %s: %s\n", o->path, tw_error_to_str(err));
-                exit(1);
-            }
-            goto translate;
-        }
-    }
-    char msg[1400];
-    err = tw_path_load_csv(o->path, o->frames, w, d, p, msg, sizeof(msg));
-    if (err) {
-        if (err == TW_ERR_IO && access(o->path, F_OK) != 0 && !strchr(o->path, '/') &&
-            !strstr(o->path, ".csv"))
-            tw_cli_fail(program, "--path", "unknown path '%s' (built-in: street, flyover; or a CSV file)",
-                       o->path);
-        fprintf(stderr, "tileworld: %s\n", msg);
-        exit(EXIT_USAGE);
-    }
-translate:
-    if (tw_path_translate(p, o->start_cell.i, o->start_cell.j)) {
-        fprintf(stderr, "tileworld: --start-cell: the translated path overflows the grid\n");
-        exit(EXIT_USAGE);
-    }
 }
 
 struct maker {
@@ -288,7 +206,8 @@ static struct tw_tileset *remake_tileset(void *user, uint32_t cluster_triangles,
 {
     const struct maker *mk = user;
     struct tw_tileset *ts = NULL;
-    const int rc = tw_tilesets_builtin(mk->o->tileset, mk->o->seed, cluster_triangles, mk->log, &ts);
+    const int rc = tw_tilesets_builtin(mk->o->cli.tileset, mk->o->cli.world.selection.seed,
+                                       cluster_triangles, mk->log, &ts);
     if (rc)
         snprintf(err, err_size, "--sweep: cluster_triangles needs a built-in tileset (%s)",
                  tw_error_to_str(rc));
@@ -297,23 +216,26 @@ static struct tw_tileset *remake_tileset(void *user, uint32_t cluster_triangles,
 
 static int run(const struct options *o, bool bench)
 {
-    const struct tw_log log = {log_to_stderr, NULL};
-    struct tw_tileset *ts = load_tileset(o, &log);
+    const struct tw_log log = {tw_cli_log, (void *)&o->cli};
+    struct tw_tileset *ts = tw_cli_load_tileset(&o->cli, o->cluster_triangles, &log);
     struct tw_path path = {0};
     if (!o->scenario)
-        load_path(o, ts, &path);
+        tw_cli_load_path(&o->cli, o->cli.path, o->cli.frames ? o->cli.frames : default_frames, ts,
+                         &path);
 
     struct tw_run r = {0};
     r.tileset = ts;
-    r.tileset_name = o->tileset;
+    r.tileset_name = o->cli.tileset;
     r.path = &path;
-    r.path_name = o->path;
+    r.path_name = o->cli.path;
     r.out = o->out;
     r.png_every = o->png_every;
     r.bench = bench;
-    r.quiet = o->quiet;
+    r.quiet = o->cli.quiet;
+    r.world = o->cli.world;
+    r.world.log = log;
     if (!bench) {
-        r.methods[0] = o->method;
+        r.methods[0] = o->cli.world.method;
         r.method_count = 1;
     } else if (o->methods_given) {
         memcpy(r.methods, o->methods, sizeof(r.methods));
@@ -322,38 +244,22 @@ static int run(const struct options *o, bool bench)
         for (int m = TW_METHOD_FIRST; m < TW_METHOD_COUNT; m++)
             r.methods[r.method_count++] = (enum tw_method)m;
     }
-    struct tw_world_settings *ws = &r.world;
-    ws->selection.seed = o->seed;
-    ws->selection.repeat = o->repeat;
-    ws->width = o->width;
-    ws->height = o->height;
-    ws->view_distance = o->view_distance;
-    ws->verify = o->verify;
-    ws->log = log;
-    ws->tilequery.neighbours = o->neighbours;
-    ws->evict_after_frames = o->evict_after;
-    ws->chc.batch_size = o->chc_batch;
-    ws->chc.assumed_visible = o->chc_nav;
-    if (o->threshold_given) {
-        ws->chc.threshold = o->threshold;
-        ws->tilequery.threshold = o->threshold;
-    }
 
     int rc = 1;
     char msg[1400];
     struct tw_context *ctx = NULL;
-    int err = tw_context_create_headless(o->width, o->height, &log, &ctx);
+    int err = tw_context_create_headless(r.world.width, r.world.height, &log, &ctx);
     if (err) {
-        fprintf(stderr, "tileworld: cannot create the headless OpenGL context: %s\n",
-                tw_error_to_str(err));
+        tw_cli_message(program, "cannot create the headless OpenGL context: %s",
+                       tw_error_to_str(err));
         goto out;
     }
     if (o->scenario) {
         bool held = false;
         err = tw_run_scenarios(&r, ctx, o->scenario, &held, msg, sizeof(msg));
-        if (!err && !o->quiet)
-            fprintf(stderr, "tileworld: wrote %s/scenarios.md: %s\n", o->out,
-                    held ? "everything that must hold held" : "SOME CHECKS DID NOT HOLD");
+        if (!err && !o->cli.quiet)
+            tw_cli_message(program, "wrote %s/scenarios.md: %s", o->out,
+                           held ? "everything that must hold held" : "SOME CHECKS DID NOT HOLD");
         if (!err && !held)
             rc = 3;
     } else if (o->sweep) {
@@ -363,14 +269,17 @@ static int run(const struct options *o, bool bench)
         err = tw_run_execute(&r, ctx, msg, sizeof(msg));
     }
     if (err) {
-        fprintf(stderr, "tileworld: %s\n", msg);
-        rc = err == TW_ERR_IO ? EXIT_USAGE : 1;
+        /* Bad input found on the way (an output folder that cannot be
+         * made, a sweep the tileset cannot do) is the user's; a failed
+         * write or frame is not. */
+        tw_cli_message(program, "%s", msg);
+        rc = err == TW_ERR_INVALID ? EXIT_USAGE : 1;
         goto out;
     }
     if (rc == 3)
         goto out;
-    if (!o->quiet && !o->scenario)
-        fprintf(stderr, "tileworld: wrote %s/frames.csv and %s/summary.json\n", o->out, o->out);
+    if (!o->cli.quiet && !o->scenario)
+        tw_cli_message(program, "wrote %s/frames.csv and %s/summary.json", o->out, o->out);
     rc = 0;
 out:
     tw_context_destroy(ctx);
@@ -381,8 +290,8 @@ out:
 
 static int info(const struct options *o)
 {
-    const struct tw_log log = {log_to_stderr, NULL};
-    struct tw_tileset *ts = load_tileset(o, &log);
+    const struct tw_log log = {tw_cli_log, (void *)&o->cli};
+    struct tw_tileset *ts = tw_cli_load_tileset(&o->cli, o->cluster_triangles, &log);
     struct tw_bvh_builder *b = NULL;
     int err = tw_bvh_builder_create(&log, &b);
     if (err) {
@@ -445,7 +354,7 @@ int main(int argc, char **argv)
     struct options o;
     if (strcmp(argv[1], "walk") == 0 || strcmp(argv[1], "bench") == 0 ||
         strcmp(argv[1], "info") == 0) {
-        parse_options(argc, argv, &o);
+        parse_options(argc - 1, argv + 1, &o);
     } else if (strcmp(argv[1], "import") == 0) {
         return import(argc, argv);
     } else if (strcmp(argv[1], "view") == 0) {
@@ -465,22 +374,21 @@ int main(int argc, char **argv)
         }
         argv[1] = viewer;
         execv(viewer, argv + 1);
-        fprintf(stderr, "tileworld: view: cannot run %s: %s\n", viewer, strerror(errno));
+        tw_cli_message(program, "view: cannot run %s: %s", viewer, strerror(errno));
         return 1;
     } else {
-        fprintf(stderr, "tileworld: unknown command '%s' (walk, bench, info, view, import)\n",
-                argv[1]);
+        tw_cli_message(program, "unknown command '%s' (walk, bench, info, view, import)", argv[1]);
         return EXIT_USAGE;
     }
     if (strcmp(o.command, "info") == 0)
         return info(&o);
     if (strcmp(o.command, "walk") == 0) {
         if (o.methods_given)
-            tw_cli_fail(program, "--methods", "%s belongs to bench; walk takes --method", "--methods");
+            tw_cli_fail(program, "--methods", "--methods belongs to bench; walk takes --method");
         if (o.sweep)
-            tw_cli_fail(program, "--sweep", "%s belongs to bench", "--sweep");
+            tw_cli_fail(program, "--sweep", "--sweep belongs to bench");
         if (o.scenario)
-            tw_cli_fail(program, "--scenario", "%s belongs to bench", "--scenario");
+            tw_cli_fail(program, "--scenario", "--scenario belongs to bench");
     }
     return run(&o, strcmp(o.command, "bench") == 0);
 }

@@ -12,6 +12,8 @@
  */
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
+#include <GL/glcorearb.h>
+#include <stb/stb_easy_font.h>
 
 #include <errno.h>
 #include <math.h>
@@ -22,8 +24,7 @@
 #include <unistd.h>
 
 #include "tools/cli.h"
-#include "runtime/gl.h"
-#include "tools/tileworld/report.h"
+#include "tools/outfile.h"
 #include "tileworld/runtime.h"
 #include "tileworld/tilesets.h"
 
@@ -36,20 +37,12 @@ static const float pi_f = 3.14159265358979f;
 /* ---- options -------------------------------------------------------------------- */
 
 struct options {
-    const char *tileset;
-    const char *path;           /* NULL: keyboard and mouse */
+    struct tw_cli cli;          /* tileset, path (NULL: keyboard and mouse), frames (0: until
+                                 * the window closes or the path ends), quiet, world settings */
     const char *screenshot;
-    uint64_t seed;
-    uint32_t frames;            /* 0: until the window closes (or the path ends) */
-    uint32_t width, height;
-    enum tw_method method;
-    struct tw_cell start_cell;
-    int64_t repeat;
-    float view_distance;
     unsigned debug;
     uint32_t freeze_at;         /* 0: never */
     bool no_overlay;
-    bool quiet;
 };
 
 static void usage(FILE *f)
@@ -59,6 +52,7 @@ static void usage(FILE *f)
           "                      [--debug cells,nodes,queries|all] [--no-overlay]\n"
           "                      [--path NAME|FILE.csv] [--frames N] [--screenshot FILE.png]\n"
           "                      [--freeze-at N] [--quiet]\n"
+          "options take their value as --opt VALUE or --opt=VALUE; numbers are plain decimal digits\n"
           "keys: mouse drag or Tab (captured mouse) to look; W A S D to fly, Q/E down/up, Shift\n"
           "fast, wheel changes speed; 1-5 method (vfc, tilequery, chc, tilequery+chc, oracle);\n"
           "C cells, B BVH nodes, X query boxes; F freeze the culled set; P screenshot;\n"
@@ -70,7 +64,8 @@ static unsigned parse_debug(const char *opt, const char *s)
 {
     char buf[128];
     if (!s || *s == '\0' || strlen(s) >= sizeof(buf))
-        tw_cli_fail(program, opt, "'%s' is not a list of debug views (cells, nodes, queries, all)", s ? s : "");
+        tw_cli_fail(program, opt, "'%s' is not a list of debug views (cells, nodes, queries, all)",
+                    s ? s : "");
     strcpy(buf, s);
     unsigned mask = 0;
     for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
@@ -88,256 +83,86 @@ static unsigned parse_debug(const char *opt, const char *s)
     return mask;
 }
 
-static bool takes_value(const char *option)
+enum {
+    OPT_DEBUG = TW_CLI_OPT_PROGRAM,
+    OPT_NO_OVERLAY,
+    OPT_SCREENSHOT,
+    OPT_FREEZE_AT,
+};
+
+static const struct option options_table[] = {
+    TW_CLI_COMMON_OPTIONS,
+    {"debug", required_argument, NULL, OPT_DEBUG},
+    {"no-overlay", no_argument, NULL, OPT_NO_OVERLAY},
+    {"screenshot", required_argument, NULL, OPT_SCREENSHOT},
+    {"freeze-at", required_argument, NULL, OPT_FREEZE_AT},
+    {NULL, 0, NULL, 0},
+};
+
+static void apply_option(void *user, int opt, const char *name, const char *v)
 {
-    static const char *const valued[] = {
-        "--tileset", "--seed", "--method", "--size", "--start-cell", "--repeat",
-        "--view-distance", "--debug", "--path", "--frames", "--screenshot", "--freeze-at",
-    };
-    for (size_t k = 0; k < sizeof(valued) / sizeof(valued[0]); k++)
-        if (strcmp(option, valued[k]) == 0)
-            return true;
-    return false;
+    struct options *o = user;
+    switch (opt) {
+    case OPT_DEBUG: o->debug = parse_debug(name, v); break;
+    case OPT_NO_OVERLAY: o->no_overlay = true; break;
+    case OPT_SCREENSHOT:
+        if (*v == '\0')
+            tw_cli_fail(program, name, "the file name is empty");
+        o->screenshot = v;
+        break;
+    case OPT_FREEZE_AT: o->freeze_at = (uint32_t)tw_cli_u64(program, name, v, 1, 10000000); break;
+    default: tw_cli_fail(program, name, "unknown option '%s' (see tileworld view --help)", name);
+    }
 }
 
 static void parse_options(int argc, char **argv, struct options *o)
 {
     memset(o, 0, sizeof(*o));
-    o->tileset = "city";
-    o->seed = 1;
-    o->width = 1280;
-    o->height = 720;
-    o->method = TW_METHOD_TILEQUERY_CHC;
-    o->view_distance = 600.0f;
-    for (int k = 1; k < argc; k++) {
-        const char *a = argv[k];
-        const char *v = k + 1 < argc ? argv[k + 1] : NULL;
-        bool takes = true;
-        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
-            usage(stdout);
-            exit(0);
-        } else if (strcmp(a, "--no-overlay") == 0) {
-            o->no_overlay = true;
-            takes = false;
-        } else if (strcmp(a, "--quiet") == 0) {
-            o->quiet = true;
-            takes = false;
-        } else if (strncmp(a, "--", 2) != 0) {
-            tw_cli_fail(program, a, "unexpected argument '%s'", a);
-        } else if (!takes_value(a)) {
-            tw_cli_fail(program, a, "unknown option '%s' (see tileworld view --help)", a);
-        } else if (!v) {
-            tw_cli_fail(program, a, "%s needs a value", a);
-        } else if (strcmp(a, "--tileset") == 0) {
-            o->tileset = v;
-        } else if (strcmp(a, "--seed") == 0) {
-            o->seed = tw_cli_u64(program, a, v, 0, UINT64_MAX);
-        } else if (strcmp(a, "--method") == 0) {
-            if (tw_method_from_name(v, &o->method) != TW_OK || !tw_method_available(o->method))
-                tw_cli_fail(program, a, "unknown method '%s' (vfc, tilequery, chc, tilequery+chc, oracle)", v);
-        } else if (strcmp(a, "--size") == 0) {
-            tw_cli_size(program, a, v, &o->width, &o->height);
-        } else if (strcmp(a, "--start-cell") == 0) {
-            tw_cli_cell(program, a, v, &o->start_cell);
-        } else if (strcmp(a, "--repeat") == 0) {
-            o->repeat = (int64_t)tw_cli_u64(program, a, v, 1, (uint64_t)1 << 62);
-        } else if (strcmp(a, "--view-distance") == 0) {
-            o->view_distance = tw_cli_float(program, a, v, 1.0f, 100000.0f);
-        } else if (strcmp(a, "--debug") == 0) {
-            o->debug = parse_debug(a, v);
-        } else if (strcmp(a, "--path") == 0) {
-            o->path = v;
-        } else if (strcmp(a, "--frames") == 0) {
-            o->frames = (uint32_t)tw_cli_u64(program, a, v, 1, 10000000);
-        } else if (strcmp(a, "--screenshot") == 0) {
-            if (*v == '\0')
-                tw_cli_fail(program, a, "%sthe file name is empty", "");
-            o->screenshot = v;
-        } else if (strcmp(a, "--freeze-at") == 0) {
-            o->freeze_at = (uint32_t)tw_cli_u64(program, a, v, 1, 10000000);
-        } else {
-            tw_cli_fail(program, a, "unknown option '%s' (see tileworld view --help)", a);
-        }
-        if (takes)
-            k++;
-    }
+    tw_cli_init(&o->cli, program);
+    o->cli.world.width = 1280;
+    o->cli.world.height = 720;
+    tw_cli_parse(&o->cli, argc, argv, options_table, apply_option, o, usage);
 }
 
-static void log_to_stderr(void *user, enum tw_log_level level, const char *msg)
-{
-    (void)user;
-    if (level <= TW_LOG_WARN)
-        fprintf(stderr, "tileworld view: %s\n", msg);
-}
+/* ---- the overlay: text (stb_easy_font) and flat shapes as triangles ------------ */
 
-static struct tw_tileset *load_tileset(const struct options *o, const struct tw_log *log)
-{
-    struct tw_tileset *ts = NULL;
-    for (const char *const *n = tw_tilesets_builtin_names; *n; n++) {
-        if (strcmp(*n, o->tileset) == 0) {
-            int err = tw_tilesets_builtin(o->tileset, o->seed, 0, log, &ts);
-            if (err) {
-                fprintf(stderr, "tileworld view: --tileset %s: generation failed: %s\n",
-                        o->tileset, tw_error_to_str(err));
-                exit(1);
-            }
-            return ts;
-        }
-    }
-    if (access(o->tileset, F_OK) != 0)
-        tw_cli_fail(program, "--tileset", "unknown tileset '%s' (built-in: city, forest, hybrid; or a "
-                                "manifest file)", o->tileset);
-    /* The manifest loader has logged the one line naming the place. */
-    if (tw_tilesets_load_manifest(o->tileset, log, &ts))
-        exit(EXIT_USAGE);
-    return ts;
-}
-
-/* The path to fly (--path), or for the keyboard a one-key path: the start
- * of the street path, where a camera is on a street at eye height. */
-static void load_path(const struct options *o, const struct tw_tileset *ts, struct tw_path *p)
-{
-    const float w = ts->footprint[0], d = ts->footprint[1];
-    const char *name = o->path ? o->path : "street";
-    bool builtin = false;
-    for (const char *const *n = tw_path_builtin_names; *n; n++)
-        builtin |= strcmp(*n, name) == 0;
-    int err;
-    if (builtin) {
-        const uint32_t frames = !o->path ? 1 : o->frames ? o->frames : 300;
-        err = tw_path_builtin(name, o->seed, frames, w, d, p);
-        if (err) {
-            fprintf(stderr, "tileworld view: --path %s: %s\n", name, tw_error_to_str(err));
-            exit(1);
-        }
-    } else {
-        char msg[1400];
-        err = tw_path_load_csv(name, o->frames, w, d, p, msg, sizeof(msg));
-        if (err) {
-            if (err == TW_ERR_IO && access(name, F_OK) != 0)
-                tw_cli_fail(program, "--path", "unknown path '%s' (street, flyover, forest, teleport, "
-                                     "spin, or a CSV file)", name);
-            fprintf(stderr, "tileworld view: %s\n", msg);
-            exit(EXIT_USAGE);
-        }
-    }
-    if (tw_path_translate(p, o->start_cell.i, o->start_cell.j))
-        tw_cli_fail(program, "--start-cell", "%sthe translated path overflows the grid", "");
-}
-
-/* ---- the bitmap font ------------------------------------------------------------ */
-
-/* ASCII 32-126, 5 x 8 pixels each: seven rows above the baseline and one
- * for descenders, '#' for ink. Drawn by hand for this viewer. */
-enum { GLYPH_W = 5, GLYPH_H = 8, CELL_W = 6, CELL_H = 10, ATLAS_COLS = 16, ATLAS_ROWS = 6 };
-static const char *const font_glyphs[95] = {
-    /* ' '  */ "....." "....." "....." "....." "....." "....." "....." ".....",
-    /* '!'  */ "..#.." "..#.." "..#.." "..#.." "..#.." "....." "..#.." ".....",
-    /* '"'  */ ".#.#." ".#.#." "....." "....." "....." "....." "....." ".....",
-    /* '#'  */ ".#.#." ".#.#." "#####" ".#.#." "#####" ".#.#." ".#.#." ".....",
-    /* '$'  */ "..#.." ".####" "#.#.." ".###." "..#.#" "####." "..#.." ".....",
-    /* '%'  */ "##..." "##..#" "...#." "..#.." ".#..." "#..##" "...##" ".....",
-    /* '&'  */ ".##.." "#..#." "#.#.." ".#..." "#.#.#" "#..#." ".##.#" ".....",
-    /* '\'' */ "..#.." "..#.." "....." "....." "....." "....." "....." ".....",
-    /* '('  */ "...#." "..#.." ".#..." ".#..." ".#..." "..#.." "...#." ".....",
-    /* ')'  */ ".#..." "..#.." "...#." "...#." "...#." "..#.." ".#..." ".....",
-    /* '*'  */ "....." "..#.." "#.#.#" ".###." "#.#.#" "..#.." "....." ".....",
-    /* '+'  */ "....." "..#.." "..#.." "#####" "..#.." "..#.." "....." ".....",
-    /* ','  */ "....." "....." "....." "....." "....." ".##.." "..#.." ".#...",
-    /* '-'  */ "....." "....." "....." "#####" "....." "....." "....." ".....",
-    /* '.'  */ "....." "....." "....." "....." "....." ".##.." ".##.." ".....",
-    /* '/'  */ "....." "....#" "...#." "..#.." ".#..." "#...." "....." ".....",
-    /* '0'  */ ".###." "#...#" "#..##" "#.#.#" "##..#" "#...#" ".###." ".....",
-    /* '1'  */ "..#.." ".##.." "..#.." "..#.." "..#.." "..#.." ".###." ".....",
-    /* '2'  */ ".###." "#...#" "....#" "...#." "..#.." ".#..." "#####" ".....",
-    /* '3'  */ "#####" "...#." "..#.." "...#." "....#" "#...#" ".###." ".....",
-    /* '4'  */ "...#." "..##." ".#.#." "#..#." "#####" "...#." "...#." ".....",
-    /* '5'  */ "#####" "#...." "####." "....#" "....#" "#...#" ".###." ".....",
-    /* '6'  */ "..##." ".#..." "#...." "####." "#...#" "#...#" ".###." ".....",
-    /* '7'  */ "#####" "....#" "...#." "..#.." ".#..." ".#..." ".#..." ".....",
-    /* '8'  */ ".###." "#...#" "#...#" ".###." "#...#" "#...#" ".###." ".....",
-    /* '9'  */ ".###." "#...#" "#...#" ".####" "....#" "...#." ".##.." ".....",
-    /* ':'  */ "....." ".##.." ".##.." "....." ".##.." ".##.." "....." ".....",
-    /* ';'  */ "....." ".##.." ".##.." "....." ".##.." "..#.." ".#..." ".....",
-    /* '<'  */ "...#." "..#.." ".#..." "#...." ".#..." "..#.." "...#." ".....",
-    /* '='  */ "....." "....." "#####" "....." "#####" "....." "....." ".....",
-    /* '>'  */ ".#..." "..#.." "...#." "....#" "...#." "..#.." ".#..." ".....",
-    /* '?'  */ ".###." "#...#" "....#" "...#." "..#.." "....." "..#.." ".....",
-    /* '@'  */ ".###." "#...#" "....#" ".##.#" "#.#.#" "#.#.#" ".###." ".....",
-    /* 'A'  */ ".###." "#...#" "#...#" "#####" "#...#" "#...#" "#...#" ".....",
-    /* 'B'  */ "####." "#...#" "#...#" "####." "#...#" "#...#" "####." ".....",
-    /* 'C'  */ ".###." "#...#" "#...." "#...." "#...." "#...#" ".###." ".....",
-    /* 'D'  */ "###.." "#..#." "#...#" "#...#" "#...#" "#..#." "###.." ".....",
-    /* 'E'  */ "#####" "#...." "#...." "####." "#...." "#...." "#####" ".....",
-    /* 'F'  */ "#####" "#...." "#...." "####." "#...." "#...." "#...." ".....",
-    /* 'G'  */ ".###." "#...#" "#...." "#.###" "#...#" "#...#" ".####" ".....",
-    /* 'H'  */ "#...#" "#...#" "#...#" "#####" "#...#" "#...#" "#...#" ".....",
-    /* 'I'  */ ".###." "..#.." "..#.." "..#.." "..#.." "..#.." ".###." ".....",
-    /* 'J'  */ "..###" "...#." "...#." "...#." "...#." "#..#." ".##.." ".....",
-    /* 'K'  */ "#...#" "#..#." "#.#.." "##..." "#.#.." "#..#." "#...#" ".....",
-    /* 'L'  */ "#...." "#...." "#...." "#...." "#...." "#...." "#####" ".....",
-    /* 'M'  */ "#...#" "##.##" "#.#.#" "#.#.#" "#...#" "#...#" "#...#" ".....",
-    /* 'N'  */ "#...#" "#...#" "##..#" "#.#.#" "#..##" "#...#" "#...#" ".....",
-    /* 'O'  */ ".###." "#...#" "#...#" "#...#" "#...#" "#...#" ".###." ".....",
-    /* 'P'  */ "####." "#...#" "#...#" "####." "#...." "#...." "#...." ".....",
-    /* 'Q'  */ ".###." "#...#" "#...#" "#...#" "#.#.#" "#..#." ".##.#" ".....",
-    /* 'R'  */ "####." "#...#" "#...#" "####." "#.#.." "#..#." "#...#" ".....",
-    /* 'S'  */ ".####" "#...." "#...." ".###." "....#" "....#" "####." ".....",
-    /* 'T'  */ "#####" "..#.." "..#.." "..#.." "..#.." "..#.." "..#.." ".....",
-    /* 'U'  */ "#...#" "#...#" "#...#" "#...#" "#...#" "#...#" ".###." ".....",
-    /* 'V'  */ "#...#" "#...#" "#...#" "#...#" "#...#" ".#.#." "..#.." ".....",
-    /* 'W'  */ "#...#" "#...#" "#...#" "#.#.#" "#.#.#" "#.#.#" ".#.#." ".....",
-    /* 'X'  */ "#...#" "#...#" ".#.#." "..#.." ".#.#." "#...#" "#...#" ".....",
-    /* 'Y'  */ "#...#" "#...#" ".#.#." "..#.." "..#.." "..#.." "..#.." ".....",
-    /* 'Z'  */ "#####" "....#" "...#." "..#.." ".#..." "#...." "#####" ".....",
-    /* '['  */ ".###." ".#..." ".#..." ".#..." ".#..." ".#..." ".###." ".....",
-    /* '\\' */ "....." "#...." ".#..." "..#.." "...#." "....#" "....." ".....",
-    /* ']'  */ ".###." "...#." "...#." "...#." "...#." "...#." ".###." ".....",
-    /* '^'  */ "..#.." ".#.#." "#...#" "....." "....." "....." "....." ".....",
-    /* '_'  */ "....." "....." "....." "....." "....." "....." "#####" ".....",
-    /* '`'  */ ".#..." "..#.." "....." "....." "....." "....." "....." ".....",
-    /* 'a'  */ "....." "....." ".###." "....#" ".####" "#...#" ".####" ".....",
-    /* 'b'  */ "#...." "#...." "#.##." "##..#" "#...#" "#...#" "####." ".....",
-    /* 'c'  */ "....." "....." ".###." "#...." "#...." "#...#" ".###." ".....",
-    /* 'd'  */ "....#" "....#" ".##.#" "#..##" "#...#" "#...#" ".####" ".....",
-    /* 'e'  */ "....." "....." ".###." "#...#" "#####" "#...." ".###." ".....",
-    /* 'f'  */ "..##." ".#..#" ".#..." "###.." ".#..." ".#..." ".#..." ".....",
-    /* 'g'  */ "....." "....." ".####" "#...#" "#...#" ".####" "....#" ".###.",
-    /* 'h'  */ "#...." "#...." "#.##." "##..#" "#...#" "#...#" "#...#" ".....",
-    /* 'i'  */ "..#.." "....." ".##.." "..#.." "..#.." "..#.." ".###." ".....",
-    /* 'j'  */ "...#." "....." "..##." "...#." "...#." "...#." "#..#." ".##..",
-    /* 'k'  */ "#...." "#...." "#..#." "#.#.." "##..." "#.#.." "#..#." ".....",
-    /* 'l'  */ ".##.." "..#.." "..#.." "..#.." "..#.." "..#.." ".###." ".....",
-    /* 'm'  */ "....." "....." "##.#." "#.#.#" "#.#.#" "#.#.#" "#.#.#" ".....",
-    /* 'n'  */ "....." "....." "#.##." "##..#" "#...#" "#...#" "#...#" ".....",
-    /* 'o'  */ "....." "....." ".###." "#...#" "#...#" "#...#" ".###." ".....",
-    /* 'p'  */ "....." "....." "####." "#...#" "#...#" "####." "#...." "#....",
-    /* 'q'  */ "....." "....." ".####" "#...#" "#...#" ".####" "....#" "....#",
-    /* 'r'  */ "....." "....." "#.##." "##..#" "#...." "#...." "#...." ".....",
-    /* 's'  */ "....." "....." ".####" "#...." ".###." "....#" "####." ".....",
-    /* 't'  */ ".#..." ".#..." "###.." ".#..." ".#..." ".#..#" "..##." ".....",
-    /* 'u'  */ "....." "....." "#...#" "#...#" "#...#" "#..##" ".##.#" ".....",
-    /* 'v'  */ "....." "....." "#...#" "#...#" "#...#" ".#.#." "..#.." ".....",
-    /* 'w'  */ "....." "....." "#...#" "#...#" "#.#.#" "#.#.#" ".#.#." ".....",
-    /* 'x'  */ "....." "....." "#...#" ".#.#." "..#.." ".#.#." "#...#" ".....",
-    /* 'y'  */ "....." "....." "#...#" "#...#" "#...#" ".####" "....#" ".###.",
-    /* 'z'  */ "....." "....." "#####" "...#." "..#.." ".#..." "#####" ".....",
-    /* '{'  */ "...#." "..#.." "..#.." ".#..." "..#.." "..#.." "...#." ".....",
-    /* '|'  */ "..#.." "..#.." "..#.." "..#.." "..#.." "..#.." "..#.." ".....",
-    /* '}'  */ ".#..." "..#.." "..#.." "...#." "..#.." "..#.." ".#..." ".....",
-    /* '~'  */ "....." "....." ".#..." "#.#.#" "...#." "....." "....." ".....",
-};
-
-/* ---- the overlay: text and flat shapes as textured quads ------------------------ */
-
-/* GL entry points the overlay needs beyond the runtime's table. */
+/* The viewer's own GL entry points, from glfwGetProcAddress: the runtime's
+ * table is private to the library. */
 #define VIEW_GL_FUNCTIONS(X) \
-    X(PFNGLGENTEXTURESPROC, GenTextures) \
-    X(PFNGLDELETETEXTURESPROC, DeleteTextures) \
-    X(PFNGLBINDTEXTUREPROC, BindTexture) \
-    X(PFNGLTEXIMAGE2DPROC, TexImage2D) \
-    X(PFNGLTEXPARAMETERIPROC, TexParameteri) \
+    X(PFNGLGETERRORPROC, GetError) \
+    X(PFNGLVIEWPORTPROC, Viewport) \
+    X(PFNGLENABLEPROC, Enable) \
+    X(PFNGLDISABLEPROC, Disable) \
+    X(PFNGLCOLORMASKPROC, ColorMask) \
+    X(PFNGLBLENDFUNCPROC, BlendFunc) \
     X(PFNGLSCISSORPROC, Scissor) \
+    X(PFNGLREADPIXELSPROC, ReadPixels) \
+    X(PFNGLREADBUFFERPROC, ReadBuffer) \
+    X(PFNGLPIXELSTOREIPROC, PixelStorei) \
+    X(PFNGLBINDFRAMEBUFFERPROC, BindFramebuffer) \
+    X(PFNGLGENBUFFERSPROC, GenBuffers) \
+    X(PFNGLDELETEBUFFERSPROC, DeleteBuffers) \
+    X(PFNGLBINDBUFFERPROC, BindBuffer) \
+    X(PFNGLBUFFERDATAPROC, BufferData) \
+    X(PFNGLGENVERTEXARRAYSPROC, GenVertexArrays) \
+    X(PFNGLDELETEVERTEXARRAYSPROC, DeleteVertexArrays) \
+    X(PFNGLBINDVERTEXARRAYPROC, BindVertexArray) \
+    X(PFNGLENABLEVERTEXATTRIBARRAYPROC, EnableVertexAttribArray) \
+    X(PFNGLVERTEXATTRIBPOINTERPROC, VertexAttribPointer) \
+    X(PFNGLCREATESHADERPROC, CreateShader) \
+    X(PFNGLSHADERSOURCEPROC, ShaderSource) \
+    X(PFNGLCOMPILESHADERPROC, CompileShader) \
+    X(PFNGLGETSHADERIVPROC, GetShaderiv) \
+    X(PFNGLGETSHADERINFOLOGPROC, GetShaderInfoLog) \
+    X(PFNGLDELETESHADERPROC, DeleteShader) \
+    X(PFNGLCREATEPROGRAMPROC, CreateProgram) \
+    X(PFNGLATTACHSHADERPROC, AttachShader) \
+    X(PFNGLLINKPROGRAMPROC, LinkProgram) \
+    X(PFNGLGETPROGRAMIVPROC, GetProgramiv) \
+    X(PFNGLDELETEPROGRAMPROC, DeleteProgram) \
+    X(PFNGLUSEPROGRAMPROC, UseProgram) \
+    X(PFNGLGETUNIFORMLOCATIONPROC, GetUniformLocation) \
+    X(PFNGLUNIFORM2FVPROC, Uniform2fv) \
     X(PFNGLDRAWARRAYSPROC, DrawArrays)
 
 struct view_gl {
@@ -348,7 +173,7 @@ struct view_gl {
 
 static void *glfw_get_proc(const char *name)
 {
-    /* As in runtime/gl.c: function pointer to data pointer, which POSIX allows. */
+    /* Function pointer to data pointer, which POSIX allows. */
     GLFWglproc f = glfwGetProcAddress(name);
     void *p;
     memcpy(&p, &f, sizeof(p));
@@ -374,13 +199,10 @@ static int view_gl_load(struct view_gl *vg)
 static const char *const overlay_vs =
     "#version 330 core\n"
     "layout(location = 0) in vec2 a_pos;\n"
-    "layout(location = 1) in vec2 a_uv;\n"
-    "layout(location = 2) in vec4 a_color;\n"
+    "layout(location = 1) in vec4 a_color;\n"
     "uniform vec2 u_screen;\n"
-    "out vec2 v_uv;\n"
     "out vec4 v_color;\n"
     "void main() {\n"
-    "    v_uv = a_uv;\n"
     "    v_color = a_color;\n"
     "    gl_Position = vec4(a_pos.x / u_screen.x * 2.0 - 1.0, 1.0 - a_pos.y / u_screen.y * 2.0,\n"
     "                       0.0, 1.0);\n"
@@ -388,27 +210,32 @@ static const char *const overlay_vs =
 
 static const char *const overlay_fs =
     "#version 330 core\n"
-    "uniform sampler2D u_font;\n"
-    "in vec2 v_uv;\n"
     "in vec4 v_color;\n"
     "out vec4 o_color;\n"
-    "void main() { o_color = vec4(v_color.rgb, v_color.a * texture(u_font, v_uv).r); }\n";
+    "void main() { o_color = v_color; }\n";
 
-enum { VERTEX_FLOATS = 8 };   /* x, y (pixels, top left origin), u, v, r, g, b, a */
+enum {
+    VERTEX_FLOATS = 6,          /* x, y (pixels, top left origin), r, g, b, a */
+    FONT_LINE = 12,             /* stb_easy_font's line height, in font pixels */
+    FONT_HEIGHT = 8,            /* its glyphs' height above the baseline and a little below */
+    TEXT_MAX = 256,             /* characters drawn of one string */
+};
 
 struct overlay {
-    struct tw_gl gl;
-    struct view_gl vg;
-    GLuint program, vao, vbo, texture;
+    struct view_gl gl;
+    GLuint program, vao, vbo;
     GLint u_screen;
     float *verts;
     size_t count, cap;          /* vertices */
     size_t clip_first;          /* vertices from here on are drawn inside clip */
     int clip[4];                /* x, y, w, h in pixels, top left origin; w = 0: none */
-    float scale;                /* font pixels per texel */
+    float scale;                /* screen pixels per font pixel */
+    /* stb_easy_font's quads of one string: 4 vertices of x, y, z and 4
+     * colour bytes, about 270 bytes a character. */
+    float quads[TEXT_MAX * 300 / sizeof(float)];
 };
 
-static GLuint overlay_shader(const struct tw_gl *gl, GLenum type, const char *src)
+static GLuint overlay_shader(const struct view_gl *gl, GLenum type, const char *src)
 {
     GLuint s = gl->CreateShader(type);
     gl->ShaderSource(s, 1, &src, NULL);
@@ -427,12 +254,10 @@ static GLuint overlay_shader(const struct tw_gl *gl, GLenum type, const char *sr
 
 static int overlay_init(struct overlay *o)
 {
-    int err = tw_gl_load(&o->gl, glfw_get_proc, NULL);
-    if (!err)
-        err = view_gl_load(&o->vg);
+    int err = view_gl_load(&o->gl);
     if (err)
         return err;
-    const struct tw_gl *gl = &o->gl;
+    const struct view_gl *gl = &o->gl;
     GLuint vs = overlay_shader(gl, GL_VERTEX_SHADER, overlay_vs);
     GLuint fs = overlay_shader(gl, GL_FRAGMENT_SHADER, overlay_fs);
     if (!vs || !fs)
@@ -451,29 +276,6 @@ static int overlay_init(struct overlay *o)
     }
     o->u_screen = gl->GetUniformLocation(o->program, "u_screen");
 
-    /* The atlas: 16 x 6 cells of CELL_W x CELL_H texels, glyph k at cell k,
-     * the last cell solid (for flat shapes). Top row first. */
-    enum { AW = ATLAS_COLS * CELL_W, AH = ATLAS_ROWS * CELL_H };
-    static uint8_t atlas[AH][AW];
-    memset(atlas, 0, sizeof(atlas));
-    for (int g = 0; g < 95; g++) {
-        const int cx = (g % ATLAS_COLS) * CELL_W, cy = (g / ATLAS_COLS) * CELL_H;
-        for (int y = 0; y < GLYPH_H; y++)
-            for (int x = 0; x < GLYPH_W; x++)
-                atlas[cy + y][cx + x] = font_glyphs[g][y * GLYPH_W + x] == '#' ? 255 : 0;
-    }
-    for (int y = 0; y < CELL_H; y++)
-        for (int x = 0; x < CELL_W; x++)
-            atlas[(95 / ATLAS_COLS) * CELL_H + y][(95 % ATLAS_COLS) * CELL_W + x] = 255;
-    o->vg.GenTextures(1, &o->texture);
-    o->vg.BindTexture(GL_TEXTURE_2D, o->texture);
-    gl->PixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    o->vg.TexImage2D(GL_TEXTURE_2D, 0, GL_R8, AW, AH, 0, GL_RED, GL_UNSIGNED_BYTE, atlas);
-    o->vg.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    o->vg.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    o->vg.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-    o->vg.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-
     gl->GenVertexArrays(1, &o->vao);
     gl->BindVertexArray(o->vao);
     gl->GenBuffers(1, &o->vbo);
@@ -482,9 +284,7 @@ static int overlay_init(struct overlay *o)
     gl->EnableVertexAttribArray(0);
     gl->VertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, stride, (const void *)0);
     gl->EnableVertexAttribArray(1);
-    gl->VertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, stride, (const void *)(2 * sizeof(float)));
-    gl->EnableVertexAttribArray(2);
-    gl->VertexAttribPointer(2, 4, GL_FLOAT, GL_FALSE, stride, (const void *)(4 * sizeof(float)));
+    gl->VertexAttribPointer(1, 4, GL_FLOAT, GL_FALSE, stride, (const void *)(2 * sizeof(float)));
     gl->BindVertexArray(0);
     const GLenum gl_err = gl->GetError();
     if (gl_err != GL_NO_ERROR) {
@@ -502,14 +302,11 @@ static void overlay_finish(struct overlay *o)
         if (o->program)
             o->gl.DeleteProgram(o->program);
     }
-    if (o->vg.DeleteTextures)
-        o->vg.DeleteTextures(1, &o->texture);
     free(o->verts);
 }
 
-/* A quad with corners (x[k], y[k]) in order around it, texels uv[k]. */
-static void overlay_quad(struct overlay *o, const float x[4], const float y[4],
-                         const float u[4], const float v[4], const float color[4])
+/* A flat quad with corners (x[k], y[k]) in order around it. */
+static void overlay_shape(struct overlay *o, const float x[4], const float y[4], const float color[4])
 {
     if (o->count + 6 > o->cap) {
         size_t cap = o->cap ? 2 * o->cap : 6 * 1024;
@@ -522,23 +319,10 @@ static void overlay_quad(struct overlay *o, const float x[4], const float y[4],
     static const int order[6] = {0, 1, 2, 0, 2, 3};
     for (int k = 0; k < 6; k++) {
         float *p = o->verts + VERTEX_FLOATS * o->count++;
-        const int c = order[k];
-        p[0] = x[c];
-        p[1] = y[c];
-        p[2] = u[c] / (ATLAS_COLS * CELL_W);
-        p[3] = v[c] / (ATLAS_ROWS * CELL_H);
-        memcpy(p + 4, color, 4 * sizeof(float));
+        p[0] = x[order[k]];
+        p[1] = y[order[k]];
+        memcpy(p + 2, color, 4 * sizeof(float));
     }
-}
-
-static const float solid_u = (95 % ATLAS_COLS) * CELL_W + 3.0f;
-static const float solid_v = (95 / ATLAS_COLS) * CELL_H + 5.0f;
-
-static void overlay_shape(struct overlay *o, const float x[4], const float y[4], const float color[4])
-{
-    const float u[4] = {solid_u, solid_u, solid_u, solid_u};
-    const float v[4] = {solid_v, solid_v, solid_v, solid_v};
-    overlay_quad(o, x, y, u, v, color);
 }
 
 static void overlay_rect(struct overlay *o, float x0, float y0, float x1, float y1,
@@ -561,46 +345,52 @@ static void overlay_line(struct overlay *o, float xa, float ya, float xb, float 
     overlay_shape(o, x, y, color);
 }
 
-static float char_w(const struct overlay *o)
+/* s as stb_easy_font takes it: printable ASCII only (it indexes its tables
+ * by character), at most TEXT_MAX characters. */
+static void font_text(const char *s, char out[TEXT_MAX + 1])
 {
-    return CELL_W * o->scale;
+    size_t n = 0;
+    for (; s[n] && n < TEXT_MAX; n++)
+        out[n] = s[n] >= 32 && s[n] <= 126 ? s[n] : '?';
+    out[n] = '\0';
+}
+
+static float text_width(const struct overlay *o, const char *s)
+{
+    char text[TEXT_MAX + 1];
+    font_text(s, text);
+    return (float)stb_easy_font_width(text) * o->scale;
 }
 
 static float line_h(const struct overlay *o)
 {
-    return (CELL_H + 1) * o->scale;
+    return FONT_LINE * o->scale;
 }
 
-/* Draws text at (x, y) (its cell's top left) with a dark shadow, so it
- * reads over any scene; returns the x after it. */
-static float overlay_text(struct overlay *o, float x, float y, const float color[4], const char *s)
+/* Draws text with its top left at (x, y), over a dark shadow so that it
+ * reads over any scene. */
+static void overlay_text(struct overlay *o, float x, float y, const float color[4], const char *s)
 {
     static const float shadow[4] = {0.0f, 0.0f, 0.0f, 0.85f};
-    const float s1 = o->scale;
+    char text[TEXT_MAX + 1];
+    font_text(s, text);
+    const int quads = stb_easy_font_print(0.0f, 0.0f, text, NULL, o->quads, sizeof(o->quads));
+    const float k = o->scale;
     for (int pass = 0; pass < 2; pass++) {
-        float cx = x;
-        for (const char *c = s; *c; c++, cx += char_w(o)) {
-            int g = (unsigned char)*c;
-            if (g < 32 || g > 126)
-                g = '?';
-            g -= 32;
-            if (g == 0)
-                continue;
-            const float u0 = (float)((g % ATLAS_COLS) * CELL_W), v0 = (float)((g / ATLAS_COLS) * CELL_H);
-            const float px = pass == 0 ? cx + s1 : cx, py = pass == 0 ? y + s1 : y;
-            const float qx[4] = {px, px + GLYPH_W * s1, px + GLYPH_W * s1, px};
-            const float qy[4] = {py, py, py + GLYPH_H * s1, py + GLYPH_H * s1};
-            const float qu[4] = {u0, u0 + GLYPH_W, u0 + GLYPH_W, u0};
-            const float qv[4] = {v0, v0, v0 + GLYPH_H, v0 + GLYPH_H};
-            overlay_quad(o, qx, qy, qu, qv, pass == 0 ? shadow : color);
+        const float px = pass == 0 ? x + k : x, py = pass == 0 ? y + k : y;
+        for (int q = 0; q < quads; q++) {
+            /* 4 vertices of 16 bytes: x, y, z, colour. */
+            const float *v = o->quads + q * 16;
+            const float qx[4] = {px + v[0] * k, px + v[4] * k, px + v[8] * k, px + v[12] * k};
+            const float qy[4] = {py + v[1] * k, py + v[5] * k, py + v[9] * k, py + v[13] * k};
+            overlay_shape(o, qx, qy, pass == 0 ? shadow : color);
         }
     }
-    return x + (float)strlen(s) * char_w(o);
 }
 
 static void overlay_draw(struct overlay *o, int fb_w, int fb_h)
 {
-    const struct tw_gl *gl = &o->gl;
+    const struct view_gl *gl = &o->gl;
     if (o->count > 0) {
         gl->BindFramebuffer(GL_FRAMEBUFFER, 0);
         gl->Viewport(0, 0, fb_w, fb_h);
@@ -612,17 +402,16 @@ static void overlay_draw(struct overlay *o, int fb_w, int fb_h)
         gl->UseProgram(o->program);
         const float screen[2] = {(float)fb_w, (float)fb_h};
         gl->Uniform2fv(o->u_screen, 1, screen);
-        o->vg.BindTexture(GL_TEXTURE_2D, o->texture);
         gl->BindVertexArray(o->vao);
         gl->BindBuffer(GL_ARRAY_BUFFER, o->vbo);
         gl->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(sizeof(float) * VERTEX_FLOATS * o->count),
                        o->verts, GL_STREAM_DRAW);
         const size_t first = o->clip[2] > 0 ? o->clip_first : o->count;
-        o->vg.DrawArrays(GL_TRIANGLES, 0, (GLsizei)first);
+        gl->DrawArrays(GL_TRIANGLES, 0, (GLsizei)first);
         if (first < o->count) {
             gl->Enable(GL_SCISSOR_TEST);
-            o->vg.Scissor(o->clip[0], fb_h - o->clip[1] - o->clip[3], o->clip[2], o->clip[3]);
-            o->vg.DrawArrays(GL_TRIANGLES, (GLint)first, (GLsizei)(o->count - first));
+            gl->Scissor(o->clip[0], fb_h - o->clip[1] - o->clip[3], o->clip[2], o->clip[3]);
+            gl->DrawArrays(GL_TRIANGLES, (GLint)first, (GLsizei)(o->count - first));
             gl->Disable(GL_SCISSOR_TEST);
         }
         /* Leave the state the renderer expects. */
@@ -769,7 +558,7 @@ static void on_mouse_button(GLFWwindow *win, int button, int action, int mods)
 static void on_cursor(GLFWwindow *win, double x, double y)
 {
     struct viewer *v = glfwGetWindowUserPointer(win);
-    if ((v->looking || v->captured) && !v->opt.path) {
+    if ((v->looking || v->captured) && !v->opt.cli.path) {
         const float sensitivity = 0.15f;   /* degrees per pixel */
         /* Yaw grows towards +x, which lies to the left when looking along +z. */
         v->cam.yaw -= (float)(x - v->mouse_x) * sensitivity;
@@ -883,16 +672,20 @@ static const float dim[4] = {0.70f, 0.74f, 0.80f, 1.0f};
 static const float accent[4] = {1.0f, 0.85f, 0.30f, 1.0f};
 static const float panel[4] = {0.0f, 0.0f, 0.0f, 0.55f};
 
+static float widest_line(const struct overlay *o, char lines[][160], int count)
+{
+    float widest = 0.0f;
+    for (int k = 0; k < count; k++)
+        widest = fmaxf(widest, text_width(o, lines[k]));
+    return widest;
+}
+
 static void draw_panel_lines(struct overlay *o, float x, float y, char lines[][160], int count,
                              const float colors[][4])
 {
-    size_t widest = 0;
-    for (int k = 0; k < count; k++)
-        if (strlen(lines[k]) > widest)
-            widest = strlen(lines[k]);
     const float pad = 4.0f * o->scale;
-    overlay_rect(o, x, y, x + (float)widest * char_w(o) + 2 * pad,
-                 y + (float)count * line_h(o) + 2 * pad - o->scale, panel);
+    overlay_rect(o, x, y, x + widest_line(o, lines, count) + 2 * pad,
+                 y + (float)count * line_h(o) + 2 * pad - 3 * o->scale, panel);
     for (int k = 0; k < count; k++)
         overlay_text(o, x + pad, y + pad + (float)k * line_h(o), colors[k], lines[k]);
 }
@@ -940,29 +733,35 @@ static void draw_stats(struct viewer *v)
 
 static void draw_help(struct viewer *v, int fb_w, int fb_h)
 {
-    static const char *const help[] = {
-        "mouse drag   look (Tab: capture the mouse, Esc: release)",
-        "W A S D      fly forward, left, back, right",
-        "Q / E        down / up;  Shift: 10x faster;  wheel: speed",
-        "1 2 3 4 5    vfc, tilequery, chc, tilequery+chc, oracle",
-        "C            cells by tile-query state (and the map)",
-        "B            BVH nodes holding the clusters drawn",
-        "X            query boxes issued this frame",
-        "F            freeze the culled set, fly around it",
-        "P            screenshot (tileworld-view-N.png)",
-        "O            overlay on/off;  H help;  Esc quit",
+    /* Keys and what they do, in two columns (the font is proportional). */
+    static const char *const help[][2] = {
+        {"mouse drag", "look (Tab: capture the mouse, Esc: release)"},
+        {"W A S D", "fly forward, left, back, right"},
+        {"Q / E", "down / up;  Shift: 10x faster;  wheel: speed"},
+        {"1 2 3 4 5", "vfc, tilequery, chc, tilequery+chc, oracle"},
+        {"C", "cells by tile-query state (and the map)"},
+        {"B", "BVH nodes holding the clusters drawn"},
+        {"X", "query boxes issued this frame"},
+        {"F", "freeze the culled set, fly around it"},
+        {"P", "screenshot (tileworld-view-N.png)"},
+        {"O", "overlay on/off;  H help;  Esc quit"},
     };
     enum { N = sizeof(help) / sizeof(help[0]) };
-    char lines[N][160];
-    float colors[N][4];
-    for (int k = 0; k < N; k++) {
-        snprintf(lines[k], sizeof(lines[k]), "%s", help[k]);
-        memcpy(colors[k], white, sizeof(white));
-    }
     struct overlay *o = &v->ov;
-    const float w = 60.0f * char_w(o), h = (float)N * line_h(o);
-    draw_panel_lines(o, floorf(((float)fb_w - w) * 0.5f), floorf(((float)fb_h - h) * 0.5f), lines, N,
-                     (const float(*)[4])colors);
+    float key_w = 0.0f, text_w = 0.0f;
+    for (int k = 0; k < N; k++) {
+        key_w = fmaxf(key_w, text_width(o, help[k][0]));
+        text_w = fmaxf(text_w, text_width(o, help[k][1]));
+    }
+    const float pad = 4.0f * o->scale, gap = 12.0f * o->scale;
+    const float w = key_w + gap + text_w + 2 * pad, h = (float)N * line_h(o) + 2 * pad;
+    const float x = floorf(((float)fb_w - w) * 0.5f), y = floorf(((float)fb_h - h) * 0.5f);
+    overlay_rect(o, x, y, x + w, y + h - 3 * o->scale, panel);
+    for (int k = 0; k < N; k++) {
+        const float ty = y + pad + (float)k * line_h(o);
+        overlay_text(o, x + pad, ty, accent, help[k][0]);
+        overlay_text(o, x + pad + key_w + gap, ty, white, help[k][1]);
+    }
 }
 
 /* Colour swatches of the debug views on, along the bottom edge, wrapped
@@ -971,6 +770,7 @@ static void draw_legend(struct viewer *v, int fb_w, int fb_h)
 {
     struct overlay *o = &v->ov;
     const float margin = 6.0f * o->scale, sw = 8.0f * o->scale, gap = 3.0f * o->scale;
+    const float space = 12.0f * o->scale;   /* between entries */
     int kinds[TW_DEBUG_KIND_COUNT], rows[TW_DEBUG_KIND_COUNT];
     float widths[TW_DEBUG_KIND_COUNT];
     int n = 0, row_count = 1;
@@ -978,7 +778,7 @@ static void draw_legend(struct viewer *v, int fb_w, int fb_h)
     for (int k = 0; k < TW_DEBUG_KIND_COUNT; k++) {
         if (!(view_of((uint16_t)k) & v->debug))
             continue;
-        const float w = sw + gap + (float)strlen(tw_debug_kind_name((enum tw_debug_kind)k)) * char_w(o);
+        const float w = sw + gap + text_width(o, tw_debug_kind_name((enum tw_debug_kind)k));
         if (x > margin && x + w > (float)fb_w - margin) {
             x = margin;
             row_count++;
@@ -986,16 +786,16 @@ static void draw_legend(struct viewer *v, int fb_w, int fb_h)
         kinds[n] = k;
         rows[n] = row_count - 1;
         widths[n++] = w;
-        x += w + 2 * char_w(o);
+        x += w + space;
     }
     const float top = (float)fb_h - margin - (float)row_count * line_h(o);
     for (int r = 0; r < row_count; r++) {
         float row_w = 0.0f;
         for (int k = 0; k < n; k++)
             if (rows[k] == r)
-                row_w += widths[k] + 2 * char_w(o);
+                row_w += widths[k] + space;
         const float y = top + (float)r * line_h(o);
-        overlay_rect(o, margin - 2 * o->scale, y - 2 * o->scale, margin + row_w - char_w(o),
+        overlay_rect(o, margin - 2 * o->scale, y - 2 * o->scale, margin + row_w - space / 2,
                      y + line_h(o) - o->scale, panel);
     }
     x = margin;
@@ -1006,9 +806,9 @@ static void draw_legend(struct viewer *v, int fb_w, int fb_h)
         float c[4];
         tw_debug_kind_color((enum tw_debug_kind)kinds[k], c);
         c[3] = 1.0f;
-        overlay_rect(o, x, y, x + sw, y + GLYPH_H * o->scale, c);
+        overlay_rect(o, x, y, x + sw, y + FONT_HEIGHT * o->scale, c);
         overlay_text(o, x + sw + gap, y, white, tw_debug_kind_name((enum tw_debug_kind)kinds[k]));
-        x += widths[k] + 2 * char_w(o);
+        x += widths[k] + space;
     }
 }
 
@@ -1080,7 +880,7 @@ static void draw_map(struct viewer *v, const struct tw_debug_box *boxes, size_t 
 
 static int write_screenshot(struct viewer *v, const char *file, int fb_w, int fb_h)
 {
-    const struct tw_gl *gl = &v->ov.gl;
+    const struct view_gl *gl = &v->ov.gl;
     const size_t w = (size_t)fb_w, h = (size_t)fb_h;
     uint8_t *rgba = malloc(w * h * 4), *rgb = malloc(w * h * 3);
     if (!rgba || !rgb) {
@@ -1097,10 +897,10 @@ static int write_screenshot(struct viewer *v, const char *file, int fb_w, int fb
         for (size_t x = 0; x < w; x++)
             memcpy(rgb + (y * w + x) * 3, rgba + ((h - 1 - y) * w + x) * 4, 3);
     char err[1200];
-    const int rc = tw_report_write_png(file, rgb, (uint32_t)w, (uint32_t)h, err, sizeof(err));
+    const int rc = tw_outfile_write_png(file, rgb, (uint32_t)w, (uint32_t)h, err, sizeof(err));
     if (rc)
         fprintf(stderr, "tileworld view: %s\n", err);
-    else if (!v->opt.quiet)
+    else if (!v->opt.cli.quiet)
         fprintf(stderr, "tileworld view: wrote %s (%zux%zu)\n", file, w, h);
     free(rgba);
     free(rgb);
@@ -1119,7 +919,7 @@ static GLFWwindow *open_window(const struct options *o)
         glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
         glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
         glfwWindowHint(GLFW_DEPTH_BITS, 0);   /* the renderer draws into its own framebuffer */
-        GLFWwindow *win = glfwCreateWindow((int)o->width, (int)o->height, "tileworld view", NULL, NULL);
+        GLFWwindow *win = glfwCreateWindow((int)o->cli.world.width, (int)o->cli.world.height, "tileworld view", NULL, NULL);
         if (win)
             return win;
     }
@@ -1144,16 +944,20 @@ int main(int argc, char **argv)
     memset(&v, 0, sizeof(v));
     parse_options(argc, argv, &v.opt);
     const struct options *o = &v.opt;
-    const struct tw_log log = {log_to_stderr, NULL};
-    struct tw_tileset *ts = load_tileset(o, &log);
+    const struct tw_log log = {tw_cli_log, &v.opt.cli};
+    struct tw_tileset *ts = tw_cli_load_tileset(&o->cli, 0, &log);
     v.ts = ts;
+    /* With --path, the path to fly; for the keyboard, a one-key path: the
+     * start of the street path, where a camera is on a street at eye height. */
     struct tw_path path = {0};
-    load_path(o, ts, &path);
+    const char *path_name = o->cli.path ? o->cli.path : "street";
+    tw_cli_load_path(&o->cli, path_name, !o->cli.path ? 1 : o->cli.frames ? o->cli.frames : 300, ts,
+                     &path);
     if (path.count == 0)
-        tw_cli_fail(program, "--path", "'%s' has no camera keys", o->path ? o->path : "street");
+        tw_cli_fail(program, "--path", "'%s' has no camera keys", path_name);
     v.cam = path.keys[0];
     /* Without a path, --frames alone bounds the run; with one, its length. */
-    const uint64_t frames = o->path ? path.count : o->frames;
+    const uint64_t frames = o->cli.path ? path.count : o->cli.frames;
 
     int rc = 1;
     glfwSetErrorCallback(on_glfw_error);
@@ -1173,14 +977,8 @@ int main(int argc, char **argv)
     glfwSwapInterval(frames ? 0 : 1);
     glfwSetWindowUserPointer(v.win, &v);
 
-    struct tw_world_settings ws = {0};
+    struct tw_world_settings ws = o->cli.world;
     ws.tileset = ts;
-    ws.selection.seed = o->seed;
-    ws.selection.repeat = o->repeat;
-    ws.method = o->method;
-    ws.width = o->width;
-    ws.height = o->height;
-    ws.view_distance = o->view_distance;
     ws.get_proc = glfw_get_proc;
     ws.log = log;
     int err = tw_world_create(&ws, &v.world);
@@ -1217,7 +1015,7 @@ int main(int argc, char **argv)
             v.fps_since = now;
             v.fps_frames = 0;
         }
-        if (o->path)
+        if (o->cli.path)
             v.cam = path.keys[v.frame];
         else
             fly(&v, dt);
@@ -1287,7 +1085,7 @@ int main(int argc, char **argv)
         }
         glfwSwapBuffers(v.win);
     }
-    if (!o->quiet)
+    if (!o->cli.quiet)
         fprintf(stderr, "tileworld view: %llu frames, %s, %.2f ms per frame on average\n",
                 (unsigned long long)v.frame, tw_method_name(tw_world_settings(v.world)->method),
                 v.frame ? ms_total / (double)v.frame : 0.0);
