@@ -253,7 +253,8 @@ struct tw_selection {
 };
 
 /* The prototype shown at cell: a seeded hash of the (periodic) cell, mapped
- * through the prototypes' weights, or the host callback. ts must be
+ * through the prototypes' weights, or the host callback's answer as it is
+ * (which may be out of range: a world takes that for an error). ts must be
  * finished. */
 uint32_t tw_tiles_select(const struct tw_tileset *ts,
                          const struct tw_selection *sel, struct tw_cell cell);
@@ -387,6 +388,14 @@ struct tw_tile_handle tw_tile_handle_unpack(uint64_t packed);
 /* Evicts every instance not visible since frame - evict_after; returns how
  * many went. */
 uint32_t tw_tile_cache_evict(struct tw_tile_cache *c, uint64_t frame);
+/* Evicts the instance at cell, if there is one; returns whether there was. */
+bool tw_tile_cache_remove(struct tw_tile_cache *c, struct tw_cell cell);
+/* Evicts every instance of a cell in [lo, hi] (inclusive); returns how many. */
+uint32_t tw_tile_cache_remove_rect(struct tw_tile_cache *c, struct tw_cell lo, struct tw_cell hi);
+/* Evicts the instance least recently visible before frame (a byte budget's
+ * choice), adding its state bytes to *bytes (may be NULL); returns false
+ * when every instance was visible at frame or later. */
+bool tw_tile_cache_evict_oldest(struct tw_tile_cache *c, uint64_t frame, uint64_t *bytes);
 uint32_t tw_tile_cache_count(const struct tw_tile_cache *c);
 /* Exact heap bytes held by the cache: its tables and every state block. */
 uint64_t tw_tile_cache_bytes(const struct tw_tile_cache *c);
