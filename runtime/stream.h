@@ -85,7 +85,7 @@ void tw_stream_invalidate_rect(struct tw_stream *s, struct tw_cell lo, struct tw
 uint64_t tw_stream_tile_bytes(const struct tw_stream *s);
 /* Bytes of the ready tiles and the stream's own tables, on the CPU
  * (geometry, clusters, BVHs, tables) and the GPU (their buffers). */
-void tw_stream_bytes(const struct tw_stream *s, uint64_t *cpu, uint64_t *gpu);
+void tw_stream_bytes(struct tw_stream *s, uint64_t *cpu, uint64_t *gpu);
 
 /* Evicts the least recently drawn ready tiles (never one drawn in frame,
  * never one loading) while excess > 0 bytes; returns the bytes freed. Each
