@@ -327,8 +327,9 @@ static struct entry *find(const struct tw_stream *s, struct tw_cell cell, uint32
 static void event(struct tw_stream *s, struct tw_cell cell, enum tw_tile_event_kind kind,
                   uint64_t bytes)
 {
+    const struct tw_tile_event e = {cell, kind, bytes, 0, false};
     if (s->on_event)
-        s->on_event(s->event_user, cell, kind, bytes);
+        s->on_event(s->event_user, &e);
 }
 
 /* A fresh entry for cell (its map entry made too), or NULL. */
@@ -468,7 +469,10 @@ static int make_ready(struct tw_stream *s, uint32_t k)
         tw_cell_map_remove(s->evicted, e->cell);
     }
     s->stats.ms_upload += tw_renderer_now_ms() - t0;
-    event(s, e->cell, TW_TILE_READY, e->bytes_cpu + e->bytes_gpu);
+    const struct tw_tile_event ev = {e->cell, TW_TILE_READY, e->bytes_cpu + e->bytes_gpu,
+                                     (uint32_t)(s->frame - e->request_frame), e->reload};
+    if (s->on_event)
+        s->on_event(s->event_user, &ev);
     return TW_OK;
 }
 
