@@ -176,4 +176,19 @@ int tw_forest_stands_add_varied(struct tw_forest_stands *stands, uint32_t proto,
  * placements use. A bound from the generator's own limits. */
 float tw_forest_stands_max_top(const struct tw_forest_stands *stands);
 
+/* ---- built-in tile providers (providers.c, city-gen.c, forest-gen.c) ------------- */
+
+/* What every built-in provider starts with; provider.user points to the
+ * object itself. */
+struct tw_tilesets_provider {
+    struct tw_tile_provider provider;
+    void (*destroy)(struct tw_tilesets_provider *p);   /* frees p and all it owns */
+};
+
+/* Checks what generate() is given (a fresh unfinished tileset with the
+ * provider's footprint and no prototype yet); logs a caller's bug naming
+ * the cell otherwise. */
+int tw_provider_check_tile(const struct tw_tile_provider *provider, const struct tw_log *log,
+                           struct tw_cell cell, const struct tw_tileset *ts);
+
 #endif
