@@ -231,6 +231,65 @@ void tw_tilesets_hybrid_default_settings(struct tw_hybrid_settings *s);
 int tw_tilesets_hybrid(uint64_t seed, const struct tw_hybrid_settings *settings,
                        const struct tw_log *log, struct tw_tileset **out);
 
+/* ---- tile providers: city-gen and forest-gen (DESIGN.md §12) ---- */
+
+/* A built-in tile provider: every cell's content generated from the cell's
+ * hash, no two cells alike, at the triangle density of the fixed tileset
+ * it is named after, with its footprint and its streets or trails along
+ * every tile border (the built-in camera paths work on it). Owns what its
+ * tw_tile_provider points to: the seed, the settings, read-only templates.
+ * Every cell is TW_TILE_OWN (content is NULL, shared is NULL). */
+struct tw_tilesets_provider;
+
+/* Names of the built-in providers, NULL-terminated: "city-gen", "forest-gen". */
+extern const char *const tw_tilesets_provider_names[];
+
+/* Whether name is one of tw_tilesets_provider_names (false for NULL). */
+bool tw_tilesets_is_provider(const char *name);
+
+/* Creates the built-in provider called name for seed, with default settings
+ * but max_cluster_triangles (0: 2048). Returns TW_ERR_INVALID, with a
+ * message, for an unknown name. The caller owns *out and must keep it
+ * until every world using its tw_tile_provider is gone. log (may be NULL)
+ * is copied: its callback must outlive the provider and may be called from
+ * generate(), on a worker thread, when a world hands it a wrong tileset
+ * (the message names the cell). */
+int tw_tilesets_provider_create(const char *name, uint64_t seed,
+                                uint32_t max_cluster_triangles,
+                                const struct tw_log *log,
+                                struct tw_tilesets_provider **out);
+
+/* city-gen with settings (NULL: the city's defaults; prototypes is ignored):
+ * each cell one city block as tw_tilesets_city() makes them, its kind
+ * (dense, tallest, low-rise, park, in the shares of the city's default
+ * prototypes), footprints, heights, facades and lot layout drawn from
+ * tw_tiles_hash(seed, i, j). bound: x, z over the footprint, y from 0 to
+ * max_height + 0.25 m. */
+int tw_tilesets_provider_create_city(uint64_t seed, const struct tw_city_settings *settings,
+                                     const struct tw_log *log,
+                                     struct tw_tilesets_provider **out);
+
+/* forest-gen with settings (NULL: the forest's defaults; prototypes is
+ * ignored): each cell one stand over the whole tile, its kind (in the
+ * shares of the forest's default prototypes), species mix, tree count and
+ * placement drawn from the cell's hash; its trees, rocks and undergrowth
+ * from one of a few template sets drawn from seed (copied into the cell's
+ * tileset). The floor and the trail along every border as in
+ * tw_tilesets_forest(). bound: x, z over the footprint, y from 0 to the
+ * tallest template mesh times the largest scale a placement uses. */
+int tw_tilesets_provider_create_forest(uint64_t seed, const struct tw_forest_settings *settings,
+                                       const struct tw_log *log,
+                                       struct tw_tilesets_provider **out);
+
+/* The provider to hand to a world: borrowed from p, valid until p is
+ * destroyed. Its generate() may run on any number of threads at once (it
+ * only reads p) and is a pure function of the cell: the same cell gives
+ * the same tile, bit for bit. NULL for NULL. */
+const struct tw_tile_provider *tw_tilesets_provider_get(const struct tw_tilesets_provider *p);
+
+/* Frees p and everything it owns; accepts NULL. */
+void tw_tilesets_provider_destroy(struct tw_tilesets_provider *p);
+
 #ifdef __cplusplus
 }
 #endif
