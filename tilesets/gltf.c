@@ -113,7 +113,7 @@ struct importer {
     uint8_t *uri_used;                /* per scan buffer URI: handed to tinygltf already */
     char msg[1024];                   /* the first error, "<element>: <reason>" */
     int io_error;                     /* set by the external-file reader */
-    char io_msg[768];
+    char io_msg[800];
     const struct tw_log *log;         /* for warnings */
     struct decoded_image *images;     /* per document image, decoded on first use */
     struct material_texture *material_textures; /* per document material */
@@ -1229,6 +1229,10 @@ struct material_texture {
     const struct decoded_image *image;
     int32_t wrap_s, wrap_t;
     uint32_t texcoord;
+    /* KHR_texture_transform (how quantised texture coordinates are
+     * dequantised): uv' = offset + [[a, b], [c, d]] uv. */
+    bool transformed;
+    double offset[2], a, b, c, d;
 };
 
 static bool decode_png(struct importer *im, const char *what, const uint8_t *bytes, uint64_t size,
@@ -1383,6 +1387,26 @@ static const struct material_texture *material_texture(struct importer *im, uint
         mt->wrap_t = d->samplers[tex->sampler].wrap_t;
     }
     mt->texcoord = (uint32_t)mat->base_color_texcoord;
+    if (mat->has_uv_transform) {
+        const double r = mat->uv_rotation, sx = mat->uv_scale[0], sy = mat->uv_scale[1];
+        const double xf[6] = {mat->uv_offset[0], mat->uv_offset[1], cos(r) * sx, sin(r) * sy,
+                             -sin(r) * sx, cos(r) * sy};
+        if (!all_finite(xf, 6)) {
+            warn(im, "materials[%u].pbrMetallicRoughness.baseColorTexture.extensions."
+                     "KHR_texture_transform: a value is not finite; ignored",
+                 index);
+        } else {
+            mt->transformed = true;
+            mt->offset[0] = xf[0];
+            mt->offset[1] = xf[1];
+            mt->a = xf[2];
+            mt->b = xf[3];
+            mt->c = xf[4];
+            mt->d = xf[5];
+            if (mat->uv_texcoord >= 0 && mat->uv_texcoord <= 99)
+                mt->texcoord = (uint32_t)mat->uv_texcoord;
+        }
+    }
     mt->state = 1;
     return mt;
 }
@@ -1400,14 +1424,18 @@ static int32_t colour_attribute(struct importer *im, uint32_t m, uint32_t k, con
     const struct tw_gltf_doc_accessor *a = &im->doc->accessors[acc];
     const bool type_ok = want == 2 ? a->type == TYPE_VEC2
                                    : (a->type == TYPE_VEC3 || a->type == TYPE_VEC4);
+    /* Texture coordinates may be any 8- or 16-bit integers, normalized or
+     * not (KHR_mesh_quantization); colours only normalized unsigned ones. */
     const bool comp_ok = a->component_type == COMP_FLOAT ||
+                         (want == 2 && is_integer(a->component_type)) ||
                          ((a->component_type == COMP_UNSIGNED_BYTE ||
                            a->component_type == COMP_UNSIGNED_SHORT) &&
                           a->normalized);
     if (!type_ok || !comp_ok || a->count != nv) {
         warn(im, "meshes[%u].primitives[%u].attributes.%s: accessors[%d] is not %u %s of FLOAT "
-                 "or normalized UNSIGNED_BYTE/SHORT; ignored",
-             m, k, name, acc, nv, want == 2 ? "VEC2" : "VEC3/VEC4");
+                 "or %s; ignored",
+             m, k, name, acc, nv, want == 2 ? "VEC2" : "VEC3/VEC4",
+             want == 2 ? "8- or 16-bit integers" : "normalized UNSIGNED_BYTE/SHORT");
         return -1;
     }
     return acc;
@@ -1680,6 +1708,12 @@ static int add_primitive(struct importer *im, uint32_t m, uint32_t k, struct pal
             for (int e = 0; e < 3; e++) {
                 u += uv[2 * (size_t)ix[e]] / 3.0f;
                 v += uv[2 * (size_t)ix[e] + 1] / 3.0f;
+            }
+            if (tex->transformed) {
+                const double tu = tex->offset[0] + tex->a * u + tex->b * v;
+                const double tv = tex->offset[1] + tex->c * u + tex->d * v;
+                u = isfinite(tu) ? (float)fmax(fmin(tu, 1e9), -1e9) : 0.0f;
+                v = isfinite(tv) ? (float)fmax(fmin(tv, 1e9), -1e9) : 0.0f;
             }
             const struct decoded_image *img = tex->image;
             const uint32_t x = wrap_texel(u, tex->wrap_s, img->width);
