@@ -27,7 +27,8 @@
 #include <stdint.h>
 
 /* How the file is looked up: the kernel's openat2() (falling back to the
- * walk when the kernel lacks it, ENOSYS), or always the walk (for tests). */
+ * walk when the kernel lacks it, ENOSYS, or a seccomp filter refuses it,
+ * EPERM), or always the walk (for tests). */
 enum tw_confined_mode {
     TW_CONFINED_AUTO = 0,
     TW_CONFINED_WALK,
