@@ -119,6 +119,7 @@ struct importer {
     struct material_texture *material_textures; /* per document material */
     uint64_t decoded_bytes;           /* of images */
     uint32_t skipped_primitives;      /* points and lines, not drawn */
+    char skipped_first[160];          /* the first of them, for the warning */
 };
 
 static int fail(struct importer *im, int err, const char *fmt, ...)
@@ -781,9 +782,9 @@ static int check_meshes(struct importer *im)
                 /* Points and lines are valid glTF that a triangle renderer
                  * does not draw: skipped (one warning per file), never read. */
                 if (im->skipped_primitives++ == 0)
-                    warn(im, "meshes[%u].primitives[%u].mode: %d (%s) is not drawn: only "
-                             "triangles, triangle strips and triangle fans are",
-                         m, k, p->mode, mode_name(p->mode));
+                    snprintf(im->skipped_first, sizeof(im->skipped_first),
+                             "meshes[%u].primitives[%u].mode: %d (%s)", m, k, p->mode,
+                             mode_name(p->mode));
                 continue;
             }
             const int32_t pos = find_attribute(p, "POSITION");
@@ -2326,9 +2327,13 @@ static int import_document(struct importer *im, const uint8_t *data, size_t size
         (err = check_nodes(im, parent)) ||
         (err = build_scene(im, parent, sc)))
         goto out;
-    if (im->skipped_primitives)
-        warn(im, "%u point or line primitive%s not drawn: only triangles are",
-             im->skipped_primitives, im->skipped_primitives == 1 ? " is" : "s are");
+    if (im->skipped_primitives == 1)
+        warn(im, "%s is not drawn: only triangles, triangle strips and triangle fans are",
+             im->skipped_first);
+    else if (im->skipped_primitives > 1)
+        warn(im, "%s and %u more point or line primitives are not drawn: only triangles, "
+                 "triangle strips and triangle fans are",
+             im->skipped_first, im->skipped_primitives - 1);
     *out = sc;
     sc = NULL;
 out:
