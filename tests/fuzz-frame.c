@@ -7,8 +7,9 @@
  * on hostile footprints and common boxes, CHC++ on hostile trees.
  *
  * Checked on the way: every BVH validates, the cell scan stays within
- * TW_TILES_MAX_CELLS_IN_VIEW, every query is read at most once, every drawn
- * cluster exists. Built with libFuzzer when TW_LIBFUZZER is defined;
+ * TW_TILES_MAX_CELLS_IN_VIEW, every query is read at most once and only
+ * after it was issued, every query box is a box, every drawn cluster
+ * exists. Built with libFuzzer when TW_LIBFUZZER is defined;
  * otherwise a plain main replays the files and folders given as arguments
  * (seeds: ../shared/assets/bad and models; regressions: tests/corpus/frame). */
 #include <math.h>
@@ -24,14 +25,16 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
 /* ---- the fake query backend --------------------------------------------------------- */
 
-enum { MAX_QUERIES = 1 << 18 };
+/* Query handles are never recycled: a handle read twice, or never issued,
+ * is a bug wherever it happens. */
+struct query {
+    uint8_t result, polls_left, live;
+};
 
 struct fake {
     uint64_t seed;             /* answers are a hash of (seed, query number) */
-    uint32_t issued;
-    uint8_t result[MAX_QUERIES];
-    uint8_t polls_left[MAX_QUERIES];
-    uint8_t live[MAX_QUERIES]; /* issued and not read yet */
+    struct query *queries;     /* by handle; [0] unused */
+    uint32_t issued, cap;
     const struct tw_tileset *ts;
     uint64_t draws, clusters;
 };
@@ -44,23 +47,30 @@ static uint32_t fake_issue(void *ctx, const struct tw_box *boxes, uint32_t count
         if (tw_box_is_empty(&boxes[k]))
             abort();
     (void)offset;
-    const uint32_t q = fk->issued++ % (MAX_QUERIES - 1) + 1;
-    if (fk->live[q])
-        abort(); /* more than MAX_QUERIES in flight: a leak of queries */
-    const uint64_t h = tw_tiles_hash(fk->seed, q, fk->issued);
-    fk->result[q] = (h & 3) != 0;
-    fk->polls_left[q] = (uint8_t)(h >> 8 & 3);
-    fk->live[q] = 1;
+    if (fk->issued + 1 >= fk->cap) {
+        const uint32_t cap = fk->cap ? 2 * fk->cap : 4096;
+        struct query *grown = cap > fk->cap ? realloc(fk->queries, sizeof(*grown) * cap) : NULL;
+        if (!grown)
+            abort(); /* 2^32 queries: unbounded work */
+        memset(grown + fk->cap, 0, sizeof(*grown) * (cap - fk->cap));
+        fk->queries = grown;
+        fk->cap = cap;
+    }
+    const uint32_t q = ++fk->issued;
+    const uint64_t h = tw_tiles_hash(fk->seed, q, 0);
+    fk->queries[q].result = (h & 3) != 0;
+    fk->queries[q].polls_left = (uint8_t)(h >> 8 & 3);
+    fk->queries[q].live = 1;
     return q;
 }
 
 static bool fake_ready(void *ctx, uint32_t q)
 {
     struct fake *fk = ctx;
-    if (q == 0 || q >= MAX_QUERIES || !fk->live[q])
+    if (q == 0 || q > fk->issued || !fk->queries[q].live)
         abort();
-    if (fk->polls_left[q]) {
-        fk->polls_left[q]--;
+    if (fk->queries[q].polls_left) {
+        fk->queries[q].polls_left--;
         return false;
     }
     return true;
@@ -69,10 +79,10 @@ static bool fake_ready(void *ctx, uint32_t q)
 static uint32_t fake_wait(void *ctx, uint32_t q)
 {
     struct fake *fk = ctx;
-    if (q == 0 || q >= MAX_QUERIES || !fk->live[q])
+    if (q == 0 || q > fk->issued || !fk->queries[q].live)
         abort(); /* read twice, or never issued */
-    fk->live[q] = 0;
-    return fk->result[q];
+    fk->queries[q].live = 0;
+    return fk->queries[q].result;
 }
 
 static void fake_draw(void *ctx, struct tw_cell cell, uint32_t prototype, const float offset[3],
@@ -186,7 +196,7 @@ static void camera(uint64_t h, int k, const struct tw_tileset *ts, struct tw_cel
 
 static void run_frames(const struct tw_tileset *ts, struct tw_bvh *const *bvhs, uint64_t h)
 {
-    static struct fake fk;
+    struct fake fk;
     memset(&fk, 0, sizeof(fk));
     fk.seed = h;
     fk.ts = ts;
@@ -257,6 +267,7 @@ out:
     tw_tile_cache_destroy(cache);
     free(cells);
     free(clusters);
+    free(fk.queries);
 }
 
 /* ---- the target ------------------------------------------------------------------------- */
