@@ -39,8 +39,9 @@ gltf | frame)
     ;;
 manifest)
     add_seed "$root/tests/corpus/manifest"
-    add_seed "$root/tilesets/kenney-city/kenney-city.json"
-    add_seed "$root/tilesets/cesium-forest/cesium-forest.json"
+    # libFuzzer takes folders: the shipped manifests are copied into one
+    # once build-fuzz/ exists (below).
+    seeds+=("$build/fuzz-seeds/manifest")
     max_len=65536
     ;;
 path)
@@ -69,6 +70,10 @@ if [ ! -f "$build/build.ninja" ]; then
         -Db_lundef=false -Dviewer=disabled >/dev/null
 fi
 ninja -C "$build" "tests/fuzz-$target" >/dev/null
+if [ "$target" = manifest ]; then
+    mkdir -p "$build/fuzz-seeds/manifest"
+    cp "$root"/tilesets/*/*.json "$build/fuzz-seeds/manifest/"
+fi
 
 corpus=$build/fuzz-corpus/$target
 artifacts=$build/fuzz-artifacts/$target
