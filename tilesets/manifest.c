@@ -382,7 +382,7 @@ static bool same_file(const void *user, uint32_t index)
 static bool same_name(const void *user, uint32_t index)
 {
     const struct loader *ld = user;
-    return strcmp(ld->names[index].rel, ld->names[ld->name_count].rel) == 0;
+    return ld->names[index].rel && strcmp(ld->names[index].rel, ld->names[ld->name_count].rel) == 0;
 }
 
 /* The imported file named rel (at the current place), importing and binding
@@ -418,8 +418,9 @@ static int get_file(struct loader *ld, const char *rel, struct imported_file **o
     const size_t n = strlen(rel) + 1;
     char *copy = malloc(n);
     if (!copy) {
-        /* The table holds the entry now: keep it valid. */
-        ld->names[ld->name_count].rel = (char *)"";
+        /* The table holds the entry now: keep it valid (a name that
+         * matches nothing). */
+        ld->names[ld->name_count].rel = NULL;
         ld->names[ld->name_count].file = UINT32_MAX;
         ld->name_count++;
         return fail(ld, TW_ERR_NOMEM, "out of memory");
@@ -925,8 +926,7 @@ static int finish_loader(struct loader *ld, int err)
         tw_gltf_scene_destroy(ld->files[k].scene);
     free(ld->files);
     for (uint32_t k = 0; k < ld->name_count; k++)
-        if (ld->names[k].rel[0])
-            free(ld->names[k].rel);
+        free(ld->names[k].rel);
     free(ld->names);
     table_finish(&ld->file_table);
     table_finish(&ld->name_table);
