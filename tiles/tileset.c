@@ -114,6 +114,9 @@ int tw_tileset_add_mesh(struct tw_tileset *ts, const float *positions,
     for (uint64_t k = 0; k < 3ull * vertex_count; k++)
         if (!isfinite(positions[k]) || (normals && !isfinite(normals[k])))
             return TW_ERR_INVALID;
+    for (uint64_t k = 0; k < 3ull * vertex_count; k++)
+        if (fabsf(positions[k]) > TW_TILES_MAX_MESH_COORD)
+            return TW_ERR_LIMIT;
     for (uint64_t k = 0; k < 3ull * triangle_count; k++)
         if (indices[k] >= vertex_count)
             return TW_ERR_INVALID;
@@ -176,6 +179,15 @@ int tw_tileset_add_instance(struct tw_tileset *ts, uint32_t proto, uint32_t mesh
     for (int k = 0; k < 12; k++)
         if (!isfinite(transform[k]))
             return TW_ERR_INVALID;
+    for (int k = 0; k < 12; k++)
+        if (fabsf(transform[k]) > TW_TILES_MAX_COORD)
+            return TW_ERR_LIMIT;
+    /* The placed mesh stays within reach (the transformed box holds every
+     * transformed vertex). */
+    const struct tw_box placed = tw_box_transform(&ts->meshes[mesh].box, transform);
+    for (int k = 0; k < 3; k++)
+        if (!(placed.min[k] >= -TW_TILES_MAX_COORD) || !(placed.max[k] <= TW_TILES_MAX_COORD))
+            return TW_ERR_LIMIT;
     struct tw_prototype *p = &ts->prototypes[proto];
     int err = grow((void **)&p->instances, &p->instance_cap, p->instance_count + 1,
                    sizeof(*p->instances));
@@ -371,6 +383,13 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
         }
         tw_box_add_box(&ts->common_box, &proto->box);
     }
+    /* Content that overhangs its cell by many footprints costs every frame
+     * (tiles.h, TW_TILES_MAX_SPAN). */
+    if ((double)ts->common_box.max[0] - ts->common_box.min[0] >
+            (double)TW_TILES_MAX_SPAN * ts->footprint[0] ||
+        (double)ts->common_box.max[2] - ts->common_box.min[2] >
+            (double)TW_TILES_MAX_SPAN * ts->footprint[1])
+        return TW_ERR_LIMIT;
     ts->max_cluster_triangles = max_cluster_triangles;
     ts->finished = true;
     return TW_OK;

@@ -191,4 +191,15 @@ struct tw_tilesets_provider {
 int tw_provider_check_tile(const struct tw_tile_provider *provider, const struct tw_log *log,
                            struct tw_cell cell, const struct tw_tileset *ts);
 
+/* ---- glTF import from an open file (gltf.c) ---------------------------------------------- */
+
+/* tw_gltf_import() of the regular file open as fd (read from where it is,
+ * not closed), whose external buffers and images are opened beneath the
+ * folder dir_fd (confined-path.h; -1: none allowed). name is used in
+ * messages. Used by manifests, which open every file beneath their folder
+ * once and never by name again. */
+int tw_gltf_import_fd(int fd, int dir_fd, const char *name,
+                      const struct tw_gltf_settings *settings, const struct tw_log *log,
+                      struct tw_gltf_scene **out);
+
 #endif

@@ -284,10 +284,19 @@ int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float w,
                     float d, struct tw_path *out);
 
 /* Reads a path CSV (header line, then cell_i,cell_j,x,y,z,yaw,pitch per
- * row). On error returns a negative code and writes "FILE:LINE: reason" into
- * err. frames > 0 keeps only the first frames rows (fewer rows: an error). */
+ * row). Every row is checked when the file is loaded: cells are decimal
+ * 64-bit integers, x and z within +-1e7 m, y within +-TW_TILES_MAX_COORD,
+ * yaw within +-1e6 degrees (kept modulo 360), pitch in (-89.9, 89.9). Only
+ * a regular file is read (a FIFO or a device is refused, never waited on).
+ * On error returns a negative code and writes one line "FILE:LINE: reason"
+ * into err (text from the file escaped, tiles.h tw_log_escape()). frames > 0
+ * keeps only the first frames rows (fewer rows: an error). */
 int tw_path_load_csv(const char *file, uint32_t frames, float w, float d,
                      struct tw_path *out, char *err, size_t err_size);
+/* The same from size bytes of CSV at text (only read during the call); name
+ * is the file name used in messages. */
+int tw_path_parse_csv(const char *text, size_t size, const char *name, uint32_t frames,
+                      float w, float d, struct tw_path *out, char *err, size_t err_size);
 
 /* Moves every key by (di, dj) cells; TW_ERR_INVALID on int64 overflow. */
 int tw_path_translate(struct tw_path *p, int64_t di, int64_t dj);

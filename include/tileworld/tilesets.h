@@ -104,16 +104,28 @@ struct tw_gltf_scene {
 };
 
 /* Imports the default scene (else scene 0, else every root node) of the
- * .gltf or .glb file at path (binary or JSON is told by the content).
- * Buffers and images in external files must lie inside the file's folder.
- * Textures are not kept: a PNG base-colour texture is sampled at each
- * triangle's centroid and its primitive split into one material per colour
- * (a texture that cannot be read leaves the base colour, with a warning).
- * Every reference, accessor range, index and node transform is
- * checked, node hierarchies must be trees (no cycles, one parent per node),
- * primitives must be triangles (lists, strips or fans). settings may be
- * NULL. On bad input returns TW_ERR_FORMAT, TW_ERR_IO or TW_ERR_LIMIT and
- * logs one error line "<path>: <element>: <reason>", e.g.
+ * .gltf or .glb file at path (binary or JSON is told by the content; only a
+ * regular file is read: a FIFO is refused, never waited on). Buffers and
+ * images in external files must lie inside the file's folder; they are
+ * opened beneath it (confined-path.h) and their URIs decoded as RFC 3986
+ * says ('+' is a plus sign). Textures are not kept: a PNG base-colour
+ * texture is sampled at each triangle's centroid (through its
+ * KHR_texture_transform) and its primitive split into one material per
+ * colour (a texture that cannot be read leaves the base colour, with a
+ * warning). Every reference, accessor range, index and node transform is
+ * checked, node hierarchies must be trees (no cycles, one parent per node).
+ * Triangles (lists, strips or fans) are drawn; points and lines are skipped
+ * with one warning. KHR_mesh_quantization is supported (integer positions,
+ * normals and texture coordinates, dequantised by the node transforms); a
+ * required extension that is not supported (Draco, meshopt) is refused by
+ * name. Coordinates are bounded (tiles.h): node values and mesh-local
+ * positions within +-TW_TILES_MAX_MESH_COORD, every placed mesh within
+ * +-TW_TILES_MAX_COORD. Cost is bounded by the file: every check is linear,
+ * and a document whose JSON would take more than 64 MiB + 32 bytes per byte
+ * of JSON (estimated before parsing) is refused. settings may be NULL. On
+ * bad input returns TW_ERR_FORMAT, TW_ERR_IO or TW_ERR_LIMIT and logs one
+ * error line "<path>: <element>: <reason>" (text from the file escaped,
+ * tiles.h tw_log_escape()), e.g.
  * "a.gltf: nodes[2].children[0]: nodes[0] is an ancestor of nodes[2] (a cycle)".
  * The caller owns *out. */
 int tw_gltf_import(const char *path, const struct tw_gltf_settings *settings,
@@ -164,11 +176,15 @@ struct tw_manifest_settings {
     struct tw_gltf_settings gltf;   /* limits of each glTF file; zero: defaults */
 };
 
-/* Loads the manifest at path and every glTF file it names (paths relative
- * to the manifest's folder, which they may not leave) into a finished
- * tileset. On bad input returns a negative tw_error and logs one error line
- * "<manifest>: <place, e.g. prototypes[2].objects[0].gltf>: <reason>". The
- * caller owns *out. */
+/* Loads the manifest at path (a regular file: a FIFO is refused, never
+ * waited on) and every glTF file it names (paths relative to the manifest's
+ * folder, which they may not leave: opened beneath it) into a finished
+ * tileset whose per-frame cost is bounded (tiles.h: weights and scales in
+ * [1e-6, 1e6], content within reach of its tile and at most
+ * TW_TILES_MAX_SPAN footprints wide, at most TW_TILES_MAX_CELLS_IN_VIEW cells
+ * in view at the default view distance). On bad input returns a negative
+ * tw_error and logs one error line "<manifest>: <place, e.g.
+ * prototypes[2].objects[0].gltf>: <reason>". The caller owns *out. */
 int tw_tilesets_load_manifest(const char *path, const struct tw_log *log,
                               struct tw_tileset **out);
 /* The same with settings (NULL: defaults). */
