@@ -227,6 +227,22 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
     w->s = *settings;
     tw_world_default_settings(&w->s);
     int err = resolve_provider(w);
+    /* Every frame's cost is bounded: tile-query propagation may visit every
+     * cell within reach, so the reach must stay within the per-frame limit. */
+    if (!err) {
+        const double reach = tw_tiles_cells_in_reach(&w->provider.bound, w->provider.footprint[0],
+                                                     w->provider.footprint[1], w->s.view_distance);
+        if (!(reach <= TW_TILES_MAX_CELLS_IN_VIEW)) {
+            tw_log_printf(log, TW_LOG_ERROR,
+                          "tw_world_create: %s: a view distance of %g m over %g x %g m tiles "
+                          "reaches about %.3g cells, more than the limit of %u a frame may "
+                          "consider: shorten the view distance or use larger tiles",
+                          w->provider.name ? w->provider.name : "the world",
+                          (double)w->s.view_distance, (double)w->provider.footprint[0],
+                          (double)w->provider.footprint[1], reach, TW_TILES_MAX_CELLS_IN_VIEW);
+            err = TW_ERR_LIMIT;
+        }
+    }
     if (!err)
         err = tw_renderer_create(w->s.width, w->s.height, w->s.get_proc, &w->s.log, &w->renderer);
     if (err)
