@@ -11,7 +11,7 @@
 #include <unistd.h>
 
 const char *const tw_path_builtin_names[] = {"street", "flyover", "forest", "teleport", "spin",
-                                             NULL};
+                                             "straight", "wander", NULL};
 
 static const float eye_height = 1.7f;
 
@@ -36,11 +36,12 @@ static int set_key(struct tw_camera *key, double x, double y, double z, double y
     return tw_tiles_normalize(&key->pos, w, d);
 }
 
-/* Eye height along the streets (the tile borders), turning at crossings. */
-static int path_street(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d)
+/* Eye height along the streets (the tile borders) at speed metres per
+ * frame, turning at crossings when turns. */
+static int walk_streets(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d,
+                        double speed, bool turns)
 {
     static const int dx[4] = {0, 1, 0, -1}, dz[4] = {1, 0, -1, 0};
-    const double speed = 1.0;       /* metres per frame */
     const uint32_t turn_frames = 16;
     double x = 0.0, z = 0.0;
     int dir = 0;                     /* 0: +z, 1: +x, 2: -z, 3: -x (yaw = 90 * dir) */
@@ -63,7 +64,7 @@ static int path_street(uint64_t seed, struct tw_camera *keys, uint32_t frames, f
                 /* At a crossing: go on, or turn left or right. */
                 const uint64_t h = tw_tiles_hash(seed, (int64_t)crossing++, 0x5757);
                 const int choice = (int)(h % 4);          /* 0, 1: straight; 2: left; 3: right */
-                if (choice >= 2) {
+                if (turns && choice >= 2) {
                     const int turn = choice == 2 ? -1 : 1;
                     dir = (dir + 4 + turn) & 3;
                     turn_from = yaw;
@@ -79,29 +80,51 @@ static int path_street(uint64_t seed, struct tw_camera *keys, uint32_t frames, f
     return TW_OK;
 }
 
+static int path_street(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d,
+                       double speed)
+{
+    return walk_streets(seed, keys, frames, w, d, speed > 0.0 ? speed : 1.0, true);
+}
+
+/* The long paths of the memory test: along one street, or wandering
+ * through the streets (turns at crossings), at 2 m a frame by default. */
+static int path_straight(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w,
+                         float d, double speed)
+{
+    return walk_streets(seed, keys, frames, w, d, speed > 0.0 ? speed : 2.0, false);
+}
+
+static int path_wander(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d,
+                       double speed)
+{
+    return walk_streets(seed, keys, frames, w, d, speed > 0.0 ? speed : 2.0, true);
+}
+
 /* Rises from the street to ~300 m while moving on, looking across the city
  * at grazing angles: little occlusion, many tiles. */
-static int path_flyover(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d)
+static int path_flyover(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d,
+                        double speed)
 {
     const double yaw0 = 20.0 + (double)(tw_tiles_hash(seed, 7, 7) % 50);
     double x = 0.0, z = 0.0;
     for (uint32_t f = 0; f < frames; f++) {
         const double rise = smoothstep(f / 240.0);
         const double yaw = yaw0 + 0.08 * f;
-        const double speed = 1.0 + 3.0 * rise;
+        const double pace = (speed > 0.0 ? speed : 1.0) * (1.0 + 3.0 * rise);
         const double y = eye_height + (300.0 - eye_height) * rise;
         const double pitch = 2.0 - 14.0 * rise;
         if (set_key(&keys[f], x, y, z, yaw, pitch, w, d))
             return TW_ERR_INVALID;
         const double r = yaw * 3.14159265358979323846 / 180.0;
-        x += sin(r) * speed;
-        z += cos(r) * speed;
+        x += sin(r) * pace;
+        z += cos(r) * pace;
     }
     return TW_OK;
 }
 
 /* Eye height, wandering: heading drifts smoothly, not bound to streets. */
-static int path_forest(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d)
+static int path_forest(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d,
+                       double speed)
 {
     const double phase = (double)(tw_tiles_hash(seed, 3, 3) % 1000) / 1000.0 * 6.28318530718;
     double x = 0.37 * w, z = 0.41 * d;
@@ -111,8 +134,8 @@ static int path_forest(uint64_t seed, struct tw_camera *keys, uint32_t frames, f
         if (set_key(&keys[f], x, eye_height, z, yaw, pitch, w, d))
             return TW_ERR_INVALID;
         const double r = yaw * 3.14159265358979323846 / 180.0;
-        x += sin(r) * 0.8;
-        z += cos(r) * 0.8;
+        x += sin(r) * (speed > 0.0 ? speed : 0.8);
+        z += cos(r) * (speed > 0.0 ? speed : 0.8);
     }
     return TW_OK;
 }
@@ -120,10 +143,11 @@ static int path_forest(uint64_t seed, struct tw_camera *keys, uint32_t frames, f
 /* The street walk, but every 50 frames the camera jumps to an unrelated
  * place (a hashed cell far away, a random heading): temporal coherence
  * fails by design. */
-static int path_teleport(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d)
+static int path_teleport(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d,
+                         double speed)
 {
     const uint32_t leg = 50;
-    int err = path_street(seed, keys, frames, w, d);
+    int err = path_street(seed, keys, frames, w, d, speed);
     for (uint32_t f = leg; f < frames && !err; f++) {
         const uint32_t jump = f / leg;
         const uint64_t h = tw_tiles_hash(seed, (int64_t)jump, 0x7e1e);
@@ -139,10 +163,11 @@ static int path_teleport(uint64_t seed, struct tw_camera *keys, uint32_t frames,
 
 /* The street walk, with a 180-degree turn on the spot within 6 frames every
  * 40 frames. */
-static int path_spin(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d)
+static int path_spin(uint64_t seed, struct tw_camera *keys, uint32_t frames, float w, float d,
+                     double speed)
 {
     const uint32_t period = 40, spin = 6;
-    int err = path_street(seed, keys, frames, w, d);
+    int err = path_street(seed, keys, frames, w, d, speed);
     double extra = 0.0;
     for (uint32_t f = 0; f < frames && !err; f++) {
         const uint32_t t = f % period;
@@ -156,9 +181,16 @@ static int path_spin(uint64_t seed, struct tw_camera *keys, uint32_t frames, flo
 int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float w, float d,
                     struct tw_path *out)
 {
-    if (!name || !out || frames == 0 || !(w > 0.0f) || !(d > 0.0f))
+    return tw_path_builtin_speed(name, seed, frames, 0.0f, w, d, out);
+}
+
+int tw_path_builtin_speed(const char *name, uint64_t seed, uint32_t frames, float speed, float w,
+                          float d, struct tw_path *out)
+{
+    if (!name || !out || frames == 0 || !(w > 0.0f) || !(d > 0.0f) ||
+        !(speed >= 0.0f && speed <= 1000.0f))
         return TW_ERR_INVALID;
-    int (*gen)(uint64_t, struct tw_camera *, uint32_t, float, float) = NULL;
+    int (*gen)(uint64_t, struct tw_camera *, uint32_t, float, float, double) = NULL;
     if (strcmp(name, "street") == 0)
         gen = path_street;
     else if (strcmp(name, "flyover") == 0)
@@ -169,6 +201,10 @@ int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float w, f
         gen = path_teleport;
     else if (strcmp(name, "spin") == 0)
         gen = path_spin;
+    else if (strcmp(name, "straight") == 0)
+        gen = path_straight;
+    else if (strcmp(name, "wander") == 0)
+        gen = path_wander;
     else
         return TW_ERR_INVALID;
     memset(out, 0, sizeof(*out));
@@ -177,7 +213,7 @@ int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float w, f
         return TW_ERR_NOMEM;
     snprintf(out->name, sizeof(out->name), "%s", name);
     out->count = frames;
-    int err = gen(seed, out->keys, frames, w, d);
+    int err = gen(seed, out->keys, frames, w, d, speed);
     if (err)
         tw_path_finish(out);
     return err;

@@ -278,10 +278,16 @@ struct tw_path {
 extern const char *const tw_path_builtin_names[];
 
 /* Generates frames keys of the built-in path name for a tileset with
- * footprint w x d and the street width street (0: 14 m), deterministic for
+ * footprint w x d (streets run along the tile borders), deterministic for
  * seed. Returns TW_ERR_INVALID for an unknown name. */
 int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float w,
                     float d, struct tw_path *out);
+/* The same at speed metres per frame (0: the path's own: 1 for street,
+ * teleport and spin, 0.8 for forest, 1 rising to 4 for flyover, 2 for the
+ * memory test's long paths straight (along one street) and wander (through
+ * the streets, turning at crossings)). */
+int tw_path_builtin_speed(const char *name, uint64_t seed, uint32_t frames, float speed, float w,
+                          float d, struct tw_path *out);
 
 /* Reads a path CSV (header line, then cell_i,cell_j,x,y,z,yaw,pitch per
  * row). Every row is checked when the file is loaded: cells are decimal
