@@ -295,7 +295,7 @@ static void *worker_main(void *arg)
     struct tw_stream *s = wk->s;
     pthread_mutex_lock(&s->lock);
     for (;;) {
-        uint32_t index;
+        uint32_t index = UINT32_MAX;
         while (!s->quit && (index = pop_job(s)) == UINT32_MAX)
             pthread_cond_wait(&s->work, &s->lock);
         if (s->quit)
