@@ -11,14 +11,7 @@
 #   test-accuracy-slow.sh PATH/TO/tileworld
 set -u
 tw=${1:?usage: test-accuracy-slow.sh PATH/TO/tileworld}
-export LSAN_OPTIONS="${LSAN_OPTIONS:+$LSAN_OPTIONS:}print_suppressions=0"
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-passed=0
-failed=0
-
-ok() { passed=$((passed + 1)); }
-bad() { failed=$((failed + 1)); echo "FAIL: $*" >&2; }
+. "$(dirname "$0")/test-lib.sh"
 
 # totals DIR: one line per method, "METHOD FRAMES MISSED_PIXELS DEPTH_ERRORS".
 totals() {
@@ -71,5 +64,4 @@ for walk in street:city:street flyover:city:flyover forest:forest:forest hybrid:
     rm -rf "${tmp:?}/$name"
 done
 
-echo "accuracy-slow: $passed passed, $failed failed"
-[ "$failed" -eq 0 ]
+finish accuracy-slow

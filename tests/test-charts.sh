@@ -11,16 +11,7 @@ if ! command -v gnuplot >/dev/null 2>&1; then
     echo "SKIP: gnuplot is not installed" >&2
     exit 77
 fi
-# Under the sanitizer CI run, LeakSanitizer would add its list of the
-# suppressions used (OSMesa's) to stderr, whose lines are counted here.
-export LSAN_OPTIONS="${LSAN_OPTIONS:+$LSAN_OPTIONS:}print_suppressions=0"
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-passed=0
-failed=0
-
-ok() { passed=$((passed + 1)); }
-bad() { failed=$((failed + 1)); echo "FAIL: $*" >&2; }
+. "$(dirname "$0")/test-lib.sh"
 
 # expect_chart FILE SIZE: decodes at SIZE with the many colours of
 # antialiased lines and text (a blank or one-colour image has a few).
@@ -73,8 +64,7 @@ small=(--size 160x90 --methods vfc,chc,oracle --verify --png-every 0 --quiet)
 run="$tmp/run"
 if ! "$tw" bench --frames 6 "${small[@]}" --out "$run" 2>"$tmp/bench-err"; then
     bad "bench failed: $(head -c 400 "$tmp/bench-err")"
-    echo "charts: $passed passed, $failed failed"
-    exit 1
+    finish charts
 fi
 [ ! -s "$tmp/bench-err" ] && ok || bad "bench printed: $(head -c 400 "$tmp/bench-err")"
 expect_chart "$run/chart-frame-time.png" 1000x600
@@ -208,5 +198,4 @@ else
     bad "gnuplot fails: bench exited non-zero: $(cat "$tmp/err")"
 fi
 
-echo "charts: $passed passed, $failed failed"
-[ "$failed" -eq 0 ]
+finish charts

@@ -7,16 +7,7 @@
 # run, a failed run leave no half-written or stale file under a final name).
 set -u
 tw=${1:?usage: test-cli.sh PATH/TO/tileworld}
-# Under the sanitizer CI run, LeakSanitizer would add its list of the
-# suppressions used (OSMesa's) to stderr, whose lines are counted here.
-export LSAN_OPTIONS="${LSAN_OPTIONS:+$LSAN_OPTIONS:}print_suppressions=0"
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-passed=0
-failed=0
-
-ok() { passed=$((passed + 1)); }
-bad() { failed=$((failed + 1)); echo "FAIL: $*" >&2; }
+. "$(dirname "$0")/test-lib.sh"
 
 # expect_usage_error ARGS...: exit status 2 and exactly one stderr line.
 expect_usage_error() {
@@ -334,5 +325,4 @@ no_temporaries "$killed"
 : >"$tmp/a-file"
 expect_usage_error walk "${small[@]}" --out "$tmp/a-file/sub"
 
-echo "$passed passed, $failed failed"
-[ "$failed" -eq 0 ]
+finish
