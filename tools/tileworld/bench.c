@@ -462,11 +462,13 @@ static struct check *add_check(struct scenario_result *r)
  * wall times; the wall-time figures are shown beside them. Measured with
  * the defaults (640x360, city, seed 1) on llvmpipe, two cores, a shared
  * machine, teleport and spin twice each:
- *   worst frame / vfc's worst: chc 0.5-1.35 (its first sight of a new tile
+ *   worst frame / vfc's worst: chc 0.49-1.35 (its first sight of a new tile
  *     draws it whole, DESIGN §7, and queries it: a jump costs it more than
- *     a vfc frame), tilequery+chc 0.16-0.39, the oracle 0.1-0.3 (one
- *     92 ms frame of 4 ms ones: llvmpipe compiling a shader variant);
- *   worst / median frame: tilequery+chc 2.6-4.9, tilequery 1.3-5.2 (a jump
+ *     a vfc frame), tilequery 0.25-0.56, tilequery+chc 0.16-0.39, the
+ *     oracle 0.11-0.30 (0.30: one 92 ms frame among 4 ms ones, probably
+ *     llvmpipe compiling a shader variant, which a median-based bound
+ *     would have taken for a spike);
+ *   worst / median frame: tilequery+chc 2.5-4.9, tilequery 1.3-5.2 (a jump
  *     costs them a few tile queries; most of the spread is the scene, a
  *     turn into a long street), chc 3.2-13 (no tile query bounds a jump).
  * A culler that lost its temporal state or drew new tiles whole at a jump
