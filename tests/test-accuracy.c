@@ -1,7 +1,18 @@
-/* GL accuracy suite (DESIGN.md §8, §11): on every frame of short walks along
- * each built-in path, every conservative method draws every cluster the
- * oracle's ID pass sees (missed_pixels = 0), and the oracle method itself
- * draws exactly the visible clusters (no overdraw, nothing missed). */
+/* GL accuracy suite (DESIGN.md §8, §11), quick (the slow suite's
+ * test-accuracy-slow.sh runs the long walks at 640x360):
+ *   - on every frame of short walks along each built-in path, every
+ *     conservative method draws every cluster the oracle's ID pass sees
+ *     (0 missed pixels, 0 depth errors at the default tolerance), and the
+ *     oracle method itself draws exactly the visible clusters (no overdraw);
+ *   - the ID pass rasterises what the normal pass does: vfc and the oracle,
+ *     which draw the same fragments, differ from it in no pixel's depth even
+ *     at a tolerance of 1e-30, over fixed views and a flyover window;
+ *   - the metric catches real errors: with every query box shrunk
+ *     (mutate_query_shrink 0.1 and 0.02, a deliberately broken culler) chc
+ *     and tilequery+chc miss pixels and clusters, and without it they miss
+ *     none.
+ * Every world runs with settings.deterministic, so that the counts do not
+ * depend on the GPU's timing: a failure repeats. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -20,21 +31,11 @@ static void log_stderr(void *user, enum tw_log_level level, const char *msg)
         fprintf(stderr, "log: %s\n", msg);
 }
 
-/* Walks frames [first, frames) of a built-in path: the frames before first
- * are skipped, not rendered, so a test can start just before a teleport or a
- * spin. */
-static void walk(struct tw_context *ctx, const char *tileset, const char *path_name,
-                 uint32_t first, uint32_t frames)
+static const struct tw_log test_log = {log_stderr, NULL};
+
+/* The settings every test starts from; change a copy. */
+static struct tw_world_settings base_settings(struct tw_context *ctx, const struct tw_tileset *ts)
 {
-    const struct tw_log log = {log_stderr, NULL};
-    struct tw_tileset *ts = NULL;
-    if (tw_tilesets_builtin(tileset, 3, 0, &log, &ts) != TW_OK) {
-        fprintf(stderr, "cannot build tileset %s\n", tileset);
-        failures++;
-        return;
-    }
-    struct tw_path path;
-    CHECK(tw_path_builtin(path_name, 3, frames, ts->footprint[0], ts->footprint[1], &path) == TW_OK);
     struct tw_world_settings s = {0};
     s.tileset = ts;
     s.selection.seed = 3;
@@ -42,26 +43,50 @@ static void walk(struct tw_context *ctx, const char *tileset, const char *path_n
     s.height = H;
     s.view_distance = 500.0f;
     s.verify = true;
+    s.deterministic = true;
     s.get_proc = tw_context_get_proc(ctx);
-    s.log = log;
+    s.log = test_log;
+    return s;
+}
+
+static bool load_path(const char *name, uint32_t frames, const struct tw_tileset *ts,
+                      struct tw_path *path)
+{
+    const int rc = tw_path_builtin(name, 3, frames, ts->footprint[0], ts->footprint[1], path);
+    CHECK(rc == TW_OK);
+    return rc == TW_OK;
+}
+
+/* Walks frames [first, frames) of a built-in path with every method: the
+ * frames before first are skipped, not rendered, so a walk can start just
+ * before a teleport or a spin. */
+static void walk(struct tw_context *ctx, const struct tw_tileset *ts, const char *path_name,
+                 uint32_t first, uint32_t frames)
+{
+    struct tw_path path;
+    if (!load_path(path_name, frames, ts, &path))
+        return;
+    const struct tw_world_settings s = base_settings(ctx, ts);
     struct tw_world *w = NULL;
     CHECK(tw_world_create(&s, &w) == TW_OK);
     const enum tw_method methods[] = {TW_METHOD_VFC, TW_METHOD_CHC, TW_METHOD_TILEQUERY,
                                       TW_METHOD_TILEQUERY_CHC, TW_METHOD_ORACLE};
-    uint64_t missed[5] = {0}, triangles[5] = {0}, overdraw[5] = {0};
+    uint64_t triangles[5] = {0}, overdraw[5] = {0};
     for (uint32_t f = first; w && f < path.count; f++) {
         for (size_t m = 0; m < 5; m++) {
             struct tw_frame_stats st;
             CHECK(tw_world_set_method(w, methods[m]) == TW_OK);
             CHECK(tw_world_frame(w, &path.keys[f], &st) == TW_OK);
-            if (st.missed_pixels != 0)
-                fprintf(stderr, "%s/%s frame %u: %s missed %llu pixels in %u clusters\n", tileset,
-                        path_name, f, tw_method_name(methods[m]),
-                        (unsigned long long)st.missed_pixels, st.missed_clusters);
+            if (st.missed_pixels != 0 || st.depth_errors != 0)
+                fprintf(stderr, "%s/%s frame %u: %s missed %llu pixels in %u clusters, "
+                        "%llu depth errors\n", ts->name, path_name, f,
+                        tw_method_name(methods[m]), (unsigned long long)st.missed_pixels,
+                        st.missed_clusters, (unsigned long long)st.depth_errors);
+            CHECK(tw_method_conservative(methods[m], &s));
             CHECK(st.missed_pixels == 0 && st.missed_clusters == 0);
+            CHECK(st.depth_errors == 0);
             if (methods[m] == TW_METHOD_ORACLE)
                 CHECK(st.overdraw_triangles == 0);
-            missed[m] += st.missed_pixels;
             triangles[m] += st.triangles;
             overdraw[m] += st.overdraw_triangles;
         }
@@ -69,14 +94,116 @@ static void walk(struct tw_context *ctx, const char *tileset, const char *path_n
     /* The methods really cull: fewer triangles than vfc over the walk. */
     CHECK(triangles[4] <= triangles[1] && triangles[1] <= triangles[0]);
     CHECK(triangles[3] < triangles[0]);
-    printf("%-7s %-9s frames %u-%u:", tileset, path_name, first, path.count - 1);
+    printf("%-7s %-9s frames %u-%u:", ts->name, path_name, first, path.count - 1);
     for (size_t m = 0; m < 5; m++)
         printf(" %s %.0f%%", tw_method_name(methods[m]),
                triangles[0] ? 100.0 * (double)triangles[m] / (double)triangles[0] : 0.0);
     printf(" of vfc's triangles; oracle overdraw %llu\n", (unsigned long long)overdraw[4]);
     tw_world_destroy(w);
     tw_path_finish(&path);
-    tw_tileset_destroy(ts);
+}
+
+/* vfc and the oracle draw, at every pixel, the fragment the ID pass keeps:
+ * not one depth differs, at any tolerance. */
+static void identity(struct tw_context *ctx, const struct tw_tileset *ts)
+{
+    /* Fixed views at cell (0, 0): along a street at eye height, up at the
+     * buildings, down from above, grazing from high up, against a wall. */
+    const struct tw_camera views[] = {
+        {{{0, 0}, {0.0f, 1.7f, 2.0f}}, 0.0f, 0.0f},
+        {{{0, 0}, {0.0f, 1.7f, 20.0f}}, 45.0f, 25.0f},
+        {{{0, 0}, {30.0f, 120.0f, 30.0f}}, 30.0f, -60.0f},
+        {{{0, 0}, {10.0f, 300.0f, -50.0f}}, 60.0f, -4.0f},
+        {{{0, 0}, {0.0f, 1.7f, 40.0f}}, 90.0f, 0.0f},
+        {{{0, 0}, {0.0f, 1.7f, 40.0f}}, 270.0f, -10.0f},
+    };
+    const size_t nviews = sizeof(views) / sizeof(views[0]);
+    struct tw_path flyover;
+    if (!load_path("flyover", 156, ts, &flyover))
+        return;
+    struct tw_world_settings s = base_settings(ctx, ts);
+    s.verify_tolerance = 1e-30f;
+    struct tw_world *w = NULL;
+    CHECK(tw_world_create(&s, &w) == TW_OK);
+    const enum tw_method methods[] = {TW_METHOD_VFC, TW_METHOD_ORACLE};
+    uint64_t errors[2] = {0}, frames = 0;
+    /* The fixed views, then a window of the flyover as it rises. */
+    for (size_t k = 0; w && k < nviews + 12; k++) {
+        const struct tw_camera *cam = k < nviews ? &views[k] : &flyover.keys[144 + (k - nviews)];
+        for (size_t m = 0; m < 2; m++) {
+            struct tw_frame_stats st;
+            CHECK(tw_world_set_method(w, methods[m]) == TW_OK);
+            CHECK(tw_world_frame(w, cam, &st) == TW_OK);
+            if (st.depth_errors != 0)
+                fprintf(stderr, "identity: %s view %zu: %llu pixels' depths differ from the ID "
+                        "pass's\n", tw_method_name(methods[m]), k,
+                        (unsigned long long)st.depth_errors);
+            CHECK(st.depth_errors == 0);
+            CHECK(st.missed_pixels == 0);
+            CHECK(st.triangles > 0);
+            errors[m] += st.depth_errors;
+        }
+        frames++;
+    }
+    printf("identity: %llu views, vfc %llu and oracle %llu depth differences at tolerance 1e-30\n",
+           (unsigned long long)frames, (unsigned long long)errors[0],
+           (unsigned long long)errors[1]);
+    tw_world_destroy(w);
+    tw_path_finish(&flyover);
+}
+
+/* Missed pixels and clusters of chc and tilequery+chc over frames of the
+ * street walk with query boxes shrunk by shrink. */
+static void mutated_walk(struct tw_context *ctx, const struct tw_tileset *ts, float shrink,
+                         uint32_t frames, uint64_t missed[2], uint64_t clusters[2])
+{
+    missed[0] = missed[1] = clusters[0] = clusters[1] = 0;
+    struct tw_path path;
+    if (!load_path("street", frames, ts, &path))
+        return;
+    struct tw_world_settings s = base_settings(ctx, ts);
+    s.mutate_query_shrink = shrink;
+    struct tw_world *w = NULL;
+    CHECK(tw_world_create(&s, &w) == TW_OK);
+    const enum tw_method methods[] = {TW_METHOD_CHC, TW_METHOD_TILEQUERY_CHC};
+    for (uint32_t f = 0; w && f < path.count; f++)
+        for (size_t m = 0; m < 2; m++) {
+            struct tw_frame_stats st;
+            CHECK(tw_world_set_method(w, methods[m]) == TW_OK);
+            CHECK(tw_world_frame(w, &path.keys[f], &st) == TW_OK);
+            /* A missed pixel is a depth error too (what is shown lies farther). */
+            CHECK(st.depth_errors >= st.missed_pixels);
+            CHECK((st.missed_pixels > 0) == (st.missed_clusters > 0));
+            missed[m] += st.missed_pixels;
+            clusters[m] += st.missed_clusters;
+        }
+    tw_world_destroy(w);
+    tw_path_finish(&path);
+}
+
+static void mutation(struct tw_context *ctx, const struct tw_tileset *ts)
+{
+    /* A small shrink hides only a cluster's fringe, a few pixels at this
+     * size: it walks longer. */
+    const float shrinks[] = {0.0f, 0.1f, 0.02f};
+    const uint32_t walk_frames[] = {12, 12, 30};
+    for (size_t k = 0; k < 3; k++) {
+        uint64_t missed[2], clusters[2];
+        const uint32_t frames = walk_frames[k];
+        mutated_walk(ctx, ts, shrinks[k], frames, missed, clusters);
+        printf("mutation: query boxes shrunk by %.2f: chc missed %llu pixels in %llu clusters, "
+               "tilequery+chc %llu pixels in %llu clusters over %u frames\n", shrinks[k],
+               (unsigned long long)missed[0], (unsigned long long)clusters[0],
+               (unsigned long long)missed[1], (unsigned long long)clusters[1], frames);
+        for (size_t m = 0; m < 2; m++) {
+            if (shrinks[k] == 0.0f) {
+                CHECK(missed[m] == 0 && clusters[m] == 0);
+            } else {
+                CHECK(missed[m] > 0);
+                CHECK(clusters[m] > 0);
+            }
+        }
+    }
 }
 
 int main(void)
@@ -86,13 +213,24 @@ int main(void)
         fprintf(stderr, "cannot create the headless context\n");
         return 1;
     }
-    walk(ctx, "city", "street", 0, 16);
-    walk(ctx, "city", "flyover", 0, 16);
-    walk(ctx, "city", "flyover", 200, 208);  /* high up: grazing, little occlusion */
-    walk(ctx, "city", "teleport", 46, 56);   /* the jump at frame 50 */
-    walk(ctx, "city", "spin", 38, 48);       /* the 180-degree turn in frames 40-45 */
-    walk(ctx, "forest", "forest", 0, 16);
-    walk(ctx, "hybrid", "street", 0, 16);
+    static const char *const names[] = {"city", "forest", "hybrid"};
+    struct tw_tileset *ts[3] = {NULL};
+    for (size_t k = 0; k < 3; k++)
+        if (tw_tilesets_builtin(names[k], 3, 0, &test_log, &ts[k]) != TW_OK) {
+            fprintf(stderr, "cannot build tileset %s\n", names[k]);
+            return 1;
+        }
+    walk(ctx, ts[0], "street", 0, 10);
+    walk(ctx, ts[0], "flyover", 0, 8);
+    walk(ctx, ts[0], "flyover", 200, 206);  /* high up: grazing, little occlusion */
+    walk(ctx, ts[0], "teleport", 47, 53);   /* the jump at frame 50 */
+    walk(ctx, ts[0], "spin", 39, 47);       /* the 180-degree turn in frames 40-45 */
+    walk(ctx, ts[1], "forest", 0, 8);
+    walk(ctx, ts[2], "street", 0, 8);
+    identity(ctx, ts[0]);
+    mutation(ctx, ts[0]);
+    for (size_t k = 0; k < 3; k++)
+        tw_tileset_destroy(ts[k]);
     tw_context_destroy(ctx);
     if (failures) {
         fprintf(stderr, "test-accuracy: %d checks failed\n", failures);

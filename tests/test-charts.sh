@@ -11,16 +11,7 @@ if ! command -v gnuplot >/dev/null 2>&1; then
     echo "SKIP: gnuplot is not installed" >&2
     exit 77
 fi
-# Under the sanitizer CI run, LeakSanitizer would add its list of the
-# suppressions used (OSMesa's) to stderr, whose lines are counted here.
-export LSAN_OPTIONS="${LSAN_OPTIONS:+$LSAN_OPTIONS:}print_suppressions=0"
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-passed=0
-failed=0
-
-ok() { passed=$((passed + 1)); }
-bad() { failed=$((failed + 1)); echo "FAIL: $*" >&2; }
+. "$(dirname "$0")/test-lib.sh"
 
 # expect_chart FILE SIZE: decodes at SIZE with the many colours of
 # antialiased lines and text (a blank or one-colour image has a few).
@@ -73,8 +64,7 @@ small=(--size 160x90 --methods vfc,chc,oracle --verify --png-every 0 --quiet)
 run="$tmp/run"
 if ! "$tw" bench --frames 6 "${small[@]}" --out "$run" 2>"$tmp/bench-err"; then
     bad "bench failed: $(head -c 400 "$tmp/bench-err")"
-    echo "charts: $passed passed, $failed failed"
-    exit 1
+    finish charts
 fi
 [ ! -s "$tmp/bench-err" ] && ok || bad "bench printed: $(head -c 400 "$tmp/bench-err")"
 expect_chart "$run/chart-frame-time.png" 1000x600
@@ -133,6 +123,25 @@ if "$tw" bench --frames 3 "${small[@]}" --sweep T=0,10 --out "$sweep" 2>"$tmp/er
     # vfc and the oracle draw the same at every T.
     grep -q "^sweep_unaffected = 'vfc oracle'" "$sweep/chart-data/run.gp" && ok ||
         bad "run.gp: $(grep unaffected "$sweep/chart-data/run.gp")"
+    # Speed against accuracy: a point per method and value, the fronts, sweep.md.
+    expect_chart "$sweep/chart-pareto.png" 1200x600
+    grep -q '^pareto = 1' "$sweep/chart-data/run.gp" && ok || bad "run.gp: pareto"
+    f="$sweep/chart-data/pareto.dat"
+    head -2 "$f" | tail -1 | grep -q '^method value mean_cpu_ms missed_per_frame depth_errors_per_frame conservative front front_depth speedup$' &&
+        ok || bad "$f: header"
+    [ "$(grep -vc '^#' "$f")" -eq 7 ] && ok || bad "$f: expected a header and 6 points"
+    # T=0 is conservative, T=10 not, for chc; vfc and the oracle always.
+    awk '$1 == "chc" && $2 == "0" && $6 == 1 { a++ } $1 == "chc" && $2 == "10" && $6 == 0 { b++ }
+         $1 == "vfc" && $6 == 1 { c++ } END { exit !(a == 1 && b == 1 && c == 2) }' "$f" && ok ||
+        bad "$f: conservative column: $(cat "$f")"
+    # The oracle is never on a front, and every front point is in pareto.dat.
+    awk '$1 == "oracle" && ($7 == 1 || $8 == 1) { exit 1 }' "$f" && ok || bad "$f: the oracle on a front"
+    front=$(awk 'NR > 2 && $7 == 1' "$f")
+    [ -n "$front" ] && [ "$front" = "$(tail -n +3 "$sweep/chart-data/pareto-front.dat")" ] && ok ||
+        bad "pareto-front.dat does not hold the front of pareto.dat"
+    grep -q '^| method | T | mean CPU ms | speed-up vs T=0 |' "$sweep/sweep.md" && ok || bad "sweep.md table"
+    grep -q '^\*\*The front of CPU time against missed pixels\*\*' "$sweep/sweep.md" && ok || bad "sweep.md front"
+    grep -q '^mean_cpu_ms\|,mean_cpu_ms,' "$sweep/sweep.csv" && ok || bad "sweep.csv: mean_cpu_ms"
 else
     bad "bench --sweep failed: $(head -c 400 "$tmp/err")"
 fi
@@ -141,7 +150,8 @@ fi
 # sweep data of the earlier one.
 if "$tw" bench --frames 2 "${small[@]}" --out "$sweep" 2>"$tmp/err"; then
     [ ! -e "$sweep/chart-sweep.png" ] && [ ! -e "$sweep/sweep.csv" ] && [ ! -e "$sweep/sweep-T-10" ] &&
-        [ -z "$(ls "$sweep/chart-data" | grep '^sweep-')" ] && ok ||
+        [ -z "$(ls "$sweep/chart-data" | grep '^sweep-\|^pareto')" ] && [ ! -e "$sweep/sweep.md" ] &&
+        [ ! -e "$sweep/chart-pareto.png" ] && ok ||
         bad "a bench without a sweep left the earlier sweep's files: $(ls -A "$sweep" "$sweep/chart-data")"
     expect_chart "$sweep/chart-frame-time.png" 1000x600
 else
@@ -188,5 +198,4 @@ else
     bad "gnuplot fails: bench exited non-zero: $(cat "$tmp/err")"
 fi
 
-echo "charts: $passed passed, $failed failed"
-[ "$failed" -eq 0 ]
+finish charts

@@ -7,16 +7,7 @@
 # run, a failed run leave no half-written or stale file under a final name).
 set -u
 tw=${1:?usage: test-cli.sh PATH/TO/tileworld}
-# Under the sanitizer CI run, LeakSanitizer would add its list of the
-# suppressions used (OSMesa's) to stderr, whose lines are counted here.
-export LSAN_OPTIONS="${LSAN_OPTIONS:+$LSAN_OPTIONS:}print_suppressions=0"
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-passed=0
-failed=0
-
-ok() { passed=$((passed + 1)); }
-bad() { failed=$((failed + 1)); echo "FAIL: $*" >&2; }
+. "$(dirname "$0")/test-lib.sh"
 
 # expect_usage_error ARGS...: exit status 2 and exactly one stderr line.
 expect_usage_error() {
@@ -85,6 +76,22 @@ expect_usage_error walk -- --frames 2
 expect_usage_error import
 expect_usage_error info --tileset city extra
 
+# Accuracy options: a tolerance above 0 and below 1, a shrink below 1.
+for v in 0 0.0 1 1.5 -0.1 1e-5 abc ''; do
+    expect_usage_error walk --verify-tolerance "$v" "${small[@]}"
+done
+for v in 1 1.0 -0.1 2 1e-2 nan; do
+    expect_usage_error walk --mutate-query-shrink "$v" "${small[@]}"
+done
+expect_usage_error walk --deterministic=yes "${small[@]}"
+# A scenario runs its own path and selection: what it would ignore is refused.
+expect_usage_error bench --scenario spin --path street "${small[@]}"
+expect_usage_error bench --scenario spin --start-cell 3,4 "${small[@]}"
+expect_usage_error bench --scenario spin --repeat 4 "${small[@]}"
+expect_usage_error bench --scenario spin --sweep T=0,1 "${small[@]}"
+"$tw" bench --scenario spin --path street 2>"$tmp/err"
+grep -q -- "--path: --scenario runs its own path" "$tmp/err" && ok || bad "scenario --path: $(cat "$tmp/err")"
+
 # Numbers mean what they say: plain decimal digits only.
 for v in 0x10 inf nan 1e400 1e3 ' 5' '5 ' +5 '' 1. .5 1,5 ０; do
     expect_usage_error walk --view-distance "$v"
@@ -115,6 +122,15 @@ expect_usage_error walk $'--fr\x01ames' 2
 if "$tw" walk --help >"$tmp/out" 2>"$tmp/err" && grep -q '^usage: tileworld walk' "$tmp/out" &&
    [ ! -s "$tmp/err" ]; then ok; else bad "walk --help"; fi
 if "$tw" --help >"$tmp/out" && grep -q -- '--opt=VALUE' "$tmp/out"; then ok; else bad "--help"; fi
+# Every option of the tables is in the usage.
+src=$(dirname "$0")/..
+options=$(sed -n 's/^ *{"\([a-z-]*\)", \(no\|required\)_argument.*/\1/p' \
+    "$src/tools/cli.h" "$src/tools/tileworld/tileworld.c")
+[ "$(wc -w <<<"$options")" -ge 25 ] && ok || bad "found only $(wc -w <<<"$options") options in the tables"
+for o in $options; do
+    grep -q -- "--$o\b" "$tmp/out" && ok || bad "tileworld --help does not list --$o"
+done
+grep -q -- '--mutate-query-shrink F  testing only' "$tmp/out" && ok || bad "--help: --mutate-query-shrink not marked testing only"
 
 # --opt=value is applied as --opt value is.
 if "$tw" walk --size=96x54 --frames=3 --png-every=0 --quiet --method=vfc --out="$tmp/eq" 2>"$tmp/err" &&
@@ -143,12 +159,13 @@ if "$tw" walk --path "$tmp/good.csv" --size 96x54 --png-every 0 --quiet --out "$
 if "$tw" walk --tileset city --path street --frames 5 --method vfc --size 160x90 --png-every 2 \
       --quiet --out "$tmp/walk" 2>"$tmp/err"; then
     [ "$(wc -l <"$tmp/walk/frames.csv")" -eq 6 ] && ok || bad "frames.csv row count"
-    head -1 "$tmp/walk/frames.csv" | grep -q '^frame,method,ms_frame,ms_cull,ms_wait,triangles,clusters,draws,queries,tiles_queried,tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,missed_clusters,overdraw_triangles$' \
+    head -1 "$tmp/walk/frames.csv" | grep -q '^frame,method,ms_frame,ms_cull,ms_wait,triangles,clusters,draws,queries,tiles_queried,tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,missed_clusters,overdraw_triangles,cpu_ms,depth_errors' \
         && ok || bad "frames.csv header"
     for key in '"methods"' '"vfc"' '"mean_ms"' '"median_ms"' '"p95_ms"' '"p99_ms"' '"mean_triangles"' \
                '"mean_queries"' '"missed_pixels_total"' '"frames_with_missed_pixels"' \
                '"tiles_new_total"' '"peak_cache_bytes"' '"predict_fail_rate"' '"tileset"' '"path"' \
-               '"size"' '"seed"'; do
+               '"size"' '"seed"' '"mean_cpu_ms"' '"median_cpu_ms"' '"p99_cpu_ms"' \
+               '"depth_errors_total"' '"frames_with_depth_errors"' '"deterministic": false'; do
         grep -q "$key" "$tmp/walk/summary.json" && ok || bad "summary.json lacks $key"
     done
     [ -s "$tmp/walk/frame-00000.png" ] && [ -s "$tmp/walk/frame-00004.png" ] && ok || bad "PNG snapshots"
@@ -171,6 +188,47 @@ if "$tw" "${common[@]}" --start-cell 0,0 --out "$tmp/near" 2>"$tmp/err" &&
 else
     bad "far-origin walks failed: $(cat "$tmp/err")"
 fi
+
+# The accuracy options reach the run and its summaries.
+if "$tw" bench --methods vfc,chc --frames 3 --size 96x54 --verify --verify-tolerance 0.001 \
+      --deterministic --mutate-query-shrink 0.25 --png-every 0 --quiet --out "$tmp/acc" 2>"$tmp/err"; then
+    grep -q '"verify_tolerance": 0.001,' "$tmp/acc/summary.json" && ok || bad "summary.json: verify_tolerance"
+    grep -q '"deterministic": true' "$tmp/acc/summary.json" && ok || bad "summary.json: deterministic"
+    grep -q '"mutate_query_shrink": 0.25' "$tmp/acc/summary.json" && ok || bad "summary.json: mutate_query_shrink"
+    grep -q 'Testing only: every query box shrunk by 0.25' "$tmp/acc/summary.md" && ok || bad "summary.md: mutation"
+    grep -q 'CPU / vfc' "$tmp/acc/summary.md" && grep -q 'CPU / oracle' "$tmp/acc/summary.md" && ok ||
+        bad "summary.md: CPU-time ratios"
+else
+    bad "bench with the accuracy options: $(cat "$tmp/err")"
+fi
+
+# --scenario honours --frames and --size; a check that does not hold is exit
+# status 3: with every query box shrunk, the missed-pixel checks fail.
+scen=(bench --scenario spin --frames 6 --size 96x54 --methods chc,tilequery+chc --deterministic
+      --png-every 0 --quiet)
+"$tw" "${scen[@]}" --mutate-query-shrink 0.1 --out "$tmp/scen-broken" 2>"$tmp/err"
+rc=$?
+[ "$rc" -eq 3 ] && ok || bad "scenario with shrunk query boxes exited $rc (expected 3): $(cat "$tmp/err")"
+for m in chc tilequery+chc; do
+    grep -Fq "| spin | temporal coherence | $m: no missed pixels, no depth errors |" "$tmp/scen-broken/scenarios.md" &&
+        grep -F "| $m: no missed pixels" "$tmp/scen-broken/scenarios.md" | grep -q '| \*\*no\*\* |$' && ok ||
+        bad "scenarios.md: $m's missed pixels held under the mutation"
+done
+grep -Eq '"all_held": ?false' "$tmp/scen-broken/scenarios.json" && ok || bad "scenarios.json: all_held"
+grep -q 'Testing only' "$tmp/scen-broken/scenarios.md" && ok || bad "scenarios.md: mutation not said"
+# The same without the mutation: the missed-pixel checks hold (the timing
+# checks are not this test's business).
+"$tw" "${scen[@]}" --out "$tmp/scen" 2>"$tmp/err"
+rc=$?
+[ "$rc" -eq 0 ] || [ "$rc" -eq 3 ] && ok || bad "scenario exited $rc: $(cat "$tmp/err")"
+for m in chc tilequery+chc; do
+    grep -F "| $m: no missed pixels" "$tmp/scen/scenarios.md" | grep -q '| yes |$' && ok ||
+        bad "scenarios.md: $m missed pixels without the mutation: $(grep -F "| $m: no missed" "$tmp/scen/scenarios.md")"
+done
+grep -q '^Frames per scenario (--frames): spin 6\.$' "$tmp/scen/scenarios.md" && ok ||
+    bad "scenarios.md: frames header: $(grep '^Frames' "$tmp/scen/scenarios.md")"
+[ "$(tail -n +2 "$tmp/scen/scenario-spin/frames.csv" | wc -l)" -eq 12 ] && ok || bad "scenario ran other than 6 frames x 2 methods"
+grep -q '"size": "96x54"' "$tmp/scen/scenario-spin/summary.json" && ok || bad "scenario ignored --size"
 
 # info prints a row per prototype and the common box.
 if "$tw" info --tileset city >"$tmp/info" 2>"$tmp/err"; then
@@ -267,5 +325,4 @@ no_temporaries "$killed"
 : >"$tmp/a-file"
 expect_usage_error walk "${small[@]}" --out "$tmp/a-file/sub"
 
-echo "$passed passed, $failed failed"
-[ "$failed" -eq 0 ]
+finish

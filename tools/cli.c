@@ -274,7 +274,14 @@ static bool apply_common(struct tw_cli *c, int opt, const char *place, const cha
     case TW_CLI_OPT_QUIET: c->quiet = true; break;
     default: return false;
     }
+    c->given |= 1u << (opt - TW_CLI_OPT_TILESET);
     return true;
+}
+
+bool tw_cli_given(const struct tw_cli *c, int opt)
+{
+    return opt >= TW_CLI_OPT_TILESET && opt < TW_CLI_OPT_TILESET + 32 &&
+           (c->given >> (opt - TW_CLI_OPT_TILESET) & 1u);
 }
 
 static const struct option *find_option(const struct option *options, int val)

@@ -67,7 +67,11 @@ struct tw_cli {
     uint32_t frames;                 /* 0: the path's length */
     struct tw_cell start_cell;
     bool quiet;
+    uint32_t given;                  /* shared options given: bit opt - TW_CLI_OPT_TILESET */
 };
+
+/* True when the shared option opt (TW_CLI_OPT_*) was on the command line. */
+bool tw_cli_given(const struct tw_cli *c, int opt);
 
 /* Defaults: tileset city, seed 1, method tilequery+chc, view distance
  * 600 m; the program sets its own size and path. */

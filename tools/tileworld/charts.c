@@ -24,14 +24,20 @@ extern char **environ;
  * value), named as in summary.json. */
 static const char figures_header[] =
     "frames mean_ms median_ms p95_ms p99_ms max_ms mean_triangles mean_queries "
-    "mean_overdraw_triangles missed_pixels_total frames_with_missed_pixels\n";
+    "mean_overdraw_triangles missed_pixels_total frames_with_missed_pixels "
+    "mean_cpu_ms median_cpu_ms p99_cpu_ms depth_errors_total frames_with_depth_errors "
+    "missed_clusters_total\n";
 
 static void put_figures(struct tw_outfile *o, const struct tw_method_figures *fg)
 {
-    tw_outfile_printf(o, "%u %.3f %.3f %.3f %.3f %.3f %.3f %.3f %.3f %llu %u\n", fg->frames,
+    tw_outfile_printf(o, "%u %.3f %.3f %.3f %.3f %.3f %.3f %.3f %.3f %llu %u %.3f %.3f %.3f %llu %u "
+                      "%llu\n", fg->frames,
                       fg->mean_ms, fg->median_ms, fg->p95_ms, fg->p99_ms, fg->max_ms,
                       fg->mean_triangles, fg->mean_queries, fg->mean_overdraw_triangles,
-                      (unsigned long long)fg->missed_pixels_total, fg->frames_with_missed_pixels);
+                      (unsigned long long)fg->missed_pixels_total, fg->frames_with_missed_pixels,
+                      fg->mean_cpu_ms, fg->median_cpu_ms, fg->p99_cpu_ms,
+                      (unsigned long long)fg->depth_errors_total, fg->frames_with_depth_errors,
+                      (unsigned long long)fg->missed_clusters_total);
 }
 
 static int open_in(struct tw_outfile *o, const char *dir, const char *name, char *err,
@@ -113,6 +119,50 @@ static int write_sweep(const struct tw_chart_run *run, const uint32_t *order, ch
     return TW_OK;
 }
 
+/* Speed against accuracy: chart-data/pareto.dat (every point) and
+ * pareto-front.dat, pareto-front-depth.dat (the points of each front),
+ * each by CPU time, so that a front's points join in order. */
+static int write_pareto(const struct tw_chart_run *run, char *err, size_t err_size)
+{
+    static const char *const names[3] = {
+        DATA "/pareto.dat", DATA "/pareto-front.dat", DATA "/pareto-front-depth.dat",
+    };
+    static const char *const what[3] = {
+        "every point", "the front of CPU time against missed pixels",
+        "the front of CPU time against depth errors",
+    };
+    const struct tw_chart_sweep *s = run->sweep;
+    uint32_t order[64 * TW_METHOD_COUNT];
+    const uint32_t n = s->point_count < 64 * TW_METHOD_COUNT ? s->point_count
+                                                              : 64 * TW_METHOD_COUNT;
+    for (uint32_t k = 0; k < n; k++) {
+        uint32_t j = k;
+        for (; j > 0 && s->points[order[j - 1]].cpu_ms > s->points[k].cpu_ms; j--)
+            order[j] = order[j - 1];
+        order[j] = k;
+    }
+    for (int file = 0; file < 3; file++) {
+        struct tw_outfile o;
+        int rc = open_in(&o, run->dir, names[file], err, err_size);
+        if (rc)
+            return rc;
+        tw_outfile_printf(&o, "# %s of the sweep of %s, by mean CPU time per frame\n"
+                              "method value mean_cpu_ms missed_per_frame depth_errors_per_frame "
+                              "conservative front front_depth speedup\n", what[file], s->param);
+        for (uint32_t k = 0; k < n; k++) {
+            const struct tw_pareto_point *p = &s->points[order[k]];
+            if ((file == 1 && !p->front) || (file == 2 && !p->front_depth))
+                continue;
+            tw_outfile_printf(&o, "%s %g %.3f %.3f %.3f %d %d %d %.3f\n", tw_method_name(p->method),
+                              p->value, p->cpu_ms, p->missed_per_frame, p->depth_errors_per_frame,
+                              p->conservative, p->front, p->front_depth, p->speedup);
+        }
+        if ((rc = tw_outfile_commit(&o, err, err_size)))
+            return rc;
+    }
+    return TW_OK;
+}
+
 /* A gnuplot single-quoted string: '' stands for a quote; no control
  * characters. */
 static void put_string(struct tw_outfile *o, const char *s)
@@ -126,6 +176,12 @@ static void put_string(struct tw_outfile *o, const char *s)
             tw_outfile_printf(o, "%c", c);
     }
     tw_outfile_printf(o, "'");
+}
+
+/* chart-pareto.png needs a sweep whose accuracy was measured. */
+static int pareto_drawn(const struct tw_chart_run *run)
+{
+    return run->sweep && run->sweep->points && run->sweep->point_count > 0 && run->verified;
 }
 
 static int write_run(const struct tw_chart_run *run, const uint32_t *order, char *err,
@@ -168,7 +224,8 @@ static int write_run(const struct tw_chart_run *run, const uint32_t *order, char
         tw_outfile_printf(&o, "%s%s", first ? "" : " ", tw_method_name(run->methods[k]));
         first = false;
     }
-    tw_outfile_printf(&o, "'\n");
+    tw_outfile_printf(&o, "'\n# 1: chart-data/pareto*.dat hold the sweep's speed against "
+                          "accuracy (--verify)\npareto = %d\n", pareto_drawn(run));
     return tw_outfile_commit(&o, err, err_size);
 }
 
@@ -328,6 +385,8 @@ int tw_charts_write(const struct tw_chart_run *run, char *err, size_t err_size)
     int rc = write_methods(run, err, err_size);
     if (!rc && run->sweep)
         rc = write_sweep(run, order, err, err_size);
+    if (!rc && pareto_drawn(run))
+        rc = write_pareto(run, err, err_size);
     if (!rc)
         rc = write_run(run, order, err, err_size);
     if (!rc)

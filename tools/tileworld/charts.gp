@@ -8,18 +8,28 @@
 # every .dat file has a line of column names, so that columns are read by
 # name ('ms_frame', column('triangles')):
 #   run.gp             what the run was: run_title, methods, frames_per_method,
-#                      verified, sweep_param, sweep_values, sweep_unaffected
+#                      verified, sweep_param, sweep_values, sweep_unaffected,
+#                      pareto
 #   frames-METHOD.dat  one row per frame of METHOD: the columns of frames.csv
 #                      but method (frame, ms_frame, ms_cull, ms_wait, triangles,
 #                      clusters, draws, queries, tiles_*, cache_bytes,
 #                      predict_fail, missed_pixels, missed_clusters,
-#                      overdraw_triangles, and what frames.csv gains)
+#                      overdraw_triangles, cpu_ms, depth_errors, and what
+#                      frames.csv gains)
 #   methods.dat        one row per method, in the order of `methods`: method,
 #                      frames, mean_ms, median_ms, p95_ms, p99_ms, max_ms,
 #                      mean_triangles, mean_queries, mean_overdraw_triangles,
-#                      missed_pixels_total, frames_with_missed_pixels
+#                      missed_pixels_total, frames_with_missed_pixels, mean_cpu_ms,
+#                      median_cpu_ms, p99_cpu_ms, depth_errors_total,
+#                      frames_with_depth_errors, missed_clusters_total
 #   sweep-METHOD.dat   with --sweep: one row per value of sweep_param, by value:
 #                      value, then the columns of methods.dat but method
+#   pareto.dat         with --sweep under --verify (pareto = 1): one row per
+#                      method and value, by mean CPU time: method, value,
+#                      mean_cpu_ms, missed_per_frame, depth_errors_per_frame,
+#                      conservative, front, front_depth (0 or 1), speedup
+#   pareto-front.dat, pareto-front-depth.dat: the rows of pareto.dat on the
+#                      front of CPU time against missed pixels, depth errors
 #
 # A new chart is a block at the end: set the output to out('chart-NAME.png')
 # and plot columns by name; `for [i=1:n]` goes over the methods, line(i) is
@@ -338,4 +348,69 @@ if (sweep_param ne '') {
             with linespoints lt line(i) pt 7 ps 1.3 lw (unaffected(i) ? 1 : 2) \
             title method(i).(unaffected(i) ? ' (unaffected)' : '')
     }
+}
+
+# ---- chart-pareto.png: speed against accuracy over a sweep (--verify) -------------
+# One point per method and value: mean CPU time per frame against missed
+# pixels per frame (left) and depth errors per frame (right); conservative
+# points (T = 0) filled squares, the others open circles; the points of the
+# Pareto front (no other point as fast with as few errors, and better in
+# one) ringed, named and joined by a black staircase. The oracle is drawn but never on a front:
+# it needs the ID pass.
+if (pareto) {
+    reset
+    stats 'chart-data/pareto.dat' using 'mean_cpu_ms' nooutput
+    cpu_lo = STATS_min; cpu_hi = STATS_max
+    stats 'chart-data/pareto.dat' using 'missed_per_frame' nooutput
+    missed_hi = STATS_max
+    stats 'chart-data/pareto.dat' using 'depth_errors_per_frame' nooutput
+    depth_hi = STATS_max
+    span = cpu_hi > cpu_lo ? cpu_hi - cpu_lo : max(cpu_hi, 1) * 0.1
+    set terminal @png_term size 1200,600
+    set output out('chart-pareto.png')
+    set multiplot layout 1,2 title "Speed against accuracy over the sweep of ".sweep_param. \
+        ": one point per method and value, lower left is better\n".run_title font ',13'
+    set grid xtics ytics lc rgb '#d8d8d8'
+    set border 3
+    set tics nomirror
+    set xlabel 'mean CPU time per frame (ms, all threads)'
+    set xrange [max(0, cpu_lo - 0.15 * span):cpu_hi + 0.15 * span]
+    set logscale y
+    tic_axis = 'y'
+    mine(i) = strcol('method') eq method(i)
+    do for [panel = 1:2] {
+        depth_panel = panel == 2
+        column_name = depth_panel ? 'depth_errors_per_frame' : 'missed_per_frame'
+        front_file = depth_panel ? 'chart-data/pareto-front-depth.dat' : 'chart-data/pareto-front.dat'
+        tic_hi = max(20, ((depth_panel ? depth_hi : missed_hi) + 1) * 8)
+        set yrange [tic_hi**(-1.0 / 9):tic_hi]
+        eval symlog_tics
+        set title (depth_panel ? 'Depth errors (anything drawn wrong)' : 'Missed pixels (visible errors)') font ',12'
+        set ylabel (depth_panel ? 'depth errors' : 'missed pixels').' per frame, mean (log scale of 1 + value)'
+        set arrow 1 from graph 0, first 1 to graph 1, first 1 nohead lc rgb '#9a9a9a' dt 2 back
+        set label 1 (depth_panel ? 'no depth error' : 'no pixel missed') at graph 0.99, first 1 right offset 0,-1 tc rgb '#6a6a6a' font ',9'
+        # Keys under the panels, where they hide no point: the methods
+        # under the left one, the marks under the right one.
+        set bmargin 6
+        set key at graph 0.5, screen 0.01 center bottom horizontal maxcols 3 Left reverse samplen 1 width 1
+        plot for [i = 1:n] 'chart-data/pareto.dat' \
+                 using 'mean_cpu_ms':(mine(i) && column('conservative') > 0 ? column(column_name) + 1 : NaN) \
+                 with points lt line(i) pt 5 ps 1.4 title (depth_panel ? '' : method(i)), \
+             for [i = 1:n] 'chart-data/pareto.dat' \
+                 using 'mean_cpu_ms':(mine(i) && column('conservative') == 0 ? column(column_name) + 1 : NaN) \
+                 with points lt line(i) pt 6 ps 1.4 lw 1.5 notitle, \
+             front_file using 'mean_cpu_ms':(column(column_name) + 1) with steps lc rgb '#000000' lw 1.5 \
+                 notitle, \
+             front_file using 'mean_cpu_ms':(column(column_name) + 1) with points lc rgb '#000000' \
+                 pt 6 ps 2.6 lw 1.2 title (depth_panel ? 'Pareto front' : ''), \
+             front_file every 2 using 'mean_cpu_ms':(column(column_name) + 1):(strcol('method').' '.sweep_param.'='.strcol('value')) \
+                 with labels left offset char 0.8,0.7 font ',8' notitle, \
+             front_file every 2::1 using 'mean_cpu_ms':(column(column_name) + 1):(strcol('method').' '.sweep_param.'='.strcol('value')) \
+                 with labels left offset char 0.8,-0.7 font ',8' notitle, \
+             NaN with points lc rgb '#555555' pt 5 ps 1.4 title (depth_panel ? 'conservative (T = 0)' : ''), \
+             NaN with points lc rgb '#555555' pt 6 ps 1.4 title (depth_panel ? 'T > 0' : '')
+        unset arrow
+        unset label
+    }
+    unset multiplot
 }

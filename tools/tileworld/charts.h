@@ -8,6 +8,10 @@
  *                             per sweep value)
  *   chart-sweep.png           mean frame time against the swept parameter
  *                             (with --sweep)
+ *   chart-pareto.png          with --sweep under --verify: mean CPU time per
+ *                             frame against missed pixels and against depth
+ *                             errors per frame, one point per method and
+ *                             value, the Pareto fronts drawn (pareto.h)
  * Also written into the run's folder: charts.gp (to re-run or edit there:
  * `cd DIR && gnuplot charts.gp`), chart-data/ (what it plots, from the
  * run's figures in memory: chart-data/frames-METHOD.dat comes from the
@@ -19,6 +23,7 @@
 #include <stdbool.h>
 #include <stddef.h>
 
+#include "tools/tileworld/pareto.h"
 #include "tools/tileworld/report.h"
 
 /* tw_charts_write() drew nothing, but the run goes on: gnuplot is missing,
@@ -34,6 +39,8 @@ struct tw_chart_sweep {
     uint32_t count;
     const double *values;                                       /* count, any order */
     const struct tw_method_figures (*figures)[TW_METHOD_COUNT]; /* count, by method */
+    const struct tw_pareto_point *points;                       /* speed against accuracy */
+    uint32_t point_count;
 };
 
 /* What a run was and what it measured (all borrowed). */

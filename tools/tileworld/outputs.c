@@ -15,8 +15,8 @@
 enum folder { RUN_FOLDER, CHART_DATA, SCENARIO_FOLDER };
 
 static const char *const run_files[] = {
-    "frames.csv", "summary.json", "summary.md", "sweep.csv", "scenarios.md", "scenarios.json",
-    "charts.gp", "gnuplot.log", NULL,
+    "frames.csv", "summary.json", "summary.md", "sweep.csv", "sweep.md", "scenarios.md",
+    "scenarios.json", "charts.gp", "gnuplot.log", NULL,
 };
 
 static bool ends_with(const char *s, size_t n, const char *end)

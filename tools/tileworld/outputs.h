@@ -3,7 +3,7 @@
  * new run can first remove what an earlier one left there: a folder then
  * never mixes the files of two runs (a new frames.csv beside an old
  * summary.json). Only these names are ever removed, never anything else:
- *   frames.csv summary.json summary.md sweep.csv scenarios.md scenarios.json
+ *   frames.csv summary.json summary.md sweep.csv sweep.md scenarios.md scenarios.json
  *   charts.gp gnuplot.log chart-*.png frame-NNNNN.png frame-NNNNN-METHOD.png
  *   chart-data/ (its .dat and run.gp files), sweep-PARAM-VALUE/ and
  *   scenario-NAME/ (and scenario-NAME/far/) with the same files inside, and

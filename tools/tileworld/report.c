@@ -35,7 +35,7 @@ int tw_report_make_dirs(const char *dir)
 static const char *const csv_header =
     "frame,method,ms_frame,ms_cull,ms_wait,triangles,clusters,draws,queries,tiles_queried,"
     "tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,"
-    "missed_clusters,overdraw_triangles\n";
+    "missed_clusters,overdraw_triangles,cpu_ms,depth_errors\n";
 
 /* A row of frames.csv as the row of a gnuplot data file: blank-separated,
  * without the method (its file says it). */
@@ -56,13 +56,9 @@ static void csv_to_data(const char *csv, char *out, size_t size)
 int tw_report_open(struct tw_report *r, const char *dir, bool chart_data, char *err,
                    size_t err_size)
 {
-    struct tw_report keep = *r;
+    const struct tw_report_about about = r->about;
     memset(r, 0, sizeof(*r));
-    memcpy(r->tileset, keep.tileset, sizeof(r->tileset));
-    memcpy(r->path, keep.path, sizeof(r->path));
-    r->width = keep.width;
-    r->height = keep.height;
-    r->seed = keep.seed;
+    r->about = about;
     r->chart_data = chart_data;
     int e = tw_report_make_dirs(dir);
     if (e) {
@@ -111,13 +107,14 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st, char *er
 {
     char row[512];
     snprintf(row, sizeof(row),
-             "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu\n",
+             "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu,%.3f,%llu\n",
              (unsigned long long)st->frame, tw_method_name(st->method), st->ms_frame, st->ms_cull,
              st->ms_wait, (unsigned long long)st->triangles, st->clusters, st->draws, st->queries,
              st->tiles_queried, st->tiles_visible, st->tiles_new, st->tiles_cached,
              (unsigned long long)st->cache_bytes, st->predict_fail,
              (unsigned long long)st->missed_pixels, st->missed_clusters,
-             (unsigned long long)st->overdraw_triangles);
+             (unsigned long long)st->overdraw_triangles, st->cpu_ms,
+             (unsigned long long)st->depth_errors);
     if (!tw_outfile_printf(&r->frames_csv, "%s", row))
         return tw_outfile_report(&r->frames_csv, err, err_size);
     if (r->chart_data) {
@@ -133,19 +130,26 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st, char *er
     if (m->frames == m->cap) {
         uint32_t cap = m->cap ? m->cap * 2 : 256;
         double *ms = realloc(m->ms, sizeof(*ms) * cap);
-        if (!ms) {
+        if (ms)
+            m->ms = ms;
+        double *cpu = ms ? realloc(m->cpu_ms, sizeof(*cpu) * cap) : NULL;
+        if (!cpu) {
             snprintf(err, err_size, "out of memory");
             return TW_ERR_NOMEM;
         }
-        m->ms = ms;
+        m->cpu_ms = cpu;
         m->cap = cap;
     }
     m->used = true;
+    m->cpu_ms[m->frames] = st->cpu_ms;
     m->ms[m->frames++] = st->ms_frame;
     m->triangles += (double)st->triangles;
     m->queries += st->queries;
     m->missed_pixels_total += st->missed_pixels;
     m->frames_with_missed_pixels += st->missed_pixels > 0;
+    m->missed_clusters_total += st->missed_clusters;
+    m->depth_errors_total += st->depth_errors;
+    m->frames_with_depth_errors += st->depth_errors > 0;
     m->tiles_new_total += st->tiles_new;
     if (st->cache_bytes > m->peak_cache_bytes)
         m->peak_cache_bytes = st->cache_bytes;
@@ -194,19 +198,38 @@ struct row {
     const char *name;
     enum tw_method method;
     double mean, median, p95, p99, triangles, queries;
+    double cpu_mean, cpu_median, cpu_p99, cpu_max;
 };
+
+static double mean_of(const double *values, uint32_t n)
+{
+    double sum = 0.0;
+    for (uint32_t k = 0; k < n; k++)
+        sum += values[k];
+    return n ? sum / n : 0.0;
+}
 
 static void summarise(struct tw_method_summary *m, struct row *out)
 {
-    double sum = 0.0;
-    for (uint32_t k = 0; k < m->frames; k++)
-        sum += m->ms[k];
-    out->mean = m->frames ? sum / m->frames : 0.0;
+    out->mean = mean_of(m->ms, m->frames);
     out->median = tw_report_percentile(m->ms, m->frames, 50.0);
     out->p95 = tw_report_percentile(m->ms, m->frames, 95.0);
     out->p99 = tw_report_percentile(m->ms, m->frames, 99.0);
+    out->cpu_mean = mean_of(m->cpu_ms, m->frames);
+    out->cpu_median = tw_report_percentile(m->cpu_ms, m->frames, 50.0);
+    out->cpu_p99 = tw_report_percentile(m->cpu_ms, m->frames, 99.0);
+    out->cpu_max = tw_report_percentile(m->cpu_ms, m->frames, 100.0);
     out->triangles = m->frames ? m->triangles / m->frames : 0.0;
     out->queries = m->frames ? m->queries / m->frames : 0.0;
+}
+
+/* "a / b" to three decimals, or "-" without a b (0). */
+static void ratio(char *out, size_t size, double a, double b)
+{
+    if (b > 0.0)
+        snprintf(out, size, "%.3f", a / b);
+    else
+        snprintf(out, size, "-");
 }
 
 /* A number written as it reads: json-c would print 17 significant digits. */
@@ -214,6 +237,14 @@ static json_object *number(double v, int decimals)
 {
     char text[64];
     snprintf(text, sizeof(text), "%.*f", decimals, v);
+    return json_object_new_double_s(v, text);
+}
+
+/* A setting as it was given: 1e-05, 0.1. */
+static json_object *number_g(double v)
+{
+    char text[64];
+    snprintf(text, sizeof(text), "%g", v);
     return json_object_new_double_s(v, text);
 }
 
@@ -268,6 +299,16 @@ int tw_report_close(struct tw_report *r, bool markdown,
         json_object_object_add(o, "max_ms", number(m->ms_max, 3));
         json_object_object_add(o, "mean_overdraw_triangles",
                                number(m->frames ? m->overdraw_triangles / m->frames : 0.0, 1));
+        json_object_object_add(o, "mean_cpu_ms", number(row->cpu_mean, 3));
+        json_object_object_add(o, "median_cpu_ms", number(row->cpu_median, 3));
+        json_object_object_add(o, "p99_cpu_ms", number(row->cpu_p99, 3));
+        json_object_object_add(o, "max_cpu_ms", number(row->cpu_max, 3));
+        json_object_object_add(o, "missed_clusters_total",
+                               json_object_new_int64((int64_t)m->missed_clusters_total));
+        json_object_object_add(o, "depth_errors_total",
+                               json_object_new_int64((int64_t)m->depth_errors_total));
+        json_object_object_add(o, "frames_with_depth_errors",
+                               json_object_new_int64(m->frames_with_depth_errors));
         json_object_object_add(methods, row->name, o);
         if (figures) {
             struct tw_method_figures *fg = &figures[k];
@@ -278,6 +319,10 @@ int tw_report_close(struct tw_report *r, bool markdown,
             fg->p95_ms = row->p95;
             fg->p99_ms = row->p99;
             fg->max_ms = m->ms_max;
+            fg->mean_cpu_ms = row->cpu_mean;
+            fg->median_cpu_ms = row->cpu_median;
+            fg->p99_cpu_ms = row->cpu_p99;
+            fg->max_cpu_ms = row->cpu_max;
             fg->mean_triangles = row->triangles;
             fg->mean_queries = row->queries;
             fg->mean_overdraw_triangles = m->frames ? m->overdraw_triangles / m->frames : 0.0;
@@ -285,17 +330,27 @@ int tw_report_close(struct tw_report *r, bool markdown,
             fg->max_tiles_visible = m->max_tiles_visible;
             fg->missed_pixels_total = m->missed_pixels_total;
             fg->frames_with_missed_pixels = m->frames_with_missed_pixels;
+            fg->missed_clusters_total = m->missed_clusters_total;
+            fg->depth_errors_total = m->depth_errors_total;
+            fg->frames_with_depth_errors = m->frames_with_depth_errors;
             fg->predict_fail_rate = m->tiles_queried ? (double)m->predict_fail / m->tiles_queried : 0.0;
             fg->peak_cache_bytes = m->peak_cache_bytes;
         }
     }
     json_object_object_add(root, "methods", methods);
-    json_object_object_add(root, "tileset", json_object_new_string(r->tileset));
-    json_object_object_add(root, "path", json_object_new_string(r->path));
+    const struct tw_report_about *about = &r->about;
+    json_object_object_add(root, "tileset", json_object_new_string(about->tileset));
+    json_object_object_add(root, "path", json_object_new_string(about->path));
     char size[64];
-    snprintf(size, sizeof(size), "%ux%u", r->width, r->height);
+    snprintf(size, sizeof(size), "%ux%u", about->width, about->height);
     json_object_object_add(root, "size", json_object_new_string(size));
-    json_object_object_add(root, "seed", json_object_new_int64((int64_t)r->seed));
+    json_object_object_add(root, "seed", json_object_new_int64((int64_t)about->seed));
+    json_object_object_add(root, "verified", json_object_new_boolean(about->verified));
+    if (about->verified)
+        json_object_object_add(root, "verify_tolerance", number_g(about->verify_tolerance));
+    json_object_object_add(root, "deterministic", json_object_new_boolean(about->deterministic));
+    if (about->mutate_query_shrink > 0.0f)
+        json_object_object_add(root, "mutate_query_shrink", number_g(about->mutate_query_shrink));
     char file[1100];
     snprintf(file, sizeof(file), "%s/summary.json", r->dir);
     rc = tw_report_write_json(file, root, JSON_C_TO_STRING_PRETTY | JSON_C_TO_STRING_SPACED, err,
@@ -312,28 +367,45 @@ int tw_report_close(struct tw_report *r, bool markdown,
                 if (rows[k].method == TW_METHOD_VFC) vfc = &rows[k];
                 if (rows[k].method == TW_METHOD_ORACLE) oracle = &rows[k];
             }
-            tw_outfile_printf(&f, "# tileworld bench: %s, path %s, %ux%u, seed %llu\n\n", r->tileset,
-                              r->path, r->width, r->height, (unsigned long long)r->seed);
+            tw_outfile_printf(&f, "# tileworld bench: %s, path %s, %ux%u, seed %llu\n\n",
+                              about->tileset, about->path, about->width, about->height,
+                              (unsigned long long)about->seed);
+            if (about->mutate_query_shrink > 0.0f)
+                tw_outfile_printf(&f, "**Testing only: every query box shrunk by %g of its size "
+                                      "(--mutate-query-shrink), a deliberately broken culler.**\n\n",
+                                  about->mutate_query_shrink);
             tw_outfile_printf(&f, "| method | frames | mean ms | median ms | p95 ms | p99 ms | "
-                                  "triangles | queries | missed pixels | time / vfc | "
-                                  "triangles / vfc | time / oracle |\n");
-            tw_outfile_printf(&f, "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+                                  "mean CPU ms | p99 CPU ms | triangles | queries | missed pixels | "
+                                  "depth errors | time / vfc | CPU / vfc | triangles / vfc | "
+                                  "time / oracle | CPU / oracle |\n");
+            tw_outfile_printf(&f, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+                                  "---|\n");
             for (int k = 0; k < nrows; k++) {
                 const struct row *row = &rows[k];
                 const struct tw_method_summary *m = &r->methods[row->method];
-                char rv[32] = "-", tv[32] = "-", ro[32] = "-";
-                if (vfc && vfc->mean > 0.0)
-                    snprintf(rv, sizeof(rv), "%.3f", row->mean / vfc->mean);
-                if (vfc && vfc->triangles > 0.0)
-                    snprintf(tv, sizeof(tv), "%.3f", row->triangles / vfc->triangles);
-                if (oracle && oracle->mean > 0.0)
-                    snprintf(ro, sizeof(ro), "%.3f", row->mean / oracle->mean);
-                tw_outfile_printf(&f, "| %s | %u | %.2f | %.2f | %.2f | %.2f | %.0f | %.1f | %llu | "
-                                      "%s | %s | %s |\n",
+                char rv[32], cv[32], tv[32], ro[32], co[32];
+                ratio(rv, sizeof(rv), row->mean, vfc ? vfc->mean : 0.0);
+                ratio(cv, sizeof(cv), row->cpu_mean, vfc ? vfc->cpu_mean : 0.0);
+                ratio(tv, sizeof(tv), row->triangles, vfc ? vfc->triangles : 0.0);
+                ratio(ro, sizeof(ro), row->mean, oracle ? oracle->mean : 0.0);
+                ratio(co, sizeof(co), row->cpu_mean, oracle ? oracle->cpu_mean : 0.0);
+                tw_outfile_printf(&f, "| %s | %u | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.0f | "
+                                      "%.1f | %llu | %llu | %s | %s | %s | %s | %s |\n",
                                   row->name, m->frames, row->mean, row->median, row->p95, row->p99,
-                                  row->triangles, row->queries,
-                                  (unsigned long long)m->missed_pixels_total, rv, tv, ro);
+                                  row->cpu_mean, row->cpu_p99, row->triangles, row->queries,
+                                  (unsigned long long)m->missed_pixels_total,
+                                  (unsigned long long)m->depth_errors_total, rv, cv, tv, ro, co);
             }
+            if (about->verified)
+                tw_outfile_printf(&f, "\nAccuracy measured by the oracle (--verify) on every frame, "
+                                      "depth tolerance %g (relative eye distance).\n",
+                                  about->verify_tolerance);
+            else
+                tw_outfile_printf(&f, "\nAccuracy not measured (no --verify): missed pixels and "
+                                      "depth errors read 0.\n");
+            tw_outfile_printf(&f, "CPU ms is the process's CPU time of a frame, all threads (the "
+                                  "software rasteriser's too): the figure that holds on a busy "
+                                  "machine.\n");
             tw_outfile_printf(&f, "\nRatios compare methods measured side by side in this one run; "
                                   "absolute times depend on the machine.\n");
             rc = tw_outfile_commit(&f, err, err_size);
@@ -349,6 +421,7 @@ void tw_report_abort(struct tw_report *r)
     for (int k = 0; k < TW_METHOD_COUNT; k++) {
         tw_outfile_discard(&r->chart_frames[k]);
         free(r->methods[k].ms);
+        free(r->methods[k].cpu_ms);
         memset(&r->methods[k], 0, sizeof(r->methods[k]));
     }
     r->open = false;

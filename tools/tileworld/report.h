@@ -19,10 +19,14 @@
 struct tw_method_summary {
     bool used;
     double *ms;               /* every frame's ms_frame */
+    double *cpu_ms;           /* every frame's cpu_ms */
     uint32_t frames, cap;
     double triangles, queries;
     uint64_t missed_pixels_total;
     uint32_t frames_with_missed_pixels;
+    uint64_t missed_clusters_total;
+    uint64_t depth_errors_total;
+    uint32_t frames_with_depth_errors;
     uint64_t tiles_new_total;
     uint64_t peak_cache_bytes;
     uint64_t predict_fail, tiles_queried;
@@ -38,13 +42,32 @@ struct tw_method_figures {
     bool used;
     uint32_t frames;
     double mean_ms, median_ms, p95_ms, p99_ms, max_ms;
+    double mean_cpu_ms, median_cpu_ms, p99_cpu_ms, max_cpu_ms;  /* process CPU time */
     double mean_triangles, mean_queries, mean_overdraw_triangles;
     double mean_tiles_visible;
     uint32_t max_tiles_visible;
     uint64_t missed_pixels_total;
     uint32_t frames_with_missed_pixels;
+    uint64_t missed_clusters_total;
+    uint64_t depth_errors_total;
+    uint32_t frames_with_depth_errors;
     double predict_fail_rate;
     uint64_t peak_cache_bytes;
+};
+
+/* What a run was, for the summaries. */
+struct tw_report_about {
+    char tileset[256];
+    char path[256];
+    uint32_t width, height;
+    uint64_t seed;
+    /* How accuracy was measured: verify_tolerance is the run's resolved
+     * one (with verified); the testing-only mutation is said in the
+     * summaries, so that a mutated run never passes for a real one. */
+    bool verified;
+    float verify_tolerance;
+    bool deterministic;
+    float mutate_query_shrink;
 };
 
 struct tw_report {
@@ -54,11 +77,7 @@ struct tw_report {
     bool chart_data;
     struct tw_outfile chart_frames[TW_METHOD_COUNT];
     struct tw_method_summary methods[TW_METHOD_COUNT];
-    /* What the run was, for summary.json. */
-    char tileset[256];
-    char path[256];
-    uint32_t width, height;
-    uint64_t seed;
+    struct tw_report_about about;  /* set before tw_report_open(), kept by it */
 };
 
 /* Creates dir (and its parents) if needed and starts dir/frames.csv (and

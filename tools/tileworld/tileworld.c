@@ -45,6 +45,8 @@ static void usage(FILE *f)
           "                        [--repeat P] [--verify] [--png-every N] [--out DIR] [--quiet]\n"
           "                        [--view-distance M] [--cluster-triangles N] [--tile-neighbours 4|8]\n"
           "                        [--evict-after N] [--chc-batch N] [--chc-nav N] [--threshold T]\n"
+          "                        [--deterministic] [--verify-tolerance X]\n"
+          "                        [--mutate-query-shrink F]\n"
           "       tileworld bench  [same options] [--methods M1,M2,...] [--sweep PARAM=v1,v2,...]\n"
           "                        [--scenario NAME|all]\n"
           "       tileworld info   [--tileset NAME|FILE.json] [--seed N] [--cluster-triangles N]\n"
@@ -55,7 +57,15 @@ static void usage(FILE *f)
           "spin, or a CSV file; methods: vfc, tilequery, chc, tilequery+chc (default), oracle\n"
           "sweep parameters: n_av, b, T, cluster_triangles, evict_after, view_distance, neighbours\n"
           "scenarios: teleport, spin, inside-building, inside-common-box, grazing, far-origin,\n"
-          "no-occluders, all\n",
+          "no-occluders, all; each runs its own path (no --path, --start-cell, --repeat, --sweep)\n"
+          "for --frames N frames (default: its own number) at --size, under --verify; exit 3 when\n"
+          "a check does not hold\n"
+          "--verify-tolerance X  relative eye-distance difference that --verify counts as a real\n"
+          "                      one, 0 < X < 1 (default 0.00001)\n"
+          "--deterministic       no query result is ready before it is waited on: counts do not\n"
+          "                      depend on GPU timing (slower; not for timings)\n"
+          "--mutate-query-shrink F  testing only: every query box shrunk by F of its size,\n"
+          "                      0 <= F < 1, a broken culler that --verify must catch\n",
           f);
 }
 
@@ -72,6 +82,9 @@ enum {
     OPT_CHC_BATCH,
     OPT_CHC_NAV,
     OPT_THRESHOLD,
+    OPT_DETERMINISTIC,
+    OPT_VERIFY_TOLERANCE,
+    OPT_MUTATE_QUERY_SHRINK,
 };
 
 static const struct option options_table[] = {
@@ -88,6 +101,9 @@ static const struct option options_table[] = {
     {"chc-batch", required_argument, NULL, OPT_CHC_BATCH},
     {"chc-nav", required_argument, NULL, OPT_CHC_NAV},
     {"threshold", required_argument, NULL, OPT_THRESHOLD},
+    {"deterministic", no_argument, NULL, OPT_DETERMINISTIC},
+    {"verify-tolerance", required_argument, NULL, OPT_VERIFY_TOLERANCE},
+    {"mutate-query-shrink", required_argument, NULL, OPT_MUTATE_QUERY_SHRINK},
     {NULL, 0, NULL, 0},
 };
 
@@ -156,6 +172,18 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
     case OPT_THRESHOLD:
         ws->chc.threshold = (uint32_t)tw_cli_u64(program, name, v, 0, 1000000);
         ws->tilequery.threshold = ws->chc.threshold;
+        break;
+    case OPT_DETERMINISTIC: ws->deterministic = true; break;
+    case OPT_VERIFY_TOLERANCE:
+        /* The library reads 0 as its default: below 1 and above 0 here. */
+        ws->verify_tolerance = tw_cli_float(program, name, v, 0.0f, 1.0f);
+        if (!(ws->verify_tolerance > 0.0f && ws->verify_tolerance < 1.0f))
+            tw_cli_fail(program, name, "'%s' is not above 0 and below 1", v);
+        break;
+    case OPT_MUTATE_QUERY_SHRINK:
+        ws->mutate_query_shrink = tw_cli_float(program, name, v, 0.0f, 1.0f);
+        if (ws->mutate_query_shrink >= 1.0f)
+            tw_cli_fail(program, name, "'%s' is not below 1", v);
         break;
     default:
         tw_cli_fail(program, name, "unknown option '%s' (see tileworld --help)", name);
@@ -230,6 +258,7 @@ static int run(const struct options *o, bool bench)
     r.path_name = o->cli.path;
     r.out = o->out;
     r.png_every = o->png_every;
+    r.scenario_frames = o->cli.frames;
     r.bench = bench;
     r.quiet = o->cli.quiet;
     r.world = o->cli.world;
@@ -389,6 +418,21 @@ int main(int argc, char **argv)
             tw_cli_fail(program, "--sweep", "--sweep belongs to bench");
         if (o.scenario)
             tw_cli_fail(program, "--scenario", "--scenario belongs to bench");
+    }
+    if (o.scenario) {
+        /* A scenario makes its own path and selection (far-origin its own
+         * period and start cell): what would be ignored is refused. */
+        static const struct { int opt; const char *name; } theirs[] = {
+            {TW_CLI_OPT_PATH, "--path"},
+            {TW_CLI_OPT_START_CELL, "--start-cell"},
+            {TW_CLI_OPT_REPEAT, "--repeat"},
+        };
+        for (size_t k = 0; k < sizeof(theirs) / sizeof(theirs[0]); k++)
+            if (tw_cli_given(&o.cli, theirs[k].opt))
+                tw_cli_fail(program, theirs[k].name, "--scenario runs its own path and selection; "
+                            "it takes no %s", theirs[k].name);
+        if (o.sweep)
+            tw_cli_fail(program, "--sweep", "--sweep and --scenario are two kinds of run; give one");
     }
     return run(&o, strcmp(o.command, "bench") == 0);
 }

@@ -1,0 +1,133 @@
+/* Speed against accuracy over a sweep: points, Pareto fronts, sweep.md (pareto.h). */
+#include "tools/tileworld/pareto.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+
+/* Whether q beats p: no slower, no more errors, and better on one. */
+static bool dominates(double q_time, double q_error, double p_time, double p_error)
+{
+    return q_time <= p_time && q_error <= p_error && (q_time < p_time || q_error < p_error);
+}
+
+/* Marks the points of out that no other (realisable) point dominates. */
+static void mark_front(struct tw_pareto_point *points, uint32_t n, bool depth)
+{
+    for (uint32_t p = 0; p < n; p++) {
+        struct tw_pareto_point *pp = &points[p];
+        bool beaten = pp->method == TW_METHOD_ORACLE;
+        for (uint32_t q = 0; q < n && !beaten; q++) {
+            const struct tw_pareto_point *qp = &points[q];
+            if (q == p || qp->method == TW_METHOD_ORACLE)
+                continue;
+            beaten = depth ? dominates(qp->cpu_ms, qp->depth_errors_per_frame, pp->cpu_ms,
+                                       pp->depth_errors_per_frame)
+                           : dominates(qp->cpu_ms, qp->missed_per_frame, pp->cpu_ms,
+                                       pp->missed_per_frame);
+        }
+        if (depth)
+            pp->front_depth = !beaten;
+        else
+            pp->front = !beaten;
+    }
+}
+
+void tw_pareto_points(const double *values, uint32_t count,
+                      const struct tw_method_figures (*figures)[TW_METHOD_COUNT],
+                      const bool (*conservative)[TW_METHOD_COUNT], const enum tw_method *methods,
+                      uint32_t method_count, const struct tw_method_figures *reference,
+                      uint32_t reference_value_index, struct tw_pareto_point *out)
+{
+    for (uint32_t k = 0; k < count; k++)
+        for (uint32_t m = 0; m < method_count; m++) {
+            const enum tw_method me = methods[m];
+            const struct tw_method_figures *fg = &figures[k][me];
+            const struct tw_method_figures *ref = reference_value_index < count
+                                                      ? &figures[reference_value_index][me]
+                                                      : &reference[me];
+            const double frames = fg->frames ? (double)fg->frames : 1.0;
+            out[k * method_count + m] = (struct tw_pareto_point){
+                .method = me,
+                .value = values[k],
+                .cpu_ms = fg->mean_cpu_ms,
+                .speedup = fg->mean_cpu_ms > 0.0 ? ref->mean_cpu_ms / fg->mean_cpu_ms : 0.0,
+                .missed_per_frame = (double)fg->missed_pixels_total / frames,
+                .depth_errors_per_frame = (double)fg->depth_errors_total / frames,
+                .conservative = conservative[k][me],
+            };
+        }
+    const uint32_t n = count * method_count;
+    mark_front(out, n, false);
+    mark_front(out, n, true);
+}
+
+/* The points' indices by CPU time, then by method and value. */
+static uint32_t *by_time(const struct tw_pareto_point *points, uint32_t n)
+{
+    uint32_t *order = malloc(sizeof(*order) * (n ? n : 1));
+    if (!order)
+        return NULL;
+    for (uint32_t k = 0; k < n; k++) {
+        uint32_t j = k;
+        for (; j > 0 && points[order[j - 1]].cpu_ms > points[k].cpu_ms; j--)
+            order[j] = order[j - 1];
+        order[j] = k;
+    }
+    return order;
+}
+
+static void name_front(struct tw_outfile *o, const char *param, const char *reference,
+                       const struct tw_pareto_point *points, const uint32_t *order, uint32_t n,
+                       bool depth)
+{
+    tw_outfile_printf(o, "\n**The front of CPU time against %s** (no other point is as fast "
+                         "with as few %s, and better in one; the oracle is left out: it needs "
+                         "the ID pass):\n\n", depth ? "depth errors" : "missed pixels",
+                      depth ? "depth errors" : "missed pixels");
+    for (uint32_t k = 0; k < n; k++) {
+        const struct tw_pareto_point *p = &points[order[k]];
+        if (!(depth ? p->front_depth : p->front))
+            continue;
+        tw_outfile_printf(o, "- %s %s=%g: %.2f ms CPU per frame, speed-up %.2f over %s, "
+                             "%.1f %s per frame%s\n",
+                          tw_method_name(p->method), param, p->value, p->cpu_ms, p->speedup,
+                          reference, depth ? p->depth_errors_per_frame : p->missed_per_frame,
+                          depth ? "depth errors" : "missed pixels",
+                          p->conservative ? " (conservative)" : "");
+    }
+}
+
+void tw_pareto_write_md(struct tw_outfile *o, const char *param, const char *reference,
+                        bool verified, const struct tw_pareto_point *points, uint32_t n)
+{
+    uint32_t *order = by_time(points, n);
+    if (!order) {
+        tw_outfile_printf(o, "(out of memory)\n");
+        return;
+    }
+    tw_outfile_printf(o, "| method | %s | mean CPU ms | speed-up vs %s | missed pixels / frame | "
+                         "depth errors / frame | conservative | on the front |\n"
+                         "|---|---|---|---|---|---|---|---|\n", param, reference);
+    for (uint32_t k = 0; k < n; k++) {
+        const struct tw_pareto_point *p = &points[order[k]];
+        const char *front = !verified ? "-"
+                            : p->method == TW_METHOD_ORACLE ? "no (the limit)"
+                            : p->front && p->front_depth ? "yes (both)"
+                            : p->front ? "yes" : p->front_depth ? "depth errors only" : "no";
+        char speedup[32] = "-";
+        if (p->speedup > 0.0)
+            snprintf(speedup, sizeof(speedup), "%.2fx", p->speedup);
+        tw_outfile_printf(o, "| %s | %g | %.2f | %s | %.1f | %.1f | %s | %s |\n",
+                          tw_method_name(p->method), p->value, p->cpu_ms, speedup,
+                          p->missed_per_frame, p->depth_errors_per_frame,
+                          p->conservative ? "yes" : "no", front);
+    }
+    if (verified) {
+        name_front(o, param, reference, points, order, n, false);
+        name_front(o, param, reference, points, order, n, true);
+    } else {
+        tw_outfile_printf(o, "\nAccuracy not measured (no --verify): no front, missed pixels read "
+                             "0.\n");
+    }
+    free(order);
+}
