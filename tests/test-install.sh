@@ -8,7 +8,8 @@
 # usage: test-install.sh BUILD_DIR SOURCE_DIR VERSION PUBLIC_API_SH DEFAULT_LIBRARY
 # (DEFAULT_LIBRARY: the build's default_library, both by default: which kinds
 # of library to expect)
-# environment: MESON, PKG_CONFIG, CC, CXX (commands, may hold arguments)
+# environment: MESON, PKG_CONFIG, CC, CXX (commands, may hold arguments);
+# HOST_CFLAGS: flags a host needs to link this build (its sanitizers)
 set -u
 builddir=$1 srcdir=$2 version=$3 public_api=$4 default_library=$5
 kinds=()
@@ -20,6 +21,7 @@ read -r -a meson <<<"${MESON:-meson}"
 read -r -a pkgconfig <<<"${PKG_CONFIG:-pkg-config}"
 read -r -a cc <<<"${CC:-cc}"
 read -r -a cxx <<<"${CXX:-c++}"
+read -r -a hostflags <<<"${HOST_CFLAGS:-}"
 
 for tool in readelf ldd "${cxx[0]}"; do
     command -v "$tool" >/dev/null || { echo "SKIP: $tool not found"; exit 77; }
@@ -169,7 +171,7 @@ build_and_run() {
     local mode=$1 src=$2 exe=$tmp/${2##*/}-$1
     local link=("${libs_a[@]}")
     [ "$mode" = static ] && link=(-L"$tmp/static" "${slibs_a[@]}")
-    if ! "${cc[@]}" -std=c11 -Wall -Wextra -Werror "$src" "${cflags_a[@]}" "${link[@]}" \
+    if ! "${cc[@]}" -std=c11 -Wall -Wextra -Werror "${hostflags[@]}" "$src" "${cflags_a[@]}" "${link[@]}" \
             -o "$exe" >"$tmp/cc.log" 2>&1; then
         cat "$tmp/cc.log"
         fail "${src##*/} does not link against the installed $mode libraries: cc ${src##*/} $cflags ${link[*]}"
