@@ -16,8 +16,12 @@ struct tw_oracle {
     struct tw_cull_driver *vfc;     /* enumerates what the ID pass draws */
     struct tw_drawn_cluster *entries;
     size_t count, cap;
-    struct tw_drawn_cluster *visible;  /* entries with visible pixels, in id order */
+    struct tw_drawn_cluster *visible;  /* entries with visible pixels: tiles in id order
+                                          (front to back by cell), each tile's clusters
+                                          front to back */
     size_t visible_count, visible_cap;
+    struct oracle_order *order;     /* scratch of that sort */
+    size_t order_cap;
     uint32_t *pixels;               /* visible pixels per id */
     uint8_t *drawn;                 /* per id: drawn by the method */
     size_t per_id_cap;
