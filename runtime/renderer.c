@@ -1,6 +1,7 @@
 /* The renderer and the GL query backend (renderer.h). */
 #include "runtime/renderer.h"
 
+#include <assert.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -21,8 +22,15 @@ struct tw_renderer {
     uint32_t *mesh_first_index;
 
     GLuint box_vao, box_vbo, box_ibo;
+    /* Query boxes: one instanced draw per query, each box an instance whose
+     * corners (view-relative, margin included) come from a ring buffer of
+     * QUERY_RING_BOXES boxes, orphaned when it wraps. */
     GLuint box_program;
-    GLint ub_view_proj, ub_min, ub_max;
+    GLint ub_view_proj;
+    GLuint query_vao, query_ring;
+    uint32_t query_ring_next;          /* next free box of the ring */
+    float *query_corners;              /* staging: min, max per box */
+    uint32_t query_corner_cap;         /* boxes */
 
     GLuint fbo, color_rb, depth_rb;
 
@@ -144,6 +152,19 @@ static const char *const box_vs =
     "void main() {\n"
     "    gl_Position = u_view_proj * vec4(mix(u_min, u_max, a_corner), 1.0);\n"
     "}\n";
+
+/* Query boxes: the box of each instance from per-instance attributes. */
+static const char *const query_vs =
+    "#version 330 core\n"
+    "layout(location = 0) in vec3 a_corner;\n"
+    "layout(location = 1) in vec3 i_min;\n"
+    "layout(location = 2) in vec3 i_max;\n"
+    "uniform mat4 u_view_proj;\n"
+    "void main() {\n"
+    "    gl_Position = u_view_proj * vec4(mix(i_min, i_max, a_corner), 1.0);\n"
+    "}\n";
+
+#define QUERY_RING_BOXES 16384u
 
 static const char *const box_fs =
     "#version 330 core\n"
@@ -312,6 +333,21 @@ static void upload_box(struct tw_renderer *r)
     gl->BufferData(GL_ELEMENT_ARRAY_BUFFER, sizeof(faces), faces, GL_STATIC_DRAW);
     gl->EnableVertexAttribArray(0);
     gl->VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, (const void *)0);
+
+    /* The query VAO: the same corners and faces, boxes per instance. */
+    gl->GenVertexArrays(1, &r->query_vao);
+    gl->BindVertexArray(r->query_vao);
+    gl->BindBuffer(GL_ARRAY_BUFFER, r->box_vbo);
+    gl->BindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->box_ibo);
+    gl->EnableVertexAttribArray(0);
+    gl->VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, (const void *)0);
+    gl->GenBuffers(1, &r->query_ring);
+    gl->BindBuffer(GL_ARRAY_BUFFER, r->query_ring);
+    gl->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(QUERY_RING_BOXES * 24u), NULL, GL_STREAM_DRAW);
+    for (GLuint a = 1; a <= 2; a++) {
+        gl->EnableVertexAttribArray(a);
+        gl->VertexAttribDivisor(a, 1);
+    }
     gl->BindVertexArray(0);
 }
 
@@ -406,7 +442,7 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
                       "reversed float depth (less precision far away)", major, minor);
     }
     r->program = link_program(r, scene_vs, NULL, scene_fs);
-    r->box_program = link_program(r, box_vs, NULL, box_fs);
+    r->box_program = link_program(r, query_vs, NULL, box_fs);
     r->id_program = link_program(r, scene_vs, NULL, id_fs);
     r->line_program = link_program(r, box_vs, line_gs, color_fs);
     r->fill_program = link_program(r, box_vs, NULL, color_fs);
@@ -435,8 +471,6 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
     r->uf_max = gl->GetUniformLocation(r->fill_program, "u_max");
     r->uf_color = gl->GetUniformLocation(r->fill_program, "u_color");
     r->ub_view_proj = gl->GetUniformLocation(r->box_program, "u_view_proj");
-    r->ub_min = gl->GetUniformLocation(r->box_program, "u_min");
-    r->ub_max = gl->GetUniformLocation(r->box_program, "u_max");
     err = upload_meshes(r);
     if (err)
         goto fail;
@@ -493,6 +527,8 @@ void tw_renderer_destroy(struct tw_renderer *r)
         gl->DeleteBuffers(1, &r->box_ibo);
         gl->DeleteVertexArrays(1, &r->vao);
         gl->DeleteVertexArrays(1, &r->box_vao);
+        gl->DeleteVertexArrays(1, &r->query_vao);
+        gl->DeleteBuffers(1, &r->query_ring);
         gl->DeleteRenderbuffers(1, &r->color_rb);
         gl->DeleteRenderbuffers(1, &r->depth_rb);
         gl->DeleteFramebuffers(1, &r->fbo);
@@ -512,6 +548,7 @@ void tw_renderer_destroy(struct tw_renderer *r)
         tw_renderer_leave(r);
     }
     free(r->query_boxes);
+    free(r->query_corners);
     free(r->query_record);
     free(r->drawn);
     free(r->queries);
@@ -583,10 +620,15 @@ static void enter_query_mode(struct tw_renderer *r)
         return;
     const struct tw_gl *gl = &r->gl;
     gl->UseProgram(r->box_program);
-    gl->BindVertexArray(r->box_vao);
+    gl->BindVertexArray(r->query_vao);
     gl->ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
     gl->DepthMask(GL_FALSE);
-    gl->Disable(GL_CULL_FACE);
+    /* The eye is never inside a queried box (the near-plane rule,
+     * tw_cull_near_box): its near faces cover its whole image and pass
+     * wherever a far face would. Faces are wound inwards, so the near ones
+     * are the back faces. */
+    gl->Enable(GL_CULL_FACE);
+    gl->CullFace(GL_FRONT);
     r->mode = MODE_QUERY;
 }
 
@@ -725,18 +767,51 @@ static uint32_t backend_issue(void *ctx, const struct tw_box *boxes, uint32_t co
         gl->GenQueries(1, &r->queries[r->query_count]);
         handle = ++r->query_count;
     }
-    enter_query_mode(r);
-    gl->BeginQuery(r->query_target, r->queries[handle - 1]);
+    if (count > r->query_corner_cap) {
+        float *c = realloc(r->query_corners, sizeof(float) * 6 * (size_t)count);
+        if (!c) {
+            r->free_queries[r->free_count++] = handle;
+            return no_query(r, t0);
+        }
+        r->query_corners = c;
+        r->query_corner_cap = count;
+    }
     for (uint32_t k = 0; k < count; k++) {
         struct tw_box q = tw_cull_query_box(r->eye, &boxes[k], offset);
+        /* Only near faces are drawn: the eye must be outside. */
+        assert(!(r->eye[0] >= q.min[0] && r->eye[0] <= q.max[0] && r->eye[1] >= q.min[1] &&
+                 r->eye[1] <= q.max[1] && r->eye[2] >= q.min[2] && r->eye[2] <= q.max[2]));
         if (r->mutate_shrink > 0.0f)
             shrink(&q, r->mutate_shrink);
-        const float *lo = q.min, *hi = q.max;
-        gl->Uniform3fv(r->ub_min, 1, lo);
-        gl->Uniform3fv(r->ub_max, 1, hi);
-        gl->DrawElements(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, (const void *)0);
+        memcpy(r->query_corners + 6 * (size_t)k, q.min, sizeof(q.min));
+        memcpy(r->query_corners + 6 * (size_t)k + 3, q.max, sizeof(q.max));
+    }
+    enter_query_mode(r);
+    gl->BindBuffer(GL_ARRAY_BUFFER, r->query_ring);
+    gl->BeginQuery(r->query_target, r->queries[handle - 1]);
+    for (uint32_t done = 0; done < count;) {
+        if (r->query_ring_next == QUERY_RING_BOXES) {
+            /* Wrapped: a fresh store, so that boxes still to be drawn are
+             * never overwritten. */
+            gl->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(QUERY_RING_BOXES * 24u), NULL,
+                           GL_STREAM_DRAW);
+            r->query_ring_next = 0;
+        }
+        uint32_t n = count - done;
+        if (n > QUERY_RING_BOXES - r->query_ring_next)
+            n = QUERY_RING_BOXES - r->query_ring_next;
+        const size_t at = (size_t)r->query_ring_next * 24u;
+        gl->BufferSubData(GL_ARRAY_BUFFER, (GLintptr)at, (GLsizeiptr)(24u * n),
+                          r->query_corners + 6 * (size_t)done);
+        gl->VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 24, (const void *)at);
+        gl->VertexAttribPointer(2, 3, GL_FLOAT, GL_FALSE, 24, (const void *)(at + 12));
+        gl->DrawElementsInstanced(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, (const void *)0,
+                                  (GLsizei)n);
+        r->query_ring_next += n;
+        done += n;
     }
     gl->EndQuery(r->query_target);
+    r->counters.query_boxes += count;
     if (r->recording_queries)
         record_query(r, handle, boxes, count, offset);
     r->counters.queries++;
