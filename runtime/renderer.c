@@ -837,7 +837,9 @@ static uint32_t backend_wait(void *ctx, uint32_t query)
     if (query == TW_QUERY_VISIBLE)
         return UINT32_MAX;
     const double t0 = tw_renderer_now_ms();
-    GLuint result = 0;
+    GLuint result = 0, available = 0;
+    r->gl.GetQueryObjectuiv(r->queries[query - 1], GL_QUERY_RESULT_AVAILABLE, &available);
+    r->counters.blocking_reads += available == 0;
     r->gl.GetQueryObjectuiv(r->queries[query - 1], GL_QUERY_RESULT, &result);
     r->free_queries[r->free_count++] = query;
     if (r->query_record[query - 1]) {

@@ -6,6 +6,7 @@
 #ifndef TW_RUNTIME_WORLD_PRIVATE_H
 #define TW_RUNTIME_WORLD_PRIVATE_H
 
+#include "runtime/calibrate.h"
 #include "runtime/renderer.h"
 #include "tileworld/cull.h"
 #include "tileworld/runtime.h"
@@ -66,6 +67,8 @@ struct tw_world {
 
     struct tw_view last_view;
     bool has_view;
+    struct tw_calibration calibration;  /* DESIGN §14: what queries and draws cost */
+    struct tw_calibrate_fit fit;        /* its refinement from finished frames */
     struct tw_debug_state debug;    /* untouched while debug.flags is 0 */
 };
 

@@ -153,6 +153,21 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
     tw_bvh_builder_destroy(builder);
     if (err)
         goto fail;
+    if (w->s.calibration.query_ms > 0.0) {
+        w->calibration = w->s.calibration;
+        w->calibration.measured = false;
+    } else if (w->s.deterministic) {
+        tw_calibrate_nominal(&w->calibration);
+    } else {
+        tw_renderer_enter(w->renderer);
+        err = tw_calibrate_measure(w->renderer, ts, w->s.width, w->s.height, w->s.fov_y,
+                                   &w->calibration);
+        tw_renderer_leave(w->renderer);
+        if (err)
+            goto fail;
+    }
+    if (!(w->calibration.query_scale > 0.0))
+        w->calibration.query_scale = w->calibration.draw_scale = 1.0;
     w->fixed = (struct tw_cull_fixed){ts, &w->s.selection, w->bvhs, &w->s.log};
     w->grid = tw_cull_fixed_grid(&w->fixed);
     tw_renderer_set_tile_query_box(w->renderer, &w->grid.common_box);
@@ -268,6 +283,7 @@ static void collect_counters(const struct tw_world *w, struct tw_frame_stats *st
     st->clusters = rc->clusters;
     st->draws = rc->draws;
     st->queries = rc->queries;
+    st->blocking_reads = rc->blocking_reads;
 }
 
 static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_frame_stats *out)
@@ -297,6 +313,9 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
             return err;
         tw_cull_driver_give(ms->driver, w->oracle.visible, w->oracle.visible_count);
     }
+    struct tw_cost_model costs;
+    tw_calibrate_model(&w->calibration, w->s.width, w->s.height, w->s.fov_y, &costs);
+    tw_cull_driver_set_costs(ms->driver, &costs);
     const double t0 = tw_renderer_now_ms(), cpu0 = tw_renderer_cpu_ms();
     tw_renderer_begin_frame(w->renderer, &v);
     const struct tw_query_backend be = tw_renderer_backend(w->renderer);
@@ -310,6 +329,7 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     st.tiles_cached = cs.tiles_cached;
     st.cache_bytes = cs.cache_bytes;
     st.predict_fail = cs.predict_fail;
+    st.queries_skipped = cs.queries_skipped;
     if (err)
         return err;
     collect_counters(w, &st);
@@ -360,8 +380,17 @@ int tw_world_finish(struct tw_world *w, struct tw_frame_stats *st)
     if (st) {
         st->ms_frame += tw_renderer_now_ms() - t0;
         st->cpu_ms += tw_renderer_cpu_ms() - cpu0;
+        /* A finished frame's CPU time refines what queries and draws cost. */
+        const struct tw_render_counters *rc = tw_renderer_counters(w->renderer);
+        tw_calibrate_refine(&w->fit, &w->calibration, st->cpu_ms, rc->queries, rc->query_boxes,
+                            rc->draws, rc->triangles);
     }
     return TW_OK;
+}
+
+const struct tw_calibration *tw_world_calibration(const struct tw_world *w)
+{
+    return w ? &w->calibration : NULL;
 }
 
 int tw_world_read_rgb(struct tw_world *w, uint8_t *rgb)
