@@ -298,6 +298,12 @@ static bool flush_embree_errors(struct tw_bvh_builder *b, const char *what)
 
 int tw_bvh_builder_create(const struct tw_log *log, struct tw_bvh_builder **out)
 {
+    return tw_bvh_builder_create_ex(log, 0, out);
+}
+
+int tw_bvh_builder_create_ex(const struct tw_log *log, uint32_t threads,
+                             struct tw_bvh_builder **out)
+{
     int ret = TW_OK;
     if (!out)
         return TW_ERR_INVALID;
@@ -314,7 +320,9 @@ int tw_bvh_builder_create(const struct tw_log *log, struct tw_bvh_builder **out)
     atomic_init(&b->error_count, 0u);
 
     /* verbose=0: Embree must not print to stdout on its own. */
-    b->device = rtcNewDevice("verbose=0");
+    char config[64];
+    snprintf(config, sizeof(config), "verbose=0,threads=%u", threads);
+    b->device = rtcNewDevice(config);
     if (!b->device) {
         const enum RTCError code = rtcGetDeviceError(NULL);
         tw_log_printf(&b->log, TW_LOG_ERROR, "bvh: rtcNewDevice failed: %s",

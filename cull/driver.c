@@ -37,7 +37,8 @@ struct frame {
 
 /* ---- a fixed tileset as a tile source -------------------------------------------------- */
 
-static int fixed_get(void *ctx, struct tw_cell cell, struct tw_cull_tile *out)
+static int fixed_get(void *ctx, struct tw_cell cell, float distance, unsigned flags,
+                     struct tw_cull_tile *out)
 {
     const struct tw_cull_fixed *f = ctx;
     const uint32_t p = tw_tiles_select(f->tileset, f->selection, cell);
@@ -50,12 +51,13 @@ static int fixed_get(void *ctx, struct tw_cell cell, struct tw_cull_tile *out)
     out->proto = &f->tileset->prototypes[p];
     out->bvh = f->bvhs[p];
     out->content = p;
+    out->key = p;
     return TW_OK;
 }
 
 struct tw_tile_source tw_cull_fixed_source(const struct tw_cull_fixed *f)
 {
-    return (struct tw_tile_source){(void *)f, fixed_get};
+    return (struct tw_tile_source){(void *)f, fixed_get, NULL};
 }
 
 struct tw_cull_grid tw_cull_fixed_grid(const struct tw_cull_fixed *f)
@@ -190,12 +192,18 @@ static uint32_t *scratch(struct frame *fr, uint32_t n)
     return d->scratch;
 }
 
-static bool get_tile(struct frame *fr, struct tw_cell cell, struct tw_cull_tile *tile)
+/* The tile at cell, if ready; a tile not ready is counted as pending. */
+static bool get_tile(struct frame *fr, struct tw_cell cell, float distance,
+                     struct tw_cull_tile *tile)
 {
-    const int err = fr->g->source.get(fr->g->source.ctx, cell, tile);
-    if (err)
+    const int err = fr->g->source.get(fr->g->source.ctx, cell, distance, fr->d->s.source_flags,
+                                      tile);
+    if (err == TW_TILE_PENDING)
+        fr->st->tiles_pending++;
+    else if (err)
         fr->err = err;
-    return err == TW_OK;
+    /* A refused tile is there and empty: nothing to draw. */
+    return err == TW_OK && tile->proto != NULL;
 }
 
 /* The local method of vfc and tilequery: the tile's clusters in the frustum,
@@ -218,7 +226,7 @@ static void *instance_state(struct frame *fr, struct tw_cell cell, const struct 
                             size_t bytes, struct tw_tile_handle *h)
 {
     bool created = false;
-    const int err = tw_tile_cache_acquire(fr->d->cache, cell, tile->content, bytes,
+    const int err = tw_tile_cache_acquire(fr->d->cache, cell, tile->key, bytes,
                                           fr->v->frame, h, &created);
     if (err) {
         fr->err = err;
@@ -264,19 +272,44 @@ static struct tw_chc_node_state *resolve_tag(void *user, uint64_t tag, const str
     const struct tw_tile_handle h = tw_tile_handle_unpack(tag);
     const struct tw_tile_info *info = tw_tile_cache_info(fr->d->cache, h);
     struct tw_cull_tile tile;
-    if (!info || fr->g->source.get(fr->g->source.ctx, info->cell, &tile) != TW_OK ||
-        tile.content != info->prototype)
+    if (!info ||
+        fr->g->source.get(fr->g->source.ctx, info->cell, 0.0f, TW_TILE_SOURCE_RESIDENT, &tile) !=
+            TW_OK ||
+        tile.key != info->prototype)
         return NULL;
     *bvh = tile.bvh;
     return tw_tile_cache_state(fr->d->cache, h);
+}
+
+/* Tile queries are about to be issued on cell's neighbours: their tiles
+ * are wanted soon (DESIGN §12: prefetch when a neighbour is queried). */
+static void prefetch_neighbours(struct frame *fr, struct tw_cell cell)
+{
+    static const int8_t di[8] = {1, -1, 0, 0, 1, 1, -1, -1};
+    static const int8_t dj[8] = {0, 0, 1, -1, 1, -1, 1, -1};
+    const struct tw_cull_grid *g = fr->g;
+    for (uint32_t k = 0; k < fr->d->s.tilequery.neighbours; k++) {
+        const struct tw_cell c = {(int64_t)((uint64_t)cell.i + (uint64_t)(int64_t)di[k]),
+                                  (int64_t)((uint64_t)cell.j + (uint64_t)(int64_t)dj[k])};
+        float off[3];
+        tw_tiles_cell_offset(c, fr->v->cell, g->footprint[0], g->footprint[1], off);
+        const float dist = tw_cull_box_distance(fr->v, &g->common_box, off);
+        if (dist <= fr->v->view_distance &&
+            tw_cull_frustum_box(&fr->v->frustum, &g->common_box, off) != TW_CULL_OUTSIDE)
+            g->source.prefetch(g->source.ctx, c, dist);
+    }
 }
 
 /* Rendering a cell found visible by tile-query propagation. */
 static void render_visible(void *user, struct tw_cell cell, const float offset[3])
 {
     struct frame *fr = user;
+    if (fr->err)
+        return;
+    if (fr->g->source.prefetch)
+        prefetch_neighbours(fr, cell);
     struct tw_cull_tile tile;
-    if (fr->err || !get_tile(fr, cell, &tile))
+    if (!get_tile(fr, cell, tw_cull_box_distance(fr->v, &fr->g->common_box, offset), &tile))
         return;
     if (fr->d->chc) {
         draw_tile_chc(fr, cell, &tile, offset);
@@ -309,8 +342,11 @@ static int frame_cells(struct frame *fr, struct tw_cull_cells *cells)
     for (size_t k = 0; k < cells->count && !fr->err; k++) {
         const struct tw_cell cell = cells->cells[k].cell;
         struct tw_cull_tile tile;
-        if (!get_tile(fr, cell, &tile))
-            break;
+        if (!get_tile(fr, cell, cells->cells[k].distance, &tile)) {
+            if (fr->err)
+                break;
+            continue;
+        }
         float offset[3];
         tw_tiles_cell_offset(cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], offset);
         const bool drawn = fr->d->chc ? draw_tile_chc(fr, cell, &tile, offset)
@@ -384,4 +420,31 @@ int tw_cull_driver_frame(struct tw_cull_driver *d, const struct tw_view *v,
     if (stats)
         *stats = st;
     return err;
+}
+
+void tw_cull_driver_forget(struct tw_cull_driver *d, struct tw_cell cell)
+{
+    if (d && d->cache)
+        tw_tile_cache_remove(d->cache, cell);
+}
+
+uint64_t tw_cull_driver_trim(struct tw_cull_driver *d, uint64_t excess, uint64_t frame,
+                             uint32_t *count)
+{
+    uint64_t freed = 0;
+    while (d->cache && freed < excess) {
+        uint64_t bytes = 0;
+        if (!tw_tile_cache_evict_oldest(d->cache, frame, &bytes))
+            break;
+        freed += bytes;
+        if (count)
+            (*count)++;
+    }
+    return freed;
+}
+
+void tw_cull_driver_forget_rect(struct tw_cull_driver *d, struct tw_cell lo, struct tw_cell hi)
+{
+    if (d && d->cache)
+        tw_tile_cache_remove_rect(d->cache, lo, hi);
 }

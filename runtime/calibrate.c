@@ -71,7 +71,8 @@ static double time_queries(struct tw_renderer *r, const struct tw_query_backend 
 
 /* CPU milliseconds per draw of cluster c of prototype p, placed 150 m ahead. */
 static double time_draws(struct tw_renderer *r, const struct tw_query_backend *be,
-                         const struct tw_tileset *ts, uint32_t p, uint32_t c)
+                         const struct tw_tileset *ts, uint32_t first_content, uint32_t p,
+                         uint32_t c)
 {
     const struct tw_box *b = &ts->prototypes[p].clusters[c].box;
     const float offset[3] = {-0.5f * (b->min[0] + b->max[0]), -0.5f * (b->min[1] + b->max[1]),
@@ -83,7 +84,7 @@ static double time_draws(struct tw_renderer *r, const struct tw_query_backend *b
         tw_renderer_finish(r);
         const double t0 = tw_renderer_cpu_ms();
         for (uint32_t k = 0; k < n; k++)
-            be->draw(be->ctx, cell, p, offset, &c, 1);
+            be->draw(be->ctx, cell, first_content + p, offset, &c, 1);
         tw_renderer_finish(r);
         const double dt = (tw_renderer_cpu_ms() - t0) / n;
         if (rep >= 0 && dt < best)
@@ -92,8 +93,9 @@ static double time_draws(struct tw_renderer *r, const struct tw_query_backend *b
     return best;
 }
 
-int tw_calibrate_measure(struct tw_renderer *r, const struct tw_tileset *ts, uint32_t width,
-                         uint32_t height, float fov_y, struct tw_calibration *out)
+int tw_calibrate_measure(struct tw_renderer *r, const struct tw_tileset *ts,
+                         uint32_t first_content, uint32_t width, uint32_t height, float fov_y,
+                         struct tw_calibration *out)
 {
     const double start = tw_renderer_cpu_ms();
     tw_calibrate_nominal(out);
@@ -134,7 +136,7 @@ int tw_calibrate_measure(struct tw_renderer *r, const struct tw_tileset *ts, uin
 
     /* Draws: the smallest cluster and the largest of at most 512 triangles. */
     uint32_t lo_p = 0, lo_c = 0, hi_p = 0, hi_c = 0, lo_t = UINT32_MAX, hi_t = 0;
-    for (uint32_t p = 0; p < ts->prototype_count; p++)
+    for (uint32_t p = 0; ts && p < ts->prototype_count; p++)
         for (uint32_t c = 0; c < ts->prototypes[p].cluster_count; c++) {
             const uint32_t t = ts->prototypes[p].clusters[c].triangle_count;
             if (t < lo_t) {
@@ -150,9 +152,9 @@ int tw_calibrate_measure(struct tw_renderer *r, const struct tw_tileset *ts, uin
         }
     double draw = out->draw_ms, triangle = out->triangle_ns * 1e-6;
     if (lo_t != UINT32_MAX) {
-        const double d_lo = time_draws(r, &be, ts, lo_p, lo_c);
+        const double d_lo = time_draws(r, &be, ts, first_content, lo_p, lo_c);
         if (hi_t > lo_t) {
-            const double d_hi = time_draws(r, &be, ts, hi_p, hi_c);
+            const double d_hi = time_draws(r, &be, ts, first_content, hi_p, hi_c);
             triangle = (d_hi - d_lo) / (double)(hi_t - lo_t);
         } else {
             /* One size of cluster: split its cost as the nominal figures do. */

@@ -17,11 +17,14 @@ void tw_calibrate_nominal(struct tw_calibration *out);
 /* Measures out (a few tens of milliseconds): queries of one small box read
  * back one by one (the round trip: the fixed cost), in a batch, of one
  * large box (of known screen size) and of eight small boxes, draws of the
- * smallest cluster of ts and of its largest of at most 512 triangles, each
- * batch warmed up first and closed by glFinish, timed in process CPU time.
- * r must be entered (tw_renderer_enter); its frame is left cleared. */
-int tw_calibrate_measure(struct tw_renderer *r, const struct tw_tileset *ts, uint32_t width,
-                         uint32_t height, float fov_y, struct tw_calibration *out);
+ * smallest cluster of ts and of its largest of at most 512 triangles (ts
+ * uploaded with prototype p as content first_content + p; NULL: the draw
+ * figures stay nominal), each batch warmed up first and closed by glFinish,
+ * timed in process CPU time. r must be entered (tw_renderer_enter); its
+ * frame is left cleared. */
+int tw_calibrate_measure(struct tw_renderer *r, const struct tw_tileset *ts,
+                         uint32_t first_content, uint32_t width, uint32_t height, float fov_y,
+                         struct tw_calibration *out);
 
 /* The refinement's running sums: a least-squares fit, recent frames
  * weighing more, of each frame's CPU time on its queries' and draws'

@@ -8,11 +8,8 @@
 void tw_debug_finish(struct tw_world *w)
 {
     struct tw_debug_state *d = &w->debug;
-    if (d->leaf_of)
-        for (uint32_t p = 0; p < w->s.tileset->prototype_count; p++)
-            free(d->leaf_of[p]);
     free(d->leaf_of);
-    free(d->stamp);
+    free(d->marked);
     free(d->boxes);
     free(d->draw);
     tw_cell_map_destroy(d->seen);
@@ -69,43 +66,6 @@ int tw_world_set_debug(struct tw_world *w, unsigned flags)
     int err = TW_OK;
     if ((flags & TW_DEBUG_CELLS) && !w->debug.seen)
         err = tw_cell_map_create(&w->debug.seen);
-    if (!err && (flags & TW_DEBUG_NODES) && !w->debug.leaf_of) {
-        /* Which leaf holds each cluster, once per prototype. */
-        const struct tw_tileset *ts = w->s.tileset;
-        uint32_t max_nodes = 1;
-        w->debug.leaf_of = calloc(ts->prototype_count ? ts->prototype_count : 1,
-                                  sizeof(*w->debug.leaf_of));
-        for (uint32_t p = 0; w->debug.leaf_of && p < ts->prototype_count; p++) {
-            const struct tw_bvh *bvh = w->bvhs[p];
-            uint32_t *leaf_of = malloc(sizeof(uint32_t) * (ts->prototypes[p].cluster_count + 1));
-            if (!leaf_of) {
-                err = TW_ERR_NOMEM;
-                break;
-            }
-            for (uint32_t c = 0; c < ts->prototypes[p].cluster_count; c++)
-                leaf_of[c] = TW_BVH_NONE;
-            for (uint32_t n = 0; n < bvh->node_count; n++) {
-                const struct tw_bvh_node *node = &bvh->nodes[n];
-                for (uint32_t k = 0; k < node->cluster_count; k++)
-                    leaf_of[bvh->cluster_order[node->first_cluster + k]] = n;
-            }
-            w->debug.leaf_of[p] = leaf_of;
-            if (bvh->node_count > max_nodes)
-                max_nodes = bvh->node_count;
-        }
-        w->debug.stamp = calloc(max_nodes, sizeof(*w->debug.stamp));
-        if (!w->debug.leaf_of || !w->debug.stamp)
-            err = TW_ERR_NOMEM;
-        if (err) {
-            if (w->debug.leaf_of)
-                for (uint32_t p = 0; p < ts->prototype_count; p++)
-                    free(w->debug.leaf_of[p]);
-            free(w->debug.leaf_of);
-            free(w->debug.stamp);
-            w->debug.leaf_of = NULL;
-            w->debug.stamp = NULL;
-        }
-    }
     if (err)
         return err;
     w->debug.flags = flags;
@@ -140,7 +100,7 @@ static struct tw_debug_box *push_debug(struct tw_world *w)
  * neighbours stay apart and a street on the border still shows both. */
 static int push_cell(struct tw_world *w, struct tw_cell cell, enum tw_debug_kind kind)
 {
-    const float *fp = w->s.tileset->footprint;
+    const float *fp = w->provider.footprint;
     struct tw_debug_box *b = push_debug(w);
     if (!b || tw_cell_map_set(w->debug.seen, cell, 1))
         return TW_ERR_NOMEM;
@@ -191,27 +151,51 @@ static int collect_cells(struct tw_world *w, const struct method_state *ms, cons
     return err;
 }
 
-/* Every node on the way from a drawn cluster's leaf to the root, once per tile. */
+/* Room for n entries of size elem in *array. */
+static int reserve(void **array, size_t *cap, size_t n, size_t elem)
+{
+    if (n <= *cap)
+        return TW_OK;
+    void *p = realloc(*array, n * elem);
+    if (!p)
+        return TW_ERR_NOMEM;
+    *array = p;
+    *cap = n;
+    return TW_OK;
+}
+
+/* Every node on the way from a drawn cluster's leaf to the root, once per
+ * tile (a run of drawn clusters of one cell and content). */
 static int collect_nodes(struct tw_world *w)
 {
+    struct tw_debug_state *dbg = &w->debug;
     size_t n = 0;
     const struct tw_drawn_cluster *d = tw_renderer_drawn(w->renderer, &n);
+    const struct tw_bvh *bvh = NULL;
     for (size_t k = 0; k < n; k++) {
-        if (k == 0 || d[k].cell.i != d[k - 1].cell.i || d[k].cell.j != d[k - 1].cell.j) {
-            if (++w->debug.stamp_now == 0) {
-                /* Wrapped around: forget every old mark. */
-                uint32_t max_nodes = 1;
-                for (uint32_t p = 0; p < w->s.tileset->prototype_count; p++)
-                    if (w->bvhs[p]->node_count > max_nodes)
-                        max_nodes = w->bvhs[p]->node_count;
-                memset(w->debug.stamp, 0, sizeof(*w->debug.stamp) * max_nodes);
-                w->debug.stamp_now = 1;
+        if (k == 0 || d[k].cell.i != d[k - 1].cell.i || d[k].cell.j != d[k - 1].cell.j ||
+            d[k].prototype != d[k - 1].prototype) {
+            /* A new tile: which leaf holds each of its clusters, and no node
+             * marked yet. */
+            const struct tw_prototype *proto = tw_renderer_content(w->renderer, d[k].prototype, &bvh);
+            if (!proto || !bvh)
+                return TW_ERR_STATE;
+            if (reserve((void **)&dbg->leaf_of, &dbg->leaf_cap, proto->cluster_count + 1,
+                        sizeof(*dbg->leaf_of)) ||
+                reserve((void **)&dbg->marked, &dbg->marked_cap, bvh->node_count + 1, 1))
+                return TW_ERR_NOMEM;
+            memset(dbg->marked, 0, bvh->node_count);
+            for (uint32_t c = 0; c < proto->cluster_count; c++)
+                dbg->leaf_of[c] = TW_BVH_NONE;
+            for (uint32_t q = 0; q < bvh->node_count; q++) {
+                const struct tw_bvh_node *node = &bvh->nodes[q];
+                for (uint32_t c = 0; c < node->cluster_count; c++)
+                    dbg->leaf_of[bvh->cluster_order[node->first_cluster + c]] = q;
             }
         }
-        const struct tw_bvh *bvh = w->bvhs[d[k].prototype];
-        uint32_t node = w->debug.leaf_of[d[k].prototype][d[k].cluster];
-        while (node != TW_BVH_NONE && w->debug.stamp[node] != w->debug.stamp_now) {
-            w->debug.stamp[node] = w->debug.stamp_now;
+        uint32_t node = dbg->leaf_of[d[k].cluster];
+        while (node != TW_BVH_NONE && !dbg->marked[node]) {
+            dbg->marked[node] = 1;
             struct tw_debug_box *b = push_debug(w);
             if (!b)
                 return TW_ERR_NOMEM;
@@ -274,7 +258,7 @@ int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, si
         w->debug.draw_cap = count;
     }
     const struct tw_view *v = &w->last_view;
-    const float *fp = w->s.tileset->footprint;
+    const float *fp = w->provider.footprint;
     /* Five layers, one renderer call each: cell quads, inner nodes, leaves,
      * tile queries (wider), node queries. */
     static const struct {

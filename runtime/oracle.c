@@ -13,7 +13,12 @@
 int tw_oracle_init(struct tw_world *w)
 {
     struct tw_oracle *o = &w->oracle;
-    const struct tw_cull_driver_settings vfc = {.method = TW_CULL_VFC};
+    /* The oracle sees every tile in view, whatever the streaming policy,
+     * and what it draws does not count as drawn for the cache. */
+    const struct tw_cull_driver_settings vfc = {
+        .method = TW_CULL_VFC,
+        .source_flags = TW_TILE_SOURCE_WAIT | TW_TILE_SOURCE_QUIET,
+    };
     const size_t npix = (size_t)w->s.width * w->s.height;
     o->ids = malloc(sizeof(*o->ids) * npix);
     o->id_depth = malloc(sizeof(*o->id_depth) * npix);
@@ -221,14 +226,14 @@ static bool same_surface(float a, float b, const struct tw_oracle_depth *dm)
 void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
 {
     struct tw_oracle *o = &w->oracle;
-    const struct tw_tileset *ts = w->s.tileset;
     memset(o->drawn, 0, o->count);
     memset(o->missed_per_id, 0, sizeof(*o->missed_per_id) * o->count);
     size_t n = 0;
     const struct tw_drawn_cluster *d = tw_world_drawn(w, &n);
     for (size_t k = 0; k < n; k++) {
         const uint64_t *range = tw_cell_map_find(o->tiles, d[k].cell);
-        const struct tw_cluster *cl = &ts->prototypes[d[k].prototype].clusters[d[k].cluster];
+        const struct tw_cluster *cl =
+            &tw_renderer_content(w->renderer, d[k].prototype, NULL)->clusters[d[k].cluster];
         if (!range) {
             /* Drawn where vfc would draw nothing: wasted. */
             st->overdraw_triangles += cl->triangle_count;

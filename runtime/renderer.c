@@ -9,17 +9,41 @@
 
 enum mode { MODE_NONE, MODE_DRAW, MODE_QUERY };
 
+/* One uploaded tileset: every mesh in one vertex and one index buffer. */
+struct gpu_buffers {
+    const struct tw_tileset *ts;    /* borrowed until released */
+    GLuint vao, vbo, ibo;
+    uint32_t *base_vertex, *first_index;    /* per mesh */
+    uint32_t first_content;         /* its prototypes' contents: first_content + p */
+    uint64_t bytes;                 /* of the GL buffers */
+    bool live;
+};
+
+struct gpu_content {
+    uint32_t buffers;
+    uint32_t proto;
+    const struct tw_bvh *bvh;       /* the prototype's, borrowed */
+    bool live;
+};
+
 struct tw_renderer {
     struct tw_gl gl;
     struct tw_log log;
     const struct tw_tileset *ts;
     uint32_t width, height;
 
-    GLuint vao, vbo, ibo;
     GLuint program;
     GLint u_view_proj, u_model, u_offset, u_color, u_eye, u_fog;
-    uint32_t *mesh_base_vertex;
-    uint32_t *mesh_first_index;
+
+    /* Uploaded tilesets (a shared tileset, or one generated tile each) and
+     * the contents they hold: content c draws prototype contents[c].proto of
+     * buffers contents[c].buffers. Freed slots go on free lists. */
+    struct gpu_buffers *buffers;
+    uint32_t buffer_count, buffer_cap, *free_buffers, free_buffer_count;
+    struct gpu_content *contents;
+    uint32_t content_count, content_cap, *free_contents, free_content_count;
+    uint64_t gpu_bytes;
+    GLuint bound_vao;
 
     GLuint box_vao, box_vbo, box_ibo;
     /* Query boxes: one instanced draw per query, each box an instance whose
@@ -253,10 +277,10 @@ static GLuint link_program(struct tw_renderer *r, const char *vs_src, const char
     return p;
 }
 
-static int upload_meshes(struct tw_renderer *r)
+/* Copies ts's meshes into b's GL buffers. */
+static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts, struct gpu_buffers *b)
 {
     const struct tw_gl *gl = &r->gl;
-    const struct tw_tileset *ts = r->ts;
     uint64_t vertices = 0, indices = 0;
     for (uint32_t k = 0; k < ts->mesh_count; k++) {
         vertices += ts->meshes[k].vertex_count;
@@ -267,20 +291,20 @@ static int upload_meshes(struct tw_renderer *r)
                       ts->name, (unsigned long long)vertices);
         return TW_ERR_LIMIT;
     }
-    r->mesh_base_vertex = calloc(ts->mesh_count ? ts->mesh_count : 1, sizeof(uint32_t));
-    r->mesh_first_index = calloc(ts->mesh_count ? ts->mesh_count : 1, sizeof(uint32_t));
+    b->base_vertex = calloc(ts->mesh_count ? ts->mesh_count : 1, sizeof(uint32_t));
+    b->first_index = calloc(ts->mesh_count ? ts->mesh_count : 1, sizeof(uint32_t));
     float *interleaved = malloc(sizeof(float) * 6 * (vertices ? vertices : 1));
     uint32_t *index_data = malloc(sizeof(uint32_t) * (indices ? indices : 1));
     int err = TW_OK;
-    if (!r->mesh_base_vertex || !r->mesh_first_index || !interleaved || !index_data) {
+    if (!b->base_vertex || !b->first_index || !interleaved || !index_data) {
         err = TW_ERR_NOMEM;
         goto out;
     }
     uint32_t vbase = 0, ibase = 0;
     for (uint32_t k = 0; k < ts->mesh_count; k++) {
         const struct tw_mesh *m = &ts->meshes[k];
-        r->mesh_base_vertex[k] = vbase;
-        r->mesh_first_index[k] = ibase;
+        b->base_vertex[k] = vbase;
+        b->first_index[k] = ibase;
         for (uint32_t v = 0; v < m->vertex_count; v++) {
             memcpy(interleaved + 6 * (size_t)(vbase + v), m->positions + 3 * (size_t)v, 12);
             memcpy(interleaved + 6 * (size_t)(vbase + v) + 3, m->normals + 3 * (size_t)v, 12);
@@ -289,14 +313,14 @@ static int upload_meshes(struct tw_renderer *r)
         vbase += m->vertex_count;
         ibase += 3 * m->triangle_count;
     }
-    gl->GenVertexArrays(1, &r->vao);
-    gl->BindVertexArray(r->vao);
-    gl->GenBuffers(1, &r->vbo);
-    gl->BindBuffer(GL_ARRAY_BUFFER, r->vbo);
+    gl->GenVertexArrays(1, &b->vao);
+    gl->BindVertexArray(b->vao);
+    gl->GenBuffers(1, &b->vbo);
+    gl->BindBuffer(GL_ARRAY_BUFFER, b->vbo);
     gl->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(sizeof(float) * 6 * vertices), interleaved,
                    GL_STATIC_DRAW);
-    gl->GenBuffers(1, &r->ibo);
-    gl->BindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->ibo);
+    gl->GenBuffers(1, &b->ibo);
+    gl->BindBuffer(GL_ELEMENT_ARRAY_BUFFER, b->ibo);
     gl->BufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(sizeof(uint32_t) * indices), index_data,
                    GL_STATIC_DRAW);
     gl->EnableVertexAttribArray(0);
@@ -304,10 +328,140 @@ static int upload_meshes(struct tw_renderer *r)
     gl->EnableVertexAttribArray(1);
     gl->VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 24, (const void *)12);
     gl->BindVertexArray(0);
+    r->bound_vao = 0;
+    b->bytes = sizeof(float) * 6 * vertices + sizeof(uint32_t) * indices;
 out:
     free(interleaved);
     free(index_data);
     return err;
+}
+
+static void free_buffers(struct tw_renderer *r, struct gpu_buffers *b)
+{
+    const struct tw_gl *gl = &r->gl;
+    if (b->vbo)
+        gl->DeleteBuffers(1, &b->vbo);
+    if (b->ibo)
+        gl->DeleteBuffers(1, &b->ibo);
+    if (b->vao) {
+        if (r->bound_vao == b->vao)
+            r->bound_vao = 0;
+        gl->DeleteVertexArrays(1, &b->vao);
+    }
+    free(b->base_vertex);
+    free(b->first_index);
+    memset(b, 0, sizeof(*b));
+}
+
+/* A free slot of an array of slots with a free list: *index, or an error. */
+static int take_slot(void **array, uint32_t *count, uint32_t *cap, uint32_t **free_list,
+                     uint32_t *free_count, size_t elem, uint32_t *index)
+{
+    if (*free_count > 0) {
+        *index = (*free_list)[--*free_count];
+        return TW_OK;
+    }
+    if (*count == *cap) {
+        const uint32_t n = *cap ? 2 * *cap : 64;
+        void *a = realloc(*array, elem * n);
+        if (!a)
+            return TW_ERR_NOMEM;
+        *array = a;
+        uint32_t *f = realloc(*free_list, sizeof(*f) * n);
+        if (!f)
+            return TW_ERR_NOMEM;
+        *free_list = f;
+        *cap = n;
+    }
+    *index = (*count)++;
+    return TW_OK;
+}
+
+/* Contents first .. first + n - 1, consecutive: taken from the end when a
+ * free run is not at hand (n > 1 is only the shared tileset, at creation). */
+static int take_contents(struct tw_renderer *r, uint32_t n, uint32_t *first)
+{
+    if (n == 1)
+        return take_slot((void **)&r->contents, &r->content_count, &r->content_cap,
+                         &r->free_contents, &r->free_content_count, sizeof(*r->contents), first);
+    while (r->content_count + n > r->content_cap) {
+        const uint32_t cap = r->content_cap ? 2 * r->content_cap : 64;
+        struct gpu_content *c = realloc(r->contents, sizeof(*c) * cap);
+        if (!c)
+            return TW_ERR_NOMEM;
+        r->contents = c;
+        uint32_t *f = realloc(r->free_contents, sizeof(*f) * cap);
+        if (!f)
+            return TW_ERR_NOMEM;
+        r->free_contents = f;
+        r->content_cap = cap;
+    }
+    *first = r->content_count;
+    r->content_count += n;
+    return TW_OK;
+}
+
+int tw_renderer_upload(struct tw_renderer *r, const struct tw_tileset *ts,
+                       const struct tw_bvh *const *bvhs, uint32_t *first_content, uint64_t *bytes)
+{
+    if (!ts || !ts->finished || ts->prototype_count == 0)
+        return TW_ERR_INVALID;
+    uint32_t bi, first;
+    int err = take_slot((void **)&r->buffers, &r->buffer_count, &r->buffer_cap, &r->free_buffers,
+                        &r->free_buffer_count, sizeof(*r->buffers), &bi);
+    if (err)
+        return err;
+    struct gpu_buffers *b = &r->buffers[bi];
+    memset(b, 0, sizeof(*b));
+    err = upload_buffers(r, ts, b);
+    if (!err)
+        err = take_contents(r, ts->prototype_count, &first);
+    if (err) {
+        free_buffers(r, b);
+        r->free_buffers[r->free_buffer_count++] = bi;
+        return err;
+    }
+    b->ts = ts;
+    b->first_content = first;
+    b->live = true;
+    for (uint32_t p = 0; p < ts->prototype_count; p++)
+        r->contents[first + p] = (struct gpu_content){bi, p, bvhs ? bvhs[p] : NULL, true};
+    r->gpu_bytes += b->bytes;
+    *first_content = first;
+    if (bytes)
+        *bytes = b->bytes;
+    return TW_OK;
+}
+
+void tw_renderer_release(struct tw_renderer *r, uint32_t first_content)
+{
+    if (first_content >= r->content_count || !r->contents[first_content].live)
+        return;
+    const uint32_t bi = r->contents[first_content].buffers;
+    struct gpu_buffers *b = &r->buffers[bi];
+    for (uint32_t p = 0; p < b->ts->prototype_count; p++) {
+        r->contents[b->first_content + p].live = false;
+        r->free_contents[r->free_content_count++] = b->first_content + p;
+    }
+    r->gpu_bytes -= b->bytes;
+    free_buffers(r, b);
+    r->free_buffers[r->free_buffer_count++] = bi;
+}
+
+const struct tw_prototype *tw_renderer_content(const struct tw_renderer *r, uint32_t content,
+                                               const struct tw_bvh **bvh)
+{
+    if (content >= r->content_count || !r->contents[content].live)
+        return NULL;
+    const struct gpu_content *c = &r->contents[content];
+    if (bvh)
+        *bvh = c->bvh;
+    return &r->buffers[c->buffers].ts->prototypes[c->proto];
+}
+
+uint64_t tw_renderer_gpu_bytes(const struct tw_renderer *r)
+{
+    return r->gpu_bytes;
 }
 
 static void upload_box(struct tw_renderer *r)
@@ -405,7 +559,7 @@ static bool has_extension(const struct tw_gl *gl, const char *name)
     return false;
 }
 
-int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t height, tw_gl_get_proc_fn get_proc,
+int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_proc,
                        const struct tw_log *log, struct tw_renderer **out)
 {
     struct tw_renderer *r = calloc(1, sizeof(*r));
@@ -413,7 +567,6 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
         return TW_ERR_NOMEM;
     if (log)
         r->log = *log;
-    r->ts = ts;
     r->query_target = GL_ANY_SAMPLES_PASSED;
     r->width = width;
     r->height = height;
@@ -471,9 +624,6 @@ int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t hei
     r->uf_max = gl->GetUniformLocation(r->fill_program, "u_max");
     r->uf_color = gl->GetUniformLocation(r->fill_program, "u_color");
     r->ub_view_proj = gl->GetUniformLocation(r->box_program, "u_view_proj");
-    err = upload_meshes(r);
-    if (err)
-        goto fail;
     upload_box(r);
     err = create_framebuffer(r);
     if (err)
@@ -499,6 +649,7 @@ void tw_renderer_enter(struct tw_renderer *r)
     if (r->entered++ > 0)
         return;
     tw_gl_state_enter(&r->gl, r->has_clip_control, &r->host_state);
+    r->bound_vao = 0;
     if (r->reversed_z)
         r->gl.ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
     r->mode = MODE_NONE;
@@ -521,11 +672,11 @@ void tw_renderer_destroy(struct tw_renderer *r)
         tw_renderer_enter(r);
         if (r->query_count)
             gl->DeleteQueries((GLsizei)r->query_count, r->queries);
-        gl->DeleteBuffers(1, &r->vbo);
-        gl->DeleteBuffers(1, &r->ibo);
+        for (uint32_t b = 0; b < r->buffer_count; b++)
+            if (r->buffers[b].live)
+                free_buffers(r, &r->buffers[b]);
         gl->DeleteBuffers(1, &r->box_vbo);
         gl->DeleteBuffers(1, &r->box_ibo);
-        gl->DeleteVertexArrays(1, &r->vao);
         gl->DeleteVertexArrays(1, &r->box_vao);
         gl->DeleteVertexArrays(1, &r->query_vao);
         gl->DeleteBuffers(1, &r->query_ring);
@@ -553,8 +704,10 @@ void tw_renderer_destroy(struct tw_renderer *r)
     free(r->drawn);
     free(r->queries);
     free(r->free_queries);
-    free(r->mesh_base_vertex);
-    free(r->mesh_first_index);
+    free(r->buffers);
+    free(r->free_buffers);
+    free(r->contents);
+    free(r->free_contents);
     free(r);
 }
 
@@ -582,7 +735,6 @@ void tw_renderer_begin_frame(struct tw_renderer *r, const struct tw_view *v)
     const float fog[2] = {0.45f * v->view_distance, 0.9f * v->view_distance};
     gl->Uniform2fv(r->u_fog, 1, fog);
     r->mode = MODE_NONE;
-    gl->BindVertexArray(r->vao);
     if (r->query_box_count) {
         for (size_t k = 0; k < r->query_box_count; k++)
             r->query_record[r->query_boxes[k].query - 1] = 0;
@@ -606,7 +758,7 @@ static void enter_draw_mode(struct tw_renderer *r)
         return;
     const struct tw_gl *gl = &r->gl;
     gl->UseProgram(r->program);
-    gl->BindVertexArray(r->vao);
+    r->bound_vao = 0;
     gl->ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
     gl->DepthMask(GL_TRUE);
     gl->Enable(GL_CULL_FACE);
@@ -621,6 +773,7 @@ static void enter_query_mode(struct tw_renderer *r)
     const struct tw_gl *gl = &r->gl;
     gl->UseProgram(r->box_program);
     gl->BindVertexArray(r->query_vao);
+    r->bound_vao = r->query_vao;
     gl->ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
     gl->DepthMask(GL_FALSE);
     /* The eye is never inside a queried box (the near-plane rule,
@@ -651,7 +804,22 @@ static void record(struct tw_renderer *r, struct tw_cell cell, uint32_t prototyp
         r->drawn[r->drawn_count++] = (struct tw_drawn_cluster){cell, prototype, clusters[k]};
 }
 
-static void backend_draw(void *ctx, struct tw_cell cell, uint32_t prototype,
+/* The buffers and prototype of content, with its vertex array bound. */
+static const struct gpu_buffers *bind_content(struct tw_renderer *r, uint32_t content,
+                                              const struct tw_prototype **proto)
+{
+    assert(content < r->content_count && r->contents[content].live);
+    const struct gpu_content *c = &r->contents[content];
+    const struct gpu_buffers *b = &r->buffers[c->buffers];
+    if (r->bound_vao != b->vao) {
+        r->gl.BindVertexArray(b->vao);
+        r->bound_vao = b->vao;
+    }
+    *proto = &b->ts->prototypes[c->proto];
+    return b;
+}
+
+static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
                          const float offset[3], const uint32_t *clusters, uint32_t count)
 {
     struct tw_renderer *r = ctx;
@@ -659,12 +827,13 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t prototype,
         return;
     const double t0 = tw_renderer_now_ms();
     const struct tw_gl *gl = &r->gl;
-    const struct tw_tileset *ts = r->ts;
-    const struct tw_prototype *proto = &ts->prototypes[prototype];
     enter_draw_mode(r);
+    const struct tw_prototype *proto;
+    const struct gpu_buffers *b = bind_content(r, content, &proto);
+    const struct tw_tileset *ts = b->ts;
     gl->Uniform3fv(r->u_offset, 1, offset);
     if (r->recording)
-        record(r, cell, prototype, clusters, count);
+        record(r, cell, content, clusters, count);
     uint32_t last_instance = UINT32_MAX, last_material = UINT32_MAX;
     for (uint32_t k = 0; k < count; k++) {
         const struct tw_cluster *c = &proto->clusters[clusters[k]];
@@ -678,10 +847,10 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t prototype,
             last_material = in->material;
         }
         const struct tw_mesh_part *part = &ts->parts[c->part];
-        const size_t first = (size_t)r->mesh_first_index[part->mesh] + 3u * part->first_triangle;
+        const size_t first = (size_t)b->first_index[part->mesh] + 3u * part->first_triangle;
         gl->DrawElementsBaseVertex(GL_TRIANGLES, (GLsizei)(3u * part->triangle_count),
                                    GL_UNSIGNED_INT, (const void *)(first * sizeof(uint32_t)),
-                                   (GLint)r->mesh_base_vertex[part->mesh]);
+                                   (GLint)b->base_vertex[part->mesh]);
         r->counters.triangles += part->triangle_count;
         r->counters.draws++;
     }
@@ -934,16 +1103,17 @@ void tw_renderer_id_begin(struct tw_renderer *r, const struct tw_view *v)
     gl->UseProgram(r->id_program);
     gl->UniformMatrix4fv(r->ui_view_proj, 1, GL_FALSE,
                          r->reversed_z ? v->view_proj_rz : v->view_proj);
-    gl->BindVertexArray(r->vao);
+    r->bound_vao = 0;
     r->mode = MODE_NONE;
 }
 
-void tw_renderer_id_draw(struct tw_renderer *r, uint32_t prototype, const float offset[3],
+void tw_renderer_id_draw(struct tw_renderer *r, uint32_t content, const float offset[3],
                          const uint32_t *clusters, uint32_t count, uint32_t first_id)
 {
     const struct tw_gl *gl = &r->gl;
-    const struct tw_tileset *ts = r->ts;
-    const struct tw_prototype *proto = &ts->prototypes[prototype];
+    const struct tw_prototype *proto;
+    const struct gpu_buffers *b = bind_content(r, content, &proto);
+    const struct tw_tileset *ts = b->ts;
     gl->Uniform3fv(r->ui_offset, 1, offset);
     uint32_t last_instance = UINT32_MAX;
     for (uint32_t k = 0; k < count; k++) {
@@ -954,10 +1124,10 @@ void tw_renderer_id_draw(struct tw_renderer *r, uint32_t prototype, const float 
         }
         gl->Uniform1ui(r->ui_id, first_id + k);
         const struct tw_mesh_part *part = &ts->parts[c->part];
-        const size_t first = (size_t)r->mesh_first_index[part->mesh] + 3u * part->first_triangle;
+        const size_t first = (size_t)b->first_index[part->mesh] + 3u * part->first_triangle;
         gl->DrawElementsBaseVertex(GL_TRIANGLES, (GLsizei)(3u * part->triangle_count),
                                    GL_UNSIGNED_INT, (const void *)(first * sizeof(uint32_t)),
-                                   (GLint)r->mesh_base_vertex[part->mesh]);
+                                   (GLint)b->base_vertex[part->mesh]);
     }
 }
 
@@ -1008,6 +1178,7 @@ void tw_renderer_draw_debug(struct tw_renderer *r, const struct tw_view *v,
     gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
     gl->Viewport(0, 0, (GLsizei)r->width, (GLsizei)r->height);
     gl->BindVertexArray(r->box_vao);
+    r->bound_vao = r->box_vao;
     gl->ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
     gl->DepthMask(GL_FALSE);
     gl->Enable(GL_BLEND);

@@ -25,10 +25,27 @@ struct tw_render_counters {
 
 struct tw_renderer;
 
-/* tileset and log are borrowed for the renderer's lifetime. The GL context
- * must be current. */
-int tw_renderer_create(const struct tw_tileset *ts, uint32_t width, uint32_t height, tw_gl_get_proc_fn get_proc,
+/* log is borrowed for the renderer's lifetime. The GL context must be
+ * current. */
+int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_proc,
                        const struct tw_log *log, struct tw_renderer **out);
+
+/* Uploads the meshes of a finished tileset into GL buffers of their own: its
+ * prototypes become contents *first_content + p (what the backend draws, a
+ * struct tw_cull_tile's content), each remembered with bvhs[p] (bvhs may be
+ * NULL); *bytes (may be NULL) receives the buffers' size. ts and the BVHs
+ * are borrowed until tw_renderer_release(). Between enter and leave. */
+int tw_renderer_upload(struct tw_renderer *r, const struct tw_tileset *ts,
+                       const struct tw_bvh *const *bvhs, uint32_t *first_content, uint64_t *bytes);
+/* Frees the buffers of the tileset whose first content is first_content;
+ * its contents' ids may be reused. Between enter and leave. */
+void tw_renderer_release(struct tw_renderer *r, uint32_t first_content);
+/* The prototype a content draws (and its BVH into *bvh, may be NULL), or
+ * NULL for a content that is not live. */
+const struct tw_prototype *tw_renderer_content(const struct tw_renderer *r, uint32_t content,
+                                               const struct tw_bvh **bvh);
+/* Bytes of every GL buffer of uploaded tilesets. */
+uint64_t tw_renderer_gpu_bytes(const struct tw_renderer *r);
 void tw_renderer_destroy(struct tw_renderer *r);
 
 /* Every call below that draws or reads runs between enter and leave: enter

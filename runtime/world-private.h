@@ -8,6 +8,7 @@
 
 #include "runtime/calibrate.h"
 #include "runtime/renderer.h"
+#include "runtime/stream.h"
 #include "tileworld/cull.h"
 #include "tileworld/runtime.h"
 
@@ -45,9 +46,10 @@ struct tw_debug_state {
     struct tw_debug_box *boxes;
     size_t count, cap;
     struct tw_cell_map *seen;       /* cells reported this frame */
-    uint32_t **leaf_of;             /* per prototype: cluster -> its BVH leaf */
-    uint32_t *stamp;                /* per node: the tile that last marked it */
-    uint32_t stamp_now;
+    uint32_t *leaf_of;              /* of the tile being collected: cluster -> its BVH leaf */
+    size_t leaf_cap;
+    uint8_t *marked;                /* of that tile: node already reported */
+    size_t marked_cap;
     struct tw_renderer_debug_box *draw;
     size_t draw_cap;
 };
@@ -55,8 +57,22 @@ struct tw_debug_state {
 struct tw_world {
     struct tw_world_settings s;
     struct tw_renderer *renderer;
-    struct tw_bvh **bvhs;           /* one per prototype */
-    struct tw_cull_fixed fixed;     /* the tileset as a tile source */
+    /* What the world shows: the host's provider, or one made of the fixed
+     * tileset and its selection. */
+    struct tw_tile_provider provider;
+    struct tw_bvh **bvhs;           /* one per shared prototype */
+    uint32_t shared_count;          /* shared prototypes (contents 0 .. shared_count - 1) */
+    uint64_t shared_cpu, shared_gpu;/* bytes of the shared content, counted once */
+    struct tw_stream *stream;       /* tiles of their own (NULL: none can exist) */
+    uint64_t frame_serial;          /* every frame of every method: the streaming clock */
+    struct tw_tile_event *events;   /* of the last frame */
+    size_t event_count, event_cap;
+    struct tw_tile_event *next_events;  /* since the last frame */
+    size_t next_event_count, next_event_cap;
+    struct tw_world_pos prev_pos;   /* the last frame's camera, for the look-ahead */
+    float velocity[3];              /* metres per frame, smoothed */
+    bool has_prev;
+    struct tw_cull_cells ahead;     /* cells of the look-ahead view */
     struct tw_cull_grid grid;
     struct tw_cull_cells cells;     /* the cells in view of the current view */
     enum tw_method method;
@@ -69,6 +85,7 @@ struct tw_world {
     bool has_view;
     struct tw_calibration calibration;  /* DESIGN §14: what queries and draws cost */
     struct tw_calibrate_fit fit;        /* its refinement from finished frames */
+    uint32_t calibration_first;         /* the shared tileset's first content */
     struct tw_debug_state debug;    /* untouched while debug.flags is 0 */
 };
 

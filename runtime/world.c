@@ -9,6 +9,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 static const char *const method_names[TW_METHOD_COUNT] = {
     [TW_METHOD_DEFAULT] = "default",
@@ -65,6 +66,8 @@ bool tw_method_conservative(enum tw_method m, const struct tw_world_settings *s)
     }
 }
 
+static uint32_t default_workers(void);
+
 void tw_world_default_settings(struct tw_world_settings *s)
 {
     if (!s)
@@ -82,6 +85,12 @@ void tw_world_default_settings(struct tw_world_settings *s)
         s->view_distance = 600.0f;
     if (s->evict_after_frames == 0)
         s->evict_after_frames = 60;
+    if (s->workers == 0)
+        s->workers = default_workers();
+    if (s->upload_budget_bytes == 0)
+        s->upload_budget_bytes = 32u << 20;
+    if (!(s->upload_budget_ms > 0.0f))
+        s->upload_budget_ms = 4.0f;
     if (!(s->verify_tolerance > 0.0f))
         s->verify_tolerance = TW_VERIFY_TOLERANCE;
     tw_chc_default_settings(&s->chc);
@@ -108,12 +117,94 @@ static int create_driver(const struct tw_world *w, enum tw_method m, struct tw_c
     return tw_cull_driver_create(&ds, out);
 }
 
+/* The fixed tileset's selection as a provider's content(). */
+static uint32_t select_content(void *user, struct tw_cell cell)
+{
+    const struct tw_world *w = user;
+    return tw_tiles_select(w->s.tileset, &w->s.selection, cell);
+}
+
+static bool box_finite(const struct tw_box *b)
+{
+    for (int a = 0; a < 3; a++)
+        if (!isfinite(b->min[a]) || !isfinite(b->max[a]) || b->min[a] > b->max[a])
+            return false;
+    return true;
+}
+
+/* The provider the world shows, checked: the host's, or the fixed tileset's. */
+static int resolve_provider(struct tw_world *w)
+{
+    const struct tw_log *log = &w->s.log;
+    if (!w->s.provider) {
+        const struct tw_tileset *ts = w->s.tileset;
+        w->provider = (struct tw_tile_provider){
+            .name = ts->name,
+            .footprint = {ts->footprint[0], ts->footprint[1]},
+            .bound = ts->common_box,
+            .shared = ts,
+            .content = select_content,
+            .user = w,
+        };
+        return TW_OK;
+    }
+    const struct tw_tile_provider *p = w->s.provider;
+    w->provider = *p;
+    const char *name = p->name ? p->name : "(unnamed)";
+    if (!(p->footprint[0] > 0.0f && p->footprint[1] > 0.0f && isfinite(p->footprint[0]) &&
+          isfinite(p->footprint[1])) || !box_finite(&p->bound)) {
+        tw_log_printf(log, TW_LOG_ERROR, "provider %s: footprint or bound is not a finite box", name);
+        return TW_ERR_INVALID;
+    }
+    if (!p->generate && !p->content) {
+        tw_log_printf(log, TW_LOG_ERROR, "provider %s: neither content() nor generate()", name);
+        return TW_ERR_INVALID;
+    }
+    if (p->shared) {
+        const struct tw_tileset *ts = p->shared;
+        if (!ts->finished || ts->footprint[0] != p->footprint[0] ||
+            ts->footprint[1] != p->footprint[1]) {
+            tw_log_printf(log, TW_LOG_ERROR,
+                          "provider %s: the shared tileset is unfinished or has another footprint",
+                          name);
+            return TW_ERR_INVALID;
+        }
+        for (uint32_t k = 0; k < ts->prototype_count; k++) {
+            const struct tw_box *b = &ts->prototypes[k].box;
+            for (int a = 0; a < 3; a++)
+                if (b->min[a] < p->bound.min[a] || b->max[a] > p->bound.max[a]) {
+                    tw_log_printf(log, TW_LOG_ERROR,
+                                  "provider %s: shared prototype %u '%.48s' exceeds the bound",
+                                  name, k, ts->prototypes[k].name);
+                    return TW_ERR_INVALID;
+                }
+        }
+    }
+    return TW_OK;
+}
+
+static int world_get(void *ctx, struct tw_cell cell, float distance, unsigned flags,
+                     struct tw_cull_tile *out);
+static void world_prefetch(void *ctx, struct tw_cell cell, float distance);
+static void stream_event(void *user, struct tw_cell cell, enum tw_tile_event_kind kind,
+                         uint64_t bytes);
+
+static uint32_t default_workers(void)
+{
+    const long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    return cores > 2 ? (uint32_t)(cores - 1) : 1u;
+}
+
 int tw_world_create(const struct tw_world_settings *settings, struct tw_world **out)
 {
     if (!settings || !out)
         return TW_ERR_INVALID;
     const struct tw_log *log = &settings->log;
-    if (!settings->tileset || !settings->tileset->finished) {
+    if (settings->provider && settings->tileset) {
+        tw_log_printf(log, TW_LOG_ERROR, "tw_world_create: give a tileset or a provider, not both");
+        return TW_ERR_INVALID;
+    }
+    if (!settings->provider && (!settings->tileset || !settings->tileset->finished)) {
         tw_log_printf(log, TW_LOG_ERROR, "tw_world_create: the tileset is missing or unfinished");
         return TW_ERR_INVALID;
     }
@@ -125,7 +216,9 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
         settings->fov_y >= 179.0f || !isfinite(settings->view_distance) ||
         !isfinite(settings->near_plane) || (unsigned)settings->method >= TW_METHOD_COUNT ||
         !(settings->verify_tolerance >= 0.0f && settings->verify_tolerance < 1.0f) ||
-        !(settings->mutate_query_shrink >= 0.0f && settings->mutate_query_shrink < 1.0f)) {
+        !(settings->mutate_query_shrink >= 0.0f && settings->mutate_query_shrink < 1.0f) ||
+        (unsigned)settings->policy > TW_STREAM_SKIP || settings->workers > 256 ||
+        !(settings->upload_budget_ms >= 0.0f)) {
         tw_log_printf(log, TW_LOG_ERROR, "tw_world_create: settings out of range");
         return TW_ERR_INVALID;
     }
@@ -134,42 +227,66 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
         return TW_ERR_NOMEM;
     w->s = *settings;
     tw_world_default_settings(&w->s);
-    const struct tw_tileset *ts = w->s.tileset;
-    int err = tw_renderer_create(ts, w->s.width, w->s.height, w->s.get_proc, &w->s.log,
-                                 &w->renderer);
+    int err = resolve_provider(w);
+    if (!err)
+        err = tw_renderer_create(w->s.width, w->s.height, w->s.get_proc, &w->s.log, &w->renderer);
     if (err)
         goto fail;
-    w->bvhs = calloc(ts->prototype_count, sizeof(*w->bvhs));
-    if (!w->bvhs) {
-        err = TW_ERR_NOMEM;
-        goto fail;
+    tw_renderer_enter(w->renderer);
+    const struct tw_tileset *ts = w->provider.shared;
+    if (ts) {
+        w->shared_count = ts->prototype_count;
+        w->bvhs = calloc(ts->prototype_count, sizeof(*w->bvhs));
+        struct tw_bvh_builder *builder = NULL;
+        err = w->bvhs ? tw_bvh_builder_create(&w->s.log, &builder) : TW_ERR_NOMEM;
+        for (uint32_t p = 0; p < ts->prototype_count && !err; p++)
+            err = tw_bvh_build(builder, &ts->prototypes[p], &w->s.bvh, &w->bvhs[p]);
+        tw_bvh_builder_destroy(builder);
+        uint32_t first = 0;
+        if (!err)
+            err = tw_renderer_upload(w->renderer, ts, (const struct tw_bvh *const *)w->bvhs, &first,
+                                     &w->shared_gpu);
+        w->shared_cpu = tw_tileset_bytes(ts);
+        for (uint32_t p = 0; p < ts->prototype_count && !err; p++)
+            w->shared_cpu += w->bvhs[p]->bytes;
+        w->calibration_first = first;
     }
-    struct tw_bvh_builder *builder = NULL;
-    err = tw_bvh_builder_create(&w->s.log, &builder);
-    if (err)
-        goto fail;
-    for (uint32_t p = 0; p < ts->prototype_count && !err; p++)
-        err = tw_bvh_build(builder, &ts->prototypes[p], &w->s.bvh, &w->bvhs[p]);
-    tw_bvh_builder_destroy(builder);
-    if (err)
-        goto fail;
-    if (w->s.calibration.query_ms > 0.0) {
+    /* What queries and draws cost here (DESIGN §14). */
+    if (!err && w->s.calibration.query_ms > 0.0) {
         w->calibration = w->s.calibration;
         w->calibration.measured = false;
-    } else if (w->s.deterministic) {
+    } else if (!err && w->s.deterministic) {
         tw_calibrate_nominal(&w->calibration);
-    } else {
-        tw_renderer_enter(w->renderer);
-        err = tw_calibrate_measure(w->renderer, ts, w->s.width, w->s.height, w->s.fov_y,
-                                   &w->calibration);
-        tw_renderer_leave(w->renderer);
-        if (err)
-            goto fail;
+    } else if (!err) {
+        err = tw_calibrate_measure(w->renderer, ts, w->calibration_first, w->s.width, w->s.height,
+                                   w->s.fov_y, &w->calibration);
     }
     if (!(w->calibration.query_scale > 0.0))
         w->calibration.query_scale = w->calibration.draw_scale = 1.0;
-    w->fixed = (struct tw_cull_fixed){ts, &w->s.selection, w->bvhs, &w->s.log};
-    w->grid = tw_cull_fixed_grid(&w->fixed);
+    if (!err && w->provider.generate) {
+        const struct tw_stream_settings ss = {
+            .provider = &w->provider,
+            .bvh = w->s.bvh,
+            .workers = w->s.workers,
+            .policy = w->s.policy,
+            .upload_bytes = w->s.upload_budget_bytes,
+            .upload_ms = w->s.upload_budget_ms,
+            .evict_after = w->s.evict_after_frames,
+            .key_base = w->shared_count,
+            .log = &w->s.log,
+        };
+        err = tw_stream_create(&ss, w->renderer, &w->stream);
+        if (!err)
+            tw_stream_set_events(w->stream, stream_event, w);
+    }
+    tw_renderer_leave(w->renderer);
+    if (err)
+        goto fail;
+    w->grid = (struct tw_cull_grid){
+        .footprint = {w->provider.footprint[0], w->provider.footprint[1]},
+        .common_box = w->provider.bound,
+        .source = {w, world_get, w->stream ? world_prefetch : NULL},
+    };
     tw_renderer_set_tile_query_box(w->renderer, &w->grid.common_box);
     tw_renderer_set_deterministic(w->renderer, w->s.deterministic);
     tw_renderer_set_count_samples(w->renderer, w->s.chc.threshold > 0 || w->s.tilequery.threshold > 0);
@@ -199,10 +316,18 @@ void tw_world_destroy(struct tw_world *w)
     tw_oracle_finish(&w->oracle);
     tw_debug_finish(w);
     tw_cull_cells_finish(&w->cells);
+    tw_cull_cells_finish(&w->ahead);
+    if (w->renderer) {
+        tw_renderer_enter(w->renderer);
+        tw_stream_destroy(w->stream);
+        tw_renderer_leave(w->renderer);
+    }
     if (w->bvhs)
-        for (uint32_t p = 0; p < w->s.tileset->prototype_count; p++)
+        for (uint32_t p = 0; p < w->shared_count; p++)
             tw_bvh_destroy(w->bvhs[p]);
     free(w->bvhs);
+    free(w->events);
+    free(w->next_events);
     tw_renderer_destroy(w->renderer);
     free(w);
 }
@@ -235,7 +360,7 @@ const struct tw_world_settings *tw_world_settings(const struct tw_world *w)
 
 const struct tw_bvh *tw_world_bvh(const struct tw_world *w, uint32_t p)
 {
-    return w && p < w->s.tileset->prototype_count ? w->bvhs[p] : NULL;
+    return w && p < w->shared_count ? w->bvhs[p] : NULL;
 }
 
 static bool camera_valid(const struct tw_camera *cam)
@@ -254,14 +379,14 @@ static int setup_view(struct tw_world *w, const struct tw_camera *cam, struct tw
                       "camera has a non-finite position or angle, or |pitch| >= 89.9");
         return TW_ERR_INVALID;
     }
-    const struct tw_tileset *ts = w->s.tileset;
+    const float *fp = w->provider.footprint;
     struct tw_world_pos pos = cam->pos;
-    int err = tw_tiles_normalize(&pos, ts->footprint[0], ts->footprint[1]);
+    int err = tw_tiles_normalize(&pos, fp[0], fp[1]);
     if (err) {
         tw_log_printf(&w->s.log, TW_LOG_ERROR, "camera position cannot be normalised");
         return err;
     }
-    const struct tw_box *cb = &ts->common_box;
+    const struct tw_box *cb = &w->provider.bound;
     const float diag = sqrtf((cb->max[0] - cb->min[0]) * (cb->max[0] - cb->min[0]) +
                              (cb->max[1] - cb->min[1]) * (cb->max[1] - cb->min[1]) +
                              (cb->max[2] - cb->min[2]) * (cb->max[2] - cb->min[2]));
@@ -286,6 +411,181 @@ static void collect_counters(const struct tw_world *w, struct tw_frame_stats *st
     st->blocking_reads = rc->blocking_reads;
 }
 
+/* ---- streaming: the tile source, the look-ahead, the budget ------------------------- */
+
+static void push_event(struct tw_world *w, struct tw_cell cell, enum tw_tile_event_kind kind,
+                       uint64_t bytes)
+{
+    if (w->next_event_count == w->next_event_cap) {
+        const size_t cap = w->next_event_cap ? 2 * w->next_event_cap : 64;
+        struct tw_tile_event *e = realloc(w->next_events, sizeof(*e) * cap);
+        if (!e)
+            return;     /* an event lost to memory: the counters still count it */
+        w->next_events = e;
+        w->next_event_cap = cap;
+    }
+    w->next_events[w->next_event_count++] = (struct tw_tile_event){cell, kind, bytes};
+}
+
+static void stream_event(void *user, struct tw_cell cell, enum tw_tile_event_kind kind,
+                         uint64_t bytes)
+{
+    push_event(user, cell, kind, bytes);
+}
+
+/* What cell shows, checked: a shared prototype, or TW_TILE_OWN. */
+static int content_of(struct tw_world *w, struct tw_cell cell, uint32_t *content)
+{
+    const struct tw_tile_provider *p = &w->provider;
+    const uint32_t c = p->content ? p->content(p->user, cell) : TW_TILE_OWN;
+    if (c == TW_TILE_OWN ? !w->stream : c >= w->shared_count) {
+        tw_log_printf(&w->s.log, TW_LOG_ERROR,
+                      "%s %s: cell (%lld, %lld) shows %s %u, but there are %u shared "
+                      "prototypes%s",
+                      w->s.provider ? "provider" : "selection of tileset",
+                      p->name ? p->name : "", (long long)cell.i, (long long)cell.j,
+                      c == TW_TILE_OWN ? "content" : "prototype", c, w->shared_count,
+                      c == TW_TILE_OWN ? " and no generate() for a tile of its own" : "");
+        return TW_ERR_INVALID;
+    }
+    *content = c;
+    return TW_OK;
+}
+
+static int world_get(void *ctx, struct tw_cell cell, float distance, unsigned flags,
+                     struct tw_cull_tile *out)
+{
+    struct tw_world *w = ctx;
+    uint32_t c;
+    int err = content_of(w, cell, &c);
+    if (err)
+        return err;
+    if (c != TW_TILE_OWN) {
+        /* A cell that had a tile of its own and now shows a shared one: the
+         * provider's answer changed, which is an invalidation. */
+        if (w->stream && tw_stream_has(w->stream, cell))
+            tw_stream_invalidate(w->stream, cell);
+        out->proto = &w->provider.shared->prototypes[c];
+        out->bvh = w->bvhs[c];
+        out->content = c;
+        out->key = c;
+        return TW_OK;
+    }
+    return tw_stream_get(w->stream, cell, distance, flags, out);
+}
+
+static void world_prefetch(void *ctx, struct tw_cell cell, float distance)
+{
+    struct tw_world *w = ctx;
+    const struct tw_tile_provider *p = &w->provider;
+    if (!p->content || p->content(p->user, cell) == TW_TILE_OWN)
+        tw_stream_prefetch(w->stream, cell, distance);
+}
+
+/* Frames ahead the look-ahead predicts, and how many of the cells it would
+ * see are requested (the nearest). */
+#define LOOK_AHEAD_FRAMES 30
+#define LOOK_AHEAD_CELLS 16
+
+/* Requests the tiles the camera would need a second ahead along its motion
+ * (DESIGN §12), nearest first, behind everything the frame asked for. */
+static void look_ahead(struct tw_world *w, const struct tw_view *v)
+{
+    const float *fp = w->provider.footprint;
+    if (w->has_prev) {
+        float moved[3];
+        tw_tiles_cell_offset(v->cell, w->prev_pos.cell, fp[0], fp[1], moved);
+        for (int a = 0; a < 3; a++)
+            moved[a] += v->eye[a] - w->prev_pos.local[a];
+        const float step = sqrtf(moved[0] * moved[0] + moved[1] * moved[1] + moved[2] * moved[2]);
+        for (int a = 0; a < 3; a++)
+            w->velocity[a] = step > v->view_distance ? 0.0f  /* a jump: no motion to follow */
+                                                     : 0.7f * w->velocity[a] + 0.3f * moved[a];
+    }
+    w->prev_pos.cell = v->cell;
+    memcpy(w->prev_pos.local, v->eye, sizeof(v->eye));
+    w->has_prev = true;
+    const float speed2 = w->velocity[0] * w->velocity[0] + w->velocity[2] * w->velocity[2];
+    if (speed2 < 1e-4f)
+        return;
+    struct tw_view ahead = *v;
+    for (int a = 0; a < 3; a += 2)
+        ahead.eye[a] += LOOK_AHEAD_FRAMES * w->velocity[a];
+    /* The same matrices moved: the frustum of the eye translated. */
+    float translate[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    translate[12] = -LOOK_AHEAD_FRAMES * w->velocity[0];
+    translate[14] = -LOOK_AHEAD_FRAMES * w->velocity[2];
+    for (int c = 0; c < 4; c++)
+        for (int r = 0; r < 4; r++) {
+            float sum = 0.0f;
+            for (int k = 0; k < 4; k++)
+                sum += v->view_proj[k * 4 + r] * translate[c * 4 + k];
+            ahead.view_proj[c * 4 + r] = sum;
+        }
+    tw_cull_frustum_from_matrix(ahead.view_proj, &ahead.frustum);
+    if (tw_cull_cells_of_frame(&w->ahead, &ahead, &w->grid))
+        return;
+    const size_t n = w->ahead.count < LOOK_AHEAD_CELLS ? w->ahead.count : LOOK_AHEAD_CELLS;
+    for (size_t k = 0; k < n; k++) {
+        const struct tw_cell cell = w->ahead.cells[k].cell;
+        float off[3];
+        tw_tiles_cell_offset(cell, v->cell, fp[0], fp[1], off);
+        world_prefetch(w, cell, v->view_distance + tw_cull_box_distance(v, &w->grid.common_box, off));
+    }
+}
+
+/* Every byte the world's tiles cost: shared content once, generated tiles,
+ * every method's culling state. */
+static void count_bytes(const struct tw_world *w, uint64_t *cpu, uint64_t *gpu)
+{
+    uint64_t scpu = 0, sgpu = 0;
+    if (w->stream)
+        tw_stream_bytes(w->stream, &scpu, &sgpu);
+    *cpu = w->shared_cpu + scpu;
+    for (int m = 0; m < TW_METHOD_COUNT; m++)
+        if (w->methods[m].driver)
+            *cpu += tw_cull_driver_bytes(w->methods[m].driver);
+    *gpu = w->shared_gpu + sgpu;
+}
+
+/* Over budget, the least recently drawn tiles go, then the oldest culling
+ * state of the other methods, then of this one; what this frame drew stays. */
+static void keep_budget(struct tw_world *w, const struct method_state *ms,
+                        struct tw_frame_stats *st)
+{
+    uint64_t cpu, gpu;
+    count_bytes(w, &cpu, &gpu);
+    const uint64_t budget = w->s.cache_budget_bytes;
+    uint32_t instances = 0;
+    /* Evicting can grow a table (the record of evictions): count again. */
+    while (budget && cpu + gpu > budget && w->stream &&
+           tw_stream_trim(w->stream, cpu + gpu - budget, w->frame_serial, NULL, NULL) > 0)
+        count_bytes(w, &cpu, &gpu);
+    for (int pass = 0; pass < 2 && budget && cpu + gpu > budget; pass++)
+        for (int m = 0; m < TW_METHOD_COUNT && cpu + gpu > budget; m++) {
+            const struct method_state *other = &w->methods[m];
+            if (!other->driver || (other == ms) != (pass == 1))
+                continue;
+            /* Another method's instances are all older than its next frame. */
+            tw_cull_driver_trim(other->driver, cpu + gpu - budget, other->frame + (other != ms),
+                                &instances);
+            count_bytes(w, &cpu, &gpu);
+        }
+    st->bytes_cpu = cpu;
+    st->bytes_gpu = gpu;
+    st->bytes_needed = cpu + gpu;
+    st->over_budget = budget && cpu + gpu > budget;
+    if (w->stream) {
+        const struct tw_stream_stats *ss = tw_stream_stats(w->stream);
+        st->bytes_needed = cpu + gpu - tw_stream_tile_bytes(w->stream) + ss->bytes_used;
+        st->loads_requested = ss->loads_requested;
+        st->loads_done = ss->loads_done;
+        st->evictions = ss->evictions;
+        st->ms_upload = ss->ms_upload;
+    }
+    st->evictions += instances;
+}
+
 static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_frame_stats *out)
 {
     struct tw_view v;
@@ -306,17 +606,23 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
                              verify || w->record_draws || (debug & (TW_DEBUG_CELLS | TW_DEBUG_NODES)));
     if (debug)
         tw_renderer_record_queries(w->renderer, (debug & TW_DEBUG_QUERIES) != 0);
+    w->frame_serial++;
+    double t0 = tw_renderer_now_ms(), cpu0 = tw_renderer_cpu_ms();
+    if (w->stream)
+        tw_stream_begin_frame(w->stream, w->frame_serial);
     if (w->method == TW_METHOD_ORACLE) {
         /* The ID pass is the oracle's knowledge, not its work: untimed. */
+        const double ts0 = tw_renderer_now_ms(), cs0 = tw_renderer_cpu_ms();
         err = tw_oracle_pass(w, &v);
         if (err)
             return err;
         tw_cull_driver_give(ms->driver, w->oracle.visible, w->oracle.visible_count);
+        t0 += tw_renderer_now_ms() - ts0;
+        cpu0 += tw_renderer_cpu_ms() - cs0;
     }
     struct tw_cost_model costs;
     tw_calibrate_model(&w->calibration, w->s.width, w->s.height, w->s.fov_y, &costs);
     tw_cull_driver_set_costs(ms->driver, &costs);
-    const double t0 = tw_renderer_now_ms(), cpu0 = tw_renderer_cpu_ms();
     tw_renderer_begin_frame(w->renderer, &v);
     const struct tw_query_backend be = tw_renderer_backend(w->renderer);
     struct tw_cull_frame_stats cs = {0};
@@ -329,9 +635,12 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     st.tiles_cached = cs.tiles_cached;
     st.cache_bytes = cs.cache_bytes;
     st.predict_fail = cs.predict_fail;
+    st.tiles_pending = cs.tiles_pending;
     st.queries_skipped = cs.queries_skipped;
     if (err)
         return err;
+    if (w->stream)
+        look_ahead(w, &v);
     collect_counters(w, &st);
     st.ms_cull = (t1 - t0) - tw_renderer_counters(w->renderer)->ms_backend;
     if (st.ms_cull < 0.0)
@@ -356,6 +665,16 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
         if (err)
             return err;
     }
+    keep_budget(w, ms, &st);
+    /* The events of this frame (and of invalidations since the last one). */
+    struct tw_tile_event *e = w->events;
+    w->events = w->next_events;
+    w->event_count = w->next_event_count;
+    w->next_events = e;
+    const size_t cap = w->event_cap;
+    w->event_cap = w->next_event_cap;
+    w->next_event_cap = cap;
+    w->next_event_count = 0;
     if (out)
         *out = st;
     return TW_OK;
@@ -442,14 +761,14 @@ static int frame_fixed(struct tw_world *w, const struct tw_camera *cam,
     int err = setup_view(w, cam, &v);
     if (err)
         return err;
-    const struct tw_tileset *ts = w->s.tileset;
-    for (size_t k = 0; k < count; k++)
-        if (clusters[k].prototype >= ts->prototype_count ||
-            clusters[k].cluster >= ts->prototypes[clusters[k].prototype].cluster_count) {
+    for (size_t k = 0; k < count; k++) {
+        const struct tw_prototype *proto = tw_renderer_content(w->renderer, clusters[k].prototype, NULL);
+        if (!proto || clusters[k].cluster >= proto->cluster_count) {
             tw_log_printf(&w->s.log, TW_LOG_ERROR,
                           "tw_world_frame_fixed: cluster %zu names no cluster of the tileset", k);
             return TW_ERR_INVALID;
         }
+    }
     struct tw_frame_stats st = {0};
     st.frame = w->methods[w->method].frame;
     st.method = w->method;
@@ -498,4 +817,50 @@ int tw_world_blit(struct tw_world *w, uint32_t target, uint32_t width, uint32_t 
     tw_renderer_blit(w->renderer, target, width, height);
     tw_renderer_leave(w->renderer);
     return TW_OK;
+}
+
+const struct tw_tile_event *tw_world_tile_events(const struct tw_world *w, size_t *count)
+{
+    if (!w || !count) {
+        if (count)
+            *count = 0;
+        return NULL;
+    }
+    *count = w->event_count;
+    return w->events;
+}
+
+int tw_world_invalidate_rect(struct tw_world *w, struct tw_cell lo, struct tw_cell hi)
+{
+    if (!w || lo.i > hi.i || lo.j > hi.j)
+        return TW_ERR_INVALID;
+    tw_renderer_enter(w->renderer);
+    if (w->stream) {
+        if (lo.i == hi.i && lo.j == hi.j)
+            tw_stream_invalidate(w->stream, lo);
+        else
+            tw_stream_invalidate_rect(w->stream, lo, hi);
+    }
+    tw_renderer_leave(w->renderer);
+    /* Every method's culling state of those cells: made for what they showed. */
+    for (int m = 0; m < TW_METHOD_COUNT; m++) {
+        struct tw_cull_driver *d = w->methods[m].driver;
+        if (!d)
+            continue;
+        const uint64_t wi = (uint64_t)hi.i - (uint64_t)lo.i, wj = (uint64_t)hi.j - (uint64_t)lo.j;
+        if (wi < 64 && wj < 64) {
+            for (uint64_t a = 0; a <= wi; a++)
+                for (uint64_t b = 0; b <= wj; b++)
+                    tw_cull_driver_forget(d, (struct tw_cell){(int64_t)((uint64_t)lo.i + a),
+                                                              (int64_t)((uint64_t)lo.j + b)});
+        } else {
+            tw_cull_driver_forget_rect(d, lo, hi);
+        }
+    }
+    return TW_OK;
+}
+
+int tw_world_invalidate(struct tw_world *w, struct tw_cell cell)
+{
+    return tw_world_invalidate_rect(w, cell, cell);
 }

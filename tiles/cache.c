@@ -357,3 +357,46 @@ uint64_t tw_tile_cache_bytes(const struct tw_tile_cache *c)
     return sizeof(*c) + (uint64_t)sizeof(*c->slots) * c->slot_cap + tw_cell_map_bytes(c->by_cell) +
            c->state_bytes;
 }
+
+bool tw_tile_cache_remove(struct tw_tile_cache *c, struct tw_cell cell)
+{
+    struct tw_tile_handle h;
+    if (!c || !tw_tile_cache_find(c, cell, &h))
+        return false;
+    release(c, h.slot);
+    return true;
+}
+
+bool tw_tile_cache_evict_oldest(struct tw_tile_cache *c, uint64_t frame, uint64_t *bytes)
+{
+    uint32_t best = UINT32_MAX;
+    for (uint32_t k = 0; k < c->slot_count; k++) {
+        const struct slot *s = &c->slots[k];
+        if ((s->generation & 1u) == 0 || s->info.visible_frame >= frame)
+            continue;
+        if (best == UINT32_MAX || s->info.visible_frame < c->slots[best].info.visible_frame)
+            best = k;
+    }
+    if (best == UINT32_MAX)
+        return false;
+    if (bytes)
+        *bytes = c->slots[best].info.state_bytes;
+    release(c, best);
+    return true;
+}
+
+uint32_t tw_tile_cache_remove_rect(struct tw_tile_cache *c, struct tw_cell lo, struct tw_cell hi)
+{
+    uint32_t removed = 0;
+    for (uint32_t k = 0; c && k < c->slot_count; k++) {
+        const struct slot *s = &c->slots[k];
+        if ((s->generation & 1u) == 0)
+            continue;
+        const struct tw_cell cell = s->info.cell;
+        if (cell.i >= lo.i && cell.i <= hi.i && cell.j >= lo.j && cell.j <= hi.j) {
+            release(c, k);
+            removed++;
+        }
+    }
+    return removed;
+}

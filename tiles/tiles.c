@@ -216,10 +216,8 @@ uint32_t tw_tiles_select(const struct tw_tileset *ts,
         cell.i = tw_tiles_floor_mod(cell.i, sel->repeat);
         cell.j = tw_tiles_floor_mod(cell.j, sel->repeat);
     }
-    if (sel->fn) {
-        uint32_t p = sel->fn(sel->user, cell);
-        return p < ts->prototype_count ? p : p % ts->prototype_count;
-    }
+    if (sel->fn)
+        return sel->fn(sel->user, cell);   /* checked by the caller: an error, not a modulo */
     double total = 0.0;
     for (uint32_t k = 0; k < ts->prototype_count; k++)
         total += ts->prototypes[k].weight;

@@ -437,7 +437,6 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
         if (ts->prototypes[p].instance_count == 0)
             return TW_ERR_INVALID;
 
-    uint32_t part_cap = 0;
     int err = TW_OK;
     /* Without a cluster size the caller wants whole meshes: nothing merged. */
     const uint32_t below = ts->merge_triangles ? ts->merge_triangles : TW_TILESET_MERGE_TRIANGLES;
@@ -447,7 +446,7 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
             return err;
     }
     for (uint32_t k = 0; k < ts->mesh_count; k++) {
-        err = split_mesh(ts, k, max_cluster_triangles, &part_cap);
+        err = split_mesh(ts, k, max_cluster_triangles, &ts->part_cap);
         if (err)
             return err;
     }
@@ -504,5 +503,22 @@ uint64_t tw_tileset_geometry_bytes(const struct tw_tileset *ts)
     for (uint32_t k = 0; k < ts->mesh_count; k++)
         bytes += (uint64_t)ts->meshes[k].vertex_count * 24u +
                  (uint64_t)ts->meshes[k].triangle_count * 12u;
+    return bytes;
+}
+
+uint64_t tw_tileset_bytes(const struct tw_tileset *ts)
+{
+    if (!ts)
+        return 0;
+    uint64_t bytes = sizeof(*ts) + (uint64_t)sizeof(*ts->materials) * ts->material_cap +
+                     (uint64_t)sizeof(*ts->meshes) * ts->mesh_cap +
+                     (uint64_t)sizeof(*ts->parts) * ts->part_cap +
+                     (uint64_t)sizeof(*ts->prototypes) * ts->prototype_cap;
+    for (uint32_t k = 0; k < ts->mesh_count; k++)
+        bytes += (uint64_t)ts->meshes[k].vertex_count * 6u * sizeof(float) +
+                 (uint64_t)ts->meshes[k].triangle_count * 3u * sizeof(uint32_t);
+    for (uint32_t p = 0; p < ts->prototype_count; p++)
+        bytes += (uint64_t)sizeof(struct tw_instance) * ts->prototypes[p].instance_cap +
+                 (uint64_t)sizeof(struct tw_cluster) * ts->prototypes[p].cluster_count;
     return bytes;
 }

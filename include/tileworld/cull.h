@@ -341,17 +341,36 @@ struct tw_cull_tile {
     const struct tw_prototype *proto;   /* its instances and clusters, tile-local */
     const struct tw_bvh *bvh;           /* over proto's clusters */
     uint32_t content;                   /* what the backend draws (a fixed tileset: the
-                                           prototype index); also names the content, so
-                                           that a cached tile instance made for other
-                                           content is made afresh */
+                                           prototype index) */
+    uint32_t key;                       /* names the content for the cell's tile
+                                           instance: an instance made for another key
+                                           is made afresh (a fixed tileset: the
+                                           prototype index) */
 };
+
+/* tw_tile_source.get() flags. */
+#define TW_TILE_SOURCE_RESIDENT 1u      /* only if already at hand: never request, never wait */
+#define TW_TILE_SOURCE_WAIT 2u          /* wait for the tile whatever the policy (an oracle
+                                           must see every tile) */
+#define TW_TILE_SOURCE_QUIET 4u         /* do not count the tile as drawn (for eviction) */
+
+/* What tw_tile_source.get() returns for a tile that is not ready (yet). */
+#define TW_TILE_PENDING 1
 
 /* Where a frame finds the tile of a cell. */
 struct tw_tile_source {
     void *ctx;
-    /* Fills *out with the tile at cell. Returns TW_OK or a negative error
-     * (the frame stops with it). Called on the frame's thread. */
-    int (*get)(void *ctx, struct tw_cell cell, struct tw_cull_tile *out);
+    /* Fills *out with the tile at cell and returns TW_OK; returns
+     * TW_TILE_PENDING when the tile is not ready (it is then drawn as a
+     * hole: its query box still counts for propagation, its geometry
+     * occludes nothing), or a negative error (the frame stops with it).
+     * distance: eye to the cell's common box (a priority). Called on the
+     * frame's thread. */
+    int (*get)(void *ctx, struct tw_cell cell, float distance, unsigned flags,
+               struct tw_cull_tile *out);
+    /* A hint that cell will soon be needed (its tile query is about to be
+     * issued); may be NULL. */
+    void (*prefetch)(void *ctx, struct tw_cell cell, float distance);
 };
 
 /* The grid a frame culls: footprint, the common box (tile-local; every tile
@@ -412,6 +431,7 @@ enum tw_cull_method {
 
 struct tw_cull_driver_settings {
     enum tw_cull_method method;
+    unsigned source_flags;              /* passed to every tw_tile_source.get() */
     uint32_t evict_after_frames;        /* tile instances unseen this long go; default 60 */
     struct tw_chc_settings chc;
     struct tw_tilequery_settings tilequery;
@@ -424,6 +444,7 @@ struct tw_cull_frame_stats {
     uint32_t tiles_visible;             /* tiles with something drawn (tile queries:
                                            tiles rendered) */
     uint32_t tiles_new;                 /* tile instances made this frame */
+    uint32_t tiles_pending;             /* cells found visible whose tile was not ready */
     uint32_t tiles_cached;
     uint64_t cache_bytes;               /* the tile cache's heap bytes */
     uint32_t predict_fail;
@@ -459,6 +480,15 @@ enum tw_cull_method tw_cull_driver_method(const struct tw_cull_driver *d);
 const struct tw_tilequery *tw_cull_driver_tilequery(const struct tw_cull_driver *d);
 /* Heap bytes held by the driver (the tile cache, the engines, scratch). */
 size_t tw_cull_driver_bytes(const struct tw_cull_driver *d);
+/* Drops the driver's tile instance at cell (its content changed). */
+void tw_cull_driver_forget(struct tw_cull_driver *d, struct tw_cell cell);
+/* The same for every cell in [lo, hi] (inclusive). */
+void tw_cull_driver_forget_rect(struct tw_cull_driver *d, struct tw_cell lo, struct tw_cell hi);
+/* Evicts tile instances not visible in frame, least recently visible first,
+ * until excess bytes are freed or none is left; returns the bytes freed and
+ * adds the instances evicted to *count. */
+uint64_t tw_cull_driver_trim(struct tw_cull_driver *d, uint64_t excess, uint64_t frame,
+                             uint32_t *count);
 
 /* ---- debugging: the cells of the last frame (read-only; the viewer) --------------- */
 

@@ -94,11 +94,40 @@ struct tw_calibration {
     double draw_scale;
 };
 
+/* What a frame does with a visible cell whose generated tile is not ready
+ * (DESIGN §12). */
+enum tw_stream_policy {
+    TW_STREAM_WAIT = 0,     /* the frame waits for it: images do not depend on timing */
+    TW_STREAM_SKIP,         /* the frame draws without it (a hole, counted in tiles_pending) */
+};
+
+/* What happened to a cell's generated tile. */
+enum tw_tile_event_kind {
+    TW_TILE_READY = 0,      /* generated, built and uploaded: it can be drawn */
+    TW_TILE_EVICTED,        /* it left the cache (budget, or invalidated) */
+    TW_TILE_REFUSED,        /* generate() failed, or the tile exceeded the provider's bound */
+};
+
+struct tw_tile_event {
+    struct tw_cell cell;
+    enum tw_tile_event_kind kind;
+    uint64_t bytes;         /* what the tile costs (READY) or freed (EVICTED), CPU + GPU */
+};
+
 /* Settings of a world. Zero-initialisable: tw_world_create() resolves every
- * zero field to its default (see tw_world_default_settings()). */
+ * zero field to its default (see tw_world_default_settings()). A world
+ * shows either a fixed tileset (tileset + selection) or a provider. */
 struct tw_world_settings {
     const struct tw_tileset *tileset;  /* borrowed; must outlive the world */
     struct tw_selection selection;     /* which prototype each cell shows */
+    const struct tw_tile_provider *provider; /* instead of tileset: a world generator
+                                          (tiles.h), borrowed; must outlive the world */
+    uint32_t workers;                  /* threads generating tiles; default: cores - 1,
+                                          at least 1 */
+    enum tw_stream_policy policy;      /* default TW_STREAM_WAIT */
+    uint64_t cache_budget_bytes;       /* every byte the tiles cost, CPU and GPU; 0: none */
+    uint64_t upload_budget_bytes;      /* per frame, of tiles not yet needed; default 32 MiB */
+    float upload_budget_ms;            /* per frame, likewise; default 4 */
     enum tw_method method;             /* default (0): tilequery+chc */
     uint32_t width, height;            /* default 640 x 360 */
     float fov_y;                       /* vertical field of view, degrees; default 60 */
@@ -162,6 +191,19 @@ struct tw_frame_stats {
                                 verify_tolerance, either way */
     uint32_t blocking_reads; /* query results waited for that were not ready yet */
     uint32_t queries_skipped;/* queries CHC++'s cost model found not worth issuing */
+    /* Streaming (DESIGN §12, §13): world-wide, not per method. */
+    uint32_t tiles_pending;  /* visible cells drawn without their tile (policy skip) */
+    uint32_t loads_requested;/* generated tiles requested this frame */
+    uint32_t loads_done;     /* generated tiles that became ready this frame */
+    uint32_t evictions;      /* tiles that left the cache this frame (content and instances) */
+    uint64_t bytes_cpu;      /* every byte of tiles on the CPU: shared content once,
+                                generated geometry, clusters and BVHs, culling state */
+    uint64_t bytes_gpu;      /* vertex and index buffers */
+    uint64_t bytes_needed;   /* of bytes_cpu + bytes_gpu, what this frame could not do
+                                without: every byte but the generated tiles it did not use */
+    bool over_budget;        /* bytes_cpu + bytes_gpu > cache_budget_bytes after trimming:
+                                what the frame needed exceeds the budget */
+    double ms_upload;        /* render-thread time uploading finished tiles */
 };
 
 struct tw_world;
@@ -196,6 +238,18 @@ int tw_world_frame(struct tw_world *w, const struct tw_camera *cam,
  * waited to stats->ms_frame and its CPU time to stats->cpu_ms (stats may be
  * NULL). */
 int tw_world_finish(struct tw_world *w, struct tw_frame_stats *stats);
+
+/* The tile events of the last frame (tiles ready, evicted, refused), in the
+ * order they happened. The array belongs to the world and lives until the
+ * next frame. */
+const struct tw_tile_event *tw_world_tile_events(const struct tw_world *w, size_t *count);
+
+/* Drops what the world holds for cell (its generated tile, and every
+ * method's culling state of it): the provider's answer for it has changed.
+ * The next frame that needs it asks the provider again. */
+int tw_world_invalidate(struct tw_world *w, struct tw_cell cell);
+/* The same for every cell in [lo, hi] (inclusive in i and j). */
+int tw_world_invalidate_rect(struct tw_world *w, struct tw_cell lo, struct tw_cell hi);
 
 /* The view of the last frame (TW_ERR_STATE before the first): its camera
  * cell, which is the origin of the frame's coordinates (view-relative

@@ -205,7 +205,7 @@ struct tw_tileset {
                                      TW_TILESET_MERGE_TRIANGLES; 1: none is) */
     bool finished;
 
-    uint32_t material_cap, mesh_cap, prototype_cap; /* private */
+    uint32_t material_cap, mesh_cap, prototype_cap, part_cap; /* private */
 };
 
 /* Creates an empty tileset with footprint w x d metres (both > 0 and finite).
@@ -271,7 +271,8 @@ struct tw_selection {
 };
 
 /* The prototype shown at cell: a seeded hash of the (periodic) cell, mapped
- * through the prototypes' weights, or the host callback. ts must be
+ * through the prototypes' weights, or the host callback's answer as it is
+ * (which may be out of range: a world takes that for an error). ts must be
  * finished. */
 uint32_t tw_tiles_select(const struct tw_tileset *ts,
                          const struct tw_selection *sel, struct tw_cell cell);
@@ -279,6 +280,54 @@ uint32_t tw_tiles_select(const struct tw_tileset *ts,
 /* A 64-bit mix of (seed, i, j), the hash behind selection; exposed for
  * generators that want the same stream. */
 uint64_t tw_tiles_hash(uint64_t seed, int64_t i, int64_t j);
+
+/* ---- tile providers (DESIGN §12) ------------------------------------------------- */
+
+/* What tw_tile_provider.content() answers for a cell with content of its own. */
+#define TW_TILE_OWN UINT32_MAX
+
+/* A world generator: what each cell holds, made on demand. A fixed tileset
+ * with a selection is the special case in which every cell's content is
+ * shared (one of the tileset's prototypes).
+ *
+ * The pointers and the provider itself are borrowed by the world that uses
+ * it and must outlive it. */
+struct tw_tile_provider {
+    const char *name;                   /* for messages */
+    float footprint[2];                 /* W, D metres: the grid's cells */
+    /* A tile-local box holding every tile the provider can ever produce: the
+     * common box that tile queries draw (DESIGN §4), declared up front
+     * because a query must be conservative before the tile behind it
+     * exists. A generated tile that exceeds it is refused (logged with its
+     * cell, counted, not drawn). */
+    struct tw_box bound;
+    /* Prototypes that cells may share (may be NULL); finished, with the
+     * provider's footprint; every prototype inside bound. */
+    const struct tw_tileset *shared;
+    /* What cell shows: an index into shared's prototypes, or TW_TILE_OWN
+     * for content of its own made by generate(). Called on the render thread,
+     * often (every cell in view, every frame): must be cheap. Must be a pure
+     * function of the cell until the host invalidates it; an answer that
+     * changes for a cached cell is taken as an invalidation. NULL: every
+     * cell is TW_TILE_OWN. */
+    uint32_t (*content)(void *user, struct tw_cell cell);
+    /* Writes cell's own content into ts: a fresh, unfinished tileset with
+     * the provider's footprint and no prototype yet, filled through the
+     * builder calls (tw_tileset_add_material, _add_mesh, one
+     * _add_prototype, _add_instance); the library finishes it (clusters of
+     * max_cluster_triangles) and builds its BVH. Called on worker threads,
+     * concurrently for different cells: must be thread-safe, and a pure
+     * function of the cell until invalidated. Returns TW_OK, or a negative
+     * error: the cell then shows nothing (logged with its cell, counted).
+     * NULL only if content() never answers TW_TILE_OWN. */
+    int (*generate)(void *user, struct tw_cell cell, struct tw_tileset *ts);
+    void *user;                         /* passed to content() and generate() */
+    uint32_t max_cluster_triangles;     /* for generated tiles; 0: 2048 */
+};
+
+/* Every heap byte a tileset holds (its arrays at their capacity, the mesh
+ * data, the clusters): what it costs in memory, exactly. */
+uint64_t tw_tileset_bytes(const struct tw_tileset *ts);
 
 /* ---- a hash map from cells to 64-bit values -------------------------------------- */
 
@@ -357,6 +406,14 @@ struct tw_tile_handle tw_tile_handle_unpack(uint64_t packed);
 /* Evicts every instance not visible since frame - evict_after; returns how
  * many went. */
 uint32_t tw_tile_cache_evict(struct tw_tile_cache *c, uint64_t frame);
+/* Evicts the instance at cell, if there is one; returns whether there was. */
+bool tw_tile_cache_remove(struct tw_tile_cache *c, struct tw_cell cell);
+/* Evicts every instance of a cell in [lo, hi] (inclusive); returns how many. */
+uint32_t tw_tile_cache_remove_rect(struct tw_tile_cache *c, struct tw_cell lo, struct tw_cell hi);
+/* Evicts the instance least recently visible before frame (a byte budget's
+ * choice), adding its state bytes to *bytes (may be NULL); returns false
+ * when every instance was visible at frame or later. */
+bool tw_tile_cache_evict_oldest(struct tw_tile_cache *c, uint64_t frame, uint64_t *bytes);
 uint32_t tw_tile_cache_count(const struct tw_tile_cache *c);
 /* Exact heap bytes held by the cache: its tables and every state block. */
 uint64_t tw_tile_cache_bytes(const struct tw_tile_cache *c);

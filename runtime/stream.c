@@ -1,0 +1,949 @@
+/*
+ * Tile streaming (stream.h, DESIGN §12-§13).
+ *
+ * Every cell with a tile of its own has an entry. What the render thread
+ * alone reads and writes (whether the tile is ready, its GL content, its
+ * bytes, when it was wanted and drawn) lives beside what the workers touch
+ * (the job: queued, running, done, and its result), which only ever changes
+ * under the stream's one lock. Workers never see an entry's address: the
+ * entry array may grow while they work, so they name entries by index.
+ *
+ * A job is a pure function of its cell: generate into a fresh tileset,
+ * finish it, check it against the provider's bound, build its BVH. Under
+ * policy wait the render thread runs a job itself when no worker has
+ * started it yet, so a frame never waits behind less urgent work.
+ */
+#include "runtime/stream.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum render_state { R_FREE = 0, R_LOADING, R_READY, R_REFUSED };
+enum job_state { J_NONE = 0, J_QUEUED, J_RUNNING, J_DONE };
+
+struct job_result {
+    struct tw_tileset *ts;
+    struct tw_bvh *bvh;
+    int err;
+    char message[256];
+};
+
+struct entry {
+    /* Render thread only. */
+    struct tw_cell cell;
+    enum render_state rstate;
+    uint32_t key;
+    uint32_t content;            /* R_READY: the renderer's content */
+    uint64_t bytes_cpu, bytes_gpu;
+    uint64_t request_frame, wanted_frame, drawn_frame;
+    struct tw_tileset *ts;       /* R_READY: owned */
+    struct tw_bvh *bvh;
+    uint32_t next_free;
+    bool reload;                 /* this cell's tile had been evicted before */
+    /* Under the lock. */
+    enum job_state jstate;
+    bool discard;                /* invalidated or cancelled while running: drop the result */
+    float priority;
+    uint64_t seq;
+    struct job_result result;
+};
+
+struct worker {
+    struct tw_stream *s;
+    pthread_t thread;
+    bool started;
+    struct tw_bvh_builder *builder;
+    char message[256];           /* what the builder logged last */
+};
+
+struct tw_stream {
+    struct tw_stream_settings set;
+    const struct tw_tile_provider *p;
+    struct tw_renderer *renderer;
+    uint64_t frame;
+
+    /* Entries: render thread, except their job fields (lock). The array is
+     * reallocated only under the lock. */
+    struct entry *entries;
+    uint32_t entry_count, entry_cap, free_head;
+    struct tw_cell_map *by_cell;         /* cell -> entry */
+    struct tw_cell_map *generations;     /* cell -> times invalidated (only cells ever invalidated) */
+    struct tw_cell_map *evicted;         /* cells whose tile was evicted: a later load is a reload */
+    uint32_t ready, loading;
+    uint64_t bytes_cpu, bytes_gpu;
+
+    /* Jobs (lock). */
+    pthread_mutex_t lock;
+    pthread_cond_t work;                 /* a job was queued, or quit */
+    pthread_cond_t done;                 /* a job finished */
+    uint32_t *heap;                      /* queued entries, by priority then seq */
+    uint32_t heap_count, heap_cap;
+    uint32_t *finished;                  /* entries whose job is done, not yet collected */
+    uint32_t finished_count, finished_cap;
+    uint64_t seq;
+    bool quit;
+
+    /* Done, collected, waiting for their upload (render thread). */
+    uint32_t *to_upload;
+    uint32_t to_upload_count, to_upload_cap;
+
+    struct worker *workers;
+    uint32_t worker_count;
+    struct worker inline_worker;         /* the render thread's own builder */
+
+    tw_stream_event_fn on_event;
+    void *event_user;
+    struct tw_stream_stats stats;
+    struct tw_stream_totals totals;
+};
+
+static int grow_u32(uint32_t **a, uint32_t *cap, uint32_t need)
+{
+    if (need <= *cap)
+        return TW_OK;
+    uint32_t n = *cap ? *cap : 64;
+    while (n < need)
+        n *= 2;
+    uint32_t *p = realloc(*a, sizeof(*p) * n);
+    if (!p)
+        return TW_ERR_NOMEM;
+    *a = p;
+    *cap = n;
+    return TW_OK;
+}
+
+/* ---- the job ------------------------------------------------------------------------ */
+
+static void capture_log(void *user, enum tw_log_level level, const char *msg)
+{
+    struct worker *wk = user;
+    if (level <= TW_LOG_WARN && wk->message[0] == '\0')
+        snprintf(wk->message, sizeof(wk->message), "%s", msg);
+}
+
+static bool box_inside(const struct tw_box *b, const struct tw_box *bound)
+{
+    /* A hair of slack: a tile built to touch its bound exactly must not be
+     * refused for the rounding of a transform. */
+    for (int a = 0; a < 3; a++) {
+        const float e = 1e-4f * fmaxf(1.0f, fabsf(bound->max[a] - bound->min[a]));
+        if (b->min[a] < bound->min[a] - e || b->max[a] > bound->max[a] + e)
+            return false;
+    }
+    return true;
+}
+
+static void fail(struct job_result *r, int err, const char *fmt, ...)
+{
+    r->err = err;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(r->message, sizeof(r->message), fmt, ap);
+    va_end(ap);
+}
+
+/* Makes the tile of cell. Any thread; touches no shared state. */
+static void run_job(const struct tw_stream *s, struct worker *wk, struct tw_cell cell,
+                    struct job_result *r)
+{
+    const struct tw_tile_provider *p = s->p;
+    memset(r, 0, sizeof(*r));
+    wk->message[0] = '\0';
+    char name[64];
+    snprintf(name, sizeof(name), "%lld,%lld", (long long)cell.i, (long long)cell.j);
+    int err = tw_tileset_create(name, p->footprint[0], p->footprint[1], &r->ts);
+    if (err) {
+        fail(r, err, "cannot make a tileset: %s", tw_error_to_str(err));
+        return;
+    }
+    err = p->generate(p->user, cell, r->ts);
+    if (err) {
+        fail(r, err, "generate() failed: %s", tw_error_to_str(err));
+        goto out;
+    }
+    if (r->ts->prototype_count != 1) {
+        fail(r, TW_ERR_INVALID, "generate() made %u prototypes (one is needed)",
+             r->ts->prototype_count);
+        goto out;
+    }
+    err = tw_tileset_finish(r->ts, p->max_cluster_triangles ? p->max_cluster_triangles : 2048);
+    if (err) {
+        fail(r, err, "the generated tile cannot be finished: %s", tw_error_to_str(err));
+        goto out;
+    }
+    const struct tw_box *b = &r->ts->prototypes[0].box;
+    if (!box_inside(b, &p->bound)) {
+        fail(r, TW_ERR_LIMIT,
+             "the tile's box [%g %g %g]-[%g %g %g] exceeds the provider's bound "
+             "[%g %g %g]-[%g %g %g]",
+             b->min[0], b->min[1], b->min[2], b->max[0], b->max[1], b->max[2], p->bound.min[0],
+             p->bound.min[1], p->bound.min[2], p->bound.max[0], p->bound.max[1], p->bound.max[2]);
+        goto out;
+    }
+    err = tw_bvh_build(wk->builder, &r->ts->prototypes[0], &s->set.bvh, &r->bvh);
+    if (err) {
+        fail(r, err, "its BVH cannot be built: %s", wk->message[0] ? wk->message
+                                                                  : tw_error_to_str(err));
+        goto out;
+    }
+    return;
+out:
+    tw_bvh_destroy(r->bvh);
+    r->bvh = NULL;
+    tw_tileset_destroy(r->ts);
+    r->ts = NULL;
+}
+
+static void free_result(struct job_result *r)
+{
+    tw_bvh_destroy(r->bvh);
+    tw_tileset_destroy(r->ts);
+    r->bvh = NULL;
+    r->ts = NULL;
+}
+
+/* ---- the job heap (lock held) ------------------------------------------------------- */
+
+static bool before(const struct tw_stream *s, uint32_t a, uint32_t b)
+{
+    const struct entry *x = &s->entries[a], *y = &s->entries[b];
+    if (x->priority != y->priority)
+        return x->priority < y->priority;
+    return x->seq < y->seq;
+}
+
+static void sift_down(struct tw_stream *s, uint32_t k)
+{
+    for (;;) {
+        uint32_t m = k;
+        const uint32_t l = 2 * k + 1, r = l + 1;
+        if (l < s->heap_count && before(s, s->heap[l], s->heap[m]))
+            m = l;
+        if (r < s->heap_count && before(s, s->heap[r], s->heap[m]))
+            m = r;
+        if (m == k)
+            return;
+        const uint32_t t = s->heap[k];
+        s->heap[k] = s->heap[m];
+        s->heap[m] = t;
+        k = m;
+    }
+}
+
+static void sift_up(struct tw_stream *s, uint32_t k)
+{
+    while (k > 0) {
+        const uint32_t parent = (k - 1) / 2;
+        if (!before(s, s->heap[k], s->heap[parent]))
+            return;
+        const uint32_t t = s->heap[k];
+        s->heap[k] = s->heap[parent];
+        s->heap[parent] = t;
+        k = parent;
+    }
+}
+
+/* Keeps only queued entries, and restores the order after priorities changed. */
+static void rebuild_heap(struct tw_stream *s)
+{
+    uint32_t n = 0;
+    for (uint32_t k = 0; k < s->heap_count; k++)
+        if (s->entries[s->heap[k]].jstate == J_QUEUED)
+            s->heap[n++] = s->heap[k];
+    /* An entry queued twice (queued, taken, queued again) keeps one place. */
+    s->heap_count = n;
+    for (uint32_t k = s->heap_count / 2; k-- > 0;)
+        sift_down(s, k);
+}
+
+/* The next queued entry, or UINT32_MAX. Entries taken by the render thread
+ * stay in the heap until popped (lazy deletion). */
+static uint32_t pop_job(struct tw_stream *s)
+{
+    while (s->heap_count > 0) {
+        const uint32_t top = s->heap[0];
+        s->heap[0] = s->heap[--s->heap_count];
+        sift_down(s, 0);
+        if (s->entries[top].jstate == J_QUEUED)
+            return top;
+    }
+    return UINT32_MAX;
+}
+
+/* Files a finished job's result (lock held). */
+static void finish_job(struct tw_stream *s, uint32_t index, struct job_result *r)
+{
+    struct entry *e = &s->entries[index];
+    e->result = *r;
+    e->jstate = J_DONE;
+    if (grow_u32(&s->finished, &s->finished_cap, s->finished_count + 1) == TW_OK) {
+        s->finished[s->finished_count++] = index;
+    } else {
+        /* Out of memory to file it: the entry is collected when it is
+         * waited on or invalidated; never lost. */
+    }
+    pthread_cond_broadcast(&s->done);
+}
+
+static void *worker_main(void *arg)
+{
+    struct worker *wk = arg;
+    struct tw_stream *s = wk->s;
+    pthread_mutex_lock(&s->lock);
+    for (;;) {
+        uint32_t index;
+        while (!s->quit && (index = pop_job(s)) == UINT32_MAX)
+            pthread_cond_wait(&s->work, &s->lock);
+        if (s->quit)
+            break;
+        struct entry *e = &s->entries[index];
+        e->jstate = J_RUNNING;
+        const struct tw_cell cell = e->cell;
+        pthread_mutex_unlock(&s->lock);
+        struct job_result r;
+        run_job(s, wk, cell, &r);
+        pthread_mutex_lock(&s->lock);
+        finish_job(s, index, &r);
+    }
+    pthread_mutex_unlock(&s->lock);
+    return NULL;
+}
+
+/* ---- entries (render thread) ----------------------------------------------------------- */
+
+static struct entry *find(const struct tw_stream *s, struct tw_cell cell, uint32_t *index)
+{
+    const uint64_t *v = tw_cell_map_find(s->by_cell, cell);
+    if (!v)
+        return NULL;
+    *index = (uint32_t)*v;
+    return &s->entries[*index];
+}
+
+static void event(struct tw_stream *s, struct tw_cell cell, enum tw_tile_event_kind kind,
+                  uint64_t bytes)
+{
+    if (s->on_event)
+        s->on_event(s->event_user, cell, kind, bytes);
+}
+
+/* A fresh entry for cell (its map entry made too), or NULL. */
+static struct entry *new_entry(struct tw_stream *s, struct tw_cell cell, uint32_t *index)
+{
+    uint32_t k;
+    if (s->free_head != UINT32_MAX) {
+        k = s->free_head;
+        s->free_head = s->entries[k].next_free;
+    } else {
+        if (s->entry_count == s->entry_cap) {
+            const uint32_t cap = s->entry_cap ? 2 * s->entry_cap : 64;
+            pthread_mutex_lock(&s->lock);
+            struct entry *e = realloc(s->entries, sizeof(*e) * cap);
+            if (e) {
+                s->entries = e;
+                s->entry_cap = cap;
+            }
+            pthread_mutex_unlock(&s->lock);
+            if (!e)
+                return NULL;
+        }
+        k = s->entry_count++;
+    }
+    if (tw_cell_map_set(s->by_cell, cell, k)) {
+        s->entries[k].next_free = s->free_head;
+        s->free_head = k;
+        return NULL;
+    }
+    struct entry *e = &s->entries[k];
+    /* A worker may still compare this slot's old priority in the heap
+     * (lazy deletion): the job fields change under the lock only. */
+    pthread_mutex_lock(&s->lock);
+    memset(e, 0, sizeof(*e));
+    pthread_mutex_unlock(&s->lock);
+    e->cell = cell;
+    const uint64_t *gen = tw_cell_map_find(s->generations, cell);
+    e->key = s->set.key_base + (gen ? (uint32_t)*gen : 0u);
+    *index = k;
+    return e;
+}
+
+/* Returns entry k to the free list (not in the map any more). */
+static void release_entry(struct tw_stream *s, uint32_t k)
+{
+    struct entry *e = &s->entries[k];
+    e->rstate = R_FREE;
+    e->next_free = s->free_head;
+    s->free_head = k;
+}
+
+/* Requests cell's tile: a new entry with its job queued. */
+static struct entry *request(struct tw_stream *s, struct tw_cell cell, float distance,
+                             uint32_t *index)
+{
+    struct entry *e = new_entry(s, cell, index);
+    if (!e)
+        return NULL;
+    e->rstate = R_LOADING;
+    e->request_frame = e->wanted_frame = s->frame;
+    e->reload = tw_cell_map_find(s->evicted, cell) != NULL;
+    s->loading++;
+    s->stats.loads_requested++;
+    s->totals.loads_requested++;
+    pthread_mutex_lock(&s->lock);
+    e->priority = distance;
+    e->seq = s->seq++;
+    e->jstate = J_QUEUED;
+    if (grow_u32(&s->heap, &s->heap_cap, s->heap_count + 1) == TW_OK) {
+        s->heap[s->heap_count] = *index;
+        sift_up(s, s->heap_count++);
+        pthread_cond_signal(&s->work);
+    }
+    /* Without room in the heap the job stays queued for the render thread
+     * to run when the tile is needed. */
+    pthread_mutex_unlock(&s->lock);
+    return e;
+}
+
+/* Frees what a ready tile holds. */
+static void drop_ready(struct tw_stream *s, struct entry *e)
+{
+    tw_renderer_release(s->renderer, e->content);
+    tw_bvh_destroy(e->bvh);
+    tw_tileset_destroy(e->ts);
+    e->bvh = NULL;
+    e->ts = NULL;
+    s->bytes_cpu -= e->bytes_cpu;
+    s->bytes_gpu -= e->bytes_gpu;
+    s->ready--;
+}
+
+/* Takes a done job's result into the entry: uploaded and ready, or
+ * refused. Render thread; between enter and leave. */
+static int make_ready(struct tw_stream *s, uint32_t k)
+{
+    struct entry *e = &s->entries[k];
+    if (e->rstate != R_LOADING)
+        return TW_OK;
+    pthread_mutex_lock(&s->lock);
+    struct job_result r = e->result;
+    memset(&e->result, 0, sizeof(e->result));
+    e->jstate = J_NONE;
+    pthread_mutex_unlock(&s->lock);
+    s->loading--;
+    const double t0 = tw_renderer_now_ms();
+    if (!r.err) {
+        const struct tw_bvh *bvhs[1] = {r.bvh};
+        r.err = tw_renderer_upload(s->renderer, r.ts, bvhs, &e->content, &e->bytes_gpu);
+        if (r.err)
+            snprintf(r.message, sizeof(r.message), "cannot upload it: %s",
+                     tw_error_to_str(r.err));
+    }
+    if (r.err) {
+        tw_log_printf(s->set.log, TW_LOG_ERROR, "provider %s: cell (%lld, %lld): %s",
+                      s->p->name ? s->p->name : "", (long long)e->cell.i, (long long)e->cell.j,
+                      r.message);
+        free_result(&r);
+        e->rstate = R_REFUSED;
+        s->stats.refused++;
+        s->totals.refused++;
+        event(s, e->cell, TW_TILE_REFUSED, 0);
+        return TW_OK;
+    }
+    e->ts = r.ts;
+    e->bvh = r.bvh;
+    e->bytes_cpu = tw_tileset_bytes(r.ts) + r.bvh->bytes;
+    e->rstate = R_READY;
+    s->bytes_cpu += e->bytes_cpu;
+    s->bytes_gpu += e->bytes_gpu;
+    s->ready++;
+    s->stats.loads_done++;
+    s->totals.loads_done++;
+    s->totals.latency_frames_sum += s->frame - e->request_frame;
+    if (e->reload) {
+        s->totals.reloads++;
+        tw_cell_map_remove(s->evicted, e->cell);
+    }
+    s->stats.ms_upload += tw_renderer_now_ms() - t0;
+    event(s, e->cell, TW_TILE_READY, e->bytes_cpu + e->bytes_gpu);
+    return TW_OK;
+}
+
+/* Moves the workers' finished jobs to the upload list; drops the results
+ * of discarded ones. */
+static void collect(struct tw_stream *s)
+{
+    pthread_mutex_lock(&s->lock);
+    uint32_t n = s->finished_count;
+    if (grow_u32(&s->to_upload, &s->to_upload_cap, s->to_upload_count + n) != TW_OK)
+        n = 0;      /* collected another frame */
+    for (uint32_t k = 0; k < n; k++) {
+        const uint32_t index = s->finished[k];
+        struct entry *e = &s->entries[index];
+        if (e->discard) {
+            free_result(&e->result);
+            e->jstate = J_NONE;
+            e->discard = false;
+            e->next_free = s->free_head;
+            s->free_head = index;
+            e->rstate = R_FREE;
+        } else if (e->jstate == J_DONE) {
+            s->to_upload[s->to_upload_count++] = index;
+        }
+    }
+    memmove(s->finished, s->finished + n, sizeof(*s->finished) * (s->finished_count - n));
+    s->finished_count -= n;
+    pthread_mutex_unlock(&s->lock);
+}
+
+/* Drops entry k wherever its job is; the cell is out of the map after. */
+static void drop_entry(struct tw_stream *s, uint32_t k)
+{
+    struct entry *e = &s->entries[k];
+    tw_cell_map_remove(s->by_cell, e->cell);
+    if (e->rstate == R_READY) {
+        drop_ready(s, e);
+        release_entry(s, k);
+        return;
+    }
+    if (e->rstate == R_REFUSED) {
+        release_entry(s, k);
+        return;
+    }
+    /* Loading: queued (left in the heap, skipped there), running or done
+     * but not collected (its result is discarded when collected, and the
+     * slot freed then), or done and collected (waiting for its upload). */
+    s->loading--;
+    pthread_mutex_lock(&s->lock);
+    bool later = e->jstate == J_RUNNING;
+    if (e->jstate == J_DONE) {
+        for (uint32_t q = 0; q < s->finished_count && !later; q++)
+            later = s->finished[q] == k;
+        if (!later)
+            free_result(&e->result);
+    }
+    if (later)
+        e->discard = true;
+    else
+        e->jstate = J_NONE;
+    pthread_mutex_unlock(&s->lock);
+    e->rstate = R_FREE;
+    if (later)
+        return;
+    for (uint32_t q = 0; q < s->to_upload_count; q++)
+        if (s->to_upload[q] == k) {
+            s->to_upload[q] = s->to_upload[--s->to_upload_count];
+            break;
+        }
+    release_entry(s, k);
+}
+
+/* ---- the API ---------------------------------------------------------------------------- */
+
+int tw_stream_create(const struct tw_stream_settings *set, struct tw_renderer *r,
+                     struct tw_stream **out)
+{
+    struct tw_stream *s = calloc(1, sizeof(*s));
+    if (!s)
+        return TW_ERR_NOMEM;
+    s->set = *set;
+    s->p = set->provider;
+    s->renderer = r;
+    s->free_head = UINT32_MAX;
+    if (s->set.cancel_after == 0)
+        s->set.cancel_after = 2;
+    if (s->set.evict_after == 0)
+        s->set.evict_after = 60;
+    pthread_mutex_init(&s->lock, NULL);
+    pthread_cond_init(&s->work, NULL);
+    pthread_cond_init(&s->done, NULL);
+    int err = tw_cell_map_create(&s->by_cell);
+    if (!err)
+        err = tw_cell_map_create(&s->generations);
+    if (!err)
+        err = tw_cell_map_create(&s->evicted);
+    s->inline_worker.s = s;
+    if (!err)
+        err = tw_bvh_builder_create_ex(&(struct tw_log){capture_log, &s->inline_worker}, 0,
+                                       &s->inline_worker.builder);
+    if (!err && set->workers > 0) {
+        s->workers = calloc(set->workers, sizeof(*s->workers));
+        if (!s->workers)
+            err = TW_ERR_NOMEM;
+    }
+    for (uint32_t k = 0; !err && k < set->workers; k++) {
+        struct worker *wk = &s->workers[k];
+        wk->s = s;
+        /* One build thread each: the pool is the parallelism. */
+        err = tw_bvh_builder_create_ex(&(struct tw_log){capture_log, wk}, 1, &wk->builder);
+        if (!err && pthread_create(&wk->thread, NULL, worker_main, wk) != 0) {
+            tw_log_printf(set->log, TW_LOG_ERROR, "cannot start tile worker thread %u", k);
+            err = TW_ERR_NOMEM;
+        }
+        if (!err)
+            wk->started = true;
+        s->worker_count = k + 1;
+    }
+    if (err) {
+        tw_stream_destroy(s);
+        return err;
+    }
+    *out = s;
+    return TW_OK;
+}
+
+void tw_stream_destroy(struct tw_stream *s)
+{
+    if (!s)
+        return;
+    pthread_mutex_lock(&s->lock);
+    s->quit = true;
+    pthread_cond_broadcast(&s->work);
+    pthread_mutex_unlock(&s->lock);
+    for (uint32_t k = 0; k < s->worker_count; k++) {
+        if (s->workers[k].started)
+            pthread_join(s->workers[k].thread, NULL);
+        tw_bvh_builder_destroy(s->workers[k].builder);
+    }
+    free(s->workers);
+    tw_bvh_builder_destroy(s->inline_worker.builder);
+    for (uint32_t k = 0; k < s->entry_count; k++) {
+        struct entry *e = &s->entries[k];
+        if (e->rstate == R_READY)
+            drop_ready(s, e);
+        free_result(&e->result);
+    }
+    free(s->entries);
+    free(s->heap);
+    free(s->finished);
+    free(s->to_upload);
+    tw_cell_map_destroy(s->by_cell);
+    tw_cell_map_destroy(s->generations);
+    tw_cell_map_destroy(s->evicted);
+    pthread_cond_destroy(&s->work);
+    pthread_cond_destroy(&s->done);
+    pthread_mutex_destroy(&s->lock);
+    free(s);
+}
+
+void tw_stream_set_events(struct tw_stream *s, tw_stream_event_fn fn, void *user)
+{
+    s->on_event = fn;
+    s->event_user = user;
+}
+
+/* Frames an eviction is remembered for, to count a later load as a
+ * reload, and how many evictions at most. */
+#define EVICTED_MEMORY 600
+#define EVICTED_CELLS 2048
+
+static bool forget_evicted(void *user, struct tw_cell cell, uint64_t value)
+{
+    (void)cell;
+    return value < *(const uint64_t *)user;
+}
+
+void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame)
+{
+    s->frame = frame;
+    memset(&s->stats, 0, sizeof(s->stats));
+    collect(s);
+    /* Uploads of tiles not yet needed, oldest request first, within the
+     * frame's budget. */
+    if (s->to_upload_count > 1) {
+        /* Insertion sort by request order: a handful a frame. */
+        for (uint32_t k = 1; k < s->to_upload_count; k++) {
+            const uint32_t v = s->to_upload[k];
+            uint32_t q = k;
+            while (q > 0 && s->entries[s->to_upload[q - 1]].request_frame >
+                                s->entries[v].request_frame) {
+                s->to_upload[q] = s->to_upload[q - 1];
+                q--;
+            }
+            s->to_upload[q] = v;
+        }
+    }
+    uint64_t bytes = 0;
+    const double t0 = tw_renderer_now_ms();
+    uint32_t done = 0;
+    while (done < s->to_upload_count) {
+        if (done > 0 && (bytes >= s->set.upload_bytes ||
+                         tw_renderer_now_ms() - t0 >= s->set.upload_ms))
+            break;
+        const uint32_t k = s->to_upload[done++];
+        make_ready(s, k);
+        bytes += s->entries[k].bytes_cpu;
+    }
+    memmove(s->to_upload, s->to_upload + done, sizeof(*s->to_upload) * (s->to_upload_count - done));
+    s->to_upload_count -= done;
+
+    /* Requests nobody wanted lately: cancelled if no worker took them yet. */
+    pthread_mutex_lock(&s->lock);
+    bool reorder = false;
+    for (uint32_t k = 0; k < s->entry_count; k++) {
+        struct entry *e = &s->entries[k];
+        if (e->rstate != R_LOADING || e->jstate != J_QUEUED ||
+            e->wanted_frame + s->set.cancel_after >= frame)
+            continue;
+        e->jstate = J_NONE;
+        reorder = true;
+        tw_cell_map_remove(s->by_cell, e->cell);
+        s->loading--;
+        release_entry(s, k);
+    }
+    if (reorder)
+        rebuild_heap(s);
+    pthread_mutex_unlock(&s->lock);
+
+    /* Tiles unseen for evict_after frames retire, as tile instances do;
+     * refused cells are asked again once they have been out of sight. */
+    for (uint32_t k = 0; k < s->entry_count; k++) {
+        struct entry *e = &s->entries[k];
+        if ((e->rstate != R_READY && e->rstate != R_REFUSED) ||
+            e->wanted_frame + s->set.evict_after >= frame)
+            continue;
+        const bool ready = e->rstate == R_READY;
+        const struct tw_cell cell = e->cell;
+        const uint64_t freed_bytes = e->bytes_cpu + e->bytes_gpu;
+        drop_entry(s, k);
+        if (ready) {
+            tw_cell_map_set(s->evicted, cell, frame);
+            s->stats.evictions++;
+            s->totals.evictions++;
+            event(s, cell, TW_TILE_EVICTED, freed_bytes);
+        }
+    }
+    /* What "a reload" remembers is bounded: evictions of the last
+     * EVICTED_MEMORY frames, and at most EVICTED_CELLS of them (the most
+     * recent), so that it follows neither distance nor speed. */
+    uint64_t window = EVICTED_MEMORY;
+    if (frame % 64 == 0 || tw_cell_map_count(s->evicted) >= EVICTED_CELLS)
+        while (window > 0) {
+            const uint64_t since = frame > window ? frame - window : 0;
+            tw_cell_map_filter(s->evicted, forget_evicted, (void *)&since);
+            if (tw_cell_map_count(s->evicted) < EVICTED_CELLS / 2)
+                break;
+            window /= 2;
+        }
+}
+
+/* Makes entry k ready now (policy wait): runs its job here if no worker
+ * has started it, else waits for the worker. */
+static int complete_now(struct tw_stream *s, uint32_t k)
+{
+    const double t0 = tw_renderer_now_ms();
+    s->stats.waits++;
+    pthread_mutex_lock(&s->lock);
+    struct entry *e = &s->entries[k];
+    if (e->jstate == J_QUEUED || e->jstate == J_NONE) {
+        e->jstate = J_RUNNING;
+        const struct tw_cell cell = e->cell;
+        pthread_mutex_unlock(&s->lock);
+        struct job_result r;
+        run_job(s, &s->inline_worker, cell, &r);
+        pthread_mutex_lock(&s->lock);
+        e = &s->entries[k];
+        e->result = r;
+        e->jstate = J_DONE;
+    }
+    while (s->entries[k].jstate == J_RUNNING)
+        pthread_cond_wait(&s->done, &s->lock);
+    /* Done: if a worker filed it, take it off the finished list. */
+    for (uint32_t q = 0; q < s->finished_count; q++)
+        if (s->finished[q] == k) {
+            s->finished[q] = s->finished[--s->finished_count];
+            break;
+        }
+    pthread_mutex_unlock(&s->lock);
+    for (uint32_t q = 0; q < s->to_upload_count; q++)
+        if (s->to_upload[q] == k) {
+            s->to_upload[q] = s->to_upload[--s->to_upload_count];
+            break;
+        }
+    const int err = make_ready(s, k);
+    s->stats.ms_wait += tw_renderer_now_ms() - t0;
+    return err;
+}
+
+/* The tile is used by this frame: kept against eviction, and counted in
+ * what the frame needs. */
+static void mark_used(struct tw_stream *s, struct entry *e)
+{
+    if (e->drawn_frame != s->frame)
+        s->stats.bytes_used += e->bytes_cpu + e->bytes_gpu;
+    e->wanted_frame = e->drawn_frame = s->frame;
+}
+
+static void fill(const struct entry *e, struct tw_cull_tile *out)
+{
+    if (e->rstate == R_READY) {
+        out->proto = &e->ts->prototypes[0];
+        out->bvh = e->bvh;
+        out->content = e->content;
+    } else {
+        out->proto = NULL;
+        out->bvh = NULL;
+        out->content = 0;
+    }
+    out->key = e->key;
+}
+
+int tw_stream_get(struct tw_stream *s, struct tw_cell cell, float distance, unsigned flags,
+                  struct tw_cull_tile *out)
+{
+    uint32_t k;
+    struct entry *e = find(s, cell, &k);
+    const bool touch = !(flags & (TW_TILE_SOURCE_RESIDENT | TW_TILE_SOURCE_QUIET));
+    if (e && (e->rstate == R_READY || e->rstate == R_REFUSED)) {
+        if (touch)
+            mark_used(s, e);
+        fill(e, out);
+        return TW_OK;
+    }
+    if (flags & TW_TILE_SOURCE_RESIDENT)
+        return TW_TILE_PENDING;
+    if (!e) {
+        e = request(s, cell, distance, &k);
+        if (!e)
+            return TW_ERR_NOMEM;
+    }
+    e->wanted_frame = s->frame;
+    if (s->set.policy == TW_STREAM_SKIP && !(flags & TW_TILE_SOURCE_WAIT)) {
+        pthread_mutex_lock(&s->lock);
+        if (e->jstate == J_QUEUED && distance < e->priority)
+            e->priority = distance;
+        pthread_mutex_unlock(&s->lock);
+        return TW_TILE_PENDING;
+    }
+    const int err = complete_now(s, k);
+    if (err)
+        return err;
+    e = &s->entries[k];
+    if (touch)
+        mark_used(s, e);
+    fill(e, out);
+    return TW_OK;
+}
+
+void tw_stream_prefetch(struct tw_stream *s, struct tw_cell cell, float distance)
+{
+    uint32_t k;
+    struct entry *e = find(s, cell, &k);
+    if (!e) {
+        request(s, cell, distance, &k);
+        return;
+    }
+    e->wanted_frame = s->frame;
+}
+
+void tw_stream_touch(struct tw_stream *s, struct tw_cell cell)
+{
+    uint32_t k;
+    struct entry *e = find(s, cell, &k);
+    if (e && e->rstate == R_READY)
+        mark_used(s, e);
+}
+
+bool tw_stream_has(const struct tw_stream *s, struct tw_cell cell)
+{
+    return tw_cell_map_find(s->by_cell, cell) != NULL;
+}
+
+void tw_stream_invalidate(struct tw_stream *s, struct tw_cell cell)
+{
+    uint32_t k;
+    struct entry *e = find(s, cell, &k);
+    /* A new key: the cell's culling state, made for the old content, goes. */
+    uint64_t *gen = tw_cell_map_find(s->generations, cell);
+    const uint64_t next = gen ? *gen + 1 : 1;
+    tw_cell_map_set(s->generations, cell, next);
+    if (!e)
+        return;
+    const uint64_t bytes = e->rstate == R_READY ? e->bytes_cpu + e->bytes_gpu : 0;
+    const bool was_ready = e->rstate == R_READY;
+    drop_entry(s, k);
+    if (was_ready) {
+        s->stats.evictions++;
+        s->totals.evictions++;
+        event(s, cell, TW_TILE_EVICTED, bytes);
+    }
+}
+
+void tw_stream_invalidate_rect(struct tw_stream *s, struct tw_cell lo, struct tw_cell hi)
+{
+    for (uint32_t k = 0; k < s->entry_count; k++) {
+        const struct entry *e = &s->entries[k];
+        if (e->rstate == R_FREE)
+            continue;
+        if (e->cell.i >= lo.i && e->cell.i <= hi.i && e->cell.j >= lo.j && e->cell.j <= hi.j)
+            tw_stream_invalidate(s, e->cell);
+    }
+}
+
+uint64_t tw_stream_tile_bytes(const struct tw_stream *s)
+{
+    return s->bytes_cpu + s->bytes_gpu;
+}
+
+void tw_stream_bytes(const struct tw_stream *s, uint64_t *cpu, uint64_t *gpu)
+{
+    *cpu = s->bytes_cpu + sizeof(*s) + (uint64_t)sizeof(*s->entries) * s->entry_cap +
+           tw_cell_map_bytes(s->by_cell) + tw_cell_map_bytes(s->generations) +
+           tw_cell_map_bytes(s->evicted) +
+           sizeof(uint32_t) * ((uint64_t)s->heap_cap + s->finished_cap + s->to_upload_cap);
+    *gpu = s->bytes_gpu;
+}
+
+uint64_t tw_stream_trim(struct tw_stream *s, uint64_t excess, uint64_t frame,
+                        tw_stream_evicted_fn evicted, void *user)
+{
+    uint64_t freed = 0;
+    while (freed < excess) {
+        /* The least recently drawn ready tile not drawn this frame. */
+        uint32_t best = UINT32_MAX;
+        for (uint32_t k = 0; k < s->entry_count; k++) {
+            const struct entry *e = &s->entries[k];
+            if (e->rstate != R_READY || e->drawn_frame >= frame)
+                continue;
+            if (best == UINT32_MAX || e->drawn_frame < s->entries[best].drawn_frame)
+                best = k;
+        }
+        if (best == UINT32_MAX)
+            break;
+        struct entry *e = &s->entries[best];
+        const struct tw_cell cell = e->cell;
+        const uint64_t bytes = e->bytes_cpu + e->bytes_gpu;
+        drop_entry(s, best);
+        tw_cell_map_set(s->evicted, cell, frame);
+        freed += bytes;
+        s->stats.evictions++;
+        s->totals.evictions++;
+        event(s, cell, TW_TILE_EVICTED, bytes);
+        if (evicted)
+            evicted(user, cell, bytes);
+    }
+    return freed;
+}
+
+const struct tw_stream_stats *tw_stream_stats(const struct tw_stream *s)
+{
+    return &s->stats;
+}
+
+const struct tw_stream_totals *tw_stream_totals(const struct tw_stream *s)
+{
+    return &s->totals;
+}
+
+uint32_t tw_stream_ready_count(const struct tw_stream *s)
+{
+    return s->ready;
+}
+
+uint32_t tw_stream_loading_count(const struct tw_stream *s)
+{
+    return s->loading;
+}

@@ -1,0 +1,109 @@
+/*
+ * Tile streaming (DESIGN §12, §13): the tiles a provider makes for cells of
+ * their own, generated, finished and given a BVH on a pool of worker
+ * threads, uploaded on the render thread under a per-frame budget, held in
+ * a byte-budgeted cache. Private to runtime/.
+ *
+ * Threads: one render thread owns the stream and calls every function here;
+ * workers only run provider->generate(), tw_tileset_finish() and the BVH
+ * build on plain data, and hand results back through one lock.
+ */
+#ifndef TW_RUNTIME_STREAM_H
+#define TW_RUNTIME_STREAM_H
+
+#include "runtime/renderer.h"
+#include "tileworld/cull.h"
+#include "tileworld/runtime.h"
+
+struct tw_stream_settings {
+    const struct tw_tile_provider *provider;   /* borrowed */
+    struct tw_bvh_settings bvh;
+    uint32_t workers;                /* threads; 0: none, every tile is made on the render thread */
+    enum tw_stream_policy policy;
+    uint64_t upload_bytes;           /* per frame, of finished tiles not yet needed */
+    double upload_ms;                /* per frame, likewise */
+    uint32_t cancel_after;           /* a request unwanted for this many frames is dropped */
+    uint32_t evict_after;            /* a tile unwanted for this many frames is evicted */
+    uint32_t key_base;               /* instance keys of own tiles start here (above the
+                                        shared prototypes' indices) */
+    const struct tw_log *log;        /* borrowed; called on the render thread only */
+};
+
+/* Counters of one frame (reset by tw_stream_begin_frame). */
+struct tw_stream_stats {
+    uint32_t loads_requested;        /* requests made (get or prefetch of an absent tile) */
+    uint32_t loads_done;             /* tiles that became ready */
+    uint32_t evictions;
+    uint32_t refused;                /* tiles out of bound or whose generation failed */
+    uint32_t waits;                  /* get() that blocked for a tile (policy wait) */
+    double ms_upload;                /* on the render thread, uploading */
+    double ms_wait;                  /* on the render thread, blocked on or making tiles */
+    uint64_t bytes_used;             /* of the ready tiles this frame used (CPU + GPU) */
+};
+
+/* Totals since the stream was created, and latencies. */
+struct tw_stream_totals {
+    uint64_t loads_requested, loads_done, evictions, reloads, refused;
+    uint64_t latency_frames_sum;     /* request to ready, in frames */
+};
+
+struct tw_stream;
+
+int tw_stream_create(const struct tw_stream_settings *s, struct tw_renderer *r,
+                     struct tw_stream **out);
+/* Stops the workers, frees every tile (GL buffers too: between enter and
+ * leave). Accepts NULL. */
+void tw_stream_destroy(struct tw_stream *s);
+
+/* Starts frame: collects finished tiles, uploads what the per-frame budget
+ * allows (oldest request first), cancels requests no longer wanted.
+ * Between enter and leave. */
+void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame);
+
+/* The tile of cell (content TW_TILE_OWN): TW_OK with *out filled; or
+ * TW_TILE_PENDING (requested; under policy skip, or with
+ * TW_TILE_SOURCE_RESIDENT); or a negative error. Under policy wait the call
+ * makes the tile ready before it returns (running its job here if no
+ * worker has started it). A refused tile reads as an empty one: TW_OK with
+ * out->proto NULL. Between enter and leave. */
+int tw_stream_get(struct tw_stream *s, struct tw_cell cell, float distance, unsigned flags,
+                  struct tw_cull_tile *out);
+/* Requests cell's tile unless it is there or on its way. */
+void tw_stream_prefetch(struct tw_stream *s, struct tw_cell cell, float distance);
+/* Marks the tile of cell drawn this frame (kept against eviction). */
+void tw_stream_touch(struct tw_stream *s, struct tw_cell cell);
+/* True if the stream holds (or is making) a tile for cell. */
+bool tw_stream_has(const struct tw_stream *s, struct tw_cell cell);
+/* Drops cell's tile (and a request or a job in flight: its result is
+ * discarded); the next get() makes it afresh with a new instance key.
+ * Between enter and leave. */
+void tw_stream_invalidate(struct tw_stream *s, struct tw_cell cell);
+/* Drops the tile of every cell in [lo, hi] (inclusive) that the stream holds. */
+void tw_stream_invalidate_rect(struct tw_stream *s, struct tw_cell lo, struct tw_cell hi);
+
+/* Bytes of the ready tiles alone, CPU + GPU. */
+uint64_t tw_stream_tile_bytes(const struct tw_stream *s);
+/* Bytes of the ready tiles and the stream's own tables, on the CPU
+ * (geometry, clusters, BVHs, tables) and the GPU (their buffers). */
+void tw_stream_bytes(const struct tw_stream *s, uint64_t *cpu, uint64_t *gpu);
+
+/* Evicts the least recently drawn ready tiles (never one drawn in frame,
+ * never one loading) while excess > 0 bytes; returns the bytes freed. Each
+ * eviction is reported through evicted (may be NULL). Between enter and
+ * leave. */
+typedef void (*tw_stream_evicted_fn)(void *user, struct tw_cell cell, uint64_t bytes);
+uint64_t tw_stream_trim(struct tw_stream *s, uint64_t excess, uint64_t frame,
+                        tw_stream_evicted_fn evicted, void *user);
+
+/* Ready events: tiles that became ready in the current frame, and refusals. */
+typedef void (*tw_stream_event_fn)(void *user, struct tw_cell cell, enum tw_tile_event_kind kind,
+                                   uint64_t bytes);
+void tw_stream_set_events(struct tw_stream *s, tw_stream_event_fn fn, void *user);
+
+const struct tw_stream_stats *tw_stream_stats(const struct tw_stream *s);
+const struct tw_stream_totals *tw_stream_totals(const struct tw_stream *s);
+/* Tiles ready, and requests queued or running. */
+uint32_t tw_stream_ready_count(const struct tw_stream *s);
+uint32_t tw_stream_loading_count(const struct tw_stream *s);
+
+#endif
