@@ -58,6 +58,14 @@ struct tw_renderer {
 
     GLuint fbo, color_rb, depth_rb;
 
+    /* backend_draw's scratch: clusters grouped by instance (one multi-draw
+     * each), run_seen[i] == run_stamp marking instances met in this call. */
+    uint32_t *run_next, *run_clusters, run_cap;
+    GLsizei *run_counts;
+    const void **run_offsets;
+    GLint *run_bases;
+    uint32_t *run_seen, *run_first, *run_last, *run_order, run_instance_cap, run_stamp;
+
     GLuint id_program;
     GLint ui_view_proj, ui_model, ui_offset, ui_id;
     GLuint id_fbo, id_rb, id_depth_rb;
@@ -700,6 +708,15 @@ void tw_renderer_destroy(struct tw_renderer *r)
     }
     free(r->query_boxes);
     free(r->query_corners);
+    free(r->run_next);
+    free(r->run_clusters);
+    free(r->run_counts);
+    free(r->run_offsets);
+    free(r->run_bases);
+    free(r->run_seen);
+    free(r->run_first);
+    free(r->run_last);
+    free(r->run_order);
     free(r->query_record);
     free(r->drawn);
     free(r->queries);
@@ -819,6 +836,92 @@ static const struct gpu_buffers *bind_content(struct tw_renderer *r, uint32_t co
     return b;
 }
 
+/* Scratch of backend_draw for count clusters of a prototype of instances
+ * instances; false if it cannot be had (one draw per cluster then). */
+static bool multi_draw_room(struct tw_renderer *r, uint32_t count, uint32_t instances)
+{
+    if (count > r->run_cap) {
+        const size_t n = count;
+        uint32_t *next = realloc(r->run_next, n * sizeof(*next));
+        if (next)
+            r->run_next = next;
+        uint32_t *cl = realloc(r->run_clusters, n * sizeof(*cl));
+        if (cl)
+            r->run_clusters = cl;
+        GLsizei *counts = realloc(r->run_counts, n * sizeof(*counts));
+        if (counts)
+            r->run_counts = counts;
+        const void **offsets = realloc(r->run_offsets, n * sizeof(*offsets));
+        if (offsets)
+            r->run_offsets = offsets;
+        GLint *bases = realloc(r->run_bases, n * sizeof(*bases));
+        if (bases)
+            r->run_bases = bases;
+        if (!next || !cl || !counts || !offsets || !bases)
+            return false;
+        r->run_cap = count;
+    }
+    if (instances > r->run_instance_cap) {
+        const size_t n = instances;
+        uint32_t *seen = realloc(r->run_seen, n * sizeof(*seen));
+        if (seen) {
+            memset(seen + r->run_instance_cap, 0, (n - r->run_instance_cap) * sizeof(*seen));
+            r->run_seen = seen;
+        }
+        uint32_t *first = realloc(r->run_first, n * sizeof(*first));
+        if (first)
+            r->run_first = first;
+        uint32_t *last = realloc(r->run_last, n * sizeof(*last));
+        if (last)
+            r->run_last = last;
+        uint32_t *order = realloc(r->run_order, n * sizeof(*order));
+        if (order)
+            r->run_order = order;
+        if (!seen || !first || !last || !order)
+            return false;
+        r->run_instance_cap = instances;
+    }
+    if (r->run_stamp == UINT32_MAX) {
+        memset(r->run_seen, 0, r->run_instance_cap * sizeof(*r->run_seen));
+        r->run_stamp = 0;
+    }
+    return true;
+}
+
+/* Draws n clusters of one instance with one call. */
+static void draw_run(struct tw_renderer *r, const struct tw_tileset *ts,
+                     const struct gpu_buffers *b, const struct tw_prototype *proto,
+                     const uint32_t *clusters, uint32_t n)
+{
+    const struct tw_gl *gl = &r->gl;
+    const struct tw_instance *in = &proto->instances[proto->clusters[clusters[0]].instance];
+    gl->Uniform4fv(r->u_model, 3, in->transform);
+    gl->Uniform4fv(r->u_color, 1, ts->materials[in->material].base_color);
+    if (n == 1 || !r->run_counts) {
+        for (uint32_t k = 0; k < n; k++) {
+            const struct tw_mesh_part *part = &ts->parts[proto->clusters[clusters[k]].part];
+            const size_t first = (size_t)b->first_index[part->mesh] + 3u * part->first_triangle;
+            gl->DrawElementsBaseVertex(GL_TRIANGLES, (GLsizei)(3u * part->triangle_count),
+                                       GL_UNSIGNED_INT, (const void *)(first * sizeof(uint32_t)),
+                                       (GLint)b->base_vertex[part->mesh]);
+            r->counters.triangles += part->triangle_count;
+            r->counters.draws++;
+        }
+        return;
+    }
+    for (uint32_t k = 0; k < n; k++) {
+        const struct tw_mesh_part *part = &ts->parts[proto->clusters[clusters[k]].part];
+        const size_t first = (size_t)b->first_index[part->mesh] + 3u * part->first_triangle;
+        r->run_counts[k] = (GLsizei)(3u * part->triangle_count);
+        r->run_offsets[k] = (const void *)(first * sizeof(uint32_t));
+        r->run_bases[k] = (GLint)b->base_vertex[part->mesh];
+        r->counters.triangles += part->triangle_count;
+    }
+    gl->MultiDrawElementsBaseVertex(GL_TRIANGLES, r->run_counts, GL_UNSIGNED_INT,
+                                    r->run_offsets, (GLsizei)n, r->run_bases);
+    r->counters.draws++;
+}
+
 static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
                          const float offset[3], const uint32_t *clusters, uint32_t count)
 {
@@ -834,25 +937,36 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
     gl->Uniform3fv(r->u_offset, 1, offset);
     if (r->recording)
         record(r, cell, content, clusters, count);
-    uint32_t last_instance = UINT32_MAX, last_material = UINT32_MAX;
-    for (uint32_t k = 0; k < count; k++) {
-        const struct tw_cluster *c = &proto->clusters[clusters[k]];
-        const struct tw_instance *in = &proto->instances[c->instance];
-        if (c->instance != last_instance) {
-            gl->Uniform4fv(r->u_model, 3, in->transform);
-            last_instance = c->instance;
+    /* One multi-draw per instance (one transform, one material: a merged
+     * instance is all of a material's small objects), instances in the
+     * order of their first cluster, clusters in the order given. */
+    if (!multi_draw_room(r, count, proto->instance_count)) {
+        for (uint32_t k = 0; k < count; k++)
+            draw_run(r, ts, b, proto, &clusters[k], 1);
+    } else {
+        const uint32_t stamp = ++r->run_stamp;
+        uint32_t runs = 0;
+        for (uint32_t k = 0; k < count; k++) {
+            const uint32_t in = proto->clusters[clusters[k]].instance;
+            if (r->run_seen[in] != stamp) {
+                r->run_seen[in] = stamp;
+                r->run_first[in] = UINT32_MAX;
+                r->run_order[runs++] = in;
+            }
+            /* Chain the instance's clusters in order (run_next by position k). */
+            r->run_next[k] = UINT32_MAX;
+            if (r->run_first[in] == UINT32_MAX)
+                r->run_first[in] = k;
+            else
+                r->run_next[r->run_last[in]] = k;
+            r->run_last[in] = k;
         }
-        if (in->material != last_material) {
-            gl->Uniform4fv(r->u_color, 1, ts->materials[in->material].base_color);
-            last_material = in->material;
+        for (uint32_t q = 0; q < runs; q++) {
+            uint32_t n = 0;
+            for (uint32_t k = r->run_first[r->run_order[q]]; k != UINT32_MAX; k = r->run_next[k])
+                r->run_clusters[n++] = clusters[k];
+            draw_run(r, ts, b, proto, r->run_clusters, n);
         }
-        const struct tw_mesh_part *part = &ts->parts[c->part];
-        const size_t first = (size_t)b->first_index[part->mesh] + 3u * part->first_triangle;
-        gl->DrawElementsBaseVertex(GL_TRIANGLES, (GLsizei)(3u * part->triangle_count),
-                                   GL_UNSIGNED_INT, (const void *)(first * sizeof(uint32_t)),
-                                   (GLint)b->base_vertex[part->mesh]);
-        r->counters.triangles += part->triangle_count;
-        r->counters.draws++;
     }
     r->counters.clusters += count;
     r->counters.ms_backend += tw_renderer_now_ms() - t0;
