@@ -836,49 +836,36 @@ static const struct gpu_buffers *bind_content(struct tw_renderer *r, uint32_t co
     return b;
 }
 
+/* Grows *p to n elements of elem bytes; false (and *p as it was) on failure. */
+static bool regrow(void *p, size_t n, size_t elem)
+{
+    void *q = realloc(*(void **)p, n * elem);
+    if (q)
+        *(void **)p = q;
+    return q != NULL;
+}
+
 /* Scratch of backend_draw for count clusters of a prototype of instances
  * instances; false if it cannot be had (one draw per cluster then). */
 static bool multi_draw_room(struct tw_renderer *r, uint32_t count, uint32_t instances)
 {
     if (count > r->run_cap) {
-        const size_t n = count;
-        uint32_t *next = realloc(r->run_next, n * sizeof(*next));
-        if (next)
-            r->run_next = next;
-        uint32_t *cl = realloc(r->run_clusters, n * sizeof(*cl));
-        if (cl)
-            r->run_clusters = cl;
-        GLsizei *counts = realloc(r->run_counts, n * sizeof(*counts));
-        if (counts)
-            r->run_counts = counts;
-        const void **offsets = realloc(r->run_offsets, n * sizeof(*offsets));
-        if (offsets)
-            r->run_offsets = offsets;
-        GLint *bases = realloc(r->run_bases, n * sizeof(*bases));
-        if (bases)
-            r->run_bases = bases;
-        if (!next || !cl || !counts || !offsets || !bases)
+        if (!regrow(&r->run_next, count, sizeof(*r->run_next)) ||
+            !regrow(&r->run_clusters, count, sizeof(*r->run_clusters)) ||
+            !regrow(&r->run_counts, count, sizeof(*r->run_counts)) ||
+            !regrow(&r->run_offsets, count, sizeof(*r->run_offsets)) ||
+            !regrow(&r->run_bases, count, sizeof(*r->run_bases)))
             return false;
         r->run_cap = count;
     }
     if (instances > r->run_instance_cap) {
-        const size_t n = instances;
-        uint32_t *seen = realloc(r->run_seen, n * sizeof(*seen));
-        if (seen) {
-            memset(seen + r->run_instance_cap, 0, (n - r->run_instance_cap) * sizeof(*seen));
-            r->run_seen = seen;
-        }
-        uint32_t *first = realloc(r->run_first, n * sizeof(*first));
-        if (first)
-            r->run_first = first;
-        uint32_t *last = realloc(r->run_last, n * sizeof(*last));
-        if (last)
-            r->run_last = last;
-        uint32_t *order = realloc(r->run_order, n * sizeof(*order));
-        if (order)
-            r->run_order = order;
-        if (!seen || !first || !last || !order)
+        if (!regrow(&r->run_seen, instances, sizeof(*r->run_seen)) ||
+            !regrow(&r->run_first, instances, sizeof(*r->run_first)) ||
+            !regrow(&r->run_last, instances, sizeof(*r->run_last)) ||
+            !regrow(&r->run_order, instances, sizeof(*r->run_order)))
             return false;
+        memset(r->run_seen + r->run_instance_cap, 0,
+               (instances - r->run_instance_cap) * sizeof(*r->run_seen));
         r->run_instance_cap = instances;
     }
     if (r->run_stamp == UINT32_MAX) {
@@ -888,38 +875,37 @@ static bool multi_draw_room(struct tw_renderer *r, uint32_t count, uint32_t inst
     return true;
 }
 
-/* Draws n clusters of one instance with one call. */
+/* Draws n clusters of one instance: one call (a multi-draw when
+ * multi, else one draw per cluster). */
 static void draw_run(struct tw_renderer *r, const struct tw_tileset *ts,
                      const struct gpu_buffers *b, const struct tw_prototype *proto,
-                     const uint32_t *clusters, uint32_t n)
+                     const uint32_t *clusters, uint32_t n, bool multi)
 {
     const struct tw_gl *gl = &r->gl;
     const struct tw_instance *in = &proto->instances[proto->clusters[clusters[0]].instance];
     gl->Uniform4fv(r->u_model, 3, in->transform);
     gl->Uniform4fv(r->u_color, 1, ts->materials[in->material].base_color);
-    if (n == 1 || !r->run_counts) {
-        for (uint32_t k = 0; k < n; k++) {
-            const struct tw_mesh_part *part = &ts->parts[proto->clusters[clusters[k]].part];
-            const size_t first = (size_t)b->first_index[part->mesh] + 3u * part->first_triangle;
-            gl->DrawElementsBaseVertex(GL_TRIANGLES, (GLsizei)(3u * part->triangle_count),
-                                       GL_UNSIGNED_INT, (const void *)(first * sizeof(uint32_t)),
-                                       (GLint)b->base_vertex[part->mesh]);
-            r->counters.triangles += part->triangle_count;
-            r->counters.draws++;
-        }
-        return;
-    }
     for (uint32_t k = 0; k < n; k++) {
         const struct tw_mesh_part *part = &ts->parts[proto->clusters[clusters[k]].part];
         const size_t first = (size_t)b->first_index[part->mesh] + 3u * part->first_triangle;
-        r->run_counts[k] = (GLsizei)(3u * part->triangle_count);
-        r->run_offsets[k] = (const void *)(first * sizeof(uint32_t));
-        r->run_bases[k] = (GLint)b->base_vertex[part->mesh];
+        const GLsizei indices = (GLsizei)(3u * part->triangle_count);
+        const void *offset = (const void *)(first * sizeof(uint32_t));
+        const GLint base = (GLint)b->base_vertex[part->mesh];
         r->counters.triangles += part->triangle_count;
+        if (!multi) {
+            gl->DrawElementsBaseVertex(GL_TRIANGLES, indices, GL_UNSIGNED_INT, offset, base);
+            r->counters.draws++;
+            continue;
+        }
+        r->run_counts[k] = indices;
+        r->run_offsets[k] = offset;
+        r->run_bases[k] = base;
     }
-    gl->MultiDrawElementsBaseVertex(GL_TRIANGLES, r->run_counts, GL_UNSIGNED_INT,
-                                    r->run_offsets, (GLsizei)n, r->run_bases);
-    r->counters.draws++;
+    if (multi) {
+        gl->MultiDrawElementsBaseVertex(GL_TRIANGLES, r->run_counts, GL_UNSIGNED_INT,
+                                        r->run_offsets, (GLsizei)n, r->run_bases);
+        r->counters.draws++;
+    }
 }
 
 static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
@@ -942,7 +928,7 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
      * order of their first cluster, clusters in the order given. */
     if (!multi_draw_room(r, count, proto->instance_count)) {
         for (uint32_t k = 0; k < count; k++)
-            draw_run(r, ts, b, proto, &clusters[k], 1);
+            draw_run(r, ts, b, proto, &clusters[k], 1, false);
     } else {
         const uint32_t stamp = ++r->run_stamp;
         uint32_t runs = 0;
@@ -965,7 +951,7 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
             uint32_t n = 0;
             for (uint32_t k = r->run_first[r->run_order[q]]; k != UINT32_MAX; k = r->run_next[k])
                 r->run_clusters[n++] = clusters[k];
-            draw_run(r, ts, b, proto, r->run_clusters, n);
+            draw_run(r, ts, b, proto, r->run_clusters, n, n > 1);
         }
     }
     r->counters.clusters += count;
