@@ -168,24 +168,80 @@ static int compare_cells(const void *a, const void *b)
     return (x->cell.j > y->cell.j) - (x->cell.j < y->cell.j);
 }
 
-size_t tw_cull_cells_in_view(const struct tw_view *v, const struct tw_box *common_box,
-                             float w, float d, struct tw_cull_cell *out, size_t cap)
+/* The cells [*lo, *hi] along one axis that a box [box_lo, box_hi] placed at
+ * them can bring within r of eye, for cells of size: computed in double and
+ * range-checked before any conversion to int64_t. False if there are none
+ * (or the inputs are not finite). */
+static bool axis_range(double eye, double r, double box_lo, double box_hi, double size,
+                       int64_t *lo, int64_t *hi)
 {
-    const float R = v->view_distance;
-    /* Cells di (relative to the camera's) whose box can be within R. */
-    const int64_t i0 = (int64_t)floorf((v->eye[0] - R - common_box->max[0]) / w);
-    const int64_t i1 = (int64_t)floorf((v->eye[0] + R - common_box->min[0]) / w);
-    const int64_t j0 = (int64_t)floorf((v->eye[2] - R - common_box->max[2]) / d);
-    const int64_t j1 = (int64_t)floorf((v->eye[2] + R - common_box->min[2]) / d);
+    const double a = floor((eye - r - box_hi) / size);
+    const double b = floor((eye + r - box_lo) / size);
+    if (!isfinite(a) || !isfinite(b) || a > b)
+        return false;
+    /* Cells beyond +-2^62 of the camera's are out of any scan budget. */
+    const double limit = 4.0e18;
+    *lo = (int64_t)fmax(a, -limit);
+    *hi = (int64_t)fmin(b, limit);
+    return true;
+}
+
+/* Narrows [*lo, *hi] to at most n cells, keeping those nearest cell 0 (the
+ * camera's). */
+static void clamp_range(int64_t *lo, int64_t *hi, uint64_t n)
+{
+    if ((uint64_t)(*hi - *lo) < n)
+        return;
+    int64_t a = *lo > -(int64_t)(n / 2) ? *lo : -(int64_t)(n / 2);
+    int64_t b = a + (int64_t)n - 1;
+    if (b > *hi) {
+        b = *hi;
+        a = b - (int64_t)n + 1;
+    }
+    *lo = a;
+    *hi = b;
+}
+
+size_t tw_cull_cells_in_view_scan(const struct tw_view *v, const struct tw_box *common_box,
+                                  float w, float d, struct tw_cull_cell *out, size_t cap,
+                                  struct tw_cull_scan *scan)
+{
+    struct tw_cull_scan st = {0, false};
     size_t n = 0;
+    const float R = v->view_distance;
+    int64_t i0, i1, j0, j1;
+    if (!isfinite(w) || !isfinite(d) || !(w > 0.0f) || !(d > 0.0f) || !(R >= 0.0f) ||
+        !isfinite(R) || tw_box_is_empty(common_box) ||
+        !axis_range(v->eye[0], R, common_box->min[0], common_box->max[0], w, &i0, &i1) ||
+        !axis_range(v->eye[2], R, common_box->min[2], common_box->max[2], d, &j0, &j1))
+        goto done;
+    /* Bounded work per frame whatever the tileset: at most
+     * TW_TILES_MAX_CELLS_IN_VIEW cells are tested, the nearest square of them. */
+    const uint64_t budget = TW_TILES_MAX_CELLS_IN_VIEW;
+    const uint64_t ni = (uint64_t)(i1 - i0) + 1, nj = (uint64_t)(j1 - j0) + 1;
+    if (ni > budget || nj > budget || ni * nj > budget) {
+        st.truncated = true;
+        uint64_t side = 1;
+        while ((side + 1) * (side + 1) <= budget)
+            side++;
+        if (ni <= side)
+            clamp_range(&j0, &j1, budget / ni);
+        else if (nj <= side)
+            clamp_range(&i0, &i1, budget / nj);
+        else {
+            clamp_range(&i0, &i1, side);
+            clamp_range(&j0, &j1, side);
+        }
+    }
     for (int64_t di = i0; di <= i1; di++) {
         for (int64_t dj = j0; dj <= j1; dj++) {
+            st.cells_tested++;
             const struct tw_cell cell = {(int64_t)((uint64_t)v->cell.i + (uint64_t)di),
                                          (int64_t)((uint64_t)v->cell.j + (uint64_t)dj)};
             float off[3];
             tw_tiles_cell_offset(cell, v->cell, w, d, off);
             const float dist = tw_cull_box_distance(v, common_box, off);
-            if (dist > R)
+            if (!(dist <= R))
                 continue;
             if (tw_cull_frustum_box(&v->frustum, common_box, off) == TW_CULL_OUTSIDE)
                 continue;
@@ -196,9 +252,19 @@ size_t tw_cull_cells_in_view(const struct tw_view *v, const struct tw_box *commo
             n++;
         }
     }
-    if (n <= cap)
+    /* qsort() wants a valid pointer even for no elements. */
+    if (n > 1 && n <= cap)
         qsort(out, n, sizeof(*out), compare_cells);
+done:
+    if (scan)
+        *scan = st;
     return n;
+}
+
+size_t tw_cull_cells_in_view(const struct tw_view *v, const struct tw_box *common_box,
+                             float w, float d, struct tw_cull_cell *out, size_t cap)
+{
+    return tw_cull_cells_in_view_scan(v, common_box, w, d, out, cap, NULL);
 }
 
 uint32_t tw_cull_vfc_tile(const struct tw_view *v, const struct tw_prototype *proto,

@@ -54,6 +54,8 @@ const char *tw_debug_kind_name(enum tw_debug_kind kind)
 
 void tw_debug_kind_color(enum tw_debug_kind kind, float rgba[4])
 {
+    if (!rgba)
+        return;
     static const float none[4] = {1.0f, 1.0f, 1.0f, 1.0f};
     memcpy(rgba, (unsigned)kind < TW_DEBUG_KIND_COUNT ? debug_kind_colors[kind] : none,
            sizeof(float) * 4);
@@ -77,6 +79,11 @@ int tw_world_set_debug(struct tw_world *w, unsigned flags)
 
 const struct tw_debug_box *tw_world_debug_boxes(const struct tw_world *w, size_t *count)
 {
+    if (!w || !count) {
+        if (count)
+            *count = 0;
+        return NULL;
+    }
     *count = w->debug.count;
     return w->debug.boxes;
 }

@@ -2,10 +2,13 @@
 #include "tileworld/runtime.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 const char *const tw_path_builtin_names[] = {"street", "flyover", "forest", "teleport", "spin",
                                              NULL};
@@ -180,148 +183,374 @@ int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float w, f
     return err;
 }
 
-static int parse_row(char *line, double v[7], int64_t cell[2], char *why, size_t why_size)
+/* ---- path CSV files --------------------------------------------------------------- */
+
+#define MAX_LINE 1022                  /* characters of a row, its newline excluded */
+#define MAX_CSV_BYTES (256u << 20)
+#define MAX_ROWS (1u << 24)
+#define MAX_OFFSET 1.0e7               /* |x|, |z|: metres from the cell's origin */
+#define MAX_YAW 1.0e6                  /* degrees (kept modulo 360) */
+#define MAX_PITCH 89.9                 /* degrees, exclusive */
+
+static const char *const field_names[7] = {"cell_i", "cell_j", "x", "y", "z", "yaw", "pitch"};
+
+/* "field 3 (x) \"<text>\"": names a field and quotes it, escaped and cut. */
+static void name_field(char *out, size_t size, int k, const char *text, size_t len)
 {
-    char *s = line;
-    for (int k = 0; k < 7; k++) {
-        while (*s == ' ' || *s == '\t')
-            s++;
-        char *end = NULL;
-        errno = 0;
-        if (k < 2) {
-            long long c = strtoll(s, &end, 10);
-            if (end == s || errno == ERANGE) {
-                snprintf(why, why_size, "field %d (%s) is not a 64-bit integer", k + 1,
-                         k == 0 ? "cell_i" : "cell_j");
-                return TW_ERR_FORMAT;
-            }
-            cell[k] = c;
-        } else {
-            v[k] = strtod(s, &end);
-            if (end == s || !isfinite(v[k]) || errno == ERANGE) {
-                static const char *const names[] = {"", "", "x", "y", "z", "yaw", "pitch"};
-                snprintf(why, why_size, "field %d (%s) is not a finite number", k + 1, names[k]);
-                return TW_ERR_FORMAT;
-            }
+    char quoted[48];
+    tw_log_escape_bytes(text, len > 32 ? 32 : len, quoted, sizeof(quoted));
+    snprintf(out, size, "field %d (%s) \"%s%s\"", k + 1, field_names[k], quoted,
+             len > 32 ? "..." : "");
+}
+
+/* A decimal integer field: [+-]digits, within int64_t. */
+static int parse_cell(const char *f, size_t len, int k, int64_t *out, char *why, size_t why_size)
+{
+    char what[128];
+    name_field(what, sizeof(what), k, f, len);
+    size_t p = 0;
+    bool negative = false;
+    if (p < len && (f[p] == '+' || f[p] == '-'))
+        negative = f[p++] == '-';
+    if (p == len) {
+        snprintf(why, why_size, "%s is not a decimal integer", what);
+        return TW_ERR_FORMAT;
+    }
+    uint64_t v = 0;
+    const uint64_t limit = negative ? (uint64_t)INT64_MAX + 1 : (uint64_t)INT64_MAX;
+    for (; p < len; p++) {
+        if (f[p] < '0' || f[p] > '9') {
+            snprintf(why, why_size, "%s is not a decimal integer%s", what,
+                     (f[p] == 'x' || f[p] == 'X') ? " (hexadecimal is not accepted)"
+                     : (f[p] == '.' || f[p] == 'e' || f[p] == 'E') ? " (a cell is a whole number)"
+                                                                  : "");
+            return TW_ERR_FORMAT;
         }
-        s = end;
-        while (*s == ' ' || *s == '\t')
-            s++;
-        if (k < 6) {
-            if (*s != ',') {
-                snprintf(why, why_size, "expected 7 comma-separated fields, found %d", k + 1);
-                return TW_ERR_FORMAT;
-            }
-            s++;
+        const uint64_t digit = (uint64_t)(f[p] - '0');
+        if (v > (limit - digit) / 10) {
+            snprintf(why, why_size, "%s is beyond the 64-bit range of a cell", what);
+            return TW_ERR_FORMAT;
         }
+        v = v * 10 + digit;
     }
-    while (*s == ' ' || *s == '\t' || *s == '\r' || *s == '\n')
-        s++;
-    if (*s != '\0') {
-        snprintf(why, why_size, "unexpected text after the 7th field");
-        return TW_ERR_FORMAT;
-    }
-    if (v[6] <= -89.9 || v[6] >= 89.9) {
-        snprintf(why, why_size, "pitch %g is outside (-89.9, 89.9) degrees", v[6]);
-        return TW_ERR_FORMAT;
-    }
-    if (fabs(v[2]) > 1e7 || fabs(v[3]) > 1e7 || fabs(v[4]) > 1e7) {
-        snprintf(why, why_size, "a local offset exceeds 1e7 metres");
-        return TW_ERR_FORMAT;
-    }
+    *out = negative ? (int64_t)(0 - v) : (int64_t)v;
     return TW_OK;
 }
 
-int tw_path_load_csv(const char *file, uint32_t frames, float w, float d, struct tw_path *out,
-                     char *err, size_t err_size)
+/* A decimal number field: digits, '.', an exponent; finite, within
+ * [lo, hi] (open at both ends when open). */
+static int parse_number(const char *f, size_t len, int k, double lo, double hi, bool open,
+                        const char *unit, double *out, char *why, size_t why_size)
 {
-    memset(out, 0, sizeof(*out));
-    FILE *f = fopen(file, "r");
-    if (!f) {
-        snprintf(err, err_size, "%s: cannot open: %s", file, strerror(errno));
-        return TW_ERR_IO;
+    char what[128], text[64];
+    name_field(what, sizeof(what), k, f, len);
+    bool digits = false, other = len >= sizeof(text);
+    for (size_t p = 0; p < len; p++) {
+        const char c = f[p];
+        digits |= c >= '0' && c <= '9';
+        other |= !((c >= '0' && c <= '9') || c == '.' || c == 'e' || c == 'E' || c == '+' ||
+                   c == '-');
     }
-    char line[1024];
+    if (!digits || other) {
+        snprintf(why, why_size, "%s is not a decimal number", what);
+        return TW_ERR_FORMAT;
+    }
+    memcpy(text, f, len);
+    text[len] = '\0';
+    char *end = NULL;
+    errno = 0;
+    const double v = strtod(text, &end);
+    if (end != text + len) {
+        snprintf(why, why_size, "%s is not a decimal number", what);
+        return TW_ERR_FORMAT;
+    }
+    if (!isfinite(v) || v < lo || v > hi || (open && (v == lo || v == hi))) {
+        snprintf(why, why_size, "%s is outside %s%g, %g%s %s", what, open ? "(" : "[", lo, hi,
+                 open ? ")" : "]", unit);
+        return TW_ERR_FORMAT;
+    }
+    *out = v;
+    return TW_OK;
+}
+
+/* One row "cell_i,cell_j,x,y,z,yaw,pitch" of line[0, len) (no newline). */
+static int parse_row(const char *line, size_t len, int64_t cell[2], double v[7], char *why,
+                     size_t why_size)
+{
+    const char *field[7];
+    size_t flen[7];
+    int n = 0;
+    size_t start = 0;
+    for (size_t p = 0; p <= len; p++) {
+        if (p < len && line[p] != ',')
+            continue;
+        if (n < 7) {
+            size_t a = start, b = p;
+            while (a < b && (line[a] == ' ' || line[a] == '\t'))
+                a++;
+            while (b > a && (line[b - 1] == ' ' || line[b - 1] == '\t' || line[b - 1] == '\r'))
+                b--;
+            field[n] = line + a;
+            flen[n] = b - a;
+        }
+        n++;
+        start = p + 1;
+    }
+    if (n != 7) {
+        snprintf(why, why_size,
+                 "expected 7 comma-separated fields (cell_i,cell_j,x,y,z,yaw,pitch), found %d", n);
+        return TW_ERR_FORMAT;
+    }
+    for (int k = 0; k < 7; k++) {
+        if (flen[k] == 0) {
+            snprintf(why, why_size, "field %d (%s) is empty", k + 1, field_names[k]);
+            return TW_ERR_FORMAT;
+        }
+    }
+    int err;
+    if ((err = parse_cell(field[0], flen[0], 0, &cell[0], why, why_size)) ||
+        (err = parse_cell(field[1], flen[1], 1, &cell[1], why, why_size)) ||
+        (err = parse_number(field[2], flen[2], 2, -MAX_OFFSET, MAX_OFFSET, false,
+                            "metres from the cell's origin", &v[2], why, why_size)) ||
+        (err = parse_number(field[3], flen[3], 3, -TW_TILES_MAX_COORD, TW_TILES_MAX_COORD,
+                            false, "metres above the ground", &v[3], why, why_size)) ||
+        (err = parse_number(field[4], flen[4], 4, -MAX_OFFSET, MAX_OFFSET, false,
+                            "metres from the cell's origin", &v[4], why, why_size)) ||
+        (err = parse_number(field[5], flen[5], 5, -MAX_YAW, MAX_YAW, false, "degrees", &v[5],
+                            why, why_size)) ||
+        (err = parse_number(field[6], flen[6], 6, -MAX_PITCH, MAX_PITCH, true, "degrees",
+                            &v[6], why, why_size)))
+        return err;
+    return TW_OK;
+}
+
+int tw_path_parse_csv(const char *text, size_t size, const char *name, uint32_t frames, float w,
+                      float d, struct tw_path *out, char *err, size_t err_size)
+{
+    char shown[256], why[256];
+    char dummy[1];
+    if (!err || err_size == 0) {
+        err = dummy;
+        err_size = sizeof(dummy);
+    }
+    err[0] = '\0';
+    if (!out) {
+        snprintf(err, err_size, "path: out is NULL (caller's bug)");
+        return TW_ERR_INVALID;
+    }
+    memset(out, 0, sizeof(*out));
+    tw_log_escape(name ? name : "(path)", shown, sizeof(shown));
+    if ((!text && size) || !(w > 0.0f) || !(d > 0.0f) || !isfinite(w) || !isfinite(d)) {
+        snprintf(err, err_size, "%s: invalid arguments (caller's bug)", shown);
+        return TW_ERR_INVALID;
+    }
     uint32_t cap = 0, lineno = 0;
     int rc = TW_OK;
-    char why[160];
     bool header = false;
-    while (fgets(line, sizeof(line), f)) {
+    size_t pos = 0;
+    /* A UTF-8 byte order mark before the header is not text. */
+    if (size >= 3 && memcmp(text, "\xef\xbb\xbf", 3) == 0)
+        pos = 3;
+    while (pos < size) {
         lineno++;
-        if (!strchr(line, '\n') && !feof(f)) {
-            snprintf(err, err_size, "%s:%u: line longer than %zu characters", file, lineno,
-                     sizeof(line) - 2);
+        const char *line = text + pos;
+        const char *nl = memchr(line, '\n', size - pos);
+        const size_t len = nl ? (size_t)(nl - line) : size - pos;
+        pos += len + (nl ? 1 : 0);
+        const char *nul = memchr(line, '\0', len);
+        if (nul) {
+            snprintf(err, err_size, "%s:%u: a NUL byte at column %zu: not a text file", shown,
+                     lineno, (size_t)(nul - line) + 1);
+            rc = TW_ERR_FORMAT;
+            goto out;
+        }
+        if (len > (size_t)MAX_LINE + (len > 0 && line[len - 1] == '\r')) {
+            snprintf(err, err_size, "%s:%u: line longer than %d characters", shown, lineno,
+                     MAX_LINE);
             rc = TW_ERR_FORMAT;
             goto out;
         }
         if (!header) {
-            if (strncmp(line, "cell_i", 6) != 0) {
+            if (len < 6 || strncmp(line, "cell_i", 6) != 0) {
                 snprintf(err, err_size,
-                         "%s:%u: expected the header cell_i,cell_j,x,y,z,yaw,pitch", file, lineno);
+                         "%s:%u: expected the header cell_i,cell_j,x,y,z,yaw,pitch", shown,
+                         lineno);
                 rc = TW_ERR_FORMAT;
                 goto out;
             }
             header = true;
             continue;
         }
-        if (line[strspn(line, " \t\r\n")] == '\0')
+        size_t blank = 0;
+        while (blank < len && (line[blank] == ' ' || line[blank] == '\t' || line[blank] == '\r'))
+            blank++;
+        if (blank == len)
             continue;
         if (frames > 0 && out->count == frames)
             break;
         double v[7];
         int64_t cell[2];
-        if (parse_row(line, v, cell, why, sizeof(why))) {
-            snprintf(err, err_size, "%s:%u: %s", file, lineno, why);
+        if (parse_row(line, len, cell, v, why, sizeof(why))) {
+            snprintf(err, err_size, "%s:%u: %s", shown, lineno, why);
             rc = TW_ERR_FORMAT;
             goto out;
         }
         if (out->count == cap) {
+            if (cap >= MAX_ROWS) {
+                snprintf(err, err_size, "%s:%u: more than %u camera rows", shown, lineno,
+                         MAX_ROWS);
+                rc = TW_ERR_LIMIT;
+                goto out;
+            }
             cap = cap ? cap * 2 : 256;
             struct tw_camera *k = realloc(out->keys, sizeof(*k) * cap);
             if (!k) {
+                snprintf(err, err_size, "%s:%u: out of memory", shown, lineno);
                 rc = TW_ERR_NOMEM;
                 goto out;
             }
             out->keys = k;
         }
         struct tw_camera *key = &out->keys[out->count];
-        key->pos.cell.i = cell[0];
-        key->pos.cell.j = cell[1];
-        key->pos.local[0] = (float)v[2];
-        key->pos.local[1] = (float)v[3];
-        key->pos.local[2] = (float)v[4];
-        key->yaw = (float)v[5];
-        key->pitch = (float)v[6];
-        if (tw_tiles_normalize(&key->pos, w, d)) {
-            snprintf(err, err_size, "%s:%u: the position overflows the grid", file, lineno);
+        const double local[3] = {v[2], v[3], v[4]};
+        const struct tw_cell c = {cell[0], cell[1]};
+        if (tw_tiles_normalize_double(c, local, w, d, &key->pos)) {
+            snprintf(err, err_size,
+                     "%s:%u: the position overflows the grid (cell plus offset beyond 64 bits)",
+                     shown, lineno);
             rc = TW_ERR_FORMAT;
             goto out;
         }
+        key->yaw = (float)fmod(v[5], 360.0);
+        key->pitch = (float)v[6];
         out->count++;
     }
-    if (ferror(f)) {
-        snprintf(err, err_size, "%s: read error", file);
-        rc = TW_ERR_IO;
-    } else if (!header) {
-        snprintf(err, err_size, "%s: empty file (expected a header line)", file);
+    if (!header) {
+        snprintf(err, err_size, "%s: empty file (expected a header line)", shown);
         rc = TW_ERR_FORMAT;
     } else if (out->count == 0) {
-        snprintf(err, err_size, "%s: no camera rows after the header", file);
+        snprintf(err, err_size, "%s: no camera rows after the header", shown);
         rc = TW_ERR_FORMAT;
     } else if (frames > 0 && out->count < frames) {
-        snprintf(err, err_size, "%s: %u frames asked for but the file has %u rows", file, frames,
+        snprintf(err, err_size, "%s: %u frames asked for but the file has %u rows", shown, frames,
                  out->count);
         rc = TW_ERR_FORMAT;
     }
 out:
-    fclose(f);
     if (rc) {
         tw_path_finish(out);
     } else {
-        const char *base = strrchr(file, '/');
-        snprintf(out->name, sizeof(out->name), "%s", base ? base + 1 : file);
+        const char *n = name ? name : "(path)";
+        const char *base = strrchr(n, '/');
+        tw_log_escape(base ? base + 1 : n, out->name, sizeof(out->name));
     }
     return rc;
+}
+
+/* Reads the regular file at path (at most limit bytes). Opened non-blocking
+ * and checked with fstat() before anything is read, so that a FIFO or a
+ * device is refused instead of waited on. */
+static int read_regular_file(const char *path, size_t limit, char **data, size_t *size,
+                             char *why, size_t why_size)
+{
+    *data = NULL;
+    *size = 0;
+    const int fd = open(path, O_RDONLY | O_NONBLOCK | O_NOCTTY | O_CLOEXEC);
+    if (fd < 0) {
+        snprintf(why, why_size, "cannot open: %s", strerror(errno));
+        return TW_ERR_IO;
+    }
+    int rc = TW_OK;
+    char *buf = NULL;
+    struct stat st;
+    if (fstat(fd, &st) != 0) {
+        snprintf(why, why_size, "cannot stat: %s", strerror(errno));
+        rc = TW_ERR_IO;
+        goto out;
+    }
+    if (!S_ISREG(st.st_mode)) {
+        snprintf(why, why_size, "is not a regular file (a %s)",
+                 S_ISFIFO(st.st_mode) ? "FIFO" : S_ISDIR(st.st_mode) ? "folder"
+                 : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "device" : S_ISSOCK(st.st_mode)
+                 ? "socket" : "special file");
+        rc = TW_ERR_IO;
+        goto out;
+    }
+    if (st.st_size < 0 || (uint64_t)st.st_size > limit) {
+        snprintf(why, why_size, "is %lld bytes, more than the limit of %zu", (long long)st.st_size,
+                 limit);
+        rc = TW_ERR_LIMIT;
+        goto out;
+    }
+    /* Read to the end, not to st_size: the file may change meanwhile. */
+    size_t cap = (size_t)st.st_size + 1, n = 0;
+    buf = malloc(cap);
+    if (!buf) {
+        snprintf(why, why_size, "out of memory");
+        rc = TW_ERR_NOMEM;
+        goto out;
+    }
+    for (;;) {
+        if (n == cap) {
+            if (cap > limit) {
+                snprintf(why, why_size, "grew beyond the limit of %zu bytes while read", limit);
+                rc = TW_ERR_LIMIT;
+                goto out;
+            }
+            char *grown = realloc(buf, cap * 2);
+            if (!grown) {
+                snprintf(why, why_size, "out of memory");
+                rc = TW_ERR_NOMEM;
+                goto out;
+            }
+            buf = grown;
+            cap *= 2;
+        }
+        const ssize_t r = read(fd, buf + n, cap - n);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r < 0) {
+            snprintf(why, why_size, "cannot read: %s", strerror(errno));
+            rc = TW_ERR_IO;
+            goto out;
+        }
+        if (r == 0)
+            break;
+        n += (size_t)r;
+    }
+    *data = buf;
+    *size = n;
+    buf = NULL;
+out:
+    free(buf);
+    close(fd);
+    return rc;
+}
+
+int tw_path_load_csv(const char *file, uint32_t frames, float w, float d, struct tw_path *out,
+                     char *err, size_t err_size)
+{
+    char dummy[1];
+    if (!err || err_size == 0) {
+        err = dummy;
+        err_size = sizeof(dummy);
+    }
+    if (!out || !file) {
+        snprintf(err, err_size, "path: %s is NULL (caller's bug)", out ? "file" : "out");
+        return TW_ERR_INVALID;
+    }
+    memset(out, 0, sizeof(*out));
+    char *text = NULL, why[256];
+    size_t size = 0;
+    const int rc = read_regular_file(file, MAX_CSV_BYTES, &text, &size, why, sizeof(why));
+    if (rc) {
+        char shown[256];
+        snprintf(err, err_size, "%s: %s", tw_log_escape(file, shown, sizeof(shown)), why);
+        return rc;
+    }
+    const int perr = tw_path_parse_csv(text, size, file, frames, w, d, out, err, err_size);
+    free(text);
+    return perr;
 }
 
 int tw_path_translate(struct tw_path *p, int64_t di, int64_t dj)

@@ -327,8 +327,9 @@ static struct entry *find(const struct tw_stream *s, struct tw_cell cell, uint32
 static void event(struct tw_stream *s, struct tw_cell cell, enum tw_tile_event_kind kind,
                   uint64_t bytes)
 {
+    const struct tw_tile_event e = {cell, kind, bytes, 0, false};
     if (s->on_event)
-        s->on_event(s->event_user, cell, kind, bytes);
+        s->on_event(s->event_user, &e);
 }
 
 /* A fresh entry for cell (its map entry made too), or NULL. */
@@ -468,7 +469,10 @@ static int make_ready(struct tw_stream *s, uint32_t k)
         tw_cell_map_remove(s->evicted, e->cell);
     }
     s->stats.ms_upload += tw_renderer_now_ms() - t0;
-    event(s, e->cell, TW_TILE_READY, e->bytes_cpu + e->bytes_gpu);
+    const struct tw_tile_event ev = {e->cell, TW_TILE_READY, e->bytes_cpu + e->bytes_gpu,
+                                     (uint32_t)(s->frame - e->request_frame), e->reload};
+    if (s->on_event)
+        s->on_event(s->event_user, &ev);
     return TW_OK;
 }
 
@@ -494,7 +498,8 @@ static void collect(struct tw_stream *s)
             s->to_upload[s->to_upload_count++] = index;
         }
     }
-    memmove(s->finished, s->finished + n, sizeof(*s->finished) * (s->finished_count - n));
+    if (n > 0 && n < s->finished_count)
+        memmove(s->finished, s->finished + n, sizeof(*s->finished) * (s->finished_count - n));
     s->finished_count -= n;
     pthread_mutex_unlock(&s->lock);
 }
@@ -677,7 +682,9 @@ void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame)
         make_ready(s, k);
         bytes += s->entries[k].bytes_cpu;
     }
-    memmove(s->to_upload, s->to_upload + done, sizeof(*s->to_upload) * (s->to_upload_count - done));
+    if (done > 0 && done < s->to_upload_count)
+        memmove(s->to_upload, s->to_upload + done,
+                sizeof(*s->to_upload) * (s->to_upload_count - done));
     s->to_upload_count -= done;
 
     /* Requests nobody wanted lately: cancelled if no worker took them yet. */
@@ -888,12 +895,15 @@ uint64_t tw_stream_tile_bytes(const struct tw_stream *s)
     return s->bytes_cpu + s->bytes_gpu;
 }
 
-void tw_stream_bytes(const struct tw_stream *s, uint64_t *cpu, uint64_t *gpu)
+void tw_stream_bytes(struct tw_stream *s, uint64_t *cpu, uint64_t *gpu)
 {
+    /* The job lists grow under the lock, from the workers too. */
+    pthread_mutex_lock(&s->lock);
+    const uint64_t jobs = (uint64_t)s->heap_cap + s->finished_cap;
+    pthread_mutex_unlock(&s->lock);
     *cpu = s->bytes_cpu + sizeof(*s) + (uint64_t)sizeof(*s->entries) * s->entry_cap +
            tw_cell_map_bytes(s->by_cell) + tw_cell_map_bytes(s->generations) +
-           tw_cell_map_bytes(s->evicted) +
-           sizeof(uint32_t) * ((uint64_t)s->heap_cap + s->finished_cap + s->to_upload_cap);
+           tw_cell_map_bytes(s->evicted) + sizeof(uint32_t) * (jobs + s->to_upload_cap);
     *gpu = s->bytes_gpu;
 }
 

@@ -85,7 +85,7 @@ void tw_stream_invalidate_rect(struct tw_stream *s, struct tw_cell lo, struct tw
 uint64_t tw_stream_tile_bytes(const struct tw_stream *s);
 /* Bytes of the ready tiles and the stream's own tables, on the CPU
  * (geometry, clusters, BVHs, tables) and the GPU (their buffers). */
-void tw_stream_bytes(const struct tw_stream *s, uint64_t *cpu, uint64_t *gpu);
+void tw_stream_bytes(struct tw_stream *s, uint64_t *cpu, uint64_t *gpu);
 
 /* Evicts the least recently drawn ready tiles (never one drawn in frame,
  * never one loading) while excess > 0 bytes; returns the bytes freed. Each
@@ -96,8 +96,7 @@ uint64_t tw_stream_trim(struct tw_stream *s, uint64_t excess, uint64_t frame,
                         tw_stream_evicted_fn evicted, void *user);
 
 /* Ready events: tiles that became ready in the current frame, and refusals. */
-typedef void (*tw_stream_event_fn)(void *user, struct tw_cell cell, enum tw_tile_event_kind kind,
-                                   uint64_t bytes);
+typedef void (*tw_stream_event_fn)(void *user, const struct tw_tile_event *e);
 void tw_stream_set_events(struct tw_stream *s, tw_stream_event_fn fn, void *user);
 
 const struct tw_stream_stats *tw_stream_stats(const struct tw_stream *s);

@@ -186,8 +186,7 @@ static int resolve_provider(struct tw_world *w)
 static int world_get(void *ctx, struct tw_cell cell, float distance, unsigned flags,
                      struct tw_cull_tile *out);
 static void world_prefetch(void *ctx, struct tw_cell cell, float distance);
-static void stream_event(void *user, struct tw_cell cell, enum tw_tile_event_kind kind,
-                         uint64_t bytes);
+static void stream_event(void *user, const struct tw_tile_event *e);
 
 static uint32_t default_workers(void)
 {
@@ -228,6 +227,22 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
     w->s = *settings;
     tw_world_default_settings(&w->s);
     int err = resolve_provider(w);
+    /* Every frame's cost is bounded: tile-query propagation may visit every
+     * cell within reach, so the reach must stay within the per-frame limit. */
+    if (!err) {
+        const double reach = tw_tiles_cells_in_reach(&w->provider.bound, w->provider.footprint[0],
+                                                     w->provider.footprint[1], w->s.view_distance);
+        if (!(reach <= TW_TILES_MAX_CELLS_IN_VIEW)) {
+            tw_log_printf(log, TW_LOG_ERROR,
+                          "tw_world_create: %s: a view distance of %g m over %g x %g m tiles "
+                          "reaches about %.3g cells, more than the limit of %u a frame may "
+                          "consider: shorten the view distance or use larger tiles",
+                          w->provider.name ? w->provider.name : "the world",
+                          (double)w->s.view_distance, (double)w->provider.footprint[0],
+                          (double)w->provider.footprint[1], reach, TW_TILES_MAX_CELLS_IN_VIEW);
+            err = TW_ERR_LIMIT;
+        }
+    }
     if (!err)
         err = tw_renderer_create(w->s.width, w->s.height, w->s.get_proc, &w->s.log, &w->renderer);
     if (err)
@@ -413,8 +428,7 @@ static void collect_counters(const struct tw_world *w, struct tw_frame_stats *st
 
 /* ---- streaming: the tile source, the look-ahead, the budget ------------------------- */
 
-static void push_event(struct tw_world *w, struct tw_cell cell, enum tw_tile_event_kind kind,
-                       uint64_t bytes)
+static void push_event(struct tw_world *w, const struct tw_tile_event *ev)
 {
     if (w->next_event_count == w->next_event_cap) {
         const size_t cap = w->next_event_cap ? 2 * w->next_event_cap : 64;
@@ -424,13 +438,12 @@ static void push_event(struct tw_world *w, struct tw_cell cell, enum tw_tile_eve
         w->next_events = e;
         w->next_event_cap = cap;
     }
-    w->next_events[w->next_event_count++] = (struct tw_tile_event){cell, kind, bytes};
+    w->next_events[w->next_event_count++] = *ev;
 }
 
-static void stream_event(void *user, struct tw_cell cell, enum tw_tile_event_kind kind,
-                         uint64_t bytes)
+static void stream_event(void *user, const struct tw_tile_event *e)
 {
-    push_event(user, cell, kind, bytes);
+    push_event(user, e);
 }
 
 /* What cell shows, checked: a shared prototype, or TW_TILE_OWN. */
@@ -536,16 +549,18 @@ static void look_ahead(struct tw_world *w, const struct tw_view *v)
 
 /* Every byte the world's tiles cost: shared content once, generated tiles,
  * every method's culling state. */
-static void count_bytes(const struct tw_world *w, uint64_t *cpu, uint64_t *gpu)
+static void count_bytes(const struct tw_world *w, uint64_t *cpu, uint64_t *gpu, uint64_t *state)
 {
-    uint64_t scpu = 0, sgpu = 0;
+    uint64_t scpu = 0, sgpu = 0, culling = 0;
     if (w->stream)
         tw_stream_bytes(w->stream, &scpu, &sgpu);
-    *cpu = w->shared_cpu + scpu;
     for (int m = 0; m < TW_METHOD_COUNT; m++)
         if (w->methods[m].driver)
-            *cpu += tw_cull_driver_bytes(w->methods[m].driver);
+            culling += tw_cull_driver_bytes(w->methods[m].driver);
+    *cpu = w->shared_cpu + scpu + culling;
     *gpu = w->shared_gpu + sgpu;
+    if (state)
+        *state = culling;
 }
 
 /* Over budget, the least recently drawn tiles go, then the oldest culling
@@ -553,14 +568,14 @@ static void count_bytes(const struct tw_world *w, uint64_t *cpu, uint64_t *gpu)
 static void keep_budget(struct tw_world *w, const struct method_state *ms,
                         struct tw_frame_stats *st)
 {
-    uint64_t cpu, gpu;
-    count_bytes(w, &cpu, &gpu);
+    uint64_t cpu, gpu, state;
+    count_bytes(w, &cpu, &gpu, NULL);
     const uint64_t budget = w->s.cache_budget_bytes;
     uint32_t instances = 0;
     /* Evicting can grow a table (the record of evictions): count again. */
     while (budget && cpu + gpu > budget && w->stream &&
            tw_stream_trim(w->stream, cpu + gpu - budget, w->frame_serial, NULL, NULL) > 0)
-        count_bytes(w, &cpu, &gpu);
+        count_bytes(w, &cpu, &gpu, NULL);
     for (int pass = 0; pass < 2 && budget && cpu + gpu > budget; pass++)
         for (int m = 0; m < TW_METHOD_COUNT && cpu + gpu > budget; m++) {
             const struct method_state *other = &w->methods[m];
@@ -569,10 +584,12 @@ static void keep_budget(struct tw_world *w, const struct method_state *ms,
             /* Another method's instances are all older than its next frame. */
             tw_cull_driver_trim(other->driver, cpu + gpu - budget, other->frame + (other != ms),
                                 &instances);
-            count_bytes(w, &cpu, &gpu);
+            count_bytes(w, &cpu, &gpu, NULL);
         }
+    count_bytes(w, &cpu, &gpu, &state);
     st->bytes_cpu = cpu;
     st->bytes_gpu = gpu;
+    st->bytes_state = state;
     st->bytes_needed = cpu + gpu;
     st->over_budget = budget && cpu + gpu > budget;
     if (w->stream) {
@@ -863,4 +880,23 @@ int tw_world_invalidate_rect(struct tw_world *w, struct tw_cell lo, struct tw_ce
 int tw_world_invalidate(struct tw_world *w, struct tw_cell cell)
 {
     return tw_world_invalidate_rect(w, cell, cell);
+}
+
+int tw_world_cache_totals(const struct tw_world *w, struct tw_cache_totals *out)
+{
+    if (!w || !out)
+        return TW_ERR_INVALID;
+    memset(out, 0, sizeof(*out));
+    if (!w->stream)
+        return TW_OK;
+    const struct tw_stream_totals *t = tw_stream_totals(w->stream);
+    out->tiles_ready = tw_stream_ready_count(w->stream);
+    out->tiles_loading = tw_stream_loading_count(w->stream);
+    out->tile_bytes = tw_stream_tile_bytes(w->stream);
+    out->loads_requested = t->loads_requested;
+    out->loads_done = t->loads_done;
+    out->evictions = t->evictions;
+    out->reloads = t->reloads;
+    out->refused = t->refused;
+    return TW_OK;
 }

@@ -100,11 +100,76 @@ static void test_cells_in_view(void)
     CHECK(tw_cull_cells_in_view(&v, &common, 80, 80, few, 4) == n);
 }
 
+/* Issue 11, class 2 and 3: the scan of one frame costs at most
+ * TW_TILES_MAX_CELLS_IN_VIEW box tests whatever the footprint, the common
+ * box and the view distance, says when it stopped short, keeps the cells
+ * nearest the camera, and never converts an out-of-range float to an
+ * integer nor hands qsort() a NULL array. */
+static void test_cells_in_view_bounded(void)
+{
+    struct tw_view v;
+    const float eye[3] = {0.004f, 1.7f, 0.005f};
+    tw_cull_view_setup(&v, (struct tw_cell){-5, 7}, eye, 10.0f, 0.0f, 60.0f, 16.0f / 9.0f,
+                       0.2f, 700.0f);
+    v.view_distance = 600.0f;
+
+    /* 1 cm tiles: 1.4e10 cells within 600 m. */
+    struct tw_box tiny = box(0, 0, 0, 0.01f, 2, 0.01f);
+    static struct tw_cull_cell cells[TW_TILES_MAX_CELLS_IN_VIEW];
+    struct tw_cull_scan scan = {0, false};
+    size_t n = tw_cull_cells_in_view_scan(&v, &tiny, 0.01f, 0.01f, cells,
+                                          TW_TILES_MAX_CELLS_IN_VIEW, &scan);
+    CHECK(scan.truncated);
+    CHECK(scan.cells_tested > 0 && scan.cells_tested <= TW_TILES_MAX_CELLS_IN_VIEW);
+    CHECK(n > 0 && n <= scan.cells_tested);
+    CHECK(tw_tiles_cells_in_reach(&tiny, 0.01f, 0.01f, 600.0f) > 1e10);
+    /* The nearest cells are kept (those just beyond the near plane), sorted. */
+    CHECK(cells[0].distance < 0.25f);
+    for (size_t k = 0; k < n; k++)
+        CHECK(cells[k].distance <= 2.0f && (k == 0 || cells[k].distance >= cells[k - 1].distance));
+
+    /* A common box a million metres wide on 80 m tiles (a manifest scale of
+     * 10^6): every cell's box reaches the camera. */
+    struct tw_box huge = box(-5e5f, 0, -5e5f, 5e5f, 10, 5e5f);
+    n = tw_cull_cells_in_view_scan(&v, &huge, 80, 80, cells, TW_TILES_MAX_CELLS_IN_VIEW, &scan);
+    CHECK(scan.truncated && scan.cells_tested <= TW_TILES_MAX_CELLS_IN_VIEW);
+    CHECK(n > 0 && n <= TW_TILES_MAX_CELLS_IN_VIEW);
+
+    /* A long thin range is cut along its long axis only. */
+    struct tw_box strip = box(0, 0, 0, 80, 10, 1e5f);
+    n = tw_cull_cells_in_view_scan(&v, &strip, 80, 1, cells, TW_TILES_MAX_CELLS_IN_VIEW, &scan);
+    CHECK(scan.truncated && scan.cells_tested <= TW_TILES_MAX_CELLS_IN_VIEW);
+    CHECK(scan.cells_tested >= TW_TILES_MAX_CELLS_IN_VIEW / 2);
+
+    /* A footprint of 1e-30 and a camera far below the ground: no integer
+     * overflow, no qsort(NULL, 0). */
+    n = tw_cull_cells_in_view_scan(&v, &tiny, 1e-30f, 1e-30f, NULL, 0, &scan);
+    CHECK(scan.cells_tested <= TW_TILES_MAX_CELLS_IN_VIEW);
+    const float deep[3] = {3, -1e30f, 3};
+    tw_cull_view_setup(&v, (struct tw_cell){0, 0}, deep, 0.0f, 0.0f, 60.0f, 1.0f, 0.2f, 700.0f);
+    v.view_distance = 600.0f;
+    const struct tw_box common = box(0, 0, 0, 80, 60, 80);
+    n = tw_cull_cells_in_view_scan(&v, &common, 80, 80, NULL, 0, &scan);
+    CHECK(n == 0 && !scan.truncated);
+    n = tw_cull_cells_in_view(&v, &common, 80, 80, NULL, 0);
+    CHECK(n == 0);
+    /* Nothing finite to scan: no cells, no work. */
+    const float lost[3] = {NAN, 0, 0};
+    tw_cull_view_setup(&v, (struct tw_cell){0, 0}, lost, 0.0f, 0.0f, 60.0f, 1.0f, 0.2f, 700.0f);
+    v.view_distance = 600.0f;
+    CHECK(tw_cull_cells_in_view_scan(&v, &common, 80, 80, cells, 16, &scan) == 0 &&
+          scan.cells_tested == 0);
+    v.view_distance = INFINITY;
+    CHECK(tw_cull_cells_in_view_scan(&v, &common, 80, 80, cells, 16, &scan) == 0);
+    CHECK(tw_cull_cells_in_view_scan(&v, &common, INFINITY, 80, cells, 16, &scan) == 0);
+}
+
 int main(void)
 {
     test_frustum_known_cases();
     test_near_rule();
     test_cells_in_view();
+    test_cells_in_view_bounded();
     if (failures) {
         fprintf(stderr, "test-cull: %d checks failed\n", failures);
         return 1;

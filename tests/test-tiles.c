@@ -367,8 +367,129 @@ static void test_tile_cache(void)
     tw_tile_cache_destroy(NULL);
 }
 
+/* ---- issue 11: hostile input ------------------------------------------------ */
+
+static void capture_last(void *user, enum tw_log_level level, const char *msg)
+{
+    (void)level;
+    snprintf((char *)user, 256, "%s", msg);
+}
+
+/* Class 5: control characters never reach a terminal. */
+static void test_escape(void)
+{
+    char out[256];
+    CHECK(strcmp(tw_log_escape("plain text, \\ and \"quotes\"", out, sizeof(out)),
+                 "plain text, \\ and \"quotes\"") == 0);
+    CHECK(strcmp(tw_log_escape("a\x1b[2J\nb\r\tc\x7f", out, sizeof(out)),
+                 "a\\x1b[2J\\nb\\r\\tc\\x7f") == 0);
+    /* UTF-8 is kept; C1 controls (U+009B is CSI), bidi overrides and broken
+     * sequences are not. */
+    CHECK(strcmp(tw_log_escape("caf\xc3\xa9 \xe2\x82\xac", out, sizeof(out)),
+                 "caf\xc3\xa9 \xe2\x82\xac") == 0);
+    CHECK(strcmp(tw_log_escape("\xc2\x9b" "2J", out, sizeof(out)), "\\u009b2J") == 0);
+    CHECK(strcmp(tw_log_escape("x\xe2\x80\xaey", out, sizeof(out)), "x\\u202ey") == 0);
+    CHECK(strcmp(tw_log_escape("\x9b\xff\xc3", out, sizeof(out)), "\\x9b\\xff\\xc3") == 0);
+    CHECK(strcmp(tw_log_escape("\xc0\xaf\xed\xa0\x80", out, sizeof(out)),
+                 "\\xc0\\xaf\\xed\\xa0\\x80") == 0); /* overlong, surrogate */
+    CHECK(strcmp(tw_log_escape_bytes("a\0b", 3, out, sizeof(out)), "a\\x00b") == 0);
+    CHECK(strcmp(tw_log_escape(NULL, out, sizeof(out)), "") == 0);
+    /* Idempotent. */
+    char twice[256];
+    tw_log_escape("k\x1b]0;pwned\x07\n", out, sizeof(out));
+    CHECK(strcmp(tw_log_escape(out, twice, sizeof(twice)), out) == 0);
+    /* Cut at a piece boundary, with "...". */
+    char small[8];
+    CHECK(strcmp(tw_log_escape("abcdefg", small, sizeof(small)), "abcdefg") == 0);
+    CHECK(strcmp(tw_log_escape("abcdefgh", small, sizeof(small)), "abcd...") == 0);
+    CHECK(strcmp(tw_log_escape("\x1b\x1b\x1b", small, sizeof(small)), "\\x1b...") == 0);
+    char tiny[3];
+    CHECK(strcmp(tw_log_escape("abcdef", tiny, sizeof(tiny)), "..") == 0);
+    /* The logger escapes every message. */
+    char last[256] = "";
+    const struct tw_log log = {capture_last, last};
+    tw_log_printf(&log, TW_LOG_ERROR, "key \"%s\": unknown", "\x1b[2J\nforged: ok");
+    CHECK(strcmp(last, "key \"\\x1b[2J\\nforged: ok\": unknown") == 0);
+    CHECK(!strchr(last, '\n') && !strchr(last, '\x1b'));
+}
+
+/* Classes 1 and 3: the builder refuses out-of-range content, the cell math
+ * never converts an out-of-range value to an integer. */
+static void test_limits(void)
+{
+    struct tw_tileset *ts = NULL;
+    CHECK(tw_tileset_create("t", 10.0f, 10.0f, &ts) == TW_OK);
+    if (!ts)
+        return;
+    const uint32_t tri[3] = {0, 1, 2};
+    const float far_mesh[9] = {0, 0, 0, 1, 0, 0, 0, 3e38f, 0};
+    CHECK(tw_tileset_add_mesh(ts, far_mesh, NULL, 3, tri, 1) == TW_ERR_LIMIT);
+    const float mm_mesh[9] = {0, 0, 0, 5000, 0, 0, 0, 5000, 0};   /* 5 m in millimetres */
+    const int mesh = tw_tileset_add_mesh(ts, mm_mesh, NULL, 3, tri, 1);
+    CHECK(mesh == 0);
+    const int mat = tw_tileset_add_material(ts, (const float[4]){1, 1, 1, 1});
+    const int p = tw_tileset_add_prototype(ts, "p", 1.0f);
+    const float huge_move[12] = {1, 0, 0, 3.4e38f, 0, 1, 0, 0, 0, 0, 1, 0};
+    CHECK(tw_tileset_add_instance(ts, (uint32_t)p, (uint32_t)mesh, (uint32_t)mat, huge_move) ==
+          TW_ERR_LIMIT);
+    const float huge_scale[12] = {1e30f, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+    CHECK(tw_tileset_add_instance(ts, (uint32_t)p, (uint32_t)mesh, (uint32_t)mat, huge_scale) ==
+          TW_ERR_LIMIT);
+    /* Unscaled, the millimetre mesh reaches 5 km: within reach, but it spans
+     * 500 footprints. */
+    CHECK(tw_tileset_add_instance(ts, (uint32_t)p, (uint32_t)mesh, (uint32_t)mat, NULL) == 0);
+    const float scale_1e2[12] = {100, 0, 0, 0, 0, 100, 0, 0, 0, 0, 100, 0};
+    CHECK(tw_tileset_add_instance(ts, (uint32_t)p, (uint32_t)mesh, (uint32_t)mat, scale_1e2) ==
+          TW_ERR_LIMIT);  /* 500 km */
+    CHECK(tw_tileset_finish(ts, 0) == TW_ERR_LIMIT);
+    tw_tileset_destroy(ts);
+    ts = NULL;
+    CHECK(tw_tileset_create("t", 10.0f, 10.0f, &ts) == TW_OK);
+    const float mm[12] = {0.001f, 0, 0, 1, 0, 0.001f, 0, 0, 0, 0, 0.001f, 1};
+    CHECK(tw_tileset_add_mesh(ts, mm_mesh, NULL, 3, tri, 1) == 0);
+    CHECK(tw_tileset_add_material(ts, (const float[4]){1, 1, 1, 1}) == 0);
+    CHECK(tw_tileset_add_prototype(ts, "p", 1.0f) == 0);
+    CHECK(tw_tileset_add_instance(ts, 0, 0, 0, mm) == 0);
+    CHECK(tw_tileset_finish(ts, 0) == TW_OK);
+    CHECK(fabsf(ts->common_box.max[0] - 6.0f) < 1e-4f);
+    CHECK(tw_tiles_cells_in_reach(&ts->common_box, 10, 10, 600) < 200 * 200);
+    tw_tileset_destroy(ts);
+
+    /* Normalising: bad footprints and huge offsets are refused, not
+     * converted. */
+    struct tw_world_pos pos = {{0, 0}, {5, 1, 5}};
+    CHECK(tw_tiles_normalize(&pos, INFINITY, 10) == TW_ERR_INVALID);
+    CHECK(tw_tiles_normalize(&pos, 1e-30f, 1e-30f) == TW_ERR_INVALID);   /* 5e30 cells */
+    CHECK(tw_tiles_normalize(&pos, 1e-38f, 10) == TW_ERR_INVALID);
+    CHECK(pos.local[0] == 5 && pos.cell.i == 0);
+    struct tw_world_pos near_edge = {{INT64_MAX - 1, 0}, {30, 0, 0}};
+    CHECK(tw_tiles_normalize(&near_edge, 10, 10) == TW_ERR_INVALID);
+    const double far[3] = {1e15 + 12.5, -3.0, -25.0};
+    struct tw_world_pos out;
+    CHECK(tw_tiles_normalize_double((struct tw_cell){2, 3}, far, 10, 10, &out) == TW_OK);
+    CHECK(out.cell.i == 2 + 100000000000001ll && out.cell.j == 3 - 3);
+    CHECK(out.local[0] == 2.5f && out.local[1] == -3.0f &&
+          fabsf(out.local[2] - 5.0f) < 1e-6f);
+    const double huge[3] = {1e300, 0, 0};
+    CHECK(tw_tiles_normalize_double((struct tw_cell){0, 0}, huge, 10, 10, &out) ==
+          TW_ERR_INVALID);
+    const double high[3] = {0, 1e300, 0};
+    CHECK(tw_tiles_normalize_double((struct tw_cell){0, 0}, high, 10, 10, &out) ==
+          TW_ERR_INVALID);
+
+    /* The cells a frame must consider. */
+    const struct tw_box cb = {{0, 0, 0}, {80, 50, 80}};
+    const double reach = tw_tiles_cells_in_reach(&cb, 80, 80, 600);
+    CHECK(reach > 15 * 15 && reach < 20 * 20);
+    CHECK(tw_tiles_cells_in_reach(&cb, 0.01f, 0.01f, 600) > TW_TILES_MAX_CELLS_IN_VIEW);
+    CHECK(tw_tiles_cells_in_reach(&cb, 1e-45f, 1e-45f, 600) > 1e90);
+    CHECK(isinf(tw_tiles_cells_in_reach(&cb, 0, 80, 600)));
+}
+
 int main(void)
 {
+    test_escape();
+    test_limits();
     test_cell_map();
     test_tile_cache();
     test_floor_div_mod();

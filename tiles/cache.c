@@ -25,6 +25,8 @@ static size_t cell_hash(struct tw_cell c)
 
 int tw_cell_map_create(struct tw_cell_map **out)
 {
+    if (!out)
+        return TW_ERR_INVALID;
     struct tw_cell_map *m = calloc(1, sizeof(*m));
     if (!m)
         return TW_ERR_NOMEM;
@@ -47,6 +49,8 @@ static bool same_cell(struct tw_cell a, struct tw_cell b)
 
 uint64_t *tw_cell_map_find(const struct tw_cell_map *m, struct tw_cell cell)
 {
+    if (!m)
+        return NULL;
     if (m->count == 0)
         return NULL;
     const size_t mask = m->cap - 1;
@@ -86,6 +90,8 @@ static int rehash(struct tw_cell_map *m, size_t cap)
 
 int tw_cell_map_set(struct tw_cell_map *m, struct tw_cell cell, uint64_t value)
 {
+    if (!m)
+        return TW_ERR_INVALID;
     uint64_t *v = tw_cell_map_find(m, cell);
     if (v) {
         *v = value;
@@ -123,6 +129,8 @@ static void remove_at(struct tw_cell_map *m, size_t hole)
 
 bool tw_cell_map_remove(struct tw_cell_map *m, struct tw_cell cell)
 {
+    if (!m)
+        return false;
     if (m->count == 0)
         return false;
     const size_t mask = m->cap - 1;
@@ -138,6 +146,8 @@ bool tw_cell_map_remove(struct tw_cell_map *m, struct tw_cell cell)
 
 void tw_cell_map_clear(struct tw_cell_map *m)
 {
+    if (!m)
+        return;
     if (m->cap)
         memset(m->entries, 0, sizeof(*m->entries) * m->cap);
     m->count = 0;
@@ -145,17 +155,23 @@ void tw_cell_map_clear(struct tw_cell_map *m)
 
 size_t tw_cell_map_count(const struct tw_cell_map *m)
 {
+    if (!m)
+        return 0;
     return m->count;
 }
 
 size_t tw_cell_map_bytes(const struct tw_cell_map *m)
 {
+    if (!m)
+        return 0;
     return sizeof(*m) + sizeof(*m->entries) * m->cap;
 }
 
 void tw_cell_map_filter(struct tw_cell_map *m,
                         bool (*fn)(void *user, struct tw_cell cell, uint64_t value), void *user)
 {
+    if (!m || !fn)
+        return;
     /* Removal shifts later entries back into the hole, so re-examine the
      * same index after a removal; a shift can also wrap an entry from the
      * table's start to its end, which is then visited twice: harmless for a
@@ -190,6 +206,8 @@ struct tw_tile_cache {
 
 int tw_tile_cache_create(uint32_t evict_after, struct tw_tile_cache **out)
 {
+    if (!out)
+        return TW_ERR_INVALID;
     struct tw_tile_cache *c = calloc(1, sizeof(*c));
     if (!c)
         return TW_ERR_NOMEM;
@@ -226,6 +244,8 @@ static struct slot *live_slot(const struct tw_tile_cache *c, struct tw_tile_hand
 bool tw_tile_cache_find(const struct tw_tile_cache *c, struct tw_cell cell,
                         struct tw_tile_handle *out)
 {
+    if (!c || !out)
+        return false;
     const uint64_t *v = tw_cell_map_find(c->by_cell, cell);
     if (!v)
         return false;
@@ -252,6 +272,8 @@ int tw_tile_cache_acquire(struct tw_tile_cache *c, struct tw_cell cell, uint32_t
                           size_t state_bytes, uint64_t frame, struct tw_tile_handle *out,
                           bool *created)
 {
+    if (!c || !out || !created)
+        return TW_ERR_INVALID;
     if (tw_tile_cache_find(c, cell, out)) {
         struct slot *s = &c->slots[out->slot];
         if (s->info.prototype == prototype && s->info.state_bytes == state_bytes) {
@@ -307,6 +329,8 @@ int tw_tile_cache_acquire(struct tw_tile_cache *c, struct tw_cell cell, uint32_t
 
 void *tw_tile_cache_state(const struct tw_tile_cache *c, struct tw_tile_handle h)
 {
+    if (!c)
+        return NULL;
     struct slot *s = live_slot(c, h);
     return s ? s->state : NULL;
 }
@@ -314,12 +338,16 @@ void *tw_tile_cache_state(const struct tw_tile_cache *c, struct tw_tile_handle h
 const struct tw_tile_info *tw_tile_cache_info(const struct tw_tile_cache *c,
                                               struct tw_tile_handle h)
 {
+    if (!c)
+        return NULL;
     struct slot *s = live_slot(c, h);
     return s ? &s->info : NULL;
 }
 
 bool tw_tile_cache_alive(const struct tw_tile_cache *c, struct tw_tile_handle h)
 {
+    if (!c)
+        return false;
     return live_slot(c, h) != NULL;
 }
 
@@ -336,6 +364,8 @@ struct tw_tile_handle tw_tile_handle_unpack(uint64_t packed)
 
 uint32_t tw_tile_cache_evict(struct tw_tile_cache *c, uint64_t frame)
 {
+    if (!c)
+        return 0;
     uint32_t evicted = 0;
     for (uint32_t k = 0; k < c->slot_count; k++) {
         struct slot *s = &c->slots[k];
@@ -349,11 +379,15 @@ uint32_t tw_tile_cache_evict(struct tw_tile_cache *c, uint64_t frame)
 
 uint32_t tw_tile_cache_count(const struct tw_tile_cache *c)
 {
+    if (!c)
+        return 0;
     return c->live;
 }
 
 uint64_t tw_tile_cache_bytes(const struct tw_tile_cache *c)
 {
+    if (!c)
+        return 0;
     return sizeof(*c) + (uint64_t)sizeof(*c->slots) * c->slot_cap + tw_cell_map_bytes(c->by_cell) +
            c->state_bytes;
 }
@@ -369,6 +403,8 @@ bool tw_tile_cache_remove(struct tw_tile_cache *c, struct tw_cell cell)
 
 bool tw_tile_cache_evict_oldest(struct tw_tile_cache *c, uint64_t frame, uint64_t *bytes)
 {
+    if (!c)
+        return false;
     uint32_t best = UINT32_MAX;
     for (uint32_t k = 0; k < c->slot_count; k++) {
         const struct slot *s = &c->slots[k];

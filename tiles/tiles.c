@@ -27,9 +27,11 @@ void tw_log_vprintf(const struct tw_log *log, enum tw_log_level level,
 {
     if (!log || !log->fn)
         return;
-    char buf[1024];
+    char buf[1024], safe[1024];
     vsnprintf(buf, sizeof(buf), fmt, ap);
-    log->fn(log->user, level, buf);
+    /* One line of plain text whatever the pieces held (idempotent on text
+     * that was escaped already). */
+    log->fn(log->user, level, tw_log_escape(buf, safe, sizeof(safe)));
 }
 
 void tw_log_printf(const struct tw_log *log, enum tw_log_level level,
@@ -47,6 +49,102 @@ void tw_log_stderr(void *user, enum tw_log_level level, const char *msg)
     if ((intptr_t)level > (intptr_t)user)
         return;
     fprintf(stderr, "tileworld: %s: %s\n", names[level], msg);
+}
+
+/* ---- escaping ---------------------------------------------------------------- */
+
+/* The length of the valid UTF-8 sequence at s[0, n) and its code point, or 0
+ * if it is not one (overlong forms, surrogates and values above U+10FFFF are
+ * not). */
+static size_t utf8_sequence(const unsigned char *s, size_t n, uint32_t *cp)
+{
+    size_t len;
+    uint32_t v, min;
+    if (s[0] >= 0xc2 && s[0] <= 0xdf) {
+        len = 2; v = s[0] & 0x1fu; min = 0x80;
+    } else if (s[0] >= 0xe0 && s[0] <= 0xef) {
+        len = 3; v = s[0] & 0x0fu; min = 0x800;
+    } else if (s[0] >= 0xf0 && s[0] <= 0xf4) {
+        len = 4; v = s[0] & 0x07u; min = 0x10000;
+    } else {
+        return 0;
+    }
+    if (len > n)
+        return 0;
+    for (size_t k = 1; k < len; k++) {
+        if ((s[k] & 0xc0) != 0x80)
+            return 0;
+        v = v << 6 | (s[k] & 0x3fu);
+    }
+    if (v < min || v > 0x10ffff || (v >= 0xd800 && v <= 0xdfff))
+        return 0;
+    *cp = v;
+    return len;
+}
+
+static bool dangerous_code_point(uint32_t cp)
+{
+    return (cp >= 0x80 && cp <= 0x9f) || (cp >= 0x202a && cp <= 0x202e) ||
+           (cp >= 0x2066 && cp <= 0x2069);
+}
+
+const char *tw_log_escape_bytes(const void *data, size_t n, char *out, size_t size)
+{
+    if (!out || size == 0)
+        return out;
+    const unsigned char *s = data ? data : (const unsigned char *)"";
+    if (!data)
+        n = 0;
+    /* A cut text ends with "...": cut is the end of the last piece that
+     * leaves room for it. */
+    const size_t room = size > 4 ? size - 4 : 0;
+    size_t o = 0, cut = 0, k = 0;
+    bool truncated = false;
+    while (k < n) {
+        char piece[8];
+        size_t len = 0, used = 1;
+        const unsigned char c = s[k];
+        uint32_t cp = 0;
+        if (c >= 0x20 && c < 0x7f) {
+            piece[0] = (char)c;
+            len = 1;
+        } else if (c == '\n' || c == '\r' || c == '\t') {
+            piece[0] = '\\';
+            piece[1] = c == '\n' ? 'n' : c == '\r' ? 'r' : 't';
+            len = 2;
+        } else if (c >= 0x80 && (used = utf8_sequence(s + k, n - k, &cp)) > 0) {
+            if (dangerous_code_point(cp)) {
+                len = (size_t)snprintf(piece, sizeof(piece), "\\u%04x", (unsigned)cp);
+            } else {
+                memcpy(piece, s + k, used);
+                len = used;
+            }
+        } else {
+            used = 1;
+            len = (size_t)snprintf(piece, sizeof(piece), "\\x%02x", (unsigned)c);
+        }
+        if (o + len > size - 1) {
+            truncated = true;
+            break;
+        }
+        memcpy(out + o, piece, len);
+        o += len;
+        if (o <= room)
+            cut = o;
+        k += used;
+    }
+    if (truncated) {
+        const size_t dots = size - 1 - cut < 3 ? size - 1 - cut : 3;
+        memcpy(out + cut, "...", dots);
+        o = cut + dots;
+    }
+    out[o] = '\0';
+    return out;
+}
+
+const char *tw_log_escape(const char *text, char *out, size_t size)
+{
+    return tw_log_escape_bytes(text, text ? strlen(text) : 0, out, size);
 }
 
 /* ---- boxes ----------------------------------------------------------------- */
@@ -137,13 +235,19 @@ int64_t tw_tiles_floor_mod(int64_t a, int64_t b)
     return r;
 }
 
-/* Splits a finite offset into whole footprints and a remainder in [0, size). */
+/* Splits a finite offset into whole footprints and a remainder in [0, size).
+ * The quotient is range-checked in double before it becomes an int64_t:
+ * converting an out-of-range double is undefined behaviour. */
 static int split_axis(double v, double size, int64_t *cells, float *rest)
 {
+    if (!isfinite(v) || !isfinite(size) || !(size > 0.0))
+        return TW_ERR_INVALID;
     double n = floor(v / size);
     if (!(fabs(n) < 9.0e18))
         return TW_ERR_INVALID;
     double r = v - n * size;
+    if (!isfinite(r))
+        return TW_ERR_INVALID;
     float rf = (float)r;
     /* Rounding can land exactly on size (or slightly below 0). */
     if (rf >= (float)size) { rf = 0.0f; n += 1.0; }
@@ -160,20 +264,44 @@ static bool add_overflows(int64_t a, int64_t b)
 
 int tw_tiles_normalize(struct tw_world_pos *p, float w, float d)
 {
-    if (!p || !(w > 0.0f) || !(d > 0.0f) || !isfinite(p->local[0]) ||
-        !isfinite(p->local[1]) || !isfinite(p->local[2]))
+    if (!p)
+        return TW_ERR_INVALID;
+    const double local[3] = {p->local[0], p->local[1], p->local[2]};
+    return tw_tiles_normalize_double(p->cell, local, w, d, p);
+}
+
+int tw_tiles_normalize_double(struct tw_cell cell, const double local[3], float w, float d,
+                              struct tw_world_pos *out)
+{
+    if (!out || !local || !isfinite(w) || !isfinite(d) || !(w > 0.0f) || !(d > 0.0f) ||
+        !isfinite(local[0]) || !isfinite(local[1]) || !isfinite(local[2]) ||
+        !(fabs(local[1]) <= FLT_MAX))
         return TW_ERR_INVALID;
     int64_t ci, cj;
     float x, z;
-    if (split_axis(p->local[0], w, &ci, &x) || split_axis(p->local[2], d, &cj, &z))
+    if (split_axis(local[0], w, &ci, &x) || split_axis(local[2], d, &cj, &z))
         return TW_ERR_INVALID;
-    if (add_overflows(p->cell.i, ci) || add_overflows(p->cell.j, cj))
+    if (add_overflows(cell.i, ci) || add_overflows(cell.j, cj))
         return TW_ERR_INVALID;
-    p->cell.i += ci;
-    p->cell.j += cj;
-    p->local[0] = x;
-    p->local[2] = z;
+    out->cell.i = cell.i + ci;
+    out->cell.j = cell.j + cj;
+    out->local[0] = x;
+    out->local[1] = (float)local[1];
+    out->local[2] = z;
     return TW_OK;
+}
+
+double tw_tiles_cells_in_reach(const struct tw_box *common_box, float w, float d,
+                               float view_distance)
+{
+    if (!common_box || tw_box_is_empty(common_box) || !(w > 0.0f) || !(d > 0.0f) ||
+        !(view_distance >= 0.0f))
+        return INFINITY;
+    const double r2 = 2.0 * (double)view_distance;
+    const double ni = (r2 + ((double)common_box->max[0] - common_box->min[0])) / w + 2.0;
+    const double nj = (r2 + ((double)common_box->max[2] - common_box->min[2])) / d + 2.0;
+    const double n = ni * nj;
+    return isfinite(n) ? n : INFINITY;
 }
 
 void tw_tiles_cell_offset(struct tw_cell cell, struct tw_cell origin, float w,

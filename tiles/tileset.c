@@ -114,6 +114,9 @@ int tw_tileset_add_mesh(struct tw_tileset *ts, const float *positions,
     for (uint64_t k = 0; k < 3ull * vertex_count; k++)
         if (!isfinite(positions[k]) || (normals && !isfinite(normals[k])))
             return TW_ERR_INVALID;
+    for (uint64_t k = 0; k < 3ull * vertex_count; k++)
+        if (fabsf(positions[k]) > TW_TILES_MAX_MESH_COORD)
+            return TW_ERR_LIMIT;
     for (uint64_t k = 0; k < 3ull * triangle_count; k++)
         if (indices[k] >= vertex_count)
             return TW_ERR_INVALID;
@@ -176,12 +179,23 @@ int tw_tileset_add_instance(struct tw_tileset *ts, uint32_t proto, uint32_t mesh
     for (int k = 0; k < 12; k++)
         if (!isfinite(transform[k]))
             return TW_ERR_INVALID;
+    for (int k = 0; k < 12; k++)
+        if (fabsf(transform[k]) > TW_TILES_MAX_COORD)
+            return TW_ERR_LIMIT;
+    /* The placed mesh stays within reach (the transformed box holds every
+     * transformed vertex). */
+    const struct tw_box placed = tw_box_transform(&ts->meshes[mesh].box, transform);
+    for (int k = 0; k < 3; k++)
+        if (!(placed.min[k] >= -TW_TILES_MAX_COORD) || !(placed.max[k] <= TW_TILES_MAX_COORD))
+            return TW_ERR_LIMIT;
     struct tw_prototype *p = &ts->prototypes[proto];
     int err = grow((void **)&p->instances, &p->instance_cap, p->instance_count + 1,
                    sizeof(*p->instances));
     if (err)
         return err;
     struct tw_instance *in = &p->instances[p->instance_count];
+    /* Zeroed first: padding too, so that equal tilesets compare equal bytewise. */
+    memset(in, 0, sizeof(*in));
     in->mesh = mesh;
     in->material = material;
     memcpy(in->transform, transform, sizeof(in->transform));
@@ -343,7 +357,7 @@ static int compare_small(const void *a, const void *b)
  * into it. A group whose merged mesh would be invalid (too large, or
  * transformed positions that overflow) stays as it is. */
 static int merge_group(struct tw_tileset *ts, uint32_t p, const struct small_instance *list,
-                       uint32_t count)
+                       uint32_t count, uint64_t *budget)
 {
     uint64_t vertices = 0, triangles = 0;
     for (uint32_t k = 0; k < count; k++) {
@@ -351,8 +365,11 @@ static int merge_group(struct tw_tileset *ts, uint32_t p, const struct small_ins
         vertices += m->vertex_count;
         triangles += m->triangle_count;
     }
-    if (vertices > UINT32_MAX / 4 || triangles > UINT32_MAX / 4)
+    /* Baking copies what instancing shares: within the tileset's budget. */
+    const uint64_t bytes = 24 * vertices + 12 * triangles;
+    if (bytes > *budget)
         return TW_OK;
+    *budget -= bytes;
     float *pos = malloc(sizeof(float) * 3 * (size_t)vertices);
     float *nrm = malloc(sizeof(float) * 3 * (size_t)vertices);
     uint32_t *idx = malloc(sizeof(uint32_t) * 3 * (size_t)triangles);
@@ -403,7 +420,8 @@ out:
 }
 
 /* Merges prototype p's small instances, material by material. */
-static int merge_small_instances(struct tw_tileset *ts, uint32_t p, uint32_t below)
+static int merge_small_instances(struct tw_tileset *ts, uint32_t p, uint32_t below,
+                                 uint64_t *budget)
 {
     const uint32_t n = ts->prototypes[p].instance_count;
     struct small_instance *list = malloc(sizeof(*list) * (n ? n : 1));
@@ -422,7 +440,7 @@ static int merge_small_instances(struct tw_tileset *ts, uint32_t p, uint32_t bel
         while (end < count && list[end].material == list[k].material)
             end++;
         if (end - k >= 2)
-            err = merge_group(ts, p, &list[k], end - k);
+            err = merge_group(ts, p, &list[k], end - k, budget);
         k = end;
     }
     free(list);
@@ -440,8 +458,9 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
     int err = TW_OK;
     /* Without a cluster size the caller wants whole meshes: nothing merged. */
     const uint32_t below = ts->merge_triangles ? ts->merge_triangles : TW_TILESET_MERGE_TRIANGLES;
+    uint64_t budget = TW_TILESET_MERGE_BYTES;
     for (uint32_t p = 0; p < ts->prototype_count && max_cluster_triangles > 0 && below > 1; p++) {
-        err = merge_small_instances(ts, p, below);
+        err = merge_small_instances(ts, p, below, &budget);
         if (err)
             return err;
     }
@@ -492,6 +511,13 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
         }
         tw_box_add_box(&ts->common_box, &proto->box);
     }
+    /* Content that overhangs its cell by many footprints costs every frame
+     * (tiles.h, TW_TILES_MAX_SPAN). */
+    if ((double)ts->common_box.max[0] - ts->common_box.min[0] >
+            (double)TW_TILES_MAX_SPAN * ts->footprint[0] ||
+        (double)ts->common_box.max[2] - ts->common_box.min[2] >
+            (double)TW_TILES_MAX_SPAN * ts->footprint[1])
+        return TW_ERR_LIMIT;
     ts->max_cluster_triangles = max_cluster_triangles;
     ts->finished = true;
     return TW_OK;

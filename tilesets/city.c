@@ -17,6 +17,8 @@
 #include <string.h>
 
 static const float kerb_height = 0.15f;
+/* Building heights are drawn in steps of this many metres. */
+static const float height_step = 0.5f;
 
 /* Dimensions are snapped to a grid so that independently drawn buildings
  * coincide now and then and can share meshes. */
@@ -672,6 +674,7 @@ struct city {
 
     uint32_t mesh_asphalt, mesh_sidewalk, mesh_markings, mesh_lot, mesh_lamps;
     uint32_t mesh_canopy, mesh_trunk, mesh_paths, mesh_fountain, mesh_water;
+    bool park_meshes;       /* the five above are made */
 
     struct cached_building *cache;
     uint32_t cache_count, cache_cap;
@@ -857,7 +860,7 @@ static uint32_t pick_style(struct tw_rng *r, float height, float tall_from)
 
 static float pick_height(struct tw_rng *r, const float range[2])
 {
-    return quantize(tw_rng_range(r, range[0], range[1]), 0.5f);
+    return quantize(tw_rng_range(r, range[0], range[1]), height_step);
 }
 
 /* Lines side k with buildings from a = start to a = end; reports whether
@@ -1148,10 +1151,17 @@ static int build_lowrise(struct city *c, uint32_t proto, struct tw_rng *r)
     return err;
 }
 
+static int build_park_meshes(struct city *c);
+
 /* A park: lawns, paths, a fountain and trees, with low buildings along two
  * sides (fewer would not carry the triangle budget). */
 static int build_park(struct city *c, uint32_t proto, struct tw_rng *r)
 {
+    if (!c->park_meshes) {
+        const int err = build_park_meshes(c);
+        if (err)
+            return err;
+    }
     const float block = c->w - 2.0f * c->half_street;
     struct block_params bp = {0};
     bp.side_mask = (1u << 2) | (1u << 3);
@@ -1449,7 +1459,10 @@ static int build_park_meshes(struct city *c)
         disc[k][2] = m + r_in * (float)sin(a);
     }
     emit_polygon(&c->wall, (const float(*)[3])disc, sides, up);
-    return finish_shared(c, &c->mesh_water);
+    if ((err = finish_shared(c, &c->mesh_water)))
+        return err;
+    c->park_meshes = true;
+    return TW_OK;
 }
 
 static int add_materials(struct city *c)
@@ -1498,8 +1511,10 @@ static int add_materials(struct city *c)
 /* ---- the generator's lifetime (tilesets-private.h) --------------------------------- */
 
 /* Sets up the generator on an unfinished tileset: materials, then the
- * ground and park meshes that every prototype shares. */
-static int city_begin(struct city *c, struct tw_tileset *ts, const struct tw_city_settings *set)
+ * ground and park meshes that every prototype shares (the park meshes later,
+ * with the first park, unless park_meshes_now). */
+static int city_begin(struct city *c, struct tw_tileset *ts, const struct tw_city_settings *set,
+                      bool park_meshes_now)
 {
     memset(c, 0, sizeof(*c));
     c->ts = ts;
@@ -1511,7 +1526,7 @@ static int city_begin(struct city *c, struct tw_tileset *ts, const struct tw_cit
     int err = add_materials(c);
     if (!err)
         err = build_ground_meshes(c);
-    if (!err)
+    if (!err && park_meshes_now)
         err = build_park_meshes(c);
     return err;
 }
@@ -1542,8 +1557,8 @@ struct tw_city_blocks {
     struct city city;
 };
 
-int tw_city_blocks_create(struct tw_tileset *ts, const struct tw_city_settings *settings,
-                          struct tw_city_blocks **out)
+static int blocks_create(struct tw_tileset *ts, const struct tw_city_settings *settings,
+                         bool park_meshes_now, struct tw_city_blocks **out)
 {
     if (!ts || !settings || !out || ts->finished)
         return TW_ERR_INVALID;
@@ -1551,13 +1566,36 @@ int tw_city_blocks_create(struct tw_tileset *ts, const struct tw_city_settings *
     struct tw_city_blocks *b = malloc(sizeof(*b));
     if (!b)
         return TW_ERR_NOMEM;
-    const int err = city_begin(&b->city, ts, settings);
+    const int err = city_begin(&b->city, ts, settings, park_meshes_now);
     if (err) {
         tw_city_blocks_destroy(b);
         return err;
     }
     *out = b;
     return TW_OK;
+}
+
+int tw_city_blocks_create(struct tw_tileset *ts, const struct tw_city_settings *settings,
+                          struct tw_city_blocks **out)
+{
+    return blocks_create(ts, settings, true, out);
+}
+
+int tw_city_blocks_create_tile(struct tw_tileset *ts, const struct tw_city_settings *settings,
+                               struct tw_city_blocks **out)
+{
+    return blocks_create(ts, settings, false, out);
+}
+
+/* Every height a block draws is at most proto_height_cap() before it is
+ * rounded to height_step (build_dense(): hp <= cap; the other kinds cap
+ * lower), so at most cap + height_step / 2 after; spec_init() keeps a
+ * building's top, roof clutter and parapet included, 0.01 m under its
+ * height; it stands on the kerb. Lamps (6.4 m) and park trees (10.3 m) stay
+ * under the lowest max_height (20 m). */
+float tw_city_blocks_max_top(const struct tw_city_settings *settings)
+{
+    return settings->max_height + 0.5f * height_step;
 }
 
 void tw_city_blocks_destroy(struct tw_city_blocks *blocks)
@@ -1677,7 +1715,7 @@ int tw_tilesets_city(uint64_t seed, const struct tw_city_settings *settings,
     err = tw_tileset_create("city", set.footprint, set.footprint, &ts);
     if (err)
         goto fail;
-    if ((err = city_begin(&c, ts, &set)))
+    if ((err = city_begin(&c, ts, &set, true)))
         goto fail;
 
     const uint32_t n = set.prototypes;

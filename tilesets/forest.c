@@ -270,6 +270,23 @@ static const float trail_colour[4] = {0.62f, 0.53f, 0.38f, 1.0f};
 
 enum species { SPRUCE, FIR, PINE, BEECH, BIRCH, SPECIES_COUNT };
 
+_Static_assert((int)SPECIES_COUNT == (int)TW_FOREST_SPECIES_COUNT &&
+                   (int)SPRUCE == (int)TW_FOREST_SPECIES_SPRUCE &&
+                   (int)FIR == (int)TW_FOREST_SPECIES_FIR &&
+                   (int)PINE == (int)TW_FOREST_SPECIES_PINE &&
+                   (int)BEECH == (int)TW_FOREST_SPECIES_BEECH &&
+                   (int)BIRCH == (int)TW_FOREST_SPECIES_BIRCH,
+               "species in the order of tilesets-private.h");
+
+/* The ranges that placements scale meshes by; tw_forest_stands_max_top()
+ * bounds heights with their upper ends. */
+static const float tree_scale[2] = {0.85f, 1.15f};      /* horizontal, and vertical with: */
+static const float tree_stretch[2] = {0.92f, 1.08f};    /* vertical over horizontal */
+static const float outcrop_size[2] = {3.0f, 4.6f};
+static const float boulder_size[2] = {0.5f, 1.1f}, boulder_spread[2] = {0.6f, 2.0f};
+static const float rock_stretch[2] = {0.85f, 1.15f};    /* vertical over horizontal */
+static const float log_scale[2] = {0.6f, 1.1f};
+
 /* One size of one species, in metres: the meshes are built at this size and
  * each instance scales it by about 0.85 to 1.15. */
 struct model_recipe {
@@ -337,7 +354,43 @@ struct tw_forest_stands {
     struct tw_mesh_builder builder;
     struct placed *placed;
     uint32_t placed_count, placed_cap;
+
+    /* Made by the first tw_forest_stands_add_floor(). */
+    bool has_floor;
+    float floor_band;
+    uint32_t floor_mesh, trail_mesh, trail_material;
+
+    /* A generator made by tw_forest_stands_create_from(): the mesh indices
+     * above (but the floor's) are source's, and local maps each to its copy
+     * in ts, no_mesh until first placed. NULL: they are ts's own. */
+    const struct tw_tileset *source;
+    uint32_t *local;
 };
+
+/* The tileset that holds the generator's meshes. */
+static const struct tw_tileset *mesh_home(const struct tw_forest_stands *f)
+{
+    return f->source ? f->source : f->ts;
+}
+
+/* The index in ts of the generator's mesh, copied there on first use. */
+static int placed_mesh(struct tw_forest_stands *f, uint32_t mesh, uint32_t *out)
+{
+    if (!f->source) {
+        *out = mesh;
+        return TW_OK;
+    }
+    if (f->local[mesh] == no_mesh) {
+        const struct tw_mesh *m = &f->source->meshes[mesh];
+        const int index = tw_tileset_add_mesh(f->ts, m->positions, m->normals, m->vertex_count,
+                                              m->indices, m->triangle_count);
+        if (index < 0)
+            return index;
+        f->local[mesh] = (uint32_t)index;
+    }
+    *out = f->local[mesh];
+    return TW_OK;
+}
 
 static int add_mesh(struct tw_forest_stands *f, uint32_t *mesh)
 {
@@ -745,7 +798,11 @@ static int add_turned(struct tw_forest_stands *f, uint32_t proto, uint32_t mesh,
 {
     const float co = sxz * cosf(angle), si = sxz * sinf(angle);
     const float m[12] = {co, 0.0f, si, x, 0.0f, sy, 0.0f, y, -si, 0.0f, co, z};
-    const int k = tw_tileset_add_instance(f->ts, proto, mesh, material, m);
+    uint32_t local = 0;
+    const int err = placed_mesh(f, mesh, &local);
+    if (err)
+        return err;
+    const int k = tw_tileset_add_instance(f->ts, proto, local, material, m);
     return k < 0 ? k : TW_OK;
 }
 
@@ -802,9 +859,10 @@ static int place_rocks(struct tw_forest_stands *f, uint32_t proto, struct tw_rng
         const bool outcrop = k < sr->outcrops;
         for (int attempt = 0; attempt < 60; attempt++) {
             const uint32_t shape = outcrop ? ROCK_SHAPES - 1 : tw_rng_below(r, ROCK_SHAPES);
-            const float size = outcrop ? tw_rng_range(r, 3.0f, 4.6f)
-                                       : tw_rng_range(r, 0.5f, 1.1f) * tw_rng_range(r, 0.6f, 2.0f);
-            const float sy = size * tw_rng_range(r, 0.85f, 1.15f);
+            const float size = outcrop ? tw_rng_range(r, outcrop_size[0], outcrop_size[1])
+                                       : tw_rng_range(r, boulder_size[0], boulder_size[1]) *
+                                             tw_rng_range(r, boulder_spread[0], boulder_spread[1]);
+            const float sy = size * tw_rng_range(r, rock_stretch[0], rock_stretch[1]);
             const float reach = f->rock_reach[shape] * size;
             const float x = tw_rng_range(r, area->rect[0], area->rect[2]);
             const float z = tw_rng_range(r, area->rect[1], area->rect[3]);
@@ -834,7 +892,7 @@ static int place_logs(struct tw_forest_stands *f, uint32_t proto, struct tw_rng 
     int err = TW_OK;
     for (uint32_t k = 0; k < logs && !err; k++) {
         for (int attempt = 0; attempt < 60; attempt++) {
-            const float s = tw_rng_range(r, 0.6f, 1.1f);
+            const float s = tw_rng_range(r, log_scale[0], log_scale[1]);
             const float half = 0.5f * f->log_length * s, rad = f->log_radius * s;
             const float reach = sqrtf(half * half + rad * rad);
             const float x = tw_rng_range(r, area->rect[0], area->rect[2]);
@@ -872,8 +930,8 @@ static int place_trees(struct tw_forest_stands *f, uint32_t proto, struct tw_rng
         const uint32_t species = pick_weighted(r, sr->mix, SPECIES_COUNT);
         const uint32_t model = pick_model(r, species, sr->big);
         const struct tree_model *m = &f->models[model];
-        const float sxz = tw_rng_range(r, 0.85f, 1.15f);
-        const float sy = sxz * tw_rng_range(r, 0.92f, 1.08f);
+        const float sxz = tw_rng_range(r, tree_scale[0], tree_scale[1]);
+        const float sy = sxz * tw_rng_range(r, tree_stretch[0], tree_stretch[1]);
         const float angle = tw_rng_range(r, 0.0f, tau);
         const float x = tw_rng_range(r, area->rect[0], area->rect[2]);
         const float z = tw_rng_range(r, area->rect[1], area->rect[3]);
@@ -934,7 +992,9 @@ static int place_undergrowth(struct tw_forest_stands *f, uint32_t proto, struct 
             const float m[12] = {turn_cos[k], 0.0f, turn_sin[k], cx,
                                  0.0f, 1.0f, 0.0f, area->ground_y,
                                  -turn_sin[k], 0.0f, turn_cos[k], cz};
-            const uint32_t mesh = fern ? f->fern_patch[level] : f->bush_patch[level];
+            uint32_t mesh = fern ? f->fern_patch[level] : f->bush_patch[level];
+            if ((err = placed_mesh(f, mesh, &mesh)))
+                break;
             const int index = tw_tileset_add_instance(
                 f->ts, proto, mesh, f->mat[fern ? MAT_FERN : MAT_BUSH], m);
             err = index < 0 ? index : TW_OK;
@@ -943,15 +1003,17 @@ static int place_undergrowth(struct tw_forest_stands *f, uint32_t proto, struct 
     return err;
 }
 
-int tw_forest_stands_add(struct tw_forest_stands *f, uint32_t proto,
-                         enum tw_forest_stand_kind kind, uint64_t stream,
-                         const struct tw_forest_area *area)
+static bool stand_args_valid(const struct tw_forest_stands *f, uint32_t proto,
+                             enum tw_forest_stand_kind kind, const struct tw_forest_area *area)
 {
-    if (!f || !area || proto >= f->ts->prototype_count ||
-        (unsigned)kind >= TW_FOREST_STAND_KIND_COUNT || !(area->rect[2] > area->rect[0]) ||
-        !(area->rect[3] > area->rect[1]) || !(area->band >= 0.0f))
-        return TW_ERR_INVALID;
-    const struct stand_recipe *sr = &stand_recipes[kind];
+    return f && area && proto < f->ts->prototype_count &&
+           (unsigned)kind < TW_FOREST_STAND_KIND_COUNT && area->rect[2] > area->rect[0] &&
+           area->rect[3] > area->rect[1] && area->band >= 0.0f;
+}
+
+static int add_stand(struct tw_forest_stands *f, uint32_t proto, const struct stand_recipe *sr,
+                     uint64_t stream, const struct tw_forest_area *area)
+{
     struct tw_rng r = {stream};
     const float aw = area->rect[2] - area->rect[0], ad = area->rect[3] - area->rect[1];
     const float scale = aw * ad / 6400.0f;
@@ -972,6 +1034,15 @@ int tw_forest_stands_add(struct tw_forest_stands *f, uint32_t proto,
     if (!err)
         err = place_undergrowth(f, proto, &r, sr, area, clearing);
     return err;
+}
+
+int tw_forest_stands_add(struct tw_forest_stands *f, uint32_t proto,
+                         enum tw_forest_stand_kind kind, uint64_t stream,
+                         const struct tw_forest_area *area)
+{
+    if (!stand_args_valid(f, proto, kind, area))
+        return TW_ERR_INVALID;
+    return add_stand(f, proto, &stand_recipes[kind], stream, area);
 }
 
 uint32_t tw_forest_stands_floor_material(const struct tw_forest_stands *f)
@@ -1015,6 +1086,7 @@ void tw_forest_stands_destroy(struct tw_forest_stands *f)
         free(f->models[k].profile);
     tw_mesh_builder_release(&f->builder);
     free(f->placed);
+    free(f->local);
     free(f);
 }
 
@@ -1188,4 +1260,176 @@ fail:
 out:
     tw_forest_stands_destroy(stands);
     return err;
+}
+
+/* ---- stands for generated tiles (tilesets-private.h) --------------------------------- */
+
+int tw_forest_stands_create_from(const struct tw_forest_stands *model, struct tw_tileset *ts,
+                                 struct tw_forest_stands **out)
+{
+    if (!model || !ts || !out || ts->finished || model->source ||
+        ts->footprint[0] != model->ts->footprint[0] ||
+        ts->footprint[1] != model->ts->footprint[1])
+        return TW_ERR_INVALID;
+    *out = NULL;
+    struct tw_forest_stands *f = calloc(1, sizeof(*f));
+    if (!f)
+        return TW_ERR_NOMEM;
+    const struct tw_tileset *from = model->ts;
+    f->ts = ts;
+    f->set = model->set;
+    f->source = from;
+    memcpy(f->models, model->models, sizeof(f->models));
+    memcpy(f->rock, model->rock, sizeof(f->rock));
+    memcpy(f->rock_reach, model->rock_reach, sizeof(f->rock_reach));
+    f->log = model->log;
+    f->log_length = model->log_length;
+    f->log_radius = model->log_radius;
+    memcpy(f->bush_patch, model->bush_patch, sizeof(f->bush_patch));
+    memcpy(f->fern_patch, model->fern_patch, sizeof(f->fern_patch));
+    f->patch_size = model->patch_size;
+    int err = TW_OK;
+    /* The profiles are the model's until the copies own theirs. */
+    for (uint32_t k = 0; k < MODEL_COUNT; k++)
+        f->models[k].profile = NULL;
+    if (!(f->local = malloc(sizeof(*f->local) * (from->mesh_count ? from->mesh_count : 1))))
+        err = TW_ERR_NOMEM;
+    for (uint32_t k = 0; !err && k < from->mesh_count; k++)
+        f->local[k] = no_mesh;
+    for (uint32_t k = 0; k < MODEL_COUNT && !err; k++) {
+        const struct tree_model *src = &model->models[k];
+        struct tree_model *m = &f->models[k];
+        if (!(m->profile = malloc(sizeof(*m->profile) * src->profile_count)))
+            err = TW_ERR_NOMEM;
+        else
+            memcpy(m->profile, src->profile, sizeof(*m->profile) * src->profile_count);
+    }
+    for (int k = 0; k < MAT_COUNT && !err; k++) {
+        const int m = tw_tileset_add_material(ts, from->materials[model->mat[k]].base_color);
+        err = m < 0 ? m : TW_OK;
+        f->mat[k] = (uint32_t)m;
+    }
+    if (err) {
+        tw_forest_stands_destroy(f);
+        return err;
+    }
+    *out = f;
+    return TW_OK;
+}
+
+int tw_forest_stands_add_floor(struct tw_forest_stands *f, uint32_t proto, float band)
+{
+    if (!f || proto >= f->ts->prototype_count || !isfinite(band) || !(band > 0.0f) ||
+        !(2.0f * band < fminf(f->ts->footprint[0], f->ts->footprint[1])) ||
+        (f->has_floor && band != f->floor_band))
+        return TW_ERR_INVALID;
+    if (!f->has_floor) {
+        const int material = tw_tileset_add_material(f->ts, trail_colour);
+        if (material < 0)
+            return material;
+        f->trail_material = (uint32_t)material;
+        const int err = build_ground(f, band, &f->floor_mesh, &f->trail_mesh);
+        if (err)
+            return err;
+        f->has_floor = true;
+        f->floor_band = band;
+    }
+    int k = tw_tileset_add_instance(f->ts, proto, f->floor_mesh, f->mat[MAT_FLOOR], NULL);
+    if (k >= 0)
+        k = tw_tileset_add_instance(f->ts, proto, f->trail_mesh, f->trail_material, NULL);
+    return k < 0 ? k : TW_OK;
+}
+
+void tw_forest_stand_mix(enum tw_forest_stand_kind kind, float mix[TW_FOREST_SPECIES_COUNT])
+{
+    const enum tw_forest_stand_kind k =
+        (unsigned)kind < TW_FOREST_STAND_KIND_COUNT ? kind : TW_FOREST_STAND_MIXED;
+    memcpy(mix, stand_recipes[k].mix, sizeof(stand_recipes[k].mix));
+}
+
+static bool mix_valid(const float mix[TW_FOREST_SPECIES_COUNT])
+{
+    float total = 0.0f;
+    for (int s = 0; s < SPECIES_COUNT; s++) {
+        if (!isfinite(mix[s]) || !(mix[s] >= 0.0f))
+            return false;
+        total += mix[s];
+    }
+    return total > 0.0f && isfinite(total);
+}
+
+float tw_forest_stands_tree_triangles(const struct tw_forest_stands *f,
+                                      enum tw_forest_stand_kind kind,
+                                      const float mix[TW_FOREST_SPECIES_COUNT])
+{
+    if (!f || (unsigned)kind >= TW_FOREST_STAND_KIND_COUNT || !mix || !mix_valid(mix))
+        return 0.0f;
+    const float big = stand_recipes[kind].big;
+    double total = 0.0, weights = 0.0;
+    for (uint32_t s = 0; s < SPECIES_COUNT; s++) {
+        uint32_t first = 0, count = 0;
+        for (uint32_t k = 0; k < MODEL_COUNT; k++) {
+            if (model_recipes[k].species != s)
+                continue;
+            if (!count)
+                first = k;
+            count++;
+        }
+        /* pick_model(): the largest with probability big, the others
+         * evenly. */
+        double per_tree = 0.0;
+        for (uint32_t k = first; k < first + count; k++) {
+            const struct tree_model *m = &f->models[k];
+            const double p = count <= 1 ? 1.0 : k + 1 == first + count ? big
+                                                                       : (1.0 - big) / (count - 1);
+            double triangles = mesh_home(f)->meshes[m->canopy].triangle_count;
+            if (m->trunk != no_mesh)
+                triangles += mesh_home(f)->meshes[m->trunk].triangle_count;
+            per_tree += p * triangles;
+        }
+        total += mix[s] * per_tree;
+        weights += mix[s];
+    }
+    return (float)(total / weights);
+}
+
+int tw_forest_stands_add_varied(struct tw_forest_stands *f, uint32_t proto,
+                                enum tw_forest_stand_kind kind, uint64_t stream,
+                                const struct tw_forest_area *area,
+                                const float mix[TW_FOREST_SPECIES_COUNT], float tree_scale_by)
+{
+    if (!stand_args_valid(f, proto, kind, area) || !mix || !mix_valid(mix) ||
+        !isfinite(tree_scale_by) || !(tree_scale_by > 0.0f) || !(tree_scale_by <= 4.0f))
+        return TW_ERR_INVALID;
+    struct stand_recipe sr = stand_recipes[kind];
+    memcpy(sr.mix, mix, sizeof(sr.mix));
+    sr.trees *= tree_scale_by;
+    return add_stand(f, proto, &sr, stream, area);
+}
+
+/* Every placement scales a mesh vertically by at most the product of its
+ * ranges' upper ends (tw_rng_range() may round to the upper end, and the
+ * products and the transform round once more each: 1e-5 covers that). */
+float tw_forest_stands_max_top(const struct tw_forest_stands *f)
+{
+    if (!f)
+        return 0.0f;
+    const struct tw_mesh *meshes = mesh_home(f)->meshes;
+    const float tree = tree_scale[1] * tree_stretch[1];
+    float top = 0.0f;
+    for (uint32_t k = 0; k < MODEL_COUNT; k++) {
+        top = fmaxf(top, tree * meshes[f->models[k].canopy].box.max[1]);
+        if (f->models[k].trunk != no_mesh)
+            top = fmaxf(top, tree * meshes[f->models[k].trunk].box.max[1]);
+    }
+    const float boulder = boulder_size[1] * boulder_spread[1] * rock_stretch[1];
+    for (uint32_t k = 0; k < ROCK_SHAPES; k++)
+        top = fmaxf(top, boulder * meshes[f->rock[k]].box.max[1]);
+    top = fmaxf(top, outcrop_size[1] * rock_stretch[1] * meshes[f->rock[ROCK_SHAPES - 1]].box.max[1]);
+    top = fmaxf(top, log_scale[1] * meshes[f->log].box.max[1]);
+    for (uint32_t k = 0; k < PATCH_LEVELS; k++) {
+        top = fmaxf(top, meshes[f->bush_patch[k]].box.max[1]);
+        top = fmaxf(top, meshes[f->fern_patch[k]].box.max[1]);
+    }
+    return top * (1.0f + 1e-5f);
 }

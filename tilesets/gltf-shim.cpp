@@ -137,7 +137,7 @@ void one_line(const std::string &text, char *msg, size_t msg_size)
         }
         if (n + 1 >= msg_size)
             break;
-        msg[n++] = (c >= 0 && c < ' ') ? ' ' : c;
+        msg[n++] = (c >= 0 && c < ' ') || c == 0x7f ? ' ' : c;
     }
     msg[n] = '\0';
 }
@@ -157,27 +157,82 @@ uint32_t copy_values(const std::vector<double> &from, double (&to)[N])
     return count32(from.size());
 }
 
+// The values of a fixed-size property, pointing into the model.
+const double *values_of(const std::vector<double> &v, uint32_t *count)
+{
+    *count = count32(v.size());
+    return v.empty() ? nullptr : v.data();
+}
+
+// A number of a KHR_texture_transform object, or fallback.
+double number_of(const tinygltf::Value &v, size_t index, double fallback)
+{
+    if (!v.IsArray() || index >= v.ArrayLen() || !v.Get(static_cast<int>(index)).IsNumber())
+        return fallback;
+    return v.Get(static_cast<int>(index)).GetNumberAsDouble();
+}
+
+void export_uv_transform(const tinygltf::TextureInfo &t, tw_gltf_doc_material *d)
+{
+    d->uv_scale[0] = d->uv_scale[1] = 1.0;
+    d->uv_texcoord = -1;
+    auto it = t.extensions.find("KHR_texture_transform");
+    if (it == t.extensions.end() || !it->second.IsObject())
+        return;
+    const tinygltf::Value &x = it->second;
+    d->has_uv_transform = true;
+    if (x.Has("offset")) {
+        d->uv_offset[0] = number_of(x.Get("offset"), 0, 0.0);
+        d->uv_offset[1] = number_of(x.Get("offset"), 1, 0.0);
+    }
+    if (x.Has("scale")) {
+        d->uv_scale[0] = number_of(x.Get("scale"), 0, 1.0);
+        d->uv_scale[1] = number_of(x.Get("scale"), 1, 1.0);
+    }
+    if (x.Has("rotation") && x.Get("rotation").IsNumber())
+        d->uv_rotation = x.Get("rotation").GetNumberAsDouble();
+    if (x.Has("texCoord") && x.Get("texCoord").IsInt())
+        d->uv_texcoord = x.Get("texCoord").Get<int>();
+}
+
 void export_document(holder &h, tw_gltf_doc *out)
 {
     const tinygltf::Model &m = h.model;
 
+    h.nodes.reserve(m.nodes.size());
     for (const tinygltf::Node &n : m.nodes) {
         tw_gltf_doc_node d = {};
         d.mesh = n.mesh;
         d.children = n.children.empty() ? nullptr : n.children.data();
         d.child_count = count32(n.children.size());
-        d.matrix_count = copy_values(n.matrix, d.matrix);
-        d.translation_count = copy_values(n.translation, d.translation);
-        d.rotation_count = copy_values(n.rotation, d.rotation);
-        d.scale_count = copy_values(n.scale, d.scale);
+        d.matrix = values_of(n.matrix, &d.matrix_count);
+        d.translation = values_of(n.translation, &d.translation_count);
+        d.rotation = values_of(n.rotation, &d.rotation_count);
+        d.scale = values_of(n.scale, &d.scale_count);
         h.nodes.push_back(d);
     }
 
+    size_t primitive_total = 0;
+    for (const tinygltf::Mesh &mesh : m.meshes)
+        primitive_total += mesh.primitives.size();
+    h.attributes.reserve(primitive_total);
+    h.meshes.reserve(m.meshes.size());
+    h.accessors.reserve(m.accessors.size());
+    h.buffer_views.reserve(m.bufferViews.size());
+    h.buffers.reserve(m.buffers.size());
+    h.materials.reserve(m.materials.size());
+    h.textures.reserve(m.textures.size());
+    h.samplers.reserve(m.samplers.size());
+    h.images.reserve(m.images.size());
+    h.scenes.reserve(m.scenes.size());
+
     h.primitives.resize(m.meshes.size());
     for (size_t k = 0; k < m.meshes.size(); k++) {
+        h.primitives[k].reserve(m.meshes[k].primitives.size());
         for (const tinygltf::Primitive &p : m.meshes[k].primitives) {
             h.attributes.emplace_back();
             std::vector<tw_gltf_doc_attribute> &attrs = h.attributes.back();
+            attrs.reserve(p.attributes.size());
             for (const auto &a : p.attributes)
                 attrs.push_back(tw_gltf_doc_attribute{a.first.c_str(), a.second});
             tw_gltf_doc_primitive d = {};
@@ -233,6 +288,7 @@ void export_document(holder &h, tw_gltf_doc *out)
         d.base_color_count = copy_values(mat.pbrMetallicRoughness.baseColorFactor, d.base_color);
         d.base_color_texture = mat.pbrMetallicRoughness.baseColorTexture.index;
         d.base_color_texcoord = mat.pbrMetallicRoughness.baseColorTexture.texCoord;
+        export_uv_transform(mat.pbrMetallicRoughness.baseColorTexture, &d);
         h.materials.push_back(d);
     }
 
@@ -287,8 +343,28 @@ void export_document(holder &h, tw_gltf_doc *out)
     out->image_count = count32(h.images.size());
 }
 
-int load(const uint8_t *data, size_t size, const tw_gltf_shim_io *io, tw_gltf_doc *out,
-         char *msg, size_t msg_size)
+// Room for the arrays tinygltf fills (it clear()s them, which keeps it).
+void reserve_model(tinygltf::Model &m, const uint64_t *counts)
+{
+    if (!counts)
+        return;
+    m.accessors.reserve(counts[TW_GLTF_ACCESSORS]);
+    m.animations.reserve(counts[TW_GLTF_ANIMATIONS]);
+    m.buffers.reserve(counts[TW_GLTF_BUFFERS]);
+    m.bufferViews.reserve(counts[TW_GLTF_BUFFER_VIEWS]);
+    m.cameras.reserve(counts[TW_GLTF_CAMERAS]);
+    m.images.reserve(counts[TW_GLTF_IMAGES]);
+    m.materials.reserve(counts[TW_GLTF_MATERIALS]);
+    m.meshes.reserve(counts[TW_GLTF_MESHES]);
+    m.nodes.reserve(counts[TW_GLTF_NODES]);
+    m.samplers.reserve(counts[TW_GLTF_SAMPLERS]);
+    m.scenes.reserve(counts[TW_GLTF_SCENES]);
+    m.skins.reserve(counts[TW_GLTF_SKINS]);
+    m.textures.reserve(counts[TW_GLTF_TEXTURES]);
+}
+
+int load(const uint8_t *data, size_t size, const tw_gltf_shim_io *io, const uint64_t *reserve,
+         tw_gltf_doc *out, char *msg, size_t msg_size)
 {
     if (size > UINT_MAX) {
         one_line("larger than tinygltf can read (4 GiB)", msg, msg_size);
@@ -308,6 +384,12 @@ int load(const uint8_t *data, size_t size, const tw_gltf_shim_io *io, tw_gltf_do
 
     holder *h = new holder();
     std::string err, warn;
+    try {
+        reserve_model(h->model, reserve);
+    } catch (...) {
+        delete h;
+        throw;
+    }
     const bool binary = size >= 4 && memcmp(data, "glTF", 4) == 0;
     bool ok;
     try {
@@ -337,8 +419,35 @@ int load(const uint8_t *data, size_t size, const tw_gltf_shim_io *io, tw_gltf_do
 
 } // namespace
 
+extern "C" uint64_t tw_gltf_shim_element_bytes(enum tw_gltf_kind kind)
+{
+    switch (kind) {
+    case TW_GLTF_ACCESSORS: return sizeof(tinygltf::Accessor) + sizeof(tw_gltf_doc_accessor);
+    case TW_GLTF_ANIMATIONS: return sizeof(tinygltf::Animation);
+    case TW_GLTF_BUFFERS: return sizeof(tinygltf::Buffer) + sizeof(tw_gltf_doc_buffer);
+    case TW_GLTF_BUFFER_VIEWS:
+        return sizeof(tinygltf::BufferView) + sizeof(tw_gltf_doc_buffer_view);
+    case TW_GLTF_CAMERAS: return sizeof(tinygltf::Camera);
+    case TW_GLTF_IMAGES: return sizeof(tinygltf::Image) + sizeof(tw_gltf_doc_image);
+    case TW_GLTF_MATERIALS: return sizeof(tinygltf::Material) + sizeof(tw_gltf_doc_material);
+    case TW_GLTF_MESHES:
+        return sizeof(tinygltf::Mesh) + sizeof(tw_gltf_doc_mesh) +
+               sizeof(std::vector<tw_gltf_doc_primitive>);
+    case TW_GLTF_NODES: return sizeof(tinygltf::Node) + sizeof(tw_gltf_doc_node);
+    case TW_GLTF_SAMPLERS: return sizeof(tinygltf::Sampler) + sizeof(tw_gltf_doc_sampler);
+    case TW_GLTF_SCENES: return sizeof(tinygltf::Scene) + sizeof(tw_gltf_doc_scene);
+    case TW_GLTF_SKINS: return sizeof(tinygltf::Skin);
+    case TW_GLTF_TEXTURES: return sizeof(tinygltf::Texture) + sizeof(tw_gltf_doc_texture);
+    case TW_GLTF_PRIMITIVES:
+        return sizeof(tinygltf::Primitive) + sizeof(tw_gltf_doc_primitive) +
+               sizeof(std::vector<tw_gltf_doc_attribute>);
+    default: return 0;
+    }
+}
+
 extern "C" int tw_gltf_shim_load(const uint8_t *data, size_t size, const tw_gltf_shim_io *io,
-                                 tw_gltf_doc *out, char *msg, size_t msg_size)
+                                 const uint64_t reserve[TW_GLTF_KIND_COUNT], tw_gltf_doc *out,
+                                 char *msg, size_t msg_size)
 {
     if (msg && msg_size)
         msg[0] = '\0';
@@ -349,7 +458,7 @@ extern "C" int tw_gltf_shim_load(const uint8_t *data, size_t size, const tw_gltf
         return TW_ERR_INVALID;
     static const uint8_t empty = 0;
     try {
-        return load(data ? data : &empty, size, io, out, msg, msg_size);
+        return load(data ? data : &empty, size, io, reserve, out, msg, msg_size);
     } catch (const std::bad_alloc &) {
         *out = tw_gltf_doc{};
         one_line("tinygltf ran out of memory (std::bad_alloc)", msg, msg_size);

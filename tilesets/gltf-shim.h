@@ -15,6 +15,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "tilesets/gltf-scan.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -29,14 +31,14 @@ struct tw_gltf_doc_node {
     int32_t mesh;
     const int *children;            /* child_count entries */
     uint32_t child_count;
-    double matrix[16];              /* column-major, as in glTF */
+    const double *matrix;           /* column-major, as in glTF; matrix_count values */
     uint32_t matrix_count;          /* values given; 0: absent */
-    double translation[3];
     uint32_t translation_count;
-    double rotation[4];             /* quaternion x, y, z, w */
+    const double *translation;
+    const double *rotation;         /* quaternion x, y, z, w */
     uint32_t rotation_count;
-    double scale[3];
     uint32_t scale_count;
+    const double *scale;
 };
 
 struct tw_gltf_doc_attribute {
@@ -91,6 +93,14 @@ struct tw_gltf_doc_material {
     uint32_t base_color_count;      /* values given (4 when defaulted) */
     int32_t base_color_texture;     /* pbrMetallicRoughness.baseColorTexture.index, or -1 */
     int32_t base_color_texcoord;    /* its texCoord: n of TEXCOORD_n */
+    /* The texture's KHR_texture_transform, if any (identity otherwise):
+     * uv' = T(offset) R(rotation) S(scale) uv; texcoord >= 0 overrides the
+     * texCoord above. Values as given (not checked). */
+    bool has_uv_transform;
+    double uv_offset[2];
+    double uv_rotation;
+    double uv_scale[2];
+    int32_t uv_texcoord;
 };
 
 struct tw_gltf_doc_texture {
@@ -160,11 +170,20 @@ struct tw_gltf_shim_io {
 /* Parses a .gltf (JSON) or .glb (binary, told by its magic) document held in
  * data[0, size). data is only read during the call. Images are neither read
  * nor decoded: external ones keep their uri, data: URIs their bytes, and
- * bufferView ones their view (unchecked). On success returns 0 and fills *out, which the caller frees
- * with tw_gltf_shim_free(). On failure returns a negative tw_error, leaves
- * *out zeroed and writes tinygltf's reason (one line) to msg. */
+ * bufferView ones their view (unchecked). reserve (NULL: none) gives the
+ * element count of each top-level array (gltf-scan.h), so that tinygltf's
+ * arrays are allocated once at their size instead of grown (a grown array
+ * briefly holds its old and new copies). On success returns 0 and fills
+ * *out, which the caller frees with tw_gltf_shim_free(). On failure returns
+ * a negative tw_error, leaves *out zeroed and writes tinygltf's reason (one
+ * line) to msg. */
 int tw_gltf_shim_load(const uint8_t *data, size_t size, const struct tw_gltf_shim_io *io,
-                      struct tw_gltf_doc *out, char *msg, size_t msg_size);
+                      const uint64_t reserve[TW_GLTF_KIND_COUNT], struct tw_gltf_doc *out,
+                      char *msg, size_t msg_size);
+
+/* Bytes that tinygltf and the shim hold for each element of a top-level
+ * array of this kind, before any string or array inside it (for budgets). */
+uint64_t tw_gltf_shim_element_bytes(enum tw_gltf_kind kind);
 
 /* Frees a document filled by tw_gltf_shim_load(); accepts a zeroed one. */
 void tw_gltf_shim_free(struct tw_gltf_doc *doc);

@@ -25,7 +25,9 @@
 #include <unistd.h>
 
 #include "tilesets/confined-path.h"
+#include "tilesets/gltf-scan.h"
 #include "tilesets/gltf-shim.h"
+#include "tilesets/tilesets-private.h"
 
 #define DEFAULT_MAX_FILE_BYTES (256ull << 20)
 #define DEFAULT_MAX_TRIANGLES 10000000ull
@@ -36,6 +38,15 @@
  * value: bound the count so that a file within max_file_bytes cannot make it
  * allocate gigabytes. Real documents keep their bulk in buffers. */
 #define MAX_JSON_VALUES (4 << 20)
+/* Memory is bounded by the size of the document: what tinygltf, the shim and
+ * this file will hold for the document's JSON (estimated from the scan,
+ * before anything is parsed) may not exceed MEMORY_BASE + MEMORY_PER_BYTE
+ * bytes per byte of JSON text, nor MEMORY_MAX. Real documents need a few
+ * bytes per byte (their bulk is binary); a file of empty objects would need
+ * hundreds. Buffers and images are bounded by max_file_bytes on their own. */
+#define MEMORY_BASE (64ull << 20)
+#define MEMORY_PER_BYTE 32ull
+#define MEMORY_MAX (2ull << 30)
 
 enum {
     COMP_BYTE = 5120,
@@ -93,17 +104,22 @@ static struct tw_gltf_settings resolve_settings(const struct tw_gltf_settings *g
 
 struct importer {
     const char *name;                 /* for messages */
-    const char *base_dir;             /* of external buffers; NULL: none allowed */
+    char shown[256];                  /* name, escaped (tiles.h tw_log_escape()) */
+    int dir_fd;                       /* folder of external files; -1: none allowed */
     struct tw_gltf_settings settings;
     uint64_t bytes_read;              /* the file and its external buffers */
     const struct tw_gltf_doc *doc;
+    const struct tw_gltf_scan *scan;  /* the JSON's first pass: raw buffer URIs */
+    uint8_t *uri_used;                /* per scan buffer URI: handed to tinygltf already */
     char msg[1024];                   /* the first error, "<element>: <reason>" */
     int io_error;                     /* set by the external-file reader */
-    char io_msg[768];
+    char io_msg[800];
     const struct tw_log *log;         /* for warnings */
     struct decoded_image *images;     /* per document image, decoded on first use */
     struct material_texture *material_textures; /* per document material */
     uint64_t decoded_bytes;           /* of images */
+    uint32_t skipped_primitives;      /* points and lines, not drawn */
+    char skipped_first[160];          /* the first of them, for the warning */
 };
 
 static int fail(struct importer *im, int err, const char *fmt, ...)
@@ -123,102 +139,165 @@ static int fail(struct importer *im, int err, const char *fmt, ...)
     return err;
 }
 
+static void warn(struct importer *im, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+
+static void warn(struct importer *im, const char *fmt, ...)
+{
+    char text[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(text, sizeof(text), fmt, ap);
+    va_end(ap);
+    tw_log_printf(im->log, TW_LOG_WARN, "%s: %s", im->shown, text);
+}
+
 /* ---- reading files ----------------------------------------------------------- */
 
-/* Reads the regular file at path, at most limit bytes, into a malloc()ed
- * block. On failure the reason is written to why. Opened non-blocking so
- * that a FIFO is refused instead of waited on. */
-static int read_file(const char *path, uint64_t limit, uint8_t **data, size_t *size, char *why,
-                     size_t why_size)
+static int hex_value(char c)
+{
+    if (c >= '0' && c <= '9')
+        return c - '0';
+    if (c >= 'a' && c <= 'f')
+        return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F')
+        return c - 'A' + 10;
+    return -1;
+}
+
+/* uri with its %XX escapes decoded as RFC 3986 says ('+' is a plus sign;
+ * %00 is kept as is), malloc()ed. */
+static char *uri_decode(const char *uri)
+{
+    const size_t n = strlen(uri);
+    char *out = malloc(n + 1);
+    if (!out)
+        return NULL;
+    size_t o = 0;
+    for (size_t k = 0; k < n; k++) {
+        int hi, lo;
+        if (uri[k] == '%' && (hi = hex_value(uri[k + 1])) >= 0 &&
+            (lo = hex_value(uri[k + 2])) >= 0 && (hi | lo)) {
+            out[o++] = (char)(hi << 4 | lo);
+            k += 2;
+        } else {
+            out[o++] = uri[k];
+        }
+    }
+    out[o] = '\0';
+    return out;
+}
+
+/* Whether tinygltf's own URL decoding (HTML-form style: '+' is a space) of
+ * raw gives decoded: how the reader recognises which buffer tinygltf asks
+ * for. */
+static bool tinygltf_decodes_to(const char *raw, const char *decoded)
+{
+    const size_t n = strlen(raw);
+    size_t o = 0;
+    for (size_t k = 0; k < n; k++) {
+        char c = raw[k];
+        if (c == '+') {
+            c = ' ';
+        } else if (c == '%' && n > k + 2) {
+            const int hi = hex_value(raw[k + 1]), lo = hex_value(raw[k + 2]);
+            c = (char)((hi < 0 ? 0 : hi) << 4 | (lo < 0 ? 0 : lo));
+            k += 2;
+        }
+        if (decoded[o++] != c)
+            return false;
+    }
+    return decoded[o] == '\0';
+}
+
+/* The data: URIs that tinygltf decodes itself (its IsDataURI()). */
+static bool tinygltf_data_uri(const char *uri)
+{
+    static const char *const prefixes[] = {
+        "data:application/octet-stream;base64,", "data:image/jpeg;base64,",
+        "data:image/png;base64,", "data:image/bmp;base64,", "data:image/gif;base64,",
+        "data:text/plain;base64,", "data:application/gltf-buffer;base64,", NULL};
+    for (const char *const *p = prefixes; *p; p++)
+        if (strncmp(uri, *p, strlen(*p)) == 0)
+            return true;
+    return false;
+}
+
+/* Opens rel beneath the document's folder and reads it whole, within what is
+ * left of the byte budget. On failure why completes "\"rel\" ...". */
+static int read_beneath(struct importer *im, const char *rel, uint8_t **data, size_t *size,
+                        char *why, size_t why_size)
 {
     *data = NULL;
     *size = 0;
-    const int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-    if (fd < 0) {
-        snprintf(why, why_size, "cannot open: %s", strerror(errno));
-        return TW_ERR_IO;
+    int fd = -1;
+    const char *reason = NULL;
+    int err = tw_confined_open(im->dir_fd, rel, TW_CONFINED_AUTO, &fd, &reason);
+    if (err) {
+        snprintf(why, why_size, "%s", reason ? reason : "cannot be opened");
+        return err;
     }
-    int err = TW_OK;
-    uint8_t *buf = NULL;
-    struct stat st;
-    if (fstat(fd, &st) != 0) {
-        snprintf(why, why_size, "cannot stat: %s", strerror(errno));
-        err = TW_ERR_IO;
-        goto out;
-    }
-    if (!S_ISREG(st.st_mode)) {
-        snprintf(why, why_size, "is not a regular file");
-        err = TW_ERR_IO;
-        goto out;
-    }
-    if (st.st_size < 0 || (uint64_t)st.st_size > limit) {
-        snprintf(why, why_size, "is %lld bytes, more than the limit of %llu bytes",
-                 (long long)st.st_size, (unsigned long long)limit);
-        err = TW_ERR_LIMIT;
-        goto out;
-    }
-    const size_t n = (size_t)st.st_size;
-    buf = malloc(n ? n : 1);
-    if (!buf) {
-        snprintf(why, why_size, "out of memory reading %zu bytes", n);
-        err = TW_ERR_NOMEM;
-        goto out;
-    }
-    size_t got = 0;
-    while (got < n) {
-        const ssize_t r = read(fd, buf + got, n - got);
-        if (r < 0 && errno == EINTR)
-            continue;
-        if (r <= 0) {
-            snprintf(why, why_size, "cannot read: %s", r < 0 ? strerror(errno) : "file shrank");
-            err = TW_ERR_IO;
-            goto out;
-        }
-        got += (size_t)r;
-    }
-    *data = buf;
-    *size = n;
-    buf = NULL;
-out:
-    free(buf);
+    char detail[512];
+    err = tw_confined_read(fd, im->settings.max_file_bytes - im->bytes_read, data, size, detail,
+                           sizeof(detail));
     close(fd);
+    if (err == TW_ERR_LIMIT)
+        snprintf(why, why_size,
+                 "is too large: with the document it exceeds the limit of %llu bytes",
+                 (unsigned long long)im->settings.max_file_bytes);
+    else if (err)
+        snprintf(why, why_size, "%s", detail);
+    else
+        im->bytes_read += *size;
     return err;
 }
 
-/* The shim's reader of external buffers: confined to the document's folder
- * and to what is left of the byte budget. */
+/* The shim's reader of external buffers. tinygltf hands over its own
+ * URL-decoding of the uri, which read '+' as a space; the raw uri comes from
+ * the scan (the first unread buffer uri that decodes to the same text) and
+ * is decoded here as RFC 3986 says. Confined to the document's folder and
+ * to what is left of the byte budget. */
 static int read_external(void *user, const char *uri, uint8_t **data, size_t *size)
 {
     struct importer *im = user;
     *data = NULL;
     *size = 0;
-    if (!im->base_dir) {
+    const char *raw = NULL;
+    for (uint32_t k = 0; im->scan && k < im->scan->buffer_uri_count && !raw; k++) {
+        const struct tw_gltf_scan_string *u = &im->scan->buffer_uris[k];
+        if (u->text && !im->uri_used[k] && strlen(u->text) == u->length &&
+            !tinygltf_data_uri(u->text) && tinygltf_decodes_to(u->text, uri)) {
+            im->uri_used[k] = 1;
+            raw = u->text;
+        }
+    }
+    char shown[256];
+    tw_log_escape(raw ? raw : uri, shown, sizeof(shown));
+    if (!raw) {
         snprintf(im->io_msg, sizeof(im->io_msg),
-                 "buffer file \"%.200s\": external files are not allowed here", uri);
+                 "buffer file \"%s\": cannot tell which buffer's uri it is (internal)", shown);
+        return im->io_error = TW_ERR_FORMAT;
+    }
+    if (im->dir_fd < 0) {
+        snprintf(im->io_msg, sizeof(im->io_msg),
+                 "buffer file \"%s\": external files are not allowed here", shown);
         return im->io_error = TW_ERR_INVALID;
     }
-    char *resolved = NULL;
-    const char *reason = NULL;
-    int err = tw_confined_path_resolve(im->base_dir, uri, &resolved, &reason);
-    if (err) {
-        snprintf(im->io_msg, sizeof(im->io_msg), "buffer file \"%.200s\" %s", uri, reason);
-        return im->io_error = err == TW_ERR_IO ? TW_ERR_IO : TW_ERR_FORMAT;
+    char *rel = uri_decode(raw);
+    if (!rel) {
+        snprintf(im->io_msg, sizeof(im->io_msg), "buffer file \"%s\": out of memory", shown);
+        return im->io_error = TW_ERR_NOMEM;
     }
     char why[512];
-    const uint64_t left = im->settings.max_file_bytes - im->bytes_read;
-    err = read_file(resolved, left, data, size, why, sizeof(why));
-    free(resolved);
+    const int err = read_beneath(im, rel, data, size, why, sizeof(why));
+    free(rel);
     if (err) {
-        if (err == TW_ERR_LIMIT)
-            snprintf(im->io_msg, sizeof(im->io_msg),
-                     "buffer file \"%.200s\" is too large: with the document it exceeds the "
-                     "limit of %llu bytes",
-                     uri, (unsigned long long)im->settings.max_file_bytes);
-        else
-            snprintf(im->io_msg, sizeof(im->io_msg), "buffer file \"%.200s\" %s", uri, why);
+        snprintf(im->io_msg, sizeof(im->io_msg), "buffer file \"%s\" %s", shown, why);
         return im->io_error = err;
     }
-    im->bytes_read += *size;
     return TW_OK;
 }
 
@@ -269,35 +348,6 @@ static int find_json(struct importer *im, const uint8_t *data, size_t *size,
     *text = data + 20;
     *text_len = (size_t)json_length;
     return TW_OK;
-}
-
-/* How deep the JSON nests and roughly how many values it holds (commas and
- * openings outside strings), measured without parsing. */
-static void json_measure(const uint8_t *s, size_t n, uint32_t *deepest, uint64_t *values)
-{
-    uint32_t depth = 0;
-    bool in_string = false;
-    *deepest = 0;
-    *values = 0;
-    for (size_t k = 0; k < n; k++) {
-        const uint8_t c = s[k];
-        if (in_string) {
-            if (c == '\\')
-                k++;
-            else if (c == '"')
-                in_string = false;
-        } else if (c == '"') {
-            in_string = true;
-        } else if (c == '[' || c == '{') {
-            ++*values;
-            if (++depth > *deepest)
-                *deepest = depth;
-        } else if ((c == ']' || c == '}') && depth > 0) {
-            depth--;
-        } else if (c == ',') {
-            ++*values;
-        }
-    }
 }
 
 /* ---- accessors ----------------------------------------------------------------- */
@@ -518,6 +568,36 @@ static float load_float(const uint8_t *p)
     return f;
 }
 
+/* One component as a float: normalized integers map to [0, 1] or [-1, 1]
+ * (glTF 2.0 §3.11), other integers keep their value (KHR_mesh_quantization:
+ * the node's transform dequantises them). */
+static float load_as_float(const uint8_t *p, int32_t comp, bool normalized)
+{
+    switch (comp) {
+    case COMP_FLOAT:
+        return load_float(p);
+    case COMP_UNSIGNED_BYTE:
+        return normalized ? (float)p[0] / 255.0f : (float)p[0];
+    case COMP_UNSIGNED_SHORT: {
+        const uint32_t v = load_uint(p, comp);
+        return normalized ? (float)v / 65535.0f : (float)v;
+    }
+    case COMP_BYTE: {
+        const int v = (int)p[0] - (p[0] > 127 ? 256 : 0);
+        return normalized ? fmaxf((float)v / 127.0f, -1.0f) : (float)v;
+    }
+    case COMP_SHORT: {
+        const int32_t u = (int32_t)load_uint(p, COMP_UNSIGNED_SHORT);
+        const int32_t v = u - (u > 32767 ? 65536 : 0);
+        return normalized ? fmaxf((float)v / 32767.0f, -1.0f) : (float)v;
+    }
+    case COMP_UNSIGNED_INT:
+        return normalized ? (float)((double)le32(p) / 4294967295.0) : (float)le32(p);
+    default:
+        return 0.0f;
+    }
+}
+
 /* Start of the accessor's data in its buffer, or NULL when it has no buffer
  * view (zeros). The accessor has been checked. */
 static const uint8_t *accessor_base(const struct tw_gltf_doc *d,
@@ -564,11 +644,20 @@ static int apply_sparse(struct importer *im, uint32_t index,
     return TW_OK;
 }
 
-static void copy_floats(void *out, uint32_t target, const uint8_t *src, int32_t comp, uint32_t n)
+static void copy_unnormalized(void *out, uint32_t target, const uint8_t *src, int32_t comp,
+                              uint32_t n)
 {
     float *f = (float *)out + (size_t)target * n;
     for (uint32_t c = 0; c < n; c++)
-        f[c] = load_float(src + 4 * c);
+        f[c] = load_as_float(src + component_size(comp) * c, comp, false);
+}
+
+static void copy_normalized(void *out, uint32_t target, const uint8_t *src, int32_t comp,
+                            uint32_t n)
+{
+    float *f = (float *)out + (size_t)target * n;
+    for (uint32_t c = 0; c < n; c++)
+        f[c] = load_as_float(src + component_size(comp) * c, comp, true);
 }
 
 static void copy_uint(void *out, uint32_t target, const uint8_t *src, int32_t comp, uint32_t n)
@@ -576,16 +665,20 @@ static void copy_uint(void *out, uint32_t target, const uint8_t *src, int32_t co
     ((uint32_t *)out)[target] = load_uint(src, comp);
 }
 
-/* Reads a checked FLOAT accessor of n components into out (count * n). */
+/* Reads the first n components of a checked accessor as floats (integers
+ * normalised if the accessor says so, load_as_float()) into out (count * n). */
 static int read_floats(struct importer *im, uint32_t index, uint32_t n, float *out)
 {
     const struct tw_gltf_doc_accessor *a = &im->doc->accessors[index];
     uint64_t stride;
     const uint8_t *base = accessor_base(im->doc, a, &stride);
+    const uint32_t cs = component_size(a->component_type);
     for (uint64_t k = 0; k < a->count; k++)
         for (uint32_t c = 0; c < n; c++)
-            out[k * n + c] = base ? load_float(base + k * stride + 4 * c) : 0.0f;
-    return apply_sparse(im, index, copy_floats, out, n);
+            out[k * n + c] = base ? load_as_float(base + k * stride + cs * c, a->component_type,
+                                                  a->normalized)
+                                  : 0.0f;
+    return apply_sparse(im, index, a->normalized ? copy_normalized : copy_unnormalized, out, n);
 }
 
 /* Reads a checked unsigned integer SCALAR accessor into out (count). */
@@ -620,6 +713,35 @@ static const char *mode_name(int32_t mode)
     }
 }
 
+static bool draws_triangles(const struct tw_gltf_doc_primitive *p)
+{
+    return p->mode == MODE_TRIANGLES || p->mode == MODE_TRIANGLE_STRIP ||
+           p->mode == MODE_TRIANGLE_FAN;
+}
+
+static bool is_integer(int32_t comp)
+{
+    return comp == COMP_BYTE || comp == COMP_UNSIGNED_BYTE || comp == COMP_SHORT ||
+           comp == COMP_UNSIGNED_SHORT;
+}
+
+/* Vertex attribute types: glTF 2.0 §3.7.2.1 and KHR_mesh_quantization
+ * (positions of any 8- or 16-bit integers, normalized or not; normals of
+ * normalized BYTE or SHORT). */
+static bool position_type_ok(const struct tw_gltf_doc_accessor *a)
+{
+    return a->type == TYPE_VEC3 &&
+           ((a->component_type == COMP_FLOAT && !a->normalized) || is_integer(a->component_type));
+}
+
+static bool normal_type_ok(const struct tw_gltf_doc_accessor *a)
+{
+    return a->type == TYPE_VEC3 &&
+           ((a->component_type == COMP_FLOAT && !a->normalized) ||
+            ((a->component_type == COMP_BYTE || a->component_type == COMP_SHORT) &&
+             a->normalized));
+}
+
 static int check_meshes(struct importer *im)
 {
     const struct tw_gltf_doc *d = im->doc;
@@ -629,20 +751,23 @@ static int check_meshes(struct importer *im)
             return fail(im, TW_ERR_FORMAT, "meshes[%u]: has no primitives", m);
         for (uint32_t k = 0; k < mesh->primitive_count; k++) {
             const struct tw_gltf_doc_primitive *p = &mesh->primitives[k];
-            if (p->mode != MODE_TRIANGLES && p->mode != MODE_TRIANGLE_STRIP &&
-                p->mode != MODE_TRIANGLE_FAN)
+            if (p->mode < MODE_POINTS || p->mode > MODE_TRIANGLE_FAN)
                 return fail(im, TW_ERR_FORMAT,
-                            "meshes[%u].primitives[%u].mode: %d (%s) is not supported: only "
-                            "triangles, triangle strips and triangle fans are",
-                            m, k, p->mode, mode_name(p->mode));
+                            "meshes[%u].primitives[%u].mode: %d is not a glTF primitive mode "
+                            "(0 to 6)",
+                            m, k, p->mode);
             for (uint32_t t = 0; t < p->attribute_count; t++) {
                 const int32_t acc = p->attributes[t].accessor;
-                if (acc < 0 || (uint32_t)acc >= d->accessor_count)
+                if (acc < 0 || (uint32_t)acc >= d->accessor_count) {
+                    char shown[64];
                     return fail(im, TW_ERR_FORMAT,
                                 "meshes[%u].primitives[%u].attributes.%s: %d is not an "
                                 "accessor (%u)",
-                                m, k, p->attributes[t].name ? p->attributes[t].name : "?", acc,
-                                d->accessor_count);
+                                m, k,
+                                tw_log_escape(p->attributes[t].name ? p->attributes[t].name : "?",
+                                              shown, sizeof(shown)),
+                                acc, d->accessor_count);
+                }
             }
             if (p->indices < -1 || (p->indices >= 0 && (uint32_t)p->indices >= d->accessor_count))
                 return fail(im, TW_ERR_FORMAT,
@@ -653,23 +778,34 @@ static int check_meshes(struct importer *im)
                 return fail(im, TW_ERR_FORMAT,
                             "meshes[%u].primitives[%u].material: %d is not a material (%u)", m,
                             k, p->material, d->material_count);
+            if (!draws_triangles(p)) {
+                /* Points and lines are valid glTF that a triangle renderer
+                 * does not draw: skipped (one warning per file), never read. */
+                if (im->skipped_primitives++ == 0)
+                    snprintf(im->skipped_first, sizeof(im->skipped_first),
+                             "meshes[%u].primitives[%u].mode: %d (%s)", m, k, p->mode,
+                             mode_name(p->mode));
+                continue;
+            }
             const int32_t pos = find_attribute(p, "POSITION");
             if (pos < 0)
                 continue; /* drawn as nothing (glTF 2.0 §3.7.2.1) */
             const struct tw_gltf_doc_accessor *a = &d->accessors[pos];
-            if (a->type != TYPE_VEC3 || a->component_type != COMP_FLOAT || a->normalized)
+            if (!position_type_ok(a))
                 return fail(im, TW_ERR_FORMAT,
                             "meshes[%u].primitives[%u].attributes.POSITION: accessors[%d] is "
-                            "%s of %s; positions must be VEC3 of FLOAT",
-                            m, k, pos, type_name(a->type), component_name(a->component_type));
+                            "%s of %s%s; positions must be VEC3 of FLOAT, or of BYTE, "
+                            "UNSIGNED_BYTE, SHORT or UNSIGNED_SHORT (KHR_mesh_quantization)",
+                            m, k, pos, type_name(a->type), a->normalized ? "normalized " : "",
+                            component_name(a->component_type));
             const int32_t nrm = find_attribute(p, "NORMAL");
             if (nrm >= 0) {
                 const struct tw_gltf_doc_accessor *n = &d->accessors[nrm];
-                if (n->type != TYPE_VEC3 || n->component_type != COMP_FLOAT ||
-                    n->count != a->count)
+                if (!normal_type_ok(n) || n->count != a->count)
                     return fail(im, TW_ERR_FORMAT,
                                 "meshes[%u].primitives[%u].attributes.NORMAL: accessors[%d] "
-                                "must be %llu VEC3 of FLOAT like POSITION",
+                                "must be %llu VEC3 like POSITION, of FLOAT or of normalized "
+                                "BYTE or SHORT (KHR_mesh_quantization)",
                                 m, k, nrm, (unsigned long long)a->count);
             }
             if (p->indices >= 0) {
@@ -696,7 +832,7 @@ static int primitive_triangles(struct importer *im, uint32_t m, uint32_t k, uint
     const struct tw_gltf_doc_primitive *p = &d->meshes[m].primitives[k];
     *tris = 0;
     const int32_t pos = find_attribute(p, "POSITION");
-    if (pos < 0)
+    if (pos < 0 || !draws_triangles(p))
         return TW_OK;
     const uint64_t n = p->indices >= 0 ? d->accessors[p->indices].count : d->accessors[pos].count;
     if (p->mode == MODE_TRIANGLES) {
@@ -712,35 +848,54 @@ static int primitive_triangles(struct importer *im, uint32_t m, uint32_t k, uint
 }
 
 /* Checks the data of primitive k of mesh m without allocating: positions
- * finite, every index below the vertex count (sparse substitutes included;
- * base values that a substitute replaces must be in range too). Runs on
- * every primitive, drawn or not. */
+ * finite and within +-TW_TILES_MAX_MESH_COORD, every index below the vertex
+ * count (sparse substitutes included; base values that a substitute replaces
+ * must be in range too). Runs on every triangle primitive, drawn or not. */
 static int check_primitive_data(struct importer *im, uint32_t m, uint32_t k)
 {
     const struct tw_gltf_doc *d = im->doc;
     const struct tw_gltf_doc_primitive *p = &d->meshes[m].primitives[k];
     const int32_t pos = find_attribute(p, "POSITION");
-    if (pos < 0)
+    if (pos < 0 || !draws_triangles(p))
         return TW_OK;
     const struct tw_gltf_doc_accessor *pa = &d->accessors[pos];
     uint64_t stride;
     const uint8_t *base = accessor_base(d, pa, &stride);
-    for (uint64_t v = 0; base && v < pa->count; v++)
-        for (int c = 0; c < 3; c++)
-            if (!isfinite(load_float(base + v * stride + 4 * c)))
+    /* Integer positions (KHR_mesh_quantization) are small by their type. */
+    const bool floats = pa->component_type == COMP_FLOAT;
+    for (uint64_t v = 0; floats && base && v < pa->count; v++) {
+        for (int c = 0; c < 3; c++) {
+            const float x = load_float(base + v * stride + 4 * c);
+            if (!isfinite(x))
                 return fail(im, TW_ERR_FORMAT,
                             "meshes[%u].primitives[%u].attributes.POSITION: accessors[%d] "
                             "element %llu is not finite",
                             m, k, pos, (unsigned long long)v);
-    if (pa->sparse) {
+            if (fabsf(x) > TW_TILES_MAX_MESH_COORD)
+                return fail(im, TW_ERR_LIMIT,
+                            "meshes[%u].primitives[%u].attributes.POSITION: accessors[%d] "
+                            "element %llu has %c = %g, beyond +-%g",
+                            m, k, pos, (unsigned long long)v, "xyz"[c], x,
+                            (double)TW_TILES_MAX_MESH_COORD);
+        }
+    }
+    if (floats && pa->sparse) {
         const uint8_t *val = view_data(d, pa->sparse_values_view, pa->sparse_values_offset);
-        for (int32_t e = 0; e < pa->sparse_count; e++)
-            for (int c = 0; c < 3; c++)
-                if (!isfinite(load_float(val + 12 * (uint64_t)e + 4 * c)))
+        for (int32_t e = 0; e < pa->sparse_count; e++) {
+            for (int c = 0; c < 3; c++) {
+                const float x = load_float(val + 12 * (uint64_t)e + 4 * c);
+                if (!isfinite(x))
                     return fail(im, TW_ERR_FORMAT,
                                 "meshes[%u].primitives[%u].attributes.POSITION: accessors[%d] "
                                 "sparse value %d is not finite",
                                 m, k, pos, e);
+                if (fabsf(x) > TW_TILES_MAX_MESH_COORD)
+                    return fail(im, TW_ERR_LIMIT,
+                                "meshes[%u].primitives[%u].attributes.POSITION: accessors[%d] "
+                                "sparse value %d has %c = %g, beyond +-%g",
+                                m, k, pos, e, "xyz"[c], x, (double)TW_TILES_MAX_MESH_COORD);
+            }
+        }
     }
     if (p->indices < 0)
         return TW_OK;
@@ -820,6 +975,16 @@ static int convert_primitive(struct importer *im, uint32_t m, uint32_t k, uint32
             return fail(im, TW_ERR_NOMEM, "meshes[%u].primitives[%u]: out of memory", m, k);
         if ((err = read_floats(im, (uint32_t)nrm, 3, out->normals)))
             return err;
+        if (d->accessors[nrm].component_type != COMP_FLOAT) {
+            /* Quantised normals are unit length only to within a step. */
+            for (uint32_t v = 0; v < nv; v++) {
+                float *x = out->normals + 3 * (size_t)v;
+                const float len = sqrtf(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+                if (len > 0.0f)
+                    for (int c = 0; c < 3; c++)
+                        x[c] /= len;
+            }
+        }
         for (uint64_t c = 0; c < 3ull * nv; c++) {
             if (!isfinite(out->normals[c])) {
                 /* Normals are optional: drop them rather than the mesh. */
@@ -930,6 +1095,15 @@ static int check_nodes(struct importer *im, int32_t *parent)
             if (props[p].given && !all_finite(props[p].values, props[p].want))
                 return fail(im, TW_ERR_FORMAT, "nodes[%u].%s: a value is not finite", k,
                             props[p].what);
+            /* Finite but huge values would overflow what is made of them
+             * (boxes, Embree's SAH binning): a node moves or scales by at
+             * most TW_TILES_MAX_MESH_COORD, and the placed meshes must end
+             * within TW_TILES_MAX_COORD (build_scene()). */
+            for (uint32_t e = 0; props[p].given && e < props[p].want; e++)
+                if (fabs(props[p].values[e]) > TW_TILES_MAX_MESH_COORD)
+                    return fail(im, TW_ERR_LIMIT, "nodes[%u].%s: %g is beyond +-%g", k,
+                                props[p].what, props[p].values[e],
+                                (double)TW_TILES_MAX_MESH_COORD);
         }
         if (n->matrix_count && (n->translation_count || n->rotation_count || n->scale_count))
             return fail(im, TW_ERR_FORMAT,
@@ -1056,56 +1230,11 @@ struct material_texture {
     const struct decoded_image *image;
     int32_t wrap_s, wrap_t;
     uint32_t texcoord;
+    /* KHR_texture_transform (how quantised texture coordinates are
+     * dequantised): uv' = offset + [[a, b], [c, d]] uv. */
+    bool transformed;
+    double offset[2], a, b, c, d;
 };
-
-static void warn(struct importer *im, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 2, 3)))
-#endif
-    ;
-
-static void warn(struct importer *im, const char *fmt, ...)
-{
-    char text[1024];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(text, sizeof(text), fmt, ap);
-    va_end(ap);
-    tw_log_printf(im->log, TW_LOG_WARN, "%s: %s", im->name, text);
-}
-
-static int hex_value(char c)
-{
-    if (c >= '0' && c <= '9')
-        return c - '0';
-    if (c >= 'a' && c <= 'f')
-        return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F')
-        return c - 'A' + 10;
-    return -1;
-}
-
-/* uri with %XX escapes decoded (but %00, kept as is), malloc()ed. */
-static char *uri_decode(const char *uri)
-{
-    const size_t n = strlen(uri);
-    char *out = malloc(n + 1);
-    if (!out)
-        return NULL;
-    size_t o = 0;
-    for (size_t k = 0; k < n; k++) {
-        int hi, lo;
-        if (uri[k] == '%' && (hi = hex_value(uri[k + 1])) >= 0 &&
-            (lo = hex_value(uri[k + 2])) >= 0 && (hi | lo)) {
-            out[o++] = (char)(hi << 4 | lo);
-            k += 2;
-        } else {
-            out[o++] = uri[k];
-        }
-    }
-    out[o] = '\0';
-    return out;
-}
 
 static bool decode_png(struct importer *im, const char *what, const uint8_t *bytes, uint64_t size,
                        struct decoded_image *out)
@@ -1169,32 +1298,31 @@ static const struct decoded_image *load_image(struct importer *im, uint32_t inde
     char what[320];
     bool ok = false;
     if (img->uri) {
-        snprintf(what, sizeof(what), "images[%u] \"%.200s\"", index, img->uri);
-        if (!im->base_dir) {
+        char shown[224];
+        snprintf(what, sizeof(what), "images[%u] \"%s\"", index,
+                 tw_log_escape(img->uri, shown, sizeof(shown)));
+        if (im->dir_fd < 0) {
             warn(im, "%s: external files are not allowed here; its materials keep their base "
                      "colour factor",
                  what);
             return NULL;
         }
-        char *rel = uri_decode(img->uri), *resolved = NULL;
-        const char *reason = "cannot be read: out of memory";
-        if (!rel || tw_confined_path_resolve(im->base_dir, rel, &resolved, &reason)) {
-            warn(im, "%s %s; its materials keep their base colour factor", what, reason);
-            free(rel);
+        char *rel = uri_decode(img->uri);
+        if (!rel) {
+            warn(im, "%s cannot be read: out of memory; its materials keep their base colour "
+                     "factor",
+                 what);
             return NULL;
         }
-        free(rel);
         uint8_t *bytes = NULL;
         size_t size = 0;
         char why[512];
-        const int err = read_file(resolved, im->settings.max_file_bytes - im->bytes_read, &bytes,
-                                  &size, why, sizeof(why));
-        free(resolved);
+        const int err = read_beneath(im, rel, &bytes, &size, why, sizeof(why));
+        free(rel);
         if (err) {
             warn(im, "%s %s; its materials keep their base colour factor", what, why);
             return NULL;
         }
-        im->bytes_read += size;
         ok = decode_png(im, what, bytes, size, di);
         free(bytes);
     } else if (img->buffer_view >= 0) {
@@ -1260,51 +1388,28 @@ static const struct material_texture *material_texture(struct importer *im, uint
         mt->wrap_t = d->samplers[tex->sampler].wrap_t;
     }
     mt->texcoord = (uint32_t)mat->base_color_texcoord;
+    if (mat->has_uv_transform) {
+        const double r = mat->uv_rotation, sx = mat->uv_scale[0], sy = mat->uv_scale[1];
+        const double xf[6] = {mat->uv_offset[0], mat->uv_offset[1], cos(r) * sx, sin(r) * sy,
+                             -sin(r) * sx, cos(r) * sy};
+        if (!all_finite(xf, 6)) {
+            warn(im, "materials[%u].pbrMetallicRoughness.baseColorTexture.extensions."
+                     "KHR_texture_transform: a value is not finite; ignored",
+                 index);
+        } else {
+            mt->transformed = true;
+            mt->offset[0] = xf[0];
+            mt->offset[1] = xf[1];
+            mt->a = xf[2];
+            mt->b = xf[3];
+            mt->c = xf[4];
+            mt->d = xf[5];
+            if (mat->uv_texcoord >= 0 && mat->uv_texcoord <= 99)
+                mt->texcoord = (uint32_t)mat->uv_texcoord;
+        }
+    }
     mt->state = 1;
     return mt;
-}
-
-static float load_component(const uint8_t *p, int32_t comp)
-{
-    switch (comp) {
-    case COMP_FLOAT:
-        return load_float(p);
-    case COMP_UNSIGNED_BYTE:
-        return (float)p[0] / 255.0f;
-    case COMP_UNSIGNED_SHORT:
-        return (float)load_uint(p, comp) / 65535.0f;
-    case COMP_BYTE:
-        return fmaxf((float)((int)p[0] - (p[0] > 127 ? 256 : 0)) / 127.0f, -1.0f);
-    case COMP_SHORT: {
-        const int32_t v = (int32_t)load_uint(p, COMP_UNSIGNED_SHORT);
-        return fmaxf((float)(v - (v > 32767 ? 65536 : 0)) / 32767.0f, -1.0f);
-    }
-    default:
-        return 0.0f;
-    }
-}
-
-static void copy_normalized(void *out, uint32_t target, const uint8_t *src, int32_t comp,
-                            uint32_t n)
-{
-    float *f = (float *)out + (size_t)target * n;
-    for (uint32_t c = 0; c < n; c++)
-        f[c] = load_component(src + component_size(comp) * c, comp);
-}
-
-/* Reads the first n components of a checked accessor as floats (integers
- * normalised) into out (count * n). */
-static int read_normalized(struct importer *im, uint32_t index, uint32_t n, float *out)
-{
-    const struct tw_gltf_doc_accessor *a = &im->doc->accessors[index];
-    uint64_t stride;
-    const uint8_t *base = accessor_base(im->doc, a, &stride);
-    const uint32_t cs = component_size(a->component_type);
-    for (uint64_t k = 0; k < a->count; k++)
-        for (uint32_t c = 0; c < n; c++)
-            out[k * n + c] =
-                base ? load_component(base + k * stride + cs * c, a->component_type) : 0.0f;
-    return apply_sparse(im, index, copy_normalized, out, n);
 }
 
 /* The accessor of attribute name if it is usable as texture coordinates
@@ -1320,14 +1425,18 @@ static int32_t colour_attribute(struct importer *im, uint32_t m, uint32_t k, con
     const struct tw_gltf_doc_accessor *a = &im->doc->accessors[acc];
     const bool type_ok = want == 2 ? a->type == TYPE_VEC2
                                    : (a->type == TYPE_VEC3 || a->type == TYPE_VEC4);
+    /* Texture coordinates may be any 8- or 16-bit integers, normalized or
+     * not (KHR_mesh_quantization); colours only normalized unsigned ones. */
     const bool comp_ok = a->component_type == COMP_FLOAT ||
+                         (want == 2 && is_integer(a->component_type)) ||
                          ((a->component_type == COMP_UNSIGNED_BYTE ||
                            a->component_type == COMP_UNSIGNED_SHORT) &&
                           a->normalized);
     if (!type_ok || !comp_ok || a->count != nv) {
         warn(im, "meshes[%u].primitives[%u].attributes.%s: accessors[%d] is not %u %s of FLOAT "
-                 "or normalized UNSIGNED_BYTE/SHORT; ignored",
-             m, k, name, acc, nv, want == 2 ? "VEC2" : "VEC3/VEC4");
+                 "or %s; ignored",
+             m, k, name, acc, nv, want == 2 ? "VEC2" : "VEC3/VEC4",
+             want == 2 ? "8- or 16-bit integers" : "normalized UNSIGNED_BYTE/SHORT");
         return -1;
     }
     return acc;
@@ -1575,11 +1684,11 @@ static int add_primitive(struct importer *im, uint32_t m, uint32_t k, struct pal
     slot = malloc(tris);
     if (!tri_colour || !slot)
         goto nomem;
-    if (uv && (err = read_normalized(im, (uint32_t)uv_acc, 2, uv)))
+    if (uv && (err = read_floats(im, (uint32_t)uv_acc, 2, uv)))
         goto out;
     if (vcol) {
         const bool rgba = d->accessors[colour_acc].type == TYPE_VEC4;
-        if ((err = read_normalized(im, (uint32_t)colour_acc, rgba ? 4 : 3, vcol)))
+        if ((err = read_floats(im, (uint32_t)colour_acc, rgba ? 4 : 3, vcol)))
             goto out;
         if (!rgba) /* spread VEC3 to four floats, back to front */
             for (uint32_t v = nv; v-- > 0;) {
@@ -1600,6 +1709,12 @@ static int add_primitive(struct importer *im, uint32_t m, uint32_t k, struct pal
             for (int e = 0; e < 3; e++) {
                 u += uv[2 * (size_t)ix[e]] / 3.0f;
                 v += uv[2 * (size_t)ix[e] + 1] / 3.0f;
+            }
+            if (tex->transformed) {
+                const double tu = tex->offset[0] + tex->a * u + tex->b * v;
+                const double tv = tex->offset[1] + tex->c * u + tex->d * v;
+                u = isfinite(tu) ? (float)fmax(fmin(tu, 1e9), -1e9) : 0.0f;
+                v = isfinite(tv) ? (float)fmax(fmin(tv, 1e9), -1e9) : 0.0f;
             }
             const struct decoded_image *img = tex->image;
             const uint32_t x = wrap_texel(u, tex->wrap_s, img->width);
@@ -1747,21 +1862,25 @@ static char *copy_string(const char *s)
 static bool supported_extension(const char *name)
 {
     /* Required extensions that change only materials or textures can be
-     * ignored; anything else (compression, quantization) changes geometry. */
+     * ignored; anything else (compression) changes geometry. */
     static const char *const prefixes[] = {"KHR_materials_", "KHR_texture_", "KHR_lights_",
                                            "EXT_texture_", NULL};
     for (const char *const *p = prefixes; *p; p++)
         if (strncmp(name, *p, strlen(*p)) == 0)
             return true;
-    return false;
+    /* Integer vertex attributes, dequantised on import (check_meshes()). */
+    return strcmp(name, "KHR_mesh_quantization") == 0;
 }
 
-/* Builds the scene from a checked document. */
+/* Builds the scene from a checked document. Linear in the document's size:
+ * every node is visited once, every mesh's triangles counted once. */
 static int build_scene(struct importer *im, const int32_t *parent, struct tw_gltf_scene *sc)
 {
     const struct tw_gltf_doc *d = im->doc;
     int err = TW_OK;
-    uint32_t *stack = NULL, *mesh_slot = NULL;
+    uint32_t *stack = NULL, *mesh_slot = NULL, *instance_node = NULL;
+    uint64_t *mesh_tris = NULL;
+    uint8_t *listed = NULL;
     double *world = NULL;
     struct palette pal = {0};
 
@@ -1774,11 +1893,17 @@ static int build_scene(struct importer *im, const int32_t *parent, struct tw_glt
                     d->scene_count);
     if (scene_index < 0 && d->scene_count > 0)
         scene_index = 0;
-    stack = malloc(sizeof(*stack) * (d->node_count ? d->node_count : 1));
-    world = malloc(sizeof(*world) * 12 * (d->node_count ? d->node_count : 1));
-    mesh_slot = malloc(sizeof(*mesh_slot) * (d->mesh_count ? d->mesh_count : 1));
-    sc->instances = malloc(sizeof(*sc->instances) * (d->node_count ? d->node_count : 1));
-    if (!stack || !world || !mesh_slot || !sc->instances) {
+    const size_t nodes = d->node_count ? d->node_count : 1;
+    const size_t meshes = d->mesh_count ? d->mesh_count : 1;
+    stack = malloc(sizeof(*stack) * nodes);
+    world = malloc(sizeof(*world) * 12 * nodes);
+    mesh_slot = malloc(sizeof(*mesh_slot) * meshes);
+    mesh_tris = malloc(sizeof(*mesh_tris) * meshes);
+    instance_node = malloc(sizeof(*instance_node) * nodes);
+    listed = calloc(nodes, 1);
+    sc->instances = malloc(sizeof(*sc->instances) * nodes);
+    if (!stack || !world || !mesh_slot || !mesh_tris || !instance_node || !listed ||
+        !sc->instances) {
         err = fail(im, TW_ERR_NOMEM, "nodes: out of memory");
         goto out;
     }
@@ -1799,13 +1924,12 @@ static int build_scene(struct importer *im, const int32_t *parent, struct tw_glt
                            scene_index, k, n, parent[n]);
                 goto out;
             }
-            for (uint32_t j = 0; j < k; j++) {
-                if (roots[j] == n) {
-                    err = fail(im, TW_ERR_FORMAT, "scenes[%d].nodes[%u]: nodes[%d] is listed twice",
-                               scene_index, k, n);
-                    goto out;
-                }
+            if (listed[n]) {
+                err = fail(im, TW_ERR_FORMAT, "scenes[%d].nodes[%u]: nodes[%d] is listed twice",
+                           scene_index, k, n);
+                goto out;
             }
+            listed[n] = 1;
             stack[top++] = (uint32_t)n;
         }
     } else {
@@ -1821,8 +1945,10 @@ static int build_scene(struct importer *im, const int32_t *parent, struct tw_glt
         stack[a] = stack[b - 1];
         stack[b - 1] = t;
     }
-    for (uint32_t m = 0; m < d->mesh_count; m++)
+    for (uint32_t m = 0; m < d->mesh_count; m++) {
         mesh_slot[m] = UINT32_MAX;
+        mesh_tris[m] = UINT64_MAX; /* not counted yet */
+    }
 
     /* Depth first; every node is pushed at most once (one parent, no cycle). */
     uint64_t drawn = 0, vertices = 0;
@@ -1840,18 +1966,7 @@ static int build_scene(struct importer *im, const int32_t *parent, struct tw_glt
         if (node->mesh < 0)
             continue;
         const uint32_t m = (uint32_t)node->mesh;
-        struct tw_gltf_instance *in = &sc->instances[sc->instance_count];
-        for (int k = 0; k < 12; k++) {
-            in->transform[k] = (float)w[k];
-            if (!isfinite(in->transform[k])) {
-                err = fail(im, TW_ERR_FORMAT,
-                           "nodes[%u]: its transform, composed with its ancestors', is not "
-                           "finite",
-                           n);
-                goto out;
-            }
-        }
-        if (mesh_slot[m] == UINT32_MAX) {
+        if (mesh_tris[m] == UINT64_MAX) {
             uint64_t tris = 0;
             for (uint32_t k = 0; k < d->meshes[m].primitive_count; k++) {
                 uint64_t t;
@@ -1859,6 +1974,7 @@ static int build_scene(struct importer *im, const int32_t *parent, struct tw_glt
                     goto out;
                 tris += t;
             }
+            mesh_tris[m] = tris;
             if (tris == 0)
                 continue; /* draws nothing */
             mesh_slot[m] = sc->mesh_count++;
@@ -1884,15 +2000,34 @@ static int build_scene(struct importer *im, const int32_t *parent, struct tw_glt
                 goto out;
             }
         }
+        if (mesh_tris[m] == 0)
+            continue;
+        struct tw_gltf_instance *in = &sc->instances[sc->instance_count];
+        for (int k = 0; k < 12; k++) {
+            /* Checked in double before the conversion to float. */
+            if (!isfinite(w[k])) {
+                err = fail(im, TW_ERR_FORMAT,
+                           "nodes[%u]: its transform, composed with its ancestors', is not "
+                           "finite",
+                           n);
+                goto out;
+            }
+            if (fabs(w[k]) > TW_TILES_MAX_COORD) {
+                err = fail(im, TW_ERR_LIMIT,
+                           "nodes[%u]: its transform, composed with its ancestors', has %s %g, "
+                           "beyond +-%g",
+                           n, k % 4 == 3 ? "a translation of" : "a scale or rotation term of",
+                           w[k], (double)TW_TILES_MAX_COORD);
+                goto out;
+            }
+            in->transform[k] = (float)w[k];
+        }
         in->mesh = mesh_slot[m];
+        instance_node[sc->instance_count] = n;
         sc->instance_count++;
         /* Drawn triangles are counted from the document's counts, before
          * anything is converted, so that the limit holds first. */
-        for (uint32_t k = 0; k < d->meshes[m].primitive_count; k++) {
-            uint64_t t;
-            primitive_triangles(im, m, k, &t);
-            drawn += t;
-        }
+        drawn += mesh_tris[m];
         if (drawn > im->settings.max_triangles) {
             err = fail(im, TW_ERR_LIMIT,
                        "nodes[%u]: the scene draws more than the limit of %llu triangles", n,
@@ -1977,15 +2112,30 @@ static int build_scene(struct importer *im, const int32_t *parent, struct tw_glt
                 sc->primitives[k].material--;
     }
 
+    /* Every drawn mesh, placed, within reach of its tile (tiles.h,
+     * TW_TILES_MAX_COORD): named by the node that places it. */
     sc->bounds = tw_box_empty();
     for (uint32_t k = 0; k < sc->instance_count; k++) {
         const struct tw_gltf_instance *in = &sc->instances[k];
         const struct tw_gltf_mesh *gm = &sc->meshes[in->mesh];
+        struct tw_box placed = tw_box_empty();
         for (uint32_t p = 0; p < gm->primitive_count; p++) {
             struct tw_box b = tw_box_transform(&sc->primitives[gm->first_primitive + p].box,
                                                in->transform);
-            tw_box_add_box(&sc->bounds, &b);
+            tw_box_add_box(&placed, &b);
         }
+        for (int a = 0; a < 3 && !tw_box_is_empty(&placed); a++) {
+            const float lo = placed.min[a], hi = placed.max[a];
+            if (!(lo >= -TW_TILES_MAX_COORD) || !(hi <= TW_TILES_MAX_COORD)) {
+                err = fail(im, TW_ERR_LIMIT,
+                           "nodes[%u]: its mesh, placed by the node's transform composed with "
+                           "its ancestors', reaches %c = %g m, beyond +-%g m",
+                           instance_node[k], "xyz"[a], !(lo >= -TW_TILES_MAX_COORD) ? lo : hi,
+                           (double)TW_TILES_MAX_COORD);
+                goto out;
+            }
+        }
+        tw_box_add_box(&sc->bounds, &placed);
     }
     for (int k = 0; k < 3; k++) {
         if (!isfinite(sc->bounds.min[k]) || !isfinite(sc->bounds.max[k])) {
@@ -1998,7 +2148,60 @@ out:
     free(stack);
     free(world);
     free(mesh_slot);
+    free(mesh_tris);
+    free(instance_node);
+    free(listed);
     return err;
+}
+
+/* Bytes that importing a document with this JSON will hold, from the scan
+ * alone: nlohmann::json's tree (measured: about 24 bytes per value, 64 more
+ * per object, 96 per member, 48 per string plus its text), tinygltf's and
+ * the shim's objects (their sizes, from the shim), tinygltf's copies of the
+ * extras and extensions as tinygltf::Value trees, string copies, and what
+ * this file keeps per node and per primitive. An overestimate: the tree is
+ * freed before the shim copies anything. */
+static uint64_t memory_estimate(const struct tw_gltf_scan *s)
+{
+    uint64_t bytes = 32 * s->values + 64 * s->objects + 96 * s->members + 48 * s->strings +
+                     4 * s->string_bytes + 256 * s->extension_values;
+    for (int k = 0; k < TW_GLTF_KIND_COUNT; k++)
+        bytes += s->counts[k] * tw_gltf_shim_element_bytes((enum tw_gltf_kind)k);
+    /* build_scene(): parent, stack, world transform, instance, node per node. */
+    bytes += s->counts[TW_GLTF_NODES] * (4 + 4 + 96 + sizeof(struct tw_gltf_instance) + 4 + 1);
+    bytes += s->counts[TW_GLTF_MATERIALS] * (sizeof(struct tw_material) +
+                                             sizeof(struct material_texture));
+    bytes += s->counts[TW_GLTF_IMAGES] * sizeof(struct decoded_image);
+    bytes += s->counts[TW_GLTF_PRIMITIVES] * sizeof(struct tw_gltf_primitive);
+    return bytes;
+}
+
+static const char *extension_advice(const char *name)
+{
+    if (strcmp(name, "KHR_draco_mesh_compression") == 0)
+        return " (Draco-compressed geometry: decompress it first, e.g. gltf-transform copy, or "
+               "gltfpack without -cc)";
+    if (strcmp(name, "EXT_meshopt_compression") == 0 ||
+        strcmp(name, "KHR_meshopt_compression") == 0)
+        return " (meshopt-compressed buffers: write the file without -c, e.g. gltfpack -noq)";
+    return "";
+}
+
+/* The first required extension that the importer does not support, by name
+ * (-1 if none). */
+static int check_required(struct importer *im, const char *const *names, const size_t *lengths,
+                          uint32_t count)
+{
+    for (uint32_t k = 0; k < count; k++) {
+        if (!names[k] || (lengths && strlen(names[k]) != lengths[k]) ||
+            !supported_extension(names[k])) {
+            char shown[96];
+            tw_log_escape(names[k] ? names[k] : "", shown, sizeof(shown));
+            return fail(im, TW_ERR_FORMAT, "extensionsRequired[%u]: \"%s\" is not supported%s", k,
+                        shown, names[k] ? extension_advice(names[k]) : "");
+        }
+    }
+    return TW_OK;
 }
 
 static int import_document(struct importer *im, const uint8_t *data, size_t size,
@@ -2006,51 +2209,105 @@ static int import_document(struct importer *im, const uint8_t *data, size_t size
 {
     struct tw_gltf_doc doc = {0};
     struct tw_gltf_scene *sc = NULL;
+    struct tw_gltf_scan scan;
     int32_t *parent = NULL;
     int err;
+    memset(&scan, 0, sizeof(scan));
 
     const uint8_t *text;
     size_t text_len;
     if ((err = find_json(im, data, &size, &text, &text_len)))
         goto out;
-    uint32_t depth;
-    uint64_t values;
-    json_measure(text, text_len, &depth, &values);
-    if (depth > MAX_JSON_DEPTH) {
-        err = fail(im, TW_ERR_FORMAT, "JSON: nested %u levels deep, more than %d", depth,
+    if ((err = tw_gltf_scan(text, text_len, MAX_JSON_DEPTH, &scan))) {
+        err = fail(im, err, "JSON: out of memory reading it");
+        goto out;
+    }
+    if (scan.depth > MAX_JSON_DEPTH) {
+        err = fail(im, TW_ERR_FORMAT, "JSON: nested %u levels deep, more than %d", scan.depth,
                    MAX_JSON_DEPTH);
         goto out;
     }
-    if (values > MAX_JSON_VALUES) {
-        err = fail(im, TW_ERR_LIMIT, "JSON: about %llu values, more than the limit of %d",
-                   (unsigned long long)values, MAX_JSON_VALUES);
+    if (scan.values > MAX_JSON_VALUES) {
+        err = fail(im, TW_ERR_LIMIT, "JSON: %llu values, more than the limit of %d",
+                   (unsigned long long)scan.values, MAX_JSON_VALUES);
+        goto out;
+    }
+    {
+        /* Before tinygltf: it would trip over what the extension changes
+         * (a Draco primitive's accessors have no buffer view). */
+        const char **names = malloc(sizeof(*names) * (scan.extensions_required_count + 1));
+        size_t *lengths = malloc(sizeof(*lengths) * (scan.extensions_required_count + 1));
+        if (!names || !lengths) {
+            free(names);
+            free(lengths);
+            err = fail(im, TW_ERR_NOMEM, "JSON: out of memory");
+            goto out;
+        }
+        for (uint32_t k = 0; k < scan.extensions_required_count; k++) {
+            names[k] = scan.extensions_required[k].text;
+            lengths[k] = scan.extensions_required[k].length;
+        }
+        err = check_required(im, names, lengths, scan.extensions_required_count);
+        free(names);
+        free(lengths);
+        if (err)
+            goto out;
+    }
+    {
+        const uint64_t need = memory_estimate(&scan);
+        uint64_t budget = MEMORY_BASE + MEMORY_PER_BYTE * (uint64_t)text_len;
+        if (budget > MEMORY_MAX)
+            budget = MEMORY_MAX;
+        if (need > budget) {
+            static const char *const names[TW_GLTF_KIND_COUNT] = {
+                "accessors", "animations", "buffers", "bufferViews", "cameras", "images",
+                "materials", "meshes", "nodes", "samplers", "scenes", "skins", "textures",
+                "primitives"};
+            int most = 0;
+            for (int k = 1; k < TW_GLTF_KIND_COUNT; k++)
+                if (scan.counts[k] * tw_gltf_shim_element_bytes((enum tw_gltf_kind)k) >
+                    scan.counts[most] * tw_gltf_shim_element_bytes((enum tw_gltf_kind)most))
+                    most = k;
+            err = fail(im, TW_ERR_LIMIT,
+                       "JSON: importing its %llu values (%llu %s, ...) would take about %llu MiB, "
+                       "more than the %llu MiB allowed for %zu bytes of JSON",
+                       (unsigned long long)scan.values, (unsigned long long)scan.counts[most],
+                       names[most], (unsigned long long)(need >> 20),
+                       (unsigned long long)(budget >> 20), text_len);
+            goto out;
+        }
+    }
+    im->scan = &scan;
+    im->uri_used = calloc(scan.buffer_uri_count ? scan.buffer_uri_count : 1, 1);
+    if (!im->uri_used) {
+        err = fail(im, TW_ERR_NOMEM, "out of memory");
         goto out;
     }
 
     const struct tw_gltf_shim_io io = {read_external, im};
     char why[768];
-    err = tw_gltf_shim_load(data, size, &io, &doc, why, sizeof(why));
+    err = tw_gltf_shim_load(data, size, &io, scan.valid ? scan.counts : NULL, &doc, why,
+                            sizeof(why));
     if (err) {
-        if (im->io_error)
+        if (im->io_error) {
             err = fail(im, im->io_error, "buffers: %s", im->io_msg);
-        else
-            err = fail(im, err, "%s", why[0] ? why : tw_error_to_str(err));
+        } else {
+            char shown[768];
+            err = fail(im, err, "%s",
+                       why[0] ? tw_log_escape(why, shown, sizeof(shown)) : tw_error_to_str(err));
+        }
         goto out;
     }
     im->doc = &doc;
 
     if (!doc.version || doc.version[0] != '2' || doc.version[1] != '.') {
-        err = fail(im, TW_ERR_FORMAT, "asset.version: \"%.32s\" is not 2.x",
-                   doc.version ? doc.version : "");
+        char shown[48];
+        err = fail(im, TW_ERR_FORMAT, "asset.version: \"%s\" is not 2.x",
+                   tw_log_escape(doc.version ? doc.version : "", shown, sizeof(shown)));
         goto out;
     }
-    for (uint32_t k = 0; k < doc.extensions_required_count; k++) {
-        if (!supported_extension(doc.extensions_required[k])) {
-            err = fail(im, TW_ERR_FORMAT, "extensionsRequired[%u]: \"%.64s\" is not supported", k,
-                       doc.extensions_required[k]);
-            goto out;
-        }
-    }
+    if ((err = check_required(im, doc.extensions_required, NULL, doc.extensions_required_count)))
+        goto out;
     parent = malloc(sizeof(*parent) * (doc.node_count ? doc.node_count : 1));
     sc = calloc(1, sizeof(*sc));
     im->images = calloc(doc.image_count ? doc.image_count : 1, sizeof(*im->images));
@@ -2070,6 +2327,13 @@ static int import_document(struct importer *im, const uint8_t *data, size_t size
         (err = check_nodes(im, parent)) ||
         (err = build_scene(im, parent, sc)))
         goto out;
+    if (im->skipped_primitives == 1)
+        warn(im, "%s is not drawn: only triangles, triangle strips and triangle fans are",
+             im->skipped_first);
+    else if (im->skipped_primitives > 1)
+        warn(im, "%s and %u more point or line primitives are not drawn: only triangles, "
+                 "triangle strips and triangle fans are",
+             im->skipped_first, im->skipped_primitives - 1);
     *out = sc;
     sc = NULL;
 out:
@@ -2079,8 +2343,12 @@ out:
         free(im->images[k].rgba);
     free(im->images);
     free(im->material_textures);
+    free(im->uri_used);
     im->images = NULL;
     im->material_textures = NULL;
+    im->uri_used = NULL;
+    im->scan = NULL;
+    tw_gltf_scan_finish(&scan);
     tw_gltf_shim_free(&doc);
     im->doc = NULL;
     return err;
@@ -2089,9 +2357,20 @@ out:
 static int report(const struct importer *im, const struct tw_log *log, int err)
 {
     if (err)
-        tw_log_printf(log, TW_LOG_ERROR, "%s: %s", im->name,
+        tw_log_printf(log, TW_LOG_ERROR, "%s: %s", im->shown,
                       im->msg[0] ? im->msg : tw_error_to_str(err));
     return err;
+}
+
+static void importer_init(struct importer *im, const char *name,
+                          const struct tw_gltf_settings *settings, const struct tw_log *log)
+{
+    memset(im, 0, sizeof(*im));
+    im->name = name;
+    tw_log_escape(name, im->shown, sizeof(im->shown));
+    im->dir_fd = -1;
+    im->log = log;
+    im->settings = resolve_settings(settings);
 }
 
 int tw_gltf_import_memory(const void *data, size_t size, const char *name, const char *base_dir,
@@ -2103,20 +2382,53 @@ int tw_gltf_import_memory(const void *data, size_t size, const char *name, const
         return TW_ERR_INVALID;
     }
     *out = NULL;
-    struct importer im = {0};
-    im.name = name ? name : "(memory)";
-    im.base_dir = base_dir;
-    im.log = log;
-    im.settings = resolve_settings(settings);
+    struct importer im;
+    importer_init(&im, name ? name : "(memory)", settings, log);
     if (!data && size)
         return report(&im, log, fail(&im, TW_ERR_INVALID, "no data (caller's bug)"));
     if (size > im.settings.max_file_bytes)
         return report(&im, log,
                       fail(&im, TW_ERR_LIMIT, "is %zu bytes, more than the limit of %llu bytes",
                            size, (unsigned long long)im.settings.max_file_bytes));
+    if (base_dir) {
+        im.dir_fd = tw_confined_open_folder(base_dir);
+        if (im.dir_fd < 0) {
+            char shown[256];
+            return report(&im, log,
+                          fail(&im, TW_ERR_IO, "the folder of external files \"%s\": %s",
+                               tw_log_escape(base_dir, shown, sizeof(shown)), strerror(errno)));
+        }
+    }
     im.bytes_read = size;
     static const uint8_t nothing = 0;
-    return report(&im, log, import_document(&im, data ? data : &nothing, size, out));
+    const int err = import_document(&im, data ? data : &nothing, size, out);
+    if (im.dir_fd >= 0)
+        close(im.dir_fd);
+    return report(&im, log, err);
+}
+
+int tw_gltf_import_fd(int fd, int dir_fd, const char *name,
+                      const struct tw_gltf_settings *settings, const struct tw_log *log,
+                      struct tw_gltf_scene **out)
+{
+    if (!out) {
+        tw_log_printf(log, TW_LOG_ERROR, "gltf: import: out is NULL (caller's bug)");
+        return TW_ERR_INVALID;
+    }
+    *out = NULL;
+    struct importer im;
+    importer_init(&im, name ? name : "(file)", settings, log);
+    uint8_t *data = NULL;
+    size_t size = 0;
+    char why[512];
+    int err = tw_confined_read(fd, im.settings.max_file_bytes, &data, &size, why, sizeof(why));
+    if (err)
+        return report(&im, log, fail(&im, err, "%s", why));
+    im.dir_fd = dir_fd;
+    im.bytes_read = size;
+    err = import_document(&im, data, size, out);
+    free(data);
+    return report(&im, log, err);
 }
 
 int tw_gltf_import(const char *path, const struct tw_gltf_settings *settings,
@@ -2128,27 +2440,21 @@ int tw_gltf_import(const char *path, const struct tw_gltf_settings *settings,
         return TW_ERR_INVALID;
     }
     *out = NULL;
-    struct importer im = {0};
-    im.name = path;
-    im.log = log;
-    im.settings = resolve_settings(settings);
-    uint8_t *data = NULL;
-    size_t size = 0;
     char why[512];
-    int err = read_file(path, im.settings.max_file_bytes, &data, &size, why, sizeof(why));
-    if (err)
+    int fd = -1;
+    int err = tw_confined_open_user(path, &fd, why, sizeof(why));
+    if (err) {
+        struct importer im;
+        importer_init(&im, path, settings, log);
         return report(&im, log, fail(&im, err, "%s", why));
-    char *dir = tw_confined_path_dirname(path);
-    if (!dir) {
-        free(data);
-        return report(&im, log, fail(&im, TW_ERR_NOMEM, "out of memory"));
     }
-    im.base_dir = dir;
-    im.bytes_read = size;
-    err = import_document(&im, data, size, out);
-    free(dir);
-    free(data);
-    return report(&im, log, err);
+    /* External files resolve beneath the document's own folder. */
+    const int dir_fd = tw_confined_open_folder_of(path);
+    err = tw_gltf_import_fd(fd, dir_fd, path, settings, log, out);
+    close(fd);
+    if (dir_fd >= 0)
+        close(dir_fd);
+    return err;
 }
 
 /* ---- summary and tilesets -------------------------------------------------------- */
@@ -2157,7 +2463,9 @@ void tw_gltf_print_summary(const struct tw_gltf_scene *scene, FILE *f)
 {
     if (!scene || !f)
         return;
-    fprintf(f, "%s\n", scene->source ? scene->source : "(glTF scene)");
+    char shown[512];
+    fprintf(f, "%s\n", tw_log_escape(scene->source ? scene->source : "(glTF scene)", shown,
+                                     sizeof(shown)));
     fprintf(f, "  meshes      %u (%u primitives)\n", scene->mesh_count, scene->primitive_count);
     fprintf(f, "  instances   %u\n", scene->instance_count);
     fprintf(f, "  materials   %u\n", scene->material_count);

@@ -38,7 +38,20 @@
  * anything beyond the limits. Each distinct file is imported once and its
  * meshes are shared by every placement. Every error is one line naming the
  * manifest, the place in it (e.g. prototypes[2].objects[0].gltf) and the
- * reason. */
+ * reason; text quoted from the manifest is escaped (tiles.h tw_log_escape()).
+ *
+ * Files are opened beneath the manifest's folder in one step (no window
+ * between checking a name and opening it: confined-path.h), and a file is
+ * known by its identity (device and inode), however it is named.
+ *
+ * What a frame can afford (tiles.h): a weight and a scale lie in [1e-6, 1e6];
+ * every placed scene lies within +-TW_TILES_MAX_COORD of its tile and spans
+ * at most TW_TILES_MAX_SPAN footprints; and a view of the default distance
+ * (TW_TILES_REFERENCE_VIEW_DISTANCE) over the tileset considers at most
+ * TW_TILES_MAX_CELLS_IN_VIEW cells, which needs tiles of at least about
+ * 4.7 m. Memory is bounded by the file: at most MAX_MANIFEST_BYTES of text
+ * and MAX_JSON_CONTAINERS objects and arrays (json-c costs about 700 bytes
+ * each). */
 #include "tileworld/tilesets.h"
 
 #include <errno.h>
@@ -49,30 +62,58 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include "tilesets/confined-path.h"
+#include "tilesets/tilesets-private.h"
 
 #define MAX_MANIFEST_BYTES (16u << 20)
 #define MAX_JSON_DEPTH 64
+#define MAX_JSON_CONTAINERS (1u << 18)
 #define MAX_PROTOTYPES 1024
 #define MAX_OBJECTS 65536
 #define MAX_FILES 1024
-#define MAX_INSTANCES (4u << 20)
+#define MAX_INSTANCES (1u << 20)
 #define DEFAULT_CLUSTER_TRIANGLES 2048
+#define MIN_FACTOR 1e-6                /* weights and scales */
+#define MAX_FACTOR 1e6
 
 struct imported_file {
-    char *path;                    /* real path: the key */
+    dev_t dev;                     /* the file's identity: the key */
+    ino_t ino;
     struct tw_gltf_scene *scene;
     struct tw_gltf_binding binding;
 };
 
+/* A name as written in the manifest and the file it opened. */
+struct named_file {
+    char *rel;
+    uint32_t file;
+};
+
+/* An open-addressing table of indices into an array that the caller owns
+ * and compares (UINT32_MAX: an empty slot); grows at half load. */
+struct index_table {
+    uint32_t *slots;
+    uint64_t *hashes;
+    uint32_t size, count;
+};
+
 struct loader {
     const char *name;              /* the manifest, for messages */
-    const char *base_dir;
+    char shown[256];               /* name, escaped */
+    int dir_fd;                    /* the manifest's folder */
     struct tw_manifest_settings settings;
     const struct tw_log *log;
     struct tw_tileset *ts;
     struct imported_file *files;
     uint32_t file_count;
+    struct index_table file_table; /* by identity */
+    struct named_file *names;      /* every distinct name seen */
+    uint32_t name_count, name_cap;
+    struct index_table name_table;
+    struct index_table prototype_table; /* prototype names */
     uint64_t file_bytes;           /* summed sizes of the imported files */
     uint64_t instances;            /* placed so far */
     char place[160];               /* JSON place of the value being read */
@@ -116,6 +157,81 @@ static void set_place(struct loader *ld, const char *fmt, ...)
     va_end(ap);
 }
 
+/* ---- index tables ------------------------------------------------------------------ */
+
+static uint64_t hash_bytes(const void *data, size_t n, uint64_t h)
+{
+    const uint8_t *p = data;
+    for (size_t k = 0; k < n; k++)
+        h = (h ^ p[k]) * 0x100000001b3ull;
+    return h;
+}
+
+static uint64_t hash_string(const char *s)
+{
+    return hash_bytes(s, strlen(s), 0xcbf29ce484222325ull);
+}
+
+static void table_finish(struct index_table *t)
+{
+    free(t->slots);
+    free(t->hashes);
+    memset(t, 0, sizeof(*t));
+}
+
+/* Finds the entry of hash for which same(user, index) holds, or inserts
+ * index (*found = index). Constant time on average. */
+static int table_lookup(struct index_table *t, uint64_t hash,
+                        bool (*same)(const void *user, uint32_t index), const void *user,
+                        uint32_t index, uint32_t *found)
+{
+    if (2 * ((uint64_t)t->count + 1) > t->size) {
+        const uint32_t size = t->size ? 2 * t->size : 64;
+        uint32_t *slots = malloc(sizeof(*slots) * size);
+        uint64_t *hashes = malloc(sizeof(*hashes) * size);
+        if (!slots || !hashes) {
+            free(slots);
+            free(hashes);
+            return TW_ERR_NOMEM;
+        }
+        for (uint32_t k = 0; k < size; k++)
+            slots[k] = UINT32_MAX;
+        for (uint32_t k = 0; k < t->size; k++) {
+            if (t->slots[k] == UINT32_MAX)
+                continue;
+            uint32_t h = (uint32_t)t->hashes[k] & (size - 1);
+            while (slots[h] != UINT32_MAX)
+                h = (h + 1) & (size - 1);
+            slots[h] = t->slots[k];
+            hashes[h] = t->hashes[k];
+        }
+        free(t->slots);
+        free(t->hashes);
+        t->slots = slots;
+        t->hashes = hashes;
+        t->size = size;
+    }
+    uint32_t h = (uint32_t)hash & (t->size - 1);
+    while (t->slots[h] != UINT32_MAX) {
+        if (t->hashes[h] == hash && same(user, t->slots[h])) {
+            *found = t->slots[h];
+            return TW_OK;
+        }
+        h = (h + 1) & (t->size - 1);
+    }
+    t->slots[h] = index;
+    t->hashes[h] = hash;
+    t->count++;
+    *found = index;
+    return TW_OK;
+}
+
+/* Text quoted from the manifest, escaped and cut to fit a message. */
+static const char *quote(const char *text, char *out, size_t size)
+{
+    return tw_log_escape(text, out, size);
+}
+
 /* ---- typed reads ------------------------------------------------------------------ */
 
 static const char *json_type_phrase(const struct json_object *o)
@@ -150,8 +266,10 @@ static int check_keys(struct loader *ld, const struct json_object *obj, const ch
             for (const char *const *a = allowed; *a; a++)
                 n += (size_t)snprintf(list + n, n < sizeof(list) ? sizeof(list) - n : 0, "%s%s",
                                       a == allowed ? "" : ", ", *a);
+            char shown[96];
             set_place(ld, "%s", prefix);
-            return fail(ld, TW_ERR_FORMAT, "unknown key \"%.64s\" (known: %s)", key, list);
+            return fail(ld, TW_ERR_FORMAT, "unknown key \"%s\" (known: %s)",
+                        quote(key, shown, sizeof(shown)), list);
         }
     }
     return TW_OK;
@@ -178,6 +296,22 @@ static int get_ranged(struct loader *ld, const struct json_object *o, double lo,
     if (v < lo || (open_lo && v == lo) || v > hi)
         return fail(ld, TW_ERR_FORMAT, "%g is not in %s%g, %g]", v, open_lo ? "(" : "[", lo, hi);
     *out = (float)v;
+    return TW_OK;
+}
+
+/* A string without control characters (C0, DEL, C1): a name that is
+ * printed later (tileworld info, reports) must not drive a terminal. */
+static int check_printable(struct loader *ld, const char *s)
+{
+    char shown[64];
+    for (size_t k = 0; s[k]; k++) {
+        const unsigned char c = (unsigned char)s[k];
+        const bool c1 = c == 0xc2 && (unsigned char)s[k + 1] >= 0x80 &&
+                        (unsigned char)s[k + 1] <= 0x9f;
+        if (c < 0x20 || c == 0x7f || c1)
+            return fail(ld, TW_ERR_FORMAT, "\"%s\" contains a control character at byte %zu",
+                        quote(s, shown, sizeof(shown)), k);
+    }
     return TW_OK;
 }
 
@@ -238,41 +372,116 @@ static void capture(void *user, enum tw_log_level level, const char *msg)
         c->next->fn(c->next->user, level, msg);
 }
 
+static bool same_file(const void *user, uint32_t index)
+{
+    const struct loader *ld = user;
+    const struct imported_file *probe = &ld->files[ld->file_count];
+    return ld->files[index].dev == probe->dev && ld->files[index].ino == probe->ino;
+}
+
+static bool same_name(const void *user, uint32_t index)
+{
+    const struct loader *ld = user;
+    return ld->names[index].rel && strcmp(ld->names[index].rel, ld->names[ld->name_count].rel) == 0;
+}
+
 /* The imported file named rel (at the current place), importing and binding
- * it the first time. */
+ * it the first time. A name seen before costs a table lookup; a new name
+ * is opened beneath the manifest's folder, and the file it opens is
+ * imported unless another name opened it already. */
 static int get_file(struct loader *ld, const char *rel, struct imported_file **out)
 {
-    char *path = NULL;
-    const char *reason = NULL;
-    int err = tw_confined_path_resolve(ld->base_dir, rel, &path, &reason);
-    if (err)
-        return fail(ld, err == TW_ERR_NOMEM ? err : err == TW_ERR_IO ? TW_ERR_IO : TW_ERR_FORMAT,
-                    "\"%.256s\" %s", rel, reason);
-    for (uint32_t k = 0; k < ld->file_count; k++) {
-        if (strcmp(ld->files[k].path, path) == 0) {
-            free(path);
-            *out = &ld->files[k];
-            return TW_OK;
-        }
+    char shown[256];
+    quote(rel, shown, sizeof(shown));
+    /* Names first: the same text always names the same file. */
+    if (ld->name_count == ld->name_cap) {
+        const uint32_t cap = ld->name_cap ? 2 * ld->name_cap : 16;
+        struct named_file *grown = realloc(ld->names, sizeof(*grown) * (cap + 1));
+        if (!grown)
+            return fail(ld, TW_ERR_NOMEM, "out of memory");
+        ld->names = grown;
+        ld->name_cap = cap;
     }
-    if (ld->file_count >= MAX_FILES) {
-        free(path);
-        return fail(ld, TW_ERR_LIMIT, "more than %d distinct glTF files", MAX_FILES);
+    /* The probe sits one past the last entry until it is kept. */
+    ld->names[ld->name_count].rel = (char *)rel;
+    uint32_t found;
+    int err = table_lookup(&ld->name_table, hash_string(rel), same_name, ld, ld->name_count,
+                           &found);
+    if (err)
+        return fail(ld, err, "out of memory");
+    if (found != ld->name_count) {
+        if (ld->names[found].file == UINT32_MAX)
+            return fail(ld, TW_ERR_STATE, "\"%s\" could not be opened before", shown);
+        *out = &ld->files[ld->names[found].file];
+        return TW_OK;
+    }
+    const size_t n = strlen(rel) + 1;
+    char *copy = malloc(n);
+    if (!copy) {
+        /* The table holds the entry now: keep it valid (a name that
+         * matches nothing). */
+        ld->names[ld->name_count].rel = NULL;
+        ld->names[ld->name_count].file = UINT32_MAX;
+        ld->name_count++;
+        return fail(ld, TW_ERR_NOMEM, "out of memory");
+    }
+    memcpy(copy, rel, n);
+    struct named_file *named = &ld->names[ld->name_count++];
+    named->rel = copy;
+    named->file = UINT32_MAX;
+
+    int fd = -1, dir_fd = -1;
+    const char *reason = NULL;
+    err = tw_confined_open(ld->dir_fd, rel, TW_CONFINED_AUTO, &fd, &reason);
+    if (err)
+        return fail(ld, err, "\"%s\" %s", shown, reason ? reason : tw_error_to_str(err));
+    struct stat st;
+    if (fstat(fd, &st) != 0) {
+        close(fd);
+        return fail(ld, TW_ERR_IO, "\"%s\" cannot be read: %s", shown, strerror(errno));
     }
     struct imported_file *grown = realloc(ld->files, sizeof(*grown) * (ld->file_count + 1));
     if (!grown) {
-        free(path);
+        close(fd);
         return fail(ld, TW_ERR_NOMEM, "out of memory");
     }
     ld->files = grown;
     struct imported_file *f = &ld->files[ld->file_count];
     memset(f, 0, sizeof(*f));
-    f->path = path;
+    f->dev = st.st_dev;
+    f->ino = st.st_ino;
+    const uint64_t key[2] = {(uint64_t)st.st_dev, (uint64_t)st.st_ino};
+    err = table_lookup(&ld->file_table, hash_bytes(key, sizeof(key), 0xcbf29ce484222325ull),
+                       same_file, ld, ld->file_count, &found);
+    if (err) {
+        close(fd);
+        return fail(ld, err, "out of memory");
+    }
+    if (found != ld->file_count) {
+        close(fd);
+        named->file = found;
+        *out = &ld->files[found];
+        return TW_OK;
+    }
+    if (ld->file_count >= MAX_FILES) {
+        close(fd);
+        return fail(ld, TW_ERR_LIMIT, "more than %d distinct glTF files", MAX_FILES);
+    }
     ld->file_count++;
+    named->file = ld->file_count - 1;
 
+    /* The glTF file's own external files resolve in its folder, beneath
+     * the manifest's. */
+    err = tw_confined_open_parent(ld->dir_fd, rel, TW_CONFINED_AUTO, &dir_fd, &reason);
+    if (err) {
+        close(fd);
+        return fail(ld, err, "\"%s\" %s", shown, reason ? reason : tw_error_to_str(err));
+    }
     struct captured_log cap = {ld->log, ""};
     const struct tw_log capture_log = {capture, &cap};
-    err = tw_gltf_import(path, &ld->settings.gltf, &capture_log, &f->scene);
+    err = tw_gltf_import_fd(fd, dir_fd, rel, &ld->settings.gltf, &capture_log, &f->scene);
+    close(fd);
+    close(dir_fd);
     if (err)
         return fail(ld, err, "%s", cap.last[0] ? cap.last : tw_error_to_str(err));
     /* Bound the memory that many large files could take together. */
@@ -283,7 +492,7 @@ static int get_file(struct loader *ld, const char *rel, struct imported_file **o
                     (unsigned long long)(4 * ld->settings.gltf.max_file_bytes));
     err = tw_gltf_bind(f->scene, ld->ts, &f->binding);
     if (err)
-        return fail(ld, err, "cannot add \"%.256s\" to the tileset: %s", rel,
+        return fail(ld, err, "cannot add \"%s\" to the tileset: %s", shown,
                     tw_error_to_str(err));
     *out = f;
     return TW_OK;
@@ -306,7 +515,7 @@ static int place_object(struct loader *ld, uint32_t proto, const struct json_obj
         return err;
     if ((v = member(obj, "scale"))) {
         set_place(ld, "%s.scale", prefix);
-        if ((err = get_ranged(ld, v, 0.0, true, 1e6, &scale)))
+        if ((err = get_ranged(ld, v, MIN_FACTOR, false, MAX_FACTOR, &scale)))
             return err;
     }
     if ((v = member(obj, "yaw"))) {
@@ -316,28 +525,63 @@ static int place_object(struct loader *ld, uint32_t proto, const struct json_obj
     }
     if ((v = member(obj, position_key))) {
         set_place(ld, "%s.%s", prefix, position_key);
-        if ((err = get_vector(ld, v, 3, 1e7, position)))
+        if ((err = get_vector(ld, v, 3, TW_TILES_MAX_COORD, position)))
             return err;
     }
     set_place(ld, "%s.gltf", prefix);
-    struct imported_file *f;
+    struct imported_file *f = NULL;
     if ((err = get_file(ld, rel, &f)))
         return err;
+    float placement[12];
+    tw_gltf_placement(position, yaw, scale, placement);
+    /* What a frame can afford (tiles.h): the placed scene stays within reach
+     * of its tile and spans a few footprints at most. */
+    set_place(ld, "%s", prefix);
+    const struct tw_box placed = tw_box_transform(&f->scene->bounds, placement);
+    const float *footprint = ld->ts->footprint;
+    for (int a = 0; a < 3; a++) {
+        if (!(placed.min[a] >= -TW_TILES_MAX_COORD) || !(placed.max[a] <= TW_TILES_MAX_COORD))
+            return fail(ld, TW_ERR_LIMIT,
+                        "the placed scene reaches %c = %g m, beyond +-%g m of the tile (scale "
+                        "%g, position [%g, %g, %g])",
+                        "xyz"[a], !(placed.min[a] >= -TW_TILES_MAX_COORD) ? placed.min[a]
+                                                                         : placed.max[a],
+                        (double)TW_TILES_MAX_COORD, scale, position[0], position[1],
+                        position[2]);
+        if (a == 1)
+            continue;
+        const double span = (double)placed.max[a] - placed.min[a];
+        const double most = (double)TW_TILES_MAX_SPAN * footprint[a / 2];
+        if (span > most)
+            return fail(ld, TW_ERR_LIMIT,
+                        "the placed scene spans %g m along %c, more than %g footprints (%g m): "
+                        "every frame would have to consider the cells it overhangs (scale %g)",
+                        span, "xyz"[a], (double)TW_TILES_MAX_SPAN, most, scale);
+    }
+    set_place(ld, "%s.gltf", prefix);
     uint64_t added = 0;
     for (uint32_t k = 0; k < f->scene->instance_count; k++)
         added += f->scene->meshes[f->scene->instances[k].mesh].primitive_count;
     if ((ld->instances += added) > MAX_INSTANCES)
         return fail(ld, TW_ERR_LIMIT, "the tileset would hold more than %u instances",
                     MAX_INSTANCES);
-    float placement[12];
-    tw_gltf_placement(position, yaw, scale, placement);
     err = tw_gltf_place(f->scene, &f->binding, ld->ts, proto, placement);
-    if (err)
-        return fail(ld, err, "cannot place \"%.256s\": %s", rel, tw_error_to_str(err));
+    if (err) {
+        char shown[256];
+        return fail(ld, err, "cannot place \"%s\": %s", quote(rel, shown, sizeof(shown)),
+                    tw_error_to_str(err));
+    }
     return TW_OK;
 }
 
 /* ---- the document ------------------------------------------------------------------ */
+
+static bool same_prototype_name(const void *user, uint32_t index)
+{
+    const struct loader *ld = user;
+    const struct tw_tileset *ts = ld->ts;
+    return strcmp(ts->prototypes[index].name, ts->prototypes[ts->prototype_count - 1].name) == 0;
+}
 
 static int read_prototype(struct loader *ld, const struct json_object *p, uint32_t index)
 {
@@ -369,20 +613,29 @@ static int read_prototype(struct loader *ld, const struct json_object *p, uint32
         return err;
     if (!name[0])
         return fail(ld, TW_ERR_FORMAT, "is empty");
-    for (uint32_t k = 0; k < ld->ts->prototype_count; k++)
-        if (strcmp(ld->ts->prototypes[k].name, name) == 0)
-            return fail(ld, TW_ERR_FORMAT, "\"%s\" is already the name of prototypes[%u]", name,
-                        k);
+    if ((err = check_printable(ld, name)))
+        return err;
     float weight = 1.0f;
     if ((v = member(p, "weight"))) {
         set_place(ld, "%s.weight", prefix);
-        if ((err = get_ranged(ld, v, 0.0, true, 1e6, &weight)))
+        if ((err = get_ranged(ld, v, MIN_FACTOR, false, MAX_FACTOR, &weight)))
             return err;
     }
     const int proto = tw_tileset_add_prototype(ld->ts, name, weight);
     if (proto < 0) {
         set_place(ld, "%s", prefix);
         return fail(ld, proto, "cannot add the prototype: %s", tw_error_to_str(proto));
+    }
+    /* Unique names, in constant time each. */
+    uint32_t found;
+    if ((err = table_lookup(&ld->prototype_table, hash_string(name), same_prototype_name, ld,
+                            (uint32_t)proto, &found)))
+        return fail(ld, err, "out of memory");
+    if (found != (uint32_t)proto) {
+        char shown[64];
+        set_place(ld, "%s.name", prefix);
+        return fail(ld, TW_ERR_FORMAT, "\"%s\" is already the name of prototypes[%u]",
+                    quote(name, shown, sizeof(shown)), found);
     }
     if (single)
         return place_object(ld, (uint32_t)proto, p, prefix, "offset");
@@ -408,7 +661,8 @@ static int read_prototype(struct loader *ld, const struct json_object *p, uint32
     return TW_OK;
 }
 
-/* The default tileset name: the manifest's file name without ".json". */
+/* The default tileset name: the manifest's file name without ".json",
+ * escaped (a file name may hold anything). */
 static void default_name(const char *name, char *out, size_t size)
 {
     const char *slash = strrchr(name, '/');
@@ -416,10 +670,43 @@ static void default_name(const char *name, char *out, size_t size)
     size_t n = strlen(base);
     if (n > 5 && strcmp(base + n - 5, ".json") == 0)
         n -= 5;
-    if (n >= size)
-        n = size - 1;
-    memcpy(out, base, n);
-    out[n] = '\0';
+    tw_log_escape_bytes(base, n, out, size);
+}
+
+/* The cells a frame at the default view distance would consider. */
+static int check_reach(struct loader *ld, const struct tw_box *box, const char *what)
+{
+    const float *fp = ld->ts ? ld->ts->footprint : NULL;
+    const double cells = tw_tiles_cells_in_reach(box, fp[0], fp[1],
+                                                 TW_TILES_REFERENCE_VIEW_DISTANCE);
+    if (cells <= TW_TILES_MAX_CELLS_IN_VIEW)
+        return TW_OK;
+    return fail(ld, TW_ERR_LIMIT,
+                "%s on %g x %g m tiles: a frame at the default view distance of %g m would "
+                "consider about %.3g cells, more than the limit of %u (tiles of %.3g m or more "
+                "fit, or content that spans fewer of them)",
+                what, fp[0], fp[1], (double)TW_TILES_REFERENCE_VIEW_DISTANCE, cells,
+                TW_TILES_MAX_CELLS_IN_VIEW,
+                2.0 * TW_TILES_REFERENCE_VIEW_DISTANCE /
+                    (sqrt((double)TW_TILES_MAX_CELLS_IN_VIEW) - 2.0));
+}
+
+/* After tw_tileset_finish() refused the tileset's span, or the reach check
+ * did: the prototype that spans the most footprints. */
+static uint32_t widest_prototype(const struct tw_tileset *ts)
+{
+    uint32_t widest = 0;
+    double most = -1.0;
+    for (uint32_t k = 0; k < ts->prototype_count; k++) {
+        const struct tw_box *b = &ts->prototypes[k].box;
+        const double span = fmax(((double)b->max[0] - b->min[0]) / ts->footprint[0],
+                                 ((double)b->max[2] - b->min[2]) / ts->footprint[1]);
+        if (span > most) {
+            most = span;
+            widest = k;
+        }
+    }
+    return widest;
 }
 
 static int read_manifest(struct loader *ld, const struct json_object *root)
@@ -441,7 +728,8 @@ static int read_manifest(struct loader *ld, const struct json_object *root)
     if ((v = member(root, "name"))) {
         const char *given;
         set_place(ld, "name");
-        if ((err = get_string(ld, v, sizeof(name) - 1, &given)))
+        if ((err = get_string(ld, v, sizeof(name) - 1, &given)) ||
+            (err = check_printable(ld, given)))
             return err;
         snprintf(name, sizeof(name), "%s", given);
     }
@@ -450,7 +738,7 @@ static int read_manifest(struct loader *ld, const struct json_object *root)
     set_place(ld, "footprint");
     if (!(v = member(root, "footprint")))
         return fail(ld, TW_ERR_FORMAT, "is missing");
-    if ((err = get_vector(ld, v, 2, 1e5, footprint)))
+    if ((err = get_vector(ld, v, 2, TW_TILES_MAX_COORD, footprint)))
         return err;
     if (!(footprint[0] > 0.0f) || !(footprint[1] > 0.0f))
         return fail(ld, TW_ERR_FORMAT, "both sides must be positive");
@@ -481,13 +769,27 @@ static int read_manifest(struct loader *ld, const struct json_object *root)
     set_place(ld, "%s", "");
     if ((err = tw_tileset_create(name, footprint[0], footprint[1], &ld->ts)))
         return fail(ld, err, "cannot create the tileset: %s", tw_error_to_str(err));
+    /* The footprint alone bounds the cells in view (tiles of 1 cm: 10^10). */
+    set_place(ld, "footprint");
+    const struct tw_box point = {{0, 0, 0}, {0, 0, 0}};
+    if ((err = check_reach(ld, &point, "tiles")))
+        return err;
     for (size_t k = 0; k < n; k++)
         if ((err = read_prototype(ld, json_object_array_get_idx(v, k), (uint32_t)k)))
             return err;
     set_place(ld, "%s", "");
-    if ((err = tw_tileset_finish(ld->ts, cluster)))
+    if ((err = tw_tileset_finish(ld->ts, cluster))) {
+        if (err == TW_ERR_LIMIT) {
+            const uint32_t w = widest_prototype(ld->ts);
+            set_place(ld, "prototypes[%u]", w);
+            return fail(ld, err, "spans more than %g footprints: every frame would have to "
+                                 "consider the cells it overhangs",
+                        (double)TW_TILES_MAX_SPAN);
+        }
         return fail(ld, err, "cannot finish the tileset: %s", tw_error_to_str(err));
-    return TW_OK;
+    }
+    set_place(ld, "prototypes[%u]", widest_prototype(ld->ts));
+    return check_reach(ld, &ld->ts->common_box, "the tileset's content");
 }
 
 /* Line and column (1-based) of byte offset in text. */
@@ -505,6 +807,28 @@ static void line_column(const char *text, size_t offset, unsigned *line, unsigne
     }
 }
 
+/* Objects and arrays in text, outside strings: json-c spends hundreds of
+ * bytes on each, so their number bounds the memory a manifest takes. */
+static uint64_t count_containers(const char *text, size_t size)
+{
+    uint64_t n = 0;
+    bool in_string = false;
+    for (size_t k = 0; k < size; k++) {
+        const char c = text[k];
+        if (in_string) {
+            if (c == '\\')
+                k++;
+            else if (c == '"')
+                in_string = false;
+        } else if (c == '"') {
+            in_string = true;
+        } else if (c == '{' || c == '[') {
+            n++;
+        }
+    }
+    return n;
+}
+
 static int parse(struct loader *ld, const char *text, size_t size, struct tw_tileset **out)
 {
     struct json_tokener *tok = NULL;
@@ -517,8 +841,19 @@ static int parse(struct loader *ld, const char *text, size_t size, struct tw_til
                    MAX_MANIFEST_BYTES);
         goto out;
     }
-    if (memchr(text, '\0', size)) {
-        err = fail(ld, TW_ERR_FORMAT, "contains a NUL byte: not a JSON text");
+    const char *nul = memchr(text, '\0', size);
+    if (nul) {
+        unsigned line, column;
+        line_column(text, (size_t)(nul - text), &line, &column);
+        err = fail(ld, TW_ERR_FORMAT, "line %u, column %u: a NUL byte: not a JSON text", line,
+                   column);
+        goto out;
+    }
+    const uint64_t containers = count_containers(text, size);
+    if (containers > MAX_JSON_CONTAINERS) {
+        err = fail(ld, TW_ERR_LIMIT, "holds %llu JSON objects and arrays, more than the limit "
+                                     "of %u",
+                   (unsigned long long)containers, MAX_JSON_CONTAINERS);
         goto out;
     }
     tok = json_tokener_new_ex(MAX_JSON_DEPTH);
@@ -574,16 +909,33 @@ static void resolve_settings(const struct tw_manifest_settings *given,
         s->gltf.max_triangles = given->gltf.max_triangles;
 }
 
+static void init_loader(struct loader *ld, const char *name,
+                        const struct tw_manifest_settings *settings, const struct tw_log *log)
+{
+    memset(ld, 0, sizeof(*ld));
+    ld->name = name;
+    tw_log_escape(name, ld->shown, sizeof(ld->shown));
+    ld->dir_fd = -1;
+    ld->log = log;
+    resolve_settings(settings, &ld->settings);
+}
+
 static int finish_loader(struct loader *ld, int err)
 {
-    for (uint32_t k = 0; k < ld->file_count; k++) {
-        free(ld->files[k].path);
+    for (uint32_t k = 0; k < ld->file_count; k++)
         tw_gltf_scene_destroy(ld->files[k].scene);
-    }
     free(ld->files);
+    for (uint32_t k = 0; k < ld->name_count; k++)
+        free(ld->names[k].rel);
+    free(ld->names);
+    table_finish(&ld->file_table);
+    table_finish(&ld->name_table);
+    table_finish(&ld->prototype_table);
     tw_tileset_destroy(ld->ts);
+    if (ld->dir_fd >= 0)
+        close(ld->dir_fd);
     if (err)
-        tw_log_printf(ld->log, TW_LOG_ERROR, "%s: %s", ld->name,
+        tw_log_printf(ld->log, TW_LOG_ERROR, "%s: %s", ld->shown,
                       ld->msg[0] ? ld->msg : tw_error_to_str(err));
     return err;
 }
@@ -597,13 +949,17 @@ int tw_tilesets_parse_manifest(const char *text, size_t size, const char *name,
         return TW_ERR_INVALID;
     }
     *out = NULL;
-    struct loader ld = {0};
-    ld.name = name ? name : "(manifest)";
-    ld.base_dir = base_dir ? base_dir : ".";
-    ld.log = log;
-    resolve_settings(settings, &ld.settings);
+    struct loader ld;
+    init_loader(&ld, name ? name : "(manifest)", settings, log);
     if (!text && size)
         return finish_loader(&ld, fail(&ld, TW_ERR_INVALID, "no text (caller's bug)"));
+    ld.dir_fd = tw_confined_open_folder(base_dir ? base_dir : ".");
+    if (ld.dir_fd < 0) {
+        char shown[256];
+        return finish_loader(&ld, fail(&ld, TW_ERR_IO, "the folder \"%s\" cannot be opened: %s",
+                                       quote(base_dir ? base_dir : ".", shown, sizeof(shown)),
+                                       strerror(errno)));
+    }
     return finish_loader(&ld, parse(&ld, text ? text : "", size, out));
 }
 
@@ -616,35 +972,29 @@ int tw_tilesets_load_manifest_ex(const char *path, const struct tw_manifest_sett
         return TW_ERR_INVALID;
     }
     *out = NULL;
-    struct loader ld = {0};
-    ld.name = path;
-    ld.log = log;
-    resolve_settings(settings, &ld.settings);
-    char *text = NULL, *dir = NULL;
-    int err = TW_OK;
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        err = fail(&ld, TW_ERR_IO, "cannot open: %s", strerror(errno));
-        goto out;
+    struct loader ld;
+    init_loader(&ld, path, settings, log);
+    uint8_t *text = NULL;
+    size_t size = 0;
+    char why[512];
+    int fd = -1;
+    /* Opened non-blocking and checked before anything is read: a FIFO or a
+     * device is refused, never waited on. */
+    int err = tw_confined_open_user(path, &fd, why, sizeof(why));
+    if (!err) {
+        err = tw_confined_read(fd, MAX_MANIFEST_BYTES, &text, &size, why, sizeof(why));
+        close(fd);
     }
-    text = malloc(MAX_MANIFEST_BYTES + 1);
-    dir = tw_confined_path_dirname(path);
-    if (!text || !dir) {
-        err = fail(&ld, TW_ERR_NOMEM, "out of memory");
-        goto out;
+    if (err)
+        return finish_loader(&ld, fail(&ld, err, "%s", why));
+    ld.dir_fd = tw_confined_open_folder_of(path);
+    if (ld.dir_fd < 0) {
+        free(text);
+        return finish_loader(&ld, fail(&ld, TW_ERR_IO, "its folder cannot be opened: %s",
+                                       strerror(errno)));
     }
-    const size_t size = fread(text, 1, MAX_MANIFEST_BYTES + 1, f);
-    if (ferror(f)) {
-        err = fail(&ld, TW_ERR_IO, "cannot read: %s", strerror(errno));
-        goto out;
-    }
-    ld.base_dir = dir;
-    err = parse(&ld, text, size, out);
-out:
-    if (f)
-        fclose(f);
+    err = parse(&ld, (const char *)text, size, out);
     free(text);
-    free(dir);
     return finish_loader(&ld, err);
 }
 

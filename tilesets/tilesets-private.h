@@ -38,8 +38,17 @@ struct tw_city_blocks;
  * tw_city_settings_resolve(). The caller owns *out. */
 int tw_city_blocks_create(struct tw_tileset *ts, const struct tw_city_settings *settings,
                           struct tw_city_blocks **out);
+/* The same for a tileset that holds one block (a provider's tile): the
+ * meshes that only parks use are made by the first park, not up front, so
+ * the tileset holds no mesh that it does not draw. */
+int tw_city_blocks_create_tile(struct tw_tileset *ts, const struct tw_city_settings *settings,
+                               struct tw_city_blocks **out);
 /* Frees the generator's scratch memory, not the tileset; accepts NULL. */
 void tw_city_blocks_destroy(struct tw_city_blocks *blocks);
+
+/* The highest tile-local y that any block (every kind, any stream) made with
+ * settings (resolved) can reach: a bound from the generator's own limits. */
+float tw_city_blocks_max_top(const struct tw_city_settings *settings);
 
 /* Adds a whole block of kind to prototype proto: streets, ground, lots.
  * stream seeds the block's random numbers (e.g. tw_tiles_hash(seed, k,
@@ -116,5 +125,81 @@ int tw_forest_stands_add(struct tw_forest_stands *stands, uint32_t proto,
 
 /* The forest floor's material, for the ground under a stand. */
 uint32_t tw_forest_stands_floor_material(const struct tw_forest_stands *stands);
+
+/* ---- the forest's stands in generated tiles (forest-gen) ---- */
+
+/* Tree species, in the order of a stand's species mix. */
+enum tw_forest_species {
+    TW_FOREST_SPECIES_SPRUCE,
+    TW_FOREST_SPECIES_FIR,
+    TW_FOREST_SPECIES_PINE,
+    TW_FOREST_SPECIES_BEECH,
+    TW_FOREST_SPECIES_BIRCH,
+    TW_FOREST_SPECIES_COUNT,
+};
+
+/* A generator on ts (unfinished, model's footprint) that places model's
+ * trees, rocks and patches without drawing them again: each mesh is copied
+ * into ts when it is first placed there (ts holds no mesh it does not
+ * draw); the materials are copied at once. model (made by
+ * tw_forest_stands_create()) and its tileset are only read, by any number
+ * of threads at once, and must not change while the generator lives. The
+ * caller owns *out. */
+int tw_forest_stands_create_from(const struct tw_forest_stands *model, struct tw_tileset *ts,
+                                 struct tw_forest_stands **out);
+
+/* Adds the forest floor over the whole tile and the trail along every
+ * border (band metres wide, a hair above the floor) to prototype proto, as
+ * the forest tileset has them; the two meshes and the trail's material are
+ * made by the first call, and later calls must give the same band. */
+int tw_forest_stands_add_floor(struct tw_forest_stands *stands, uint32_t proto, float band);
+
+/* The species weights of stand kind. */
+void tw_forest_stand_mix(enum tw_forest_stand_kind kind, float mix[TW_FOREST_SPECIES_COUNT]);
+
+/* Expected triangles of one tree of a stand of kind whose species are drawn
+ * from mix (weights >= 0, not all 0): canopy and trunk, sizes as the kind
+ * draws them. 0 for bad arguments. */
+float tw_forest_stands_tree_triangles(const struct tw_forest_stands *stands,
+                                      enum tw_forest_stand_kind kind,
+                                      const float mix[TW_FOREST_SPECIES_COUNT]);
+
+/* tw_forest_stands_add() with the species drawn from mix instead of the
+ * kind's own and tree_scale (in (0, 4]) times its tree count. */
+int tw_forest_stands_add_varied(struct tw_forest_stands *stands, uint32_t proto,
+                                enum tw_forest_stand_kind kind, uint64_t stream,
+                                const struct tw_forest_area *area,
+                                const float mix[TW_FOREST_SPECIES_COUNT], float tree_scale);
+
+/* How high above its area's ground anything a stand of this generator
+ * places can reach: its meshes' tops times the largest vertical scale
+ * placements use. A bound from the generator's own limits. */
+float tw_forest_stands_max_top(const struct tw_forest_stands *stands);
+
+/* ---- built-in tile providers (providers.c, city-gen.c, forest-gen.c) ------------- */
+
+/* What every built-in provider starts with; provider.user points to the
+ * object itself. */
+struct tw_tilesets_provider {
+    struct tw_tile_provider provider;
+    void (*destroy)(struct tw_tilesets_provider *p);   /* frees p and all it owns */
+};
+
+/* Checks what generate() is given (a fresh unfinished tileset with the
+ * provider's footprint and no prototype yet); logs a caller's bug naming
+ * the cell otherwise. */
+int tw_provider_check_tile(const struct tw_tile_provider *provider, const struct tw_log *log,
+                           struct tw_cell cell, const struct tw_tileset *ts);
+
+/* ---- glTF import from an open file (gltf.c) ---------------------------------------------- */
+
+/* tw_gltf_import() of the regular file open as fd (read from where it is,
+ * not closed), whose external buffers and images are opened beneath the
+ * folder dir_fd (confined-path.h; -1: none allowed). name is used in
+ * messages. Used by manifests, which open every file beneath their folder
+ * once and never by name again. */
+int tw_gltf_import_fd(int fd, int dir_fd, const char *name,
+                      const struct tw_gltf_settings *settings, const struct tw_log *log,
+                      struct tw_gltf_scene **out);
 
 #endif

@@ -119,6 +119,25 @@ size_t tw_cull_cells_in_view(const struct tw_view *v,
                              const struct tw_box *common_box, float w, float d,
                              struct tw_cull_cell *out, size_t cap);
 
+/* What one cell scan did. */
+struct tw_cull_scan {
+    uint64_t cells_tested;      /* cells whose common box was tested: at most
+                                   TW_TILES_MAX_CELLS_IN_VIEW */
+    bool truncated;             /* the cells within reach were more than that: only the
+                                   square nearest the camera's cell was tested, farther
+                                   ones were left out of the frame */
+};
+
+/* tw_cull_cells_in_view(), also saying in *scan (may be NULL) how much it
+ * tested and whether it had to stop short. Its cost is bounded whatever the
+ * footprint, the common box and the view distance (tiles.h,
+ * TW_TILES_MAX_CELLS_IN_VIEW); a footprint, view distance or eye that is
+ * not finite and positive gives no cells. */
+size_t tw_cull_cells_in_view_scan(const struct tw_view *v,
+                                  const struct tw_box *common_box, float w, float d,
+                                  struct tw_cull_cell *out, size_t cap,
+                                  struct tw_cull_scan *scan);
+
 /* ---- the query backend (DESIGN §5) ----------------------------------------- */
 
 /* Query handles are non-zero. Every issued query is read exactly once with

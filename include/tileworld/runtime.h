@@ -112,6 +112,8 @@ struct tw_tile_event {
     struct tw_cell cell;
     enum tw_tile_event_kind kind;
     uint64_t bytes;         /* what the tile costs (READY) or freed (EVICTED), CPU + GPU */
+    uint32_t latency;       /* READY: frames from its request to ready */
+    bool reload;            /* READY: the cell's tile had been evicted before (lately) */
 };
 
 /* Settings of a world. Zero-initialisable: tw_world_create() resolves every
@@ -199,6 +201,9 @@ struct tw_frame_stats {
     uint64_t bytes_cpu;      /* every byte of tiles on the CPU: shared content once,
                                 generated geometry, clusters and BVHs, culling state */
     uint64_t bytes_gpu;      /* vertex and index buffers */
+    uint64_t bytes_state;    /* of bytes_cpu, the culling state of every method (tile
+                                instances and their tables); the rest is geometry, BVHs
+                                and the stream's tables */
     uint64_t bytes_needed;   /* of bytes_cpu + bytes_gpu, what this frame could not do
                                 without: every byte but the generated tiles it did not use */
     bool over_budget;        /* bytes_cpu + bytes_gpu > cache_budget_bytes after trimming:
@@ -238,6 +243,15 @@ int tw_world_frame(struct tw_world *w, const struct tw_camera *cam,
  * waited to stats->ms_frame and its CPU time to stats->cpu_ms (stats may be
  * NULL). */
 int tw_world_finish(struct tw_world *w, struct tw_frame_stats *stats);
+
+/* What the cache holds, and what it did since the world was created. */
+struct tw_cache_totals {
+    uint32_t tiles_ready;       /* generated tiles in the cache */
+    uint32_t tiles_loading;     /* requested, not ready yet */
+    uint64_t tile_bytes;        /* of the ready generated tiles, CPU + GPU */
+    uint64_t loads_requested, loads_done, evictions, reloads, refused;
+};
+int tw_world_cache_totals(const struct tw_world *w, struct tw_cache_totals *out);
 
 /* The tile events of the last frame (tiles ready, evicted, refused), in the
  * order they happened. The array belongs to the world and lives until the
@@ -304,10 +318,19 @@ int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float w,
                     float d, struct tw_path *out);
 
 /* Reads a path CSV (header line, then cell_i,cell_j,x,y,z,yaw,pitch per
- * row). On error returns a negative code and writes "FILE:LINE: reason" into
- * err. frames > 0 keeps only the first frames rows (fewer rows: an error). */
+ * row). Every row is checked when the file is loaded: cells are decimal
+ * 64-bit integers, x and z within +-1e7 m, y within +-TW_TILES_MAX_COORD,
+ * yaw within +-1e6 degrees (kept modulo 360), pitch in (-89.9, 89.9). Only
+ * a regular file is read (a FIFO or a device is refused, never waited on).
+ * On error returns a negative code and writes one line "FILE:LINE: reason"
+ * into err (text from the file escaped, tiles.h tw_log_escape()). frames > 0
+ * keeps only the first frames rows (fewer rows: an error). */
 int tw_path_load_csv(const char *file, uint32_t frames, float w, float d,
                      struct tw_path *out, char *err, size_t err_size);
+/* The same from size bytes of CSV at text (only read during the call); name
+ * is the file name used in messages. */
+int tw_path_parse_csv(const char *text, size_t size, const char *name, uint32_t frames,
+                      float w, float d, struct tw_path *out, char *err, size_t err_size);
 
 /* Moves every key by (di, dj) cells; TW_ERR_INVALID on int64 overflow. */
 int tw_path_translate(struct tw_path *p, int64_t di, int64_t dj);

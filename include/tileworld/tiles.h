@@ -67,6 +67,21 @@ void tw_log_vprintf(const struct tw_log *log, enum tw_log_level level,
  * messages at or below the level passed as user (cast from intptr_t). */
 void tw_log_stderr(void *user, enum tw_log_level level, const char *msg);
 
+/* Escapes text taken from an input file (a name, a key, a URI) so that a
+ * message stays one line of plain text on a terminal: newline, carriage
+ * return and tab become \n, \r and \t, other C0 controls, DEL and bytes that
+ * are not valid UTF-8 become \xHH, the C1 controls and the bidirectional
+ * overrides (U+202A..U+202E, U+2066..U+2069) become \uHHHH. Everything else
+ * (printable ASCII, backslash included, and valid UTF-8) is kept, so that
+ * escaping escaped text changes nothing. Writes at most size bytes into out
+ * (NUL-terminated; "..." ends a cut) and returns out. tw_log_vprintf()
+ * applies it to every message, so that a logger never sees a control
+ * character; escaping the pieces where they are quoted as well keeps a
+ * message's own quotes meaningful. */
+const char *tw_log_escape(const char *text, char *out, size_t size);
+/* The same for n bytes that may hold NUL bytes (shown as \x00). */
+const char *tw_log_escape_bytes(const void *data, size_t n, char *out, size_t size);
+
 /* ---- boxes -------------------------------------------------------------- */
 
 /* Axis-aligned box in metres. An empty box has min > max. */
@@ -111,12 +126,54 @@ int64_t tw_tiles_floor_mod(int64_t a, int64_t b);
  * unchanged) if an offset is not finite or the cell would overflow. */
 int tw_tiles_normalize(struct tw_world_pos *p, float w, float d);
 
+/* The same for a local offset in double (as read from a file): the cells
+ * are split off in double, so that a large offset keeps its precision, and
+ * the remainder is rounded to float. Returns TW_ERR_INVALID (out unchanged)
+ * if an offset or the footprint is not finite, or the cell would overflow. */
+int tw_tiles_normalize_double(struct tw_cell cell, const double local[3], float w, float d,
+                              struct tw_world_pos *out);
+
 /* The position of cell's origin relative to origin's origin, in metres:
  * ((cell.i - origin.i) * w, 0, (cell.j - origin.j) * d). The difference is
  * taken in int64_t, scaled in double and only then rounded to float, so it is
  * exact-ish for nearby cells wherever they lie. */
 void tw_tiles_cell_offset(struct tw_cell cell, struct tw_cell origin, float w,
                           float d, float out[3]);
+
+/* ---- limits: what a frame can afford ------------------------------------------ */
+
+/* Tile content lives within this many metres of its tile's origin: every
+ * tile-local coordinate (an instance's placed vertices, its box, a
+ * prototype's box, the common box) and every coordinate of an imported
+ * scene. 100 km: floats still resolve 8 mm there, and sums and differences
+ * of such values (box centres and extents in Embree's SAH binning, plane
+ * distances in the frustum tests, the cell scan) stay far from overflow. */
+#define TW_TILES_MAX_COORD 1.0e5f
+/* Mesh-local positions may be larger (a mesh modelled in millimetres and
+ * scaled by 0.001 when placed); the placed result must fit TW_TILES_MAX_COORD.
+ * Transform coefficients (rotation and scale terms) are bounded by
+ * TW_TILES_MAX_COORD too. */
+#define TW_TILES_MAX_MESH_COORD 1.0e7f
+/* The common box spans at most this many footprints along x and along z:
+ * content that overhangs its cell further would make every tile overlap
+ * dozens of others (overdraw) and every frame consider cells far outside the
+ * view distance. */
+#define TW_TILES_MAX_SPAN 8.0f
+/* The most cells one frame may consider (the cell scan of cull/ checks at
+ * most this many, and reports when it had to stop): 256 x 256 cells. */
+#define TW_TILES_MAX_CELLS_IN_VIEW 65536u
+/* The view distance a tileset is checked against when it is loaded (the
+ * runtime's default), metres. */
+#define TW_TILES_REFERENCE_VIEW_DISTANCE 600.0f
+
+/* An upper bound on the cells a frame with view distance view_distance
+ * must consider on a grid of footprint w x d whose common box is
+ * common_box: (2 R + box extent) / footprint + 2 cells along each axis,
+ * multiplied, in double (never overflows: +inf for a zero footprint). A
+ * tileset, or a view distance, whose bound exceeds TW_TILES_MAX_CELLS_IN_VIEW
+ * costs more per frame than the runtime allows. */
+double tw_tiles_cells_in_reach(const struct tw_box *common_box, float w, float d,
+                               float view_distance);
 
 /* ---- the tileset model ---------------------------------------------------- */
 
@@ -220,7 +277,8 @@ int tw_tileset_add_material(struct tw_tileset *ts, const float rgba[4]);
 
 /* Adds a mesh, copying the arrays. normals may be NULL: then smooth
  * area-weighted normals are computed. Every index must be < vertex_count and
- * every position finite. Returns the mesh index (>= 0) or a negative error. */
+ * every position finite and within +-TW_TILES_MAX_MESH_COORD (TW_ERR_LIMIT
+ * beyond). Returns the mesh index (>= 0) or a negative error. */
 int tw_tileset_add_mesh(struct tw_tileset *ts, const float *positions,
                         const float *normals, uint32_t vertex_count,
                         const uint32_t *indices, uint32_t triangle_count);
@@ -230,7 +288,9 @@ int tw_tileset_add_prototype(struct tw_tileset *ts, const char *name,
                              float weight);
 
 /* Places mesh with material inside prototype proto under transform
- * (row-major 3x4, NULL for identity). Returns the instance index or a
+ * (row-major 3x4, NULL for identity): finite, every coefficient within
+ * +-TW_TILES_MAX_COORD (TW_ERR_LIMIT beyond), and the mesh's box placed by it
+ * within +-TW_TILES_MAX_COORD (TW_ERR_LIMIT). Returns the instance index or a
  * negative error. */
 int tw_tileset_add_instance(struct tw_tileset *ts, uint32_t proto,
                             uint32_t mesh, uint32_t material,
@@ -243,12 +303,17 @@ int tw_tileset_add_instance(struct tw_tileset *ts, uint32_t proto,
  * transform's linear part, as the renderer's shader does) into one new
  * mesh, placed by a new identity instance; the small instances stay in the
  * list, marked merged_into, and get no clusters (a draw call then carries
- * many instances instead of a few triangles). Then it splits every mesh
+ * many instances instead of a few triangles); baking copies what instancing
+ * shares, so the merged meshes of a tileset hold TW_TILESET_MERGE_BYTES at
+ * most (groups beyond stay instanced). Then it splits every mesh
  * into parts of at most max_cluster_triangles triangles (0: never split) by
  * recursive median splits along the longest axis, computes every box, the
  * clusters of every prototype and the common box. Fails on a tileset with
- * no prototype or with an empty prototype. */
+ * no prototype or with an empty prototype (TW_ERR_INVALID), and on one
+ * whose common box spans more than TW_TILES_MAX_SPAN footprints along x or
+ * z (TW_ERR_LIMIT). */
 #define TW_TILESET_MERGE_TRIANGLES 64u
+#define TW_TILESET_MERGE_BYTES (16ull << 20)
 int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles);
 
 /* Sum of all mesh data bytes, merged meshes included (what a renderer

@@ -104,16 +104,28 @@ struct tw_gltf_scene {
 };
 
 /* Imports the default scene (else scene 0, else every root node) of the
- * .gltf or .glb file at path (binary or JSON is told by the content).
- * Buffers and images in external files must lie inside the file's folder.
- * Textures are not kept: a PNG base-colour texture is sampled at each
- * triangle's centroid and its primitive split into one material per colour
- * (a texture that cannot be read leaves the base colour, with a warning).
- * Every reference, accessor range, index and node transform is
- * checked, node hierarchies must be trees (no cycles, one parent per node),
- * primitives must be triangles (lists, strips or fans). settings may be
- * NULL. On bad input returns TW_ERR_FORMAT, TW_ERR_IO or TW_ERR_LIMIT and
- * logs one error line "<path>: <element>: <reason>", e.g.
+ * .gltf or .glb file at path (binary or JSON is told by the content; only a
+ * regular file is read: a FIFO is refused, never waited on). Buffers and
+ * images in external files must lie inside the file's folder; they are
+ * opened beneath it (confined-path.h) and their URIs decoded as RFC 3986
+ * says ('+' is a plus sign). Textures are not kept: a PNG base-colour
+ * texture is sampled at each triangle's centroid (through its
+ * KHR_texture_transform) and its primitive split into one material per
+ * colour (a texture that cannot be read leaves the base colour, with a
+ * warning). Every reference, accessor range, index and node transform is
+ * checked, node hierarchies must be trees (no cycles, one parent per node).
+ * Triangles (lists, strips or fans) are drawn; points and lines are skipped
+ * with one warning. KHR_mesh_quantization is supported (integer positions,
+ * normals and texture coordinates, dequantised by the node transforms); a
+ * required extension that is not supported (Draco, meshopt) is refused by
+ * name. Coordinates are bounded (tiles.h): node values and mesh-local
+ * positions within +-TW_TILES_MAX_MESH_COORD, every placed mesh within
+ * +-TW_TILES_MAX_COORD. Cost is bounded by the file: every check is linear,
+ * and a document whose JSON would take more than 64 MiB + 32 bytes per byte
+ * of JSON (estimated before parsing) is refused. settings may be NULL. On
+ * bad input returns TW_ERR_FORMAT, TW_ERR_IO or TW_ERR_LIMIT and logs one
+ * error line "<path>: <element>: <reason>" (text from the file escaped,
+ * tiles.h tw_log_escape()), e.g.
  * "a.gltf: nodes[2].children[0]: nodes[0] is an ancestor of nodes[2] (a cycle)".
  * The caller owns *out. */
 int tw_gltf_import(const char *path, const struct tw_gltf_settings *settings,
@@ -164,11 +176,15 @@ struct tw_manifest_settings {
     struct tw_gltf_settings gltf;   /* limits of each glTF file; zero: defaults */
 };
 
-/* Loads the manifest at path and every glTF file it names (paths relative
- * to the manifest's folder, which they may not leave) into a finished
- * tileset. On bad input returns a negative tw_error and logs one error line
- * "<manifest>: <place, e.g. prototypes[2].objects[0].gltf>: <reason>". The
- * caller owns *out. */
+/* Loads the manifest at path (a regular file: a FIFO is refused, never
+ * waited on) and every glTF file it names (paths relative to the manifest's
+ * folder, which they may not leave: opened beneath it) into a finished
+ * tileset whose per-frame cost is bounded (tiles.h: weights and scales in
+ * [1e-6, 1e6], content within reach of its tile and at most
+ * TW_TILES_MAX_SPAN footprints wide, at most TW_TILES_MAX_CELLS_IN_VIEW cells
+ * in view at the default view distance). On bad input returns a negative
+ * tw_error and logs one error line "<manifest>: <place, e.g.
+ * prototypes[2].objects[0].gltf>: <reason>". The caller owns *out. */
 int tw_tilesets_load_manifest(const char *path, const struct tw_log *log,
                               struct tw_tileset **out);
 /* The same with settings (NULL: defaults). */
@@ -230,6 +246,65 @@ void tw_tilesets_hybrid_default_settings(struct tw_hybrid_settings *s);
  * caller owns *out. */
 int tw_tilesets_hybrid(uint64_t seed, const struct tw_hybrid_settings *settings,
                        const struct tw_log *log, struct tw_tileset **out);
+
+/* ---- tile providers: city-gen and forest-gen (DESIGN.md §12) ---- */
+
+/* A built-in tile provider: every cell's content generated from the cell's
+ * hash, no two cells alike, at the triangle density of the fixed tileset
+ * it is named after, with its footprint and its streets or trails along
+ * every tile border (the built-in camera paths work on it). Owns what its
+ * tw_tile_provider points to: the seed, the settings, read-only templates.
+ * Every cell is TW_TILE_OWN (content is NULL, shared is NULL). */
+struct tw_tilesets_provider;
+
+/* Names of the built-in providers, NULL-terminated: "city-gen", "forest-gen". */
+extern const char *const tw_tilesets_provider_names[];
+
+/* Whether name is one of tw_tilesets_provider_names (false for NULL). */
+bool tw_tilesets_is_provider(const char *name);
+
+/* Creates the built-in provider called name for seed, with default settings
+ * but max_cluster_triangles (0: 2048). Returns TW_ERR_INVALID, with a
+ * message, for an unknown name. The caller owns *out and must keep it
+ * until every world using its tw_tile_provider is gone. log (may be NULL)
+ * is copied: its callback must outlive the provider and may be called from
+ * generate(), on a worker thread, when a world hands it a wrong tileset
+ * (the message names the cell). */
+int tw_tilesets_provider_create(const char *name, uint64_t seed,
+                                uint32_t max_cluster_triangles,
+                                const struct tw_log *log,
+                                struct tw_tilesets_provider **out);
+
+/* city-gen with settings (NULL: the city's defaults; prototypes is ignored):
+ * each cell one city block as tw_tilesets_city() makes them, its kind
+ * (dense, tallest, low-rise, park, in the shares of the city's default
+ * prototypes), footprints, heights, facades and lot layout drawn from
+ * tw_tiles_hash(seed, i, j). bound: x, z over the footprint, y from 0 to
+ * max_height + 0.25 m. */
+int tw_tilesets_provider_create_city(uint64_t seed, const struct tw_city_settings *settings,
+                                     const struct tw_log *log,
+                                     struct tw_tilesets_provider **out);
+
+/* forest-gen with settings (NULL: the forest's defaults; prototypes is
+ * ignored): each cell one stand over the whole tile, its kind (in the
+ * shares of the forest's default prototypes), species mix, tree count and
+ * placement drawn from the cell's hash; its trees, rocks and undergrowth
+ * from one of a few template sets drawn from seed (copied into the cell's
+ * tileset). The floor and the trail along every border as in
+ * tw_tilesets_forest(). bound: x, z over the footprint, y from 0 to the
+ * tallest template mesh times the largest scale a placement uses. */
+int tw_tilesets_provider_create_forest(uint64_t seed, const struct tw_forest_settings *settings,
+                                       const struct tw_log *log,
+                                       struct tw_tilesets_provider **out);
+
+/* The provider to hand to a world: borrowed from p, valid until p is
+ * destroyed. Its generate() may run on any number of threads at once (it
+ * only reads p) and is a pure function of the cell: the same cell gives
+ * the same tile, bit for bit. NULL for NULL. */
+const struct tw_tile_provider *tw_tilesets_provider_get(const struct tw_tilesets_provider *p);
+
+/* Frees p and everything it owns; accepts NULL. */
+void tw_tilesets_provider_destroy(struct tw_tilesets_provider *p);
 
 #ifdef __cplusplus
 }

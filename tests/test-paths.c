@@ -1,0 +1,210 @@
+/* Unit tests of the camera-path CSV reader (runtime/paths.c, issue 11):
+ * every bad row is refused at load with one line "FILE:LINE: reason" that
+ * says what is wrong with which field; special files are refused, never
+ * waited on; text from the file reaches messages escaped. */
+#include <errno.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "tileworld/runtime.h"
+#include "tests/check.h"
+
+static char dir[64];
+
+static char *join(const char *name)
+{
+    static char path[256];
+    snprintf(path, sizeof(path), "%s/%s", dir, name);
+    return path;
+}
+
+static void write_file(const char *path, const void *data, size_t n)
+{
+    FILE *f = fopen(path, "wb");
+    CHECK(f != NULL);
+    if (f) {
+        fwrite(data, 1, n, f);
+        fclose(f);
+    }
+}
+
+/* Parses text (as name) and expects a refusal whose message is exactly
+ * "name:want". */
+static void expect_refused(const char *text, size_t n, const char *want)
+{
+    struct tw_path p;
+    char err[512];
+    const int rc = tw_path_parse_csv(text, n, "p.csv", 0, 80, 80, &p, err, sizeof(err));
+    char full[512];
+    snprintf(full, sizeof(full), "p.csv:%s", want);
+    if (rc == 0 || strcmp(err, full) != 0)
+        fprintf(stderr, "  got \"%s\"\n  expected \"%s\"\n", err, full);
+    CHECK(rc != 0 && strcmp(err, full) == 0);
+    CHECK(p.keys == NULL && p.count == 0);
+}
+
+#define HEADER "cell_i,cell_j,x,y,z,yaw,pitch\n"
+#define REFUSED(body, want) expect_refused(HEADER body, sizeof(HEADER body) - 1, want)
+
+static void test_messages(void)
+{
+    /* The audit's examples. */
+    REFUSED("0,0,1,1.7,1,1e300,0\n",
+            "2: field 6 (yaw) \"1e300\" is outside [-1e+06, 1e+06] degrees");
+    expect_refused(HEADER "0,0,1,1.\0007,1,0,0\n", sizeof(HEADER "0,0,1,1.\0007,1,0,0\n") - 1,
+                   "2: a NUL byte at column 9: not a text file");
+    REFUSED("0x10,0,1,1.7,1,0,0\n",
+            "2: field 1 (cell_i) \"0x10\" is not a decimal integer (hexadecimal is not accepted)");
+    /* Every field, every reason. */
+    REFUSED("0,0,1,1.7,1,0\n",
+            "2: expected 7 comma-separated fields (cell_i,cell_j,x,y,z,yaw,pitch), found 6");
+    REFUSED("0,0,1,1.7,1,0,0,9\n",
+            "2: expected 7 comma-separated fields (cell_i,cell_j,x,y,z,yaw,pitch), found 8");
+    REFUSED("0,,1,1.7,1,0,0\n", "2: field 2 (cell_j) is empty");
+    REFUSED("0,1.5,1,1.7,1,0,0\n",
+            "2: field 2 (cell_j) \"1.5\" is not a decimal integer (a cell is a whole number)");
+    REFUSED("99999999999999999999,0,1,1.7,1,0,0\n",
+            "2: field 1 (cell_i) \"99999999999999999999\" is beyond the 64-bit range of a cell");
+    REFUSED("-9223372036854775809,0,1,1.7,1,0,0\n",
+            "2: field 1 (cell_i) \"-9223372036854775809\" is beyond the 64-bit range of a cell");
+    REFUSED("0,0,abc,1.7,1,0,0\n", "2: field 3 (x) \"abc\" is not a decimal number");
+    REFUSED("0,0,nan,1.7,1,0,0\n", "2: field 3 (x) \"nan\" is not a decimal number");
+    REFUSED("0,0,0x1p3,1.7,1,0,0\n", "2: field 3 (x) \"0x1p3\" is not a decimal number");
+    REFUSED("0,0,1,1e400,1,0,0\n",
+            "2: field 4 (y) \"1e400\" is outside [-100000, 100000] metres above the ground");
+    REFUSED("0,0,1,-1e30,1,0,0\n",
+            "2: field 4 (y) \"-1e30\" is outside [-100000, 100000] metres above the ground");
+    REFUSED("0,0,1,1.7,2e7,0,0\n",
+            "2: field 5 (z) \"2e7\" is outside [-1e+07, 1e+07] metres from the cell's origin");
+    REFUSED("0,0,1,1.7,1,0,89.9\n", "2: field 7 (pitch) \"89.9\" is outside (-89.9, 89.9) degrees");
+    REFUSED("0,0,1,1.7,1,0,1 2\n", "2: field 7 (pitch) \"1 2\" is not a decimal number");
+    REFUSED("9223372036854775807,0,1e6,1.7,1,0,0\n",
+            "2: the position overflows the grid (cell plus offset beyond 64 bits)");
+    /* Text from the file is escaped and cut. */
+    REFUSED("\x1b[2J,0,1,1.7,1,0,0\n",
+            "2: field 1 (cell_i) \"\\x1b[2J\" is not a decimal integer");
+    REFUSED("0,0,1,1.7,1,0,0\n1,1,1,1.7,1,0,0123456789012345678901234567890123456789\n",
+            "3: field 7 (pitch) \"01234567890123456789012345678901...\" is outside (-89.9, "
+            "89.9) degrees");
+    /* Lines, header, emptiness. */
+    char long_line[1100];
+    memset(long_line, ' ', sizeof(long_line));
+    memcpy(long_line, HEADER, sizeof(HEADER) - 1);
+    long_line[sizeof(long_line) - 1] = '\n';
+    expect_refused(long_line, sizeof(long_line), "2: line longer than 1022 characters");
+    expect_refused("x,y\n", 4, "1: expected the header cell_i,cell_j,x,y,z,yaw,pitch");
+    struct tw_path p;
+    char err[512];
+    CHECK(tw_path_parse_csv("", 0, "p.csv", 0, 80, 80, &p, err, sizeof(err)) == TW_ERR_FORMAT &&
+          strcmp(err, "p.csv: empty file (expected a header line)") == 0);
+    CHECK(tw_path_parse_csv(HEADER, sizeof(HEADER) - 1, "p.csv", 0, 80, 80, &p, err,
+                            sizeof(err)) == TW_ERR_FORMAT &&
+          strcmp(err, "p.csv: no camera rows after the header") == 0);
+    CHECK(tw_path_parse_csv(HEADER "0,0,1,1,1,0,0\n", sizeof(HEADER "0,0,1,1,1,0,0\n") - 1,
+                            "p.csv", 3, 80, 80, &p, err, sizeof(err)) == TW_ERR_FORMAT &&
+          strcmp(err, "p.csv: 3 frames asked for but the file has 1 rows") == 0);
+}
+
+static void test_good_file(void)
+{
+    /* A byte order mark, CRLF, spaces, a blank line; offsets in double. */
+    static const char text[] = "\xef\xbb\xbf" "cell_i,cell_j,x,y,z,yaw,pitch\r\n"
+                               " 3 , -4 , 9999999.5 , 1.7 , -0.25 , 725 , -10 \r\n"
+                               "\r\n"
+                               "-9223372036854775808,9223372036854775807,0,0,79.75,-90,89.8\n"
+                               "0,0,1,2,3,4,5";
+    struct tw_path p;
+    char err[512] = "";
+    const int rc = tw_path_parse_csv(text, sizeof(text) - 1, "dir/good.csv", 0, 80, 80, &p, err,
+                                     sizeof(err));
+    CHECK(rc == 0);
+    if (rc) {
+        fprintf(stderr, "  %s\n", err);
+        return;
+    }
+    CHECK(p.count == 3 && strcmp(p.name, "good.csv") == 0);
+    /* 9999999.5 = 124999 * 80 + 79.5: the float the old reader went
+     * through rounded it to 1e7, a cell further on. */
+    CHECK(p.keys[0].pos.cell.i == 3 + 124999 && p.keys[0].pos.local[0] == 79.5f);
+    CHECK(p.keys[0].pos.cell.j == -5 && p.keys[0].pos.local[2] == 79.75f);
+    CHECK(p.keys[0].yaw == 5.0f && p.keys[0].pitch == -10.0f);
+    CHECK(p.keys[1].pos.cell.i == INT64_MIN && p.keys[1].pos.cell.j == INT64_MAX);
+    CHECK(p.keys[1].yaw == -90.0f);
+    CHECK(p.keys[2].pos.local[1] == 2.0f && p.keys[2].yaw == 4.0f);
+    tw_path_finish(&p);
+    /* frames keeps the first rows. */
+    CHECK(tw_path_parse_csv(text, sizeof(text) - 1, "good.csv", 2, 80, 80, &p, err,
+                            sizeof(err)) == 0 && p.count == 2);
+    tw_path_finish(&p);
+}
+
+static void on_alarm(int sig)
+{
+    (void)sig;
+    static const char msg[] = "test-paths: blocked on a special file\n";
+    if (write(2, msg, sizeof(msg) - 1) < 0)
+        _exit(1);
+    _exit(1);
+}
+
+static void test_files(void)
+{
+    snprintf(dir, sizeof(dir), "/tmp/tw-test-paths-XXXXXX");
+    CHECK(mkdtemp(dir) != NULL);
+    struct tw_path p;
+    char err[512];
+    static const char good[] = HEADER "0,0,1,1.7,1,0,0\n";
+    write_file(join("good.csv"), good, sizeof(good) - 1);
+    CHECK(tw_path_load_csv(join("good.csv"), 0, 80, 80, &p, err, sizeof(err)) == 0 &&
+          p.count == 1);
+    tw_path_finish(&p);
+
+    /* A FIFO nobody writes to: refused at once, never waited on. */
+    char fifo[256];
+    snprintf(fifo, sizeof(fifo), "%s", join("fifo.csv"));
+    CHECK(mkfifo(fifo, 0600) == 0);
+    signal(SIGALRM, on_alarm);
+    alarm(20);
+    int rc = tw_path_load_csv(fifo, 0, 80, 80, &p, err, sizeof(err));
+    alarm(0);
+    char want[512];
+    snprintf(want, sizeof(want), "%s: is not a regular file (a FIFO)", fifo);
+    CHECK(rc == TW_ERR_IO && strcmp(err, want) == 0);
+    unlink(fifo);
+    rc = tw_path_load_csv(dir, 0, 80, 80, &p, err, sizeof(err));
+    CHECK(rc == TW_ERR_IO && strstr(err, "is not a regular file (a folder)"));
+    rc = tw_path_load_csv("/dev/null", 0, 80, 80, &p, err, sizeof(err));
+    CHECK(rc == TW_ERR_IO && strcmp(err, "/dev/null: is not a regular file (a device)") == 0);
+    rc = tw_path_load_csv(join("missing.csv"), 0, 80, 80, &p, err, sizeof(err));
+    CHECK(rc == TW_ERR_IO && strstr(err, "missing.csv: cannot open: "));
+
+    /* A file name with an escape sequence is shown escaped. */
+    char evil[256];
+    snprintf(evil, sizeof(evil), "%s", join("a\x1b[2J\nb.csv"));
+    static const char bad[] = HEADER "0,0,1,1.7,1,0,99\n";
+    write_file(evil, bad, sizeof(bad) - 1);
+    rc = tw_path_load_csv(evil, 0, 80, 80, &p, err, sizeof(err));
+    CHECK(rc == TW_ERR_FORMAT && strstr(err, "a\\x1b[2J\\nb.csv:2: field 7 (pitch)") &&
+          !strchr(err, '\x1b') && !strchr(err, '\n'));
+    unlink(evil);
+    unlink(join("good.csv"));
+    rmdir(dir);
+}
+
+int main(void)
+{
+    test_messages();
+    test_good_file();
+    test_files();
+    if (failures) {
+        fprintf(stderr, "test-paths: %d checks failed\n", failures);
+        return 1;
+    }
+    printf("test-paths: all checks passed\n");
+    return 0;
+}
