@@ -39,6 +39,8 @@ struct iqueue_item {
     uint32_t node;
     uint32_t invisible_frames;
     uint32_t seq;
+    float group_cost;   /* what the node adds to a multiquery's cost (its boxes, pixels) */
+    float alone_cost;   /* a query of its own */
 };
 
 /* An issued I-query: count nodes starting at query_nodes[first]. */
@@ -65,6 +67,8 @@ struct tw_chc {
     struct tw_chc_settings settings;
     uint64_t rng;
     struct tw_chc_stats stats;
+    struct tw_cost_model costs;
+    bool model;             /* decide with costs (DESIGN §14) */
 
     struct heap_entry *heap;
     size_t heap_count, heap_cap;
@@ -171,6 +175,19 @@ const struct tw_chc_stats *tw_chc_stats(const struct tw_chc *chc)
     return &chc->stats;
 }
 
+void tw_chc_set_costs(struct tw_chc *chc, const struct tw_cost_model *costs)
+{
+    if (!chc)
+        return;
+    if (costs && costs->query > 0.0f && isfinite(costs->query) && !chc->settings.no_cost_model) {
+        chc->costs = *costs;
+        chc->model = true;
+    } else {
+        memset(&chc->costs, 0, sizeof(chc->costs));
+        chc->model = false;
+    }
+}
+
 size_t tw_chc_bytes(const struct tw_chc *chc)
 {
     if (!chc)
@@ -226,6 +243,27 @@ static double keep_probability(uint32_t invisible_frames)
 static bool is_leaf(const struct tw_bvh_node *n)
 {
     return n->child[0] == TW_BVH_NONE;
+}
+
+/* ---- the cost model (DESIGN §14) ---------------------------------------------------- */
+
+/* About how many pixels the query of box b covers: a convex body's mean
+ * projected area is a quarter of its surface, at the distance of the
+ * nearest point (an overestimate, the safe side for a cost). */
+static float box_pixels(const struct tw_cost_model *c, const struct tw_box *b, float distance)
+{
+    const float d = distance > 0.5f ? distance : 0.5f;
+    const float px = 0.25f * tw_box_surface_area(b) * c->pixels_per_sr / (d * d);
+    return px < c->screen_pixels ? px : c->screen_pixels;
+}
+
+/* Drawing a leaf's clusters, pixels left out (a hidden node's pixels are
+ * depth-tested whether it is drawn or queried). An interior node costs at
+ * least its triangles and two draws. */
+static float draw_cost(const struct tw_cost_model *c, const struct tw_bvh_node *n)
+{
+    const uint32_t draws = n->child[0] == TW_BVH_NONE ? n->cluster_count : 2;
+    return (float)draws * c->draw + (float)n->triangle_count * c->triangle;
 }
 
 /* Visible last frame. visible_frame == frame counts too (already visible this
@@ -473,16 +511,27 @@ static size_t group_end(const struct tw_chc *chc, const struct iqueue_item *item
 {
     if (chc->settings.no_multiqueries)
         return i + 1;
+    /* With measured costs, a group is worth what its nodes' own queries
+     * would cost, and costs one query of all their boxes plus, with
+     * chance 1 - prod p, their own queries again; without, every query is
+     * one unit and a node adds nothing to a group's cost. */
+    const bool model = chc->model;
     double keep = keep_probability(items[i].invisible_frames);
+    double alone = model ? items[i].alone_cost : 1.0;
+    double extra = model ? items[i].group_cost : 0.0;
+    const double fixed = model ? chc->costs.query : 1.0;
     double value = 1.0;
     size_t j = i + 1;
     while (j < n) {
         const double k = keep * keep_probability(items[j].invisible_frames);
-        const double m = (double)(j - i + 1);
-        const double v = m / (1.0 + (1.0 - k) * m);
+        const double a = alone + (model ? items[j].alone_cost : 1.0);
+        const double e = extra + (model ? items[j].group_cost : 0.0);
+        const double v = a / (fixed + e + (1.0 - k) * a);
         if (v < value)
             break;
         keep = k;
+        alone = a;
+        extra = e;
         value = v;
         j++;
     }
@@ -602,20 +651,54 @@ static void process_node(struct pass *p, uint32_t node)
         }
         return;
     }
+    const struct tw_cost_model *c = &chc->costs;
+    float alone = 1.0f, group = 0.0f;
+    if (chc->model) {
+        /* What a query of this node would cost: its fixed part, its boxes
+         * beyond the first and the pixels they cover. */
+        uint32_t boxes = 1;
+        tight_boxes(p, node, &boxes);
+        const float d = tw_cull_box_distance(p->v, &n->box, p->tile->offset);
+        group = (float)boxes * c->query_box + box_pixels(c, &n->box, d) * c->query_pixel;
+        alone = c->query + group - c->query_box;
+    }
     if (was_visible(s, p->frame)) {
         if (!leaf) {
             push_children(p, node);
             return;
         }
         draw_leaf(p, node);
-        if (s->pending_query == 0 && s->next_query_frame <= p->frame)
-            chc->vqueue[chc->vqueue_head + chc->vqueue_count++] = node;
+        if (s->pending_query == 0 && s->next_query_frame <= p->frame) {
+            /* A re-query can pay only if what a hidden answer may save
+             * over the next n_av frames exceeds it: a hidden leaf lets its
+             * parent be found hidden too and culled whole, so the saving
+             * is counted at the parent. */
+            const uint32_t up = n->parent != TW_BVH_NONE ? n->parent : node;
+            const float n_av = (float)(chc->settings.assumed_visible + 1);
+            if (!chc->model || n_av * draw_cost(c, &p->nodes[up]) > c->query + group - c->query_box) {
+                chc->vqueue[chc->vqueue_head + chc->vqueue_count++] = node;
+                return;
+            }
+            chc->stats.queries_skipped++;
+            s->next_query_frame = p->frame + 1 + chc->settings.assumed_visible;
+        }
+        pull_up(p->state, p->nodes, node, p->frame);
+        return;
+    }
+    if (chc->model && (float)keep_probability(s->invisible_frames) * draw_cost(c, n) <
+                          c->query + group - c->query_box) {
+        /* Cheaper to draw than to ask: drawn (or opened) as if visible,
+         * never taken as hidden. Nothing was learnt, so nothing is pulled
+         * up: its parent may still be found hidden, and queried, whole. */
+        chc->stats.queries_skipped++;
+        if (leaf)
+            draw_leaf(p, node);
         else
-            pull_up(p->state, p->nodes, node, p->frame);
+            push_children(p, node);
         return;
     }
     chc->iqueue[chc->iqueue_count++] =
-        (struct iqueue_item){node, s->invisible_frames, p->iqueue_seq++};
+        (struct iqueue_item){node, s->invisible_frames, p->iqueue_seq++, group, alone};
     if (chc->iqueue_count >= chc->settings.batch_size)
         issue_iqueue(p);
 }

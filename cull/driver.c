@@ -153,6 +153,12 @@ void tw_cull_driver_give(struct tw_cull_driver *d, const struct tw_drawn_cluster
     d->given_count = count;
 }
 
+void tw_cull_driver_set_costs(struct tw_cull_driver *d, const struct tw_cost_model *costs)
+{
+    if (d && d->chc)
+        tw_chc_set_costs(d->chc, costs);
+}
+
 enum tw_cull_method tw_cull_driver_method(const struct tw_cull_driver *d)
 {
     return d->s.method;
@@ -404,6 +410,8 @@ int tw_cull_driver_frame(struct tw_cull_driver *d, const struct tw_view *v,
         err = TW_ERR_INVALID;
         break;
     }
+    if (d->chc)
+        st.queries_skipped = tw_chc_stats(d->chc)->queries_skipped;
     if (d->cache) {
         tw_tile_cache_evict(d->cache, v->frame);
         st.tiles_cached = tw_tile_cache_count(d->cache);

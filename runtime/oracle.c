@@ -36,6 +36,7 @@ void tw_oracle_finish(struct tw_oracle *o)
     tw_cull_driver_destroy(o->vfc);
     free(o->entries);
     free(o->visible);
+    free(o->order);
     free(o->pixels);
     free(o->drawn);
     free(o->ids);
@@ -106,6 +107,49 @@ static void id_flush(void *ctx)
 {
 }
 
+/* A visible cluster and its distance from the eye, for the sort. */
+struct oracle_order {
+    float distance;
+    struct tw_drawn_cluster cluster;
+};
+
+static int compare_order(const void *a, const void *b)
+{
+    const struct oracle_order *x = a, *y = b;
+    if (x->distance != y->distance)
+        return x->distance < y->distance ? -1 : 1;
+    return (x->cluster.cluster > y->cluster.cluster) - (x->cluster.cluster < y->cluster.cluster);
+}
+
+/* Sorts each tile's run of o->visible front to back (distance from the eye
+ * to the nearest point of the cluster's box): the oracle then draws as a
+ * front-to-back renderer would, and overdraw does not flatter the methods. */
+static void sort_visible(struct tw_oracle *o, const struct tw_world *w, const struct tw_view *v)
+{
+    const struct tw_tileset *ts = w->s.tileset;
+    size_t k = 0;
+    while (k < o->visible_count) {
+        const struct tw_drawn_cluster *first = &o->visible[k];
+        size_t end = k + 1;
+        while (end < o->visible_count && o->visible[end].cell.i == first->cell.i &&
+               o->visible[end].cell.j == first->cell.j &&
+               o->visible[end].prototype == first->prototype)
+            end++;
+        float offset[3];
+        tw_tiles_cell_offset(first->cell, v->cell, ts->footprint[0], ts->footprint[1], offset);
+        const struct tw_prototype *proto = &ts->prototypes[first->prototype];
+        for (size_t c = k; c < end; c++) {
+            o->order[c - k].cluster = o->visible[c];
+            o->order[c - k].distance =
+                tw_cull_box_distance(v, &proto->clusters[o->visible[c].cluster].box, offset);
+        }
+        qsort(o->order, end - k, sizeof(*o->order), compare_order);
+        for (size_t c = k; c < end; c++)
+            o->visible[c] = o->order[c - k].cluster;
+        k = end;
+    }
+}
+
 int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
 {
     struct tw_oracle *o = &w->oracle;
@@ -140,11 +184,14 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
     /* The oracle method's set: the clusters with visible pixels, tile by tile. */
     o->visible_count = 0;
     err = grow((void **)&o->visible, &o->visible_cap, o->count, sizeof(*o->visible));
+    if (!err)
+        err = grow((void **)&o->order, &o->order_cap, o->count, sizeof(*o->order));
     if (err)
         return err;
     for (size_t k = 0; k < o->count; k++)
         if (o->pixels[k] > 0)
             o->visible[o->visible_count++] = o->entries[k];
+    sort_visible(o, w, v);
     return TW_OK;
 }
 

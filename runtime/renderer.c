@@ -46,10 +46,25 @@ struct tw_renderer {
     GLuint bound_vao;
 
     GLuint box_vao, box_vbo, box_ibo;
+    /* Query boxes: one instanced draw per query, each box an instance whose
+     * corners (view-relative, margin included) come from a ring buffer of
+     * QUERY_RING_BOXES boxes, orphaned when it wraps. */
     GLuint box_program;
-    GLint ub_view_proj, ub_min, ub_max;
+    GLint ub_view_proj;
+    GLuint query_vao, query_ring;
+    uint32_t query_ring_next;          /* next free box of the ring */
+    float *query_corners;              /* staging: min, max per box */
+    uint32_t query_corner_cap;         /* boxes */
 
     GLuint fbo, color_rb, depth_rb;
+
+    /* backend_draw's scratch: clusters grouped by instance (one multi-draw
+     * each), run_seen[i] == run_stamp marking instances met in this call. */
+    uint32_t *run_next, *run_clusters, run_cap;
+    GLsizei *run_counts;
+    const void **run_offsets;
+    GLint *run_bases;
+    uint32_t *run_seen, *run_first, *run_last, *run_order, run_instance_cap, run_stamp;
 
     GLuint id_program;
     GLint ui_view_proj, ui_model, ui_offset, ui_id;
@@ -169,6 +184,19 @@ static const char *const box_vs =
     "void main() {\n"
     "    gl_Position = u_view_proj * vec4(mix(u_min, u_max, a_corner), 1.0);\n"
     "}\n";
+
+/* Query boxes: the box of each instance from per-instance attributes. */
+static const char *const query_vs =
+    "#version 330 core\n"
+    "layout(location = 0) in vec3 a_corner;\n"
+    "layout(location = 1) in vec3 i_min;\n"
+    "layout(location = 2) in vec3 i_max;\n"
+    "uniform mat4 u_view_proj;\n"
+    "void main() {\n"
+    "    gl_Position = u_view_proj * vec4(mix(i_min, i_max, a_corner), 1.0);\n"
+    "}\n";
+
+#define QUERY_RING_BOXES 16384u
 
 static const char *const box_fs =
     "#version 330 core\n"
@@ -467,6 +495,21 @@ static void upload_box(struct tw_renderer *r)
     gl->BufferData(GL_ELEMENT_ARRAY_BUFFER, sizeof(faces), faces, GL_STATIC_DRAW);
     gl->EnableVertexAttribArray(0);
     gl->VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, (const void *)0);
+
+    /* The query VAO: the same corners and faces, boxes per instance. */
+    gl->GenVertexArrays(1, &r->query_vao);
+    gl->BindVertexArray(r->query_vao);
+    gl->BindBuffer(GL_ARRAY_BUFFER, r->box_vbo);
+    gl->BindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->box_ibo);
+    gl->EnableVertexAttribArray(0);
+    gl->VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, (const void *)0);
+    gl->GenBuffers(1, &r->query_ring);
+    gl->BindBuffer(GL_ARRAY_BUFFER, r->query_ring);
+    gl->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(QUERY_RING_BOXES * 24u), NULL, GL_STREAM_DRAW);
+    for (GLuint a = 1; a <= 2; a++) {
+        gl->EnableVertexAttribArray(a);
+        gl->VertexAttribDivisor(a, 1);
+    }
     gl->BindVertexArray(0);
 }
 
@@ -560,7 +603,7 @@ int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_pr
                       "reversed float depth (less precision far away)", major, minor);
     }
     r->program = link_program(r, scene_vs, NULL, scene_fs);
-    r->box_program = link_program(r, box_vs, NULL, box_fs);
+    r->box_program = link_program(r, query_vs, NULL, box_fs);
     r->id_program = link_program(r, scene_vs, NULL, id_fs);
     r->line_program = link_program(r, box_vs, line_gs, color_fs);
     r->fill_program = link_program(r, box_vs, NULL, color_fs);
@@ -589,8 +632,6 @@ int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_pr
     r->uf_max = gl->GetUniformLocation(r->fill_program, "u_max");
     r->uf_color = gl->GetUniformLocation(r->fill_program, "u_color");
     r->ub_view_proj = gl->GetUniformLocation(r->box_program, "u_view_proj");
-    r->ub_min = gl->GetUniformLocation(r->box_program, "u_min");
-    r->ub_max = gl->GetUniformLocation(r->box_program, "u_max");
     upload_box(r);
     err = create_framebuffer(r);
     if (err)
@@ -645,6 +686,8 @@ void tw_renderer_destroy(struct tw_renderer *r)
         gl->DeleteBuffers(1, &r->box_vbo);
         gl->DeleteBuffers(1, &r->box_ibo);
         gl->DeleteVertexArrays(1, &r->box_vao);
+        gl->DeleteVertexArrays(1, &r->query_vao);
+        gl->DeleteBuffers(1, &r->query_ring);
         gl->DeleteRenderbuffers(1, &r->color_rb);
         gl->DeleteRenderbuffers(1, &r->depth_rb);
         gl->DeleteFramebuffers(1, &r->fbo);
@@ -664,6 +707,16 @@ void tw_renderer_destroy(struct tw_renderer *r)
         tw_renderer_leave(r);
     }
     free(r->query_boxes);
+    free(r->query_corners);
+    free(r->run_next);
+    free(r->run_clusters);
+    free(r->run_counts);
+    free(r->run_offsets);
+    free(r->run_bases);
+    free(r->run_seen);
+    free(r->run_first);
+    free(r->run_last);
+    free(r->run_order);
     free(r->query_record);
     free(r->drawn);
     free(r->queries);
@@ -736,11 +789,16 @@ static void enter_query_mode(struct tw_renderer *r)
         return;
     const struct tw_gl *gl = &r->gl;
     gl->UseProgram(r->box_program);
-    gl->BindVertexArray(r->box_vao);
-    r->bound_vao = r->box_vao;
+    gl->BindVertexArray(r->query_vao);
+    r->bound_vao = r->query_vao;
     gl->ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
     gl->DepthMask(GL_FALSE);
-    gl->Disable(GL_CULL_FACE);
+    /* The eye is never inside a queried box (the near-plane rule,
+     * tw_cull_near_box): its near faces cover its whole image and pass
+     * wherever a far face would. Faces are wound inwards, so the near ones
+     * are the back faces. */
+    gl->Enable(GL_CULL_FACE);
+    gl->CullFace(GL_FRONT);
     r->mode = MODE_QUERY;
 }
 
@@ -778,6 +836,78 @@ static const struct gpu_buffers *bind_content(struct tw_renderer *r, uint32_t co
     return b;
 }
 
+/* Grows *p to n elements of elem bytes; false (and *p as it was) on failure. */
+static bool regrow(void *p, size_t n, size_t elem)
+{
+    void *q = realloc(*(void **)p, n * elem);
+    if (q)
+        *(void **)p = q;
+    return q != NULL;
+}
+
+/* Scratch of backend_draw for count clusters of a prototype of instances
+ * instances; false if it cannot be had (one draw per cluster then). */
+static bool multi_draw_room(struct tw_renderer *r, uint32_t count, uint32_t instances)
+{
+    if (count > r->run_cap) {
+        if (!regrow(&r->run_next, count, sizeof(*r->run_next)) ||
+            !regrow(&r->run_clusters, count, sizeof(*r->run_clusters)) ||
+            !regrow(&r->run_counts, count, sizeof(*r->run_counts)) ||
+            !regrow(&r->run_offsets, count, sizeof(*r->run_offsets)) ||
+            !regrow(&r->run_bases, count, sizeof(*r->run_bases)))
+            return false;
+        r->run_cap = count;
+    }
+    if (instances > r->run_instance_cap) {
+        if (!regrow(&r->run_seen, instances, sizeof(*r->run_seen)) ||
+            !regrow(&r->run_first, instances, sizeof(*r->run_first)) ||
+            !regrow(&r->run_last, instances, sizeof(*r->run_last)) ||
+            !regrow(&r->run_order, instances, sizeof(*r->run_order)))
+            return false;
+        memset(r->run_seen + r->run_instance_cap, 0,
+               (instances - r->run_instance_cap) * sizeof(*r->run_seen));
+        r->run_instance_cap = instances;
+    }
+    if (r->run_stamp == UINT32_MAX) {
+        memset(r->run_seen, 0, r->run_instance_cap * sizeof(*r->run_seen));
+        r->run_stamp = 0;
+    }
+    return true;
+}
+
+/* Draws n clusters of one instance: one call (a multi-draw when
+ * multi, else one draw per cluster). */
+static void draw_run(struct tw_renderer *r, const struct tw_tileset *ts,
+                     const struct gpu_buffers *b, const struct tw_prototype *proto,
+                     const uint32_t *clusters, uint32_t n, bool multi)
+{
+    const struct tw_gl *gl = &r->gl;
+    const struct tw_instance *in = &proto->instances[proto->clusters[clusters[0]].instance];
+    gl->Uniform4fv(r->u_model, 3, in->transform);
+    gl->Uniform4fv(r->u_color, 1, ts->materials[in->material].base_color);
+    for (uint32_t k = 0; k < n; k++) {
+        const struct tw_mesh_part *part = &ts->parts[proto->clusters[clusters[k]].part];
+        const size_t first = (size_t)b->first_index[part->mesh] + 3u * part->first_triangle;
+        const GLsizei indices = (GLsizei)(3u * part->triangle_count);
+        const void *offset = (const void *)(first * sizeof(uint32_t));
+        const GLint base = (GLint)b->base_vertex[part->mesh];
+        r->counters.triangles += part->triangle_count;
+        if (!multi) {
+            gl->DrawElementsBaseVertex(GL_TRIANGLES, indices, GL_UNSIGNED_INT, offset, base);
+            r->counters.draws++;
+            continue;
+        }
+        r->run_counts[k] = indices;
+        r->run_offsets[k] = offset;
+        r->run_bases[k] = base;
+    }
+    if (multi) {
+        gl->MultiDrawElementsBaseVertex(GL_TRIANGLES, r->run_counts, GL_UNSIGNED_INT,
+                                        r->run_offsets, (GLsizei)n, r->run_bases);
+        r->counters.draws++;
+    }
+}
+
 static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
                          const float offset[3], const uint32_t *clusters, uint32_t count)
 {
@@ -793,25 +923,36 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
     gl->Uniform3fv(r->u_offset, 1, offset);
     if (r->recording)
         record(r, cell, content, clusters, count);
-    uint32_t last_instance = UINT32_MAX, last_material = UINT32_MAX;
-    for (uint32_t k = 0; k < count; k++) {
-        const struct tw_cluster *c = &proto->clusters[clusters[k]];
-        const struct tw_instance *in = &proto->instances[c->instance];
-        if (c->instance != last_instance) {
-            gl->Uniform4fv(r->u_model, 3, in->transform);
-            last_instance = c->instance;
+    /* One multi-draw per instance (one transform, one material: a merged
+     * instance is all of a material's small objects), instances in the
+     * order of their first cluster, clusters in the order given. */
+    if (!multi_draw_room(r, count, proto->instance_count)) {
+        for (uint32_t k = 0; k < count; k++)
+            draw_run(r, ts, b, proto, &clusters[k], 1, false);
+    } else {
+        const uint32_t stamp = ++r->run_stamp;
+        uint32_t runs = 0;
+        for (uint32_t k = 0; k < count; k++) {
+            const uint32_t in = proto->clusters[clusters[k]].instance;
+            if (r->run_seen[in] != stamp) {
+                r->run_seen[in] = stamp;
+                r->run_first[in] = UINT32_MAX;
+                r->run_order[runs++] = in;
+            }
+            /* Chain the instance's clusters in order (run_next by position k). */
+            r->run_next[k] = UINT32_MAX;
+            if (r->run_first[in] == UINT32_MAX)
+                r->run_first[in] = k;
+            else
+                r->run_next[r->run_last[in]] = k;
+            r->run_last[in] = k;
         }
-        if (in->material != last_material) {
-            gl->Uniform4fv(r->u_color, 1, ts->materials[in->material].base_color);
-            last_material = in->material;
+        for (uint32_t q = 0; q < runs; q++) {
+            uint32_t n = 0;
+            for (uint32_t k = r->run_first[r->run_order[q]]; k != UINT32_MAX; k = r->run_next[k])
+                r->run_clusters[n++] = clusters[k];
+            draw_run(r, ts, b, proto, r->run_clusters, n, n > 1);
         }
-        const struct tw_mesh_part *part = &ts->parts[c->part];
-        const size_t first = (size_t)b->first_index[part->mesh] + 3u * part->first_triangle;
-        gl->DrawElementsBaseVertex(GL_TRIANGLES, (GLsizei)(3u * part->triangle_count),
-                                   GL_UNSIGNED_INT, (const void *)(first * sizeof(uint32_t)),
-                                   (GLint)b->base_vertex[part->mesh]);
-        r->counters.triangles += part->triangle_count;
-        r->counters.draws++;
     }
     r->counters.clusters += count;
     r->counters.ms_backend += tw_renderer_now_ms() - t0;
@@ -895,18 +1036,51 @@ static uint32_t backend_issue(void *ctx, const struct tw_box *boxes, uint32_t co
         gl->GenQueries(1, &r->queries[r->query_count]);
         handle = ++r->query_count;
     }
-    enter_query_mode(r);
-    gl->BeginQuery(r->query_target, r->queries[handle - 1]);
+    if (count > r->query_corner_cap) {
+        float *c = realloc(r->query_corners, sizeof(float) * 6 * (size_t)count);
+        if (!c) {
+            r->free_queries[r->free_count++] = handle;
+            return no_query(r, t0);
+        }
+        r->query_corners = c;
+        r->query_corner_cap = count;
+    }
     for (uint32_t k = 0; k < count; k++) {
         struct tw_box q = tw_cull_query_box(r->eye, &boxes[k], offset);
+        /* Only near faces are drawn: the eye must be outside. */
+        assert(!(r->eye[0] >= q.min[0] && r->eye[0] <= q.max[0] && r->eye[1] >= q.min[1] &&
+                 r->eye[1] <= q.max[1] && r->eye[2] >= q.min[2] && r->eye[2] <= q.max[2]));
         if (r->mutate_shrink > 0.0f)
             shrink(&q, r->mutate_shrink);
-        const float *lo = q.min, *hi = q.max;
-        gl->Uniform3fv(r->ub_min, 1, lo);
-        gl->Uniform3fv(r->ub_max, 1, hi);
-        gl->DrawElements(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, (const void *)0);
+        memcpy(r->query_corners + 6 * (size_t)k, q.min, sizeof(q.min));
+        memcpy(r->query_corners + 6 * (size_t)k + 3, q.max, sizeof(q.max));
+    }
+    enter_query_mode(r);
+    gl->BindBuffer(GL_ARRAY_BUFFER, r->query_ring);
+    gl->BeginQuery(r->query_target, r->queries[handle - 1]);
+    for (uint32_t done = 0; done < count;) {
+        if (r->query_ring_next == QUERY_RING_BOXES) {
+            /* Wrapped: a fresh store, so that boxes still to be drawn are
+             * never overwritten. */
+            gl->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(QUERY_RING_BOXES * 24u), NULL,
+                           GL_STREAM_DRAW);
+            r->query_ring_next = 0;
+        }
+        uint32_t n = count - done;
+        if (n > QUERY_RING_BOXES - r->query_ring_next)
+            n = QUERY_RING_BOXES - r->query_ring_next;
+        const size_t at = (size_t)r->query_ring_next * 24u;
+        gl->BufferSubData(GL_ARRAY_BUFFER, (GLintptr)at, (GLsizeiptr)(24u * n),
+                          r->query_corners + 6 * (size_t)done);
+        gl->VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 24, (const void *)at);
+        gl->VertexAttribPointer(2, 3, GL_FLOAT, GL_FALSE, 24, (const void *)(at + 12));
+        gl->DrawElementsInstanced(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, (const void *)0,
+                                  (GLsizei)n);
+        r->query_ring_next += n;
+        done += n;
     }
     gl->EndQuery(r->query_target);
+    r->counters.query_boxes += count;
     if (r->recording_queries)
         record_query(r, handle, boxes, count, offset);
     r->counters.queries++;
@@ -932,7 +1106,9 @@ static uint32_t backend_wait(void *ctx, uint32_t query)
     if (query == TW_QUERY_VISIBLE)
         return UINT32_MAX;
     const double t0 = tw_renderer_now_ms();
-    GLuint result = 0;
+    GLuint result = 0, available = 0;
+    r->gl.GetQueryObjectuiv(r->queries[query - 1], GL_QUERY_RESULT_AVAILABLE, &available);
+    r->counters.blocking_reads += available == 0;
     r->gl.GetQueryObjectuiv(r->queries[query - 1], GL_QUERY_RESULT, &result);
     r->free_queries[r->free_count++] = query;
     if (r->query_record[query - 1]) {

@@ -16,6 +16,8 @@ struct tw_render_counters {
     uint32_t clusters;
     uint32_t draws;
     uint32_t queries;
+    uint32_t query_boxes; /* boxes drawn by those queries */
+    uint32_t blocking_reads;  /* waits whose result was not ready yet */
     double ms_wait;       /* blocked in wait() */
     double ms_backend;    /* inside draw()/issue()/wait() in all */
     uint32_t query_failures;  /* queries that could not be made (read as visible) */

@@ -6,6 +6,7 @@
 #ifndef TW_RUNTIME_WORLD_PRIVATE_H
 #define TW_RUNTIME_WORLD_PRIVATE_H
 
+#include "runtime/calibrate.h"
 #include "runtime/renderer.h"
 #include "runtime/stream.h"
 #include "tileworld/cull.h"
@@ -17,8 +18,12 @@ struct tw_oracle {
     struct tw_cull_driver *vfc;     /* enumerates what the ID pass draws */
     struct tw_drawn_cluster *entries;
     size_t count, cap;
-    struct tw_drawn_cluster *visible;  /* entries with visible pixels, in id order */
+    struct tw_drawn_cluster *visible;  /* entries with visible pixels: tiles in id order
+                                          (front to back by cell), each tile's clusters
+                                          front to back */
     size_t visible_count, visible_cap;
+    struct oracle_order *order;     /* scratch of that sort */
+    size_t order_cap;
     uint32_t *pixels;               /* visible pixels per id */
     uint8_t *drawn;                 /* per id: drawn by the method */
     size_t per_id_cap;
@@ -78,6 +83,9 @@ struct tw_world {
 
     struct tw_view last_view;
     bool has_view;
+    struct tw_calibration calibration;  /* DESIGN §14: what queries and draws cost */
+    struct tw_calibrate_fit fit;        /* its refinement from finished frames */
+    uint32_t calibration_first;         /* the shared tileset's first content */
     struct tw_debug_state debug;    /* untouched while debug.flags is 0 */
 };
 

@@ -264,7 +264,20 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
         w->shared_cpu = tw_tileset_bytes(ts);
         for (uint32_t p = 0; p < ts->prototype_count && !err; p++)
             w->shared_cpu += w->bvhs[p]->bytes;
+        w->calibration_first = first;
     }
+    /* What queries and draws cost here (DESIGN §14). */
+    if (!err && w->s.calibration.query_ms > 0.0) {
+        w->calibration = w->s.calibration;
+        w->calibration.measured = false;
+    } else if (!err && w->s.deterministic) {
+        tw_calibrate_nominal(&w->calibration);
+    } else if (!err) {
+        err = tw_calibrate_measure(w->renderer, ts, w->calibration_first, w->s.width, w->s.height,
+                                   w->s.fov_y, &w->calibration);
+    }
+    if (!(w->calibration.query_scale > 0.0))
+        w->calibration.query_scale = w->calibration.draw_scale = 1.0;
     if (!err && w->provider.generate) {
         const struct tw_stream_settings ss = {
             .provider = &w->provider,
@@ -410,6 +423,7 @@ static void collect_counters(const struct tw_world *w, struct tw_frame_stats *st
     st->clusters = rc->clusters;
     st->draws = rc->draws;
     st->queries = rc->queries;
+    st->blocking_reads = rc->blocking_reads;
 }
 
 /* ---- streaming: the tile source, the look-ahead, the budget ------------------------- */
@@ -623,6 +637,9 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
         t0 += tw_renderer_now_ms() - ts0;
         cpu0 += tw_renderer_cpu_ms() - cs0;
     }
+    struct tw_cost_model costs;
+    tw_calibrate_model(&w->calibration, w->s.width, w->s.height, w->s.fov_y, &costs);
+    tw_cull_driver_set_costs(ms->driver, &costs);
     tw_renderer_begin_frame(w->renderer, &v);
     const struct tw_query_backend be = tw_renderer_backend(w->renderer);
     struct tw_cull_frame_stats cs = {0};
@@ -636,6 +653,7 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     st.cache_bytes = cs.cache_bytes;
     st.predict_fail = cs.predict_fail;
     st.tiles_pending = cs.tiles_pending;
+    st.queries_skipped = cs.queries_skipped;
     if (err)
         return err;
     if (w->stream)
@@ -698,8 +716,17 @@ int tw_world_finish(struct tw_world *w, struct tw_frame_stats *st)
     if (st) {
         st->ms_frame += tw_renderer_now_ms() - t0;
         st->cpu_ms += tw_renderer_cpu_ms() - cpu0;
+        /* A finished frame's CPU time refines what queries and draws cost. */
+        const struct tw_render_counters *rc = tw_renderer_counters(w->renderer);
+        tw_calibrate_refine(&w->fit, &w->calibration, st->cpu_ms, rc->queries, rc->query_boxes,
+                            rc->draws, rc->triangles);
     }
     return TW_OK;
+}
+
+const struct tw_calibration *tw_world_calibration(const struct tw_world *w)
+{
+    return w ? &w->calibration : NULL;
 }
 
 int tw_world_read_rgb(struct tw_world *w, uint8_t *rgb)

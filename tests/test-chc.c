@@ -407,6 +407,9 @@ static struct tw_chc_node_state *resolve(void *user, uint64_t tag, const struct 
     return NULL;
 }
 
+/* The cost model every world_create() hands its engine (NULL: none). */
+static const struct tw_cost_model *world_costs;
+
 static struct world *world_create(struct tree *t, const struct tw_chc_settings *settings,
                                   uint32_t ready_after)
 {
@@ -415,6 +418,7 @@ static struct world *world_create(struct tree *t, const struct tw_chc_settings *
         fprintf(stderr, "tw_chc_create failed\n");
         exit(2);
     }
+    tw_chc_set_costs(w->chc, world_costs);
     w->fake.ready_after = ready_after;
     w->be = (struct tw_query_backend){&w->fake, fake_issue, fake_ready, fake_wait, fake_draw,
                                       fake_flush};
@@ -1315,6 +1319,160 @@ static void test_determinism(void)
     CHECK(a.hash != c.hash);
 }
 
+/* ---- the cost model (DESIGN §14) ----------------------------------------------------- */
+
+/* Queries cost a millisecond, a leaf of 10 triangles 2 microseconds. */
+static const struct tw_cost_model expensive_queries = {
+    .query = 1.0f, .query_box = 0.01f, .query_pixel = 0.0f, .draw = 1e-3f, .triangle = 1e-4f,
+    .pixels_per_sr = 1e5f, .screen_pixels = 1e5f,
+};
+/* Queries cost a microsecond, a leaf of 10 triangles two milliseconds. */
+static const struct tw_cost_model cheap_queries = {
+    .query = 1e-3f, .query_box = 0.0f, .query_pixel = 0.0f, .draw = 1.0f, .triangle = 0.1f,
+    .pixels_per_sr = 1e5f, .screen_pixels = 1e5f,
+};
+
+/* Expensive queries: previously hidden small leaves are drawn without a
+ * query, counted as skipped, and not marked visible (so that their parent
+ * may still be found hidden); with cheap queries, as without a model. */
+static void test_cost_skip_hidden(void)
+{
+    test_name = "cost_skip_hidden";
+    const char *expect[3] = {
+        "Q(L0) Q(L1) Q(L2) Q(L3) W W D(1) W W",  /* no model: p(0) singles */
+        "D(0,1,2,3)",                              /* expensive: drawn, no query */
+        "Q(L0) Q(L1) Q(L2) Q(L3) W W D(1) W W",  /* cheap: as without */
+    };
+    const struct tw_cost_model *models[3] = {NULL, &expensive_queries, &cheap_queries};
+    for (int m = 0; m < 3; m++) {
+        world_costs = models[m];
+        struct world *w = world_create(column_tree(4), NULL, FAKE_NEVER);
+        world_costs = NULL;
+        set_interior_visible(w, 20);
+        for (uint32_t k = 0; k < 4; k++)
+            set_leaf_invisible(w, k, 0);
+        point_in_leaf(w, 1);
+        const size_t mark = run_frame(w, 20);
+        CHECK_STR(describe(w, mark), expect[m]);
+        const struct tw_chc_stats *st = tw_chc_stats(w->chc);
+        CHECK_U(st->queries_skipped, m == 1 ? 4 : 0);
+        CHECK_U(st->queries, m == 1 ? 0 : 4);
+        /* Drawn, never hidden; visible only where a query said so. */
+        CHECK_U(st->clusters_drawn, m == 1 ? 4 : 1);
+        for (uint32_t k = 0; k < 4; k++) {
+            const struct tw_chc_node_state *ls = &w->state[0][w->tree->leaf_node[k]];
+            if (m == 1)
+                CHECK(ls->visible_frame == 0 && ls->pending_query == 0);
+            else
+                CHECK((ls->visible_frame == 20) == (k == 1));
+        }
+        world_destroy(w);
+    }
+}
+
+/* Expensive queries: at first sight the small leaves are drawn and their
+ * re-queries skipped (they cannot pay: a hidden answer could save at most
+ * n_av + 1 frames of their parent's few triangles); they stay visible and
+ * are due again n_av + 1 frames later. Cheap queries: re-queried as always. */
+static void test_cost_skip_requery(void)
+{
+    test_name = "cost_skip_requery";
+    for (int m = 0; m < 2; m++) {
+        world_costs = m ? &expensive_queries : &cheap_queries;
+        struct world *w = world_create(column_tree(4), NULL, FAKE_NEVER);
+        world_costs = NULL;
+        tw_chc_state_init(w->state[0], &w->tree->bvh, 5);
+        const size_t mark = run_frame(w, 5);
+        const struct tw_chc_stats *st = tw_chc_stats(w->chc);
+        if (m) {
+            CHECK_STR(describe(w, mark), "D(0,1,2,3)");
+            CHECK_U(st->queries_skipped, 4);
+            for (uint32_t k = 0; k < 4; k++) {
+                const struct tw_chc_node_state *ls = &w->state[0][w->tree->leaf_node[k]];
+                CHECK_U(ls->visible_frame, 5);
+                CHECK_U(ls->next_query_frame, 5 + 1 + 8);
+            }
+            CHECK_U(w->state[0][0].visible_frame, 5);
+        } else {
+            CHECK_STR(describe(w, mark), "D(0,1,2,3) Q(L0) Q(L1) Q(L2) Q(L3)");
+            CHECK_U(st->queries_skipped, 0);
+        }
+        world_destroy(w);
+    }
+}
+
+/* A large leaf is queried even when queries are expensive: its triangles
+ * cost more than the query. */
+static void test_cost_large_leaf(void)
+{
+    test_name = "cost_large_leaf";
+    world_costs = &expensive_queries;
+    struct world *w = world_create(column_tree(2), NULL, FAKE_NEVER);
+    world_costs = NULL;
+    /* Leaf 0: 20000 triangles (2 ms to draw > 1 ms / p); leaf 1 stays small. */
+    w->tree->nodes[w->tree->leaf_node[0]].triangle_count = 20000;
+    set_interior_visible(w, 7);
+    set_leaf_invisible(w, 0, 3);
+    set_leaf_invisible(w, 1, 3);
+    const size_t mark = run_frame(w, 7);
+    CHECK_STR(describe(w, mark), "D(1) Q(L0) W");
+    CHECK_U(tw_chc_stats(w->chc)->queries_skipped, 1);
+    world_destroy(w);
+}
+
+/* Groups sized with costs: when a query's cost is all in its boxes (the
+ * fixed part nothing), grouping saves nothing and every node goes alone;
+ * when it is all in the fixed part, the groups are those of unit costs. */
+static void test_cost_grouping(void)
+{
+    test_name = "cost_grouping";
+    uint32_t frames[12];
+    for (uint32_t k = 0; k < 12; k++)
+        frames[k] = 50;
+    const struct tw_cost_model boxes_cost = {
+        .query = 1e-6f, .query_box = 1.0f, .draw = 10.0f, .triangle = 1.0f,
+        .pixels_per_sr = 1e5f, .screen_pixels = 1e5f,
+    };
+    world_costs = &boxes_cost;
+    CHECK_STR(grouping(4, frames, NULL), "L0 | L1 | L2 | L3");
+    world_costs = &cheap_queries;
+    CHECK_STR(grouping(12, frames, NULL), "L0,L1,L2,L3,L4,L5,L6,L7,L8,L9,L10 | L11");
+    world_costs = NULL;
+    CHECK_STR(grouping(12, frames, NULL), "L0,L1,L2,L3,L4,L5,L6,L7,L8,L9,L10 | L11");
+}
+
+/* Whatever the costs, every visible leaf is drawn (random worlds), and with
+ * cheap queries the run is the run without a model, event for event. */
+static void test_cost_random_worlds(void)
+{
+    test_name = "cost_random_worlds";
+    const struct tw_cost_model middle = {
+        .query = 0.03f, .query_box = 0.001f, .query_pixel = 1e-6f, .draw = 0.002f,
+        .triangle = 1e-3f, .pixels_per_sr = 1e5f, .screen_pixels = 1e5f,
+    };
+    const struct tw_cost_model *models[2] = {&expensive_queries, &middle};
+    for (uint64_t seed = 1; seed <= 6; seed++)
+        for (int m = 0; m < 2; m++) {
+            const struct tw_chc_settings s = {.seed = seed, .assumed_visible = (uint32_t)seed % 4};
+            world_costs = models[m];
+            random_run(seed * 131, &s, seed % 2 ? 1 : FAKE_NEVER, 30);
+            world_costs = NULL;
+        }
+    const struct tw_chc_settings s = {.seed = 7};
+    const struct random_run plain = random_run(555, &s, 1, 30);
+    world_costs = &cheap_queries;
+    const struct random_run cheap = random_run(555, &s, 1, 30);
+    world_costs = &expensive_queries;
+    const struct random_run dear = random_run(555, &s, 1, 30);
+    const struct tw_chc_settings off = {.seed = 7, .no_cost_model = true};
+    const struct random_run ignored = random_run(555, &off, 1, 30);
+    world_costs = NULL;
+    CHECK_U(cheap.hash, plain.hash);
+    CHECK_U(cheap.events, plain.events);
+    CHECK(dear.hash != plain.hash);
+    CHECK_U(ignored.hash, plain.hash);
+}
+
 static void test_api_edges(void)
 {
     test_name = "api_edges";
@@ -1352,6 +1510,11 @@ int main(void)
     test_tight_boxes();
     test_random_worlds();
     test_determinism();
+    test_cost_skip_hidden();
+    test_cost_skip_requery();
+    test_cost_large_leaf();
+    test_cost_grouping();
+    test_cost_random_worlds();
     if (failures) {
         fprintf(stderr, "test-chc: %d check(s) failed\n", failures);
         return 1;

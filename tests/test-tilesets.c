@@ -129,14 +129,28 @@ static uint64_t street_band_violations(const struct tw_tileset *ts, float band,
     return bad;
 }
 
+/* A mesh that tw_tileset_finish() merged from instances. */
+static bool merged_mesh(const struct tw_tileset *ts, uint32_t mesh)
+{
+    for (uint32_t p = 0; p < ts->prototype_count; p++)
+        for (uint32_t k = 0; k < ts->prototypes[p].instance_count; k++)
+            if (ts->prototypes[p].instances[k].merged && ts->prototypes[p].instances[k].mesh == mesh)
+                return true;
+    return false;
+}
+
 /* Every triangle is flat shaded (its three normals equal the unit face
  * normal) and wound counter-clockwise seen from the side its normal points
- * to: the renderer culls back faces. */
+ * to: the renderer culls back faces. A merged mesh holds its instances'
+ * normals transformed as the shader transforms them (by the linear part,
+ * which a non-uniform scale tilts off the face normal): its normals only
+ * have to point to the front side. */
 static uint64_t shading_violations(const struct tw_tileset *ts)
 {
     uint64_t bad = 0;
     for (uint32_t k = 0; k < ts->mesh_count; k++) {
         const struct tw_mesh *m = &ts->meshes[k];
+        const float min_dot = merged_mesh(ts, k) ? 0.0f : 0.999f;
         for (uint32_t t = 0; t < m->triangle_count; t++) {
             const uint32_t *i = m->indices + 3 * t;
             const float *a = m->positions + 3 * i[0], *b = m->positions + 3 * i[1],
@@ -151,9 +165,12 @@ static uint64_t shading_violations(const struct tw_tileset *ts)
                 continue;
             }
             for (int v = 0; v < 3; v++) {
+                /* Normals of merged meshes are transformed, not renormalised
+                 * (the shader normalises them, as it does an instance's). */
                 const float *vn = m->normals + 3 * i[v];
-                const float dot = (vn[0] * n[0] + vn[1] * n[1] + vn[2] * n[2]) / len;
-                if (dot < 0.999f) {
+                const float vlen = sqrtf(vn[0] * vn[0] + vn[1] * vn[1] + vn[2] * vn[2]);
+                const float dot = (vn[0] * n[0] + vn[1] * n[1] + vn[2] * n[2]) / (len * vlen);
+                if (min_dot > 0.0f ? dot < min_dot : !(dot > 0.0f)) {
                     bad++;
                     break;
                 }
@@ -258,7 +275,8 @@ static uint32_t tall_objects(const struct tw_prototype *proto, float height)
     uint32_t n = 0;
     for (uint32_t k = 0; k < proto->instance_count; k++) {
         const struct tw_instance *in = &proto->instances[k];
-        if (!(in->box.max[1] > height && in->box.min[1] < 0.5f))
+        /* A merged mesh is many objects; its instances are counted. */
+        if (in->merged || !(in->box.max[1] > height && in->box.min[1] < 0.5f))
             continue;
         bool seen = false;
         for (uint32_t j = 0; j < k && !seen; j++) {
@@ -595,7 +613,7 @@ static void test_forest(void)
         uint32_t objects = 0;
         for (uint32_t k = 0; k < proto->instance_count; k++) {
             const struct tw_instance *in = &proto->instances[k];
-            if (spans_tile(a, in))
+            if (in->merged || spans_tile(a, in))
                 continue;
             const double area = (double)(in->box.max[0] - in->box.min[0]) *
                                 (in->box.max[2] - in->box.min[2]);
@@ -879,6 +897,194 @@ static void test_builtin(void)
     CHECK(err == TW_ERR_INVALID, "builtin(NULL) returned %d", err);
 }
 
+/* ---- merging small instances (tw_tileset_finish) ------------------------------------ */
+
+/* A quad of two triangles in the xz plane, normals up; n_quads quads in a row. */
+static int add_strip(struct tw_tileset *ts, uint32_t n_quads)
+{
+    float pos[4 * 3 * 64], nrm[4 * 3 * 64];
+    uint32_t idx[6 * 64];
+    for (uint32_t q = 0; q < n_quads && q < 64; q++) {
+        const float x = (float)q;
+        const float corners[4][3] = {{x, 0, 0}, {x + 1, 0, 0}, {x, 0, 1}, {x + 1, 0, 1}};
+        for (int v = 0; v < 4; v++)
+            for (int a = 0; a < 3; a++) {
+                pos[12 * q + 3 * v + a] = corners[v][a];
+                nrm[12 * q + 3 * v + a] = a == 1 ? 1.0f : 0.0f;
+            }
+        const uint32_t b = 4 * q;
+        const uint32_t tri[6] = {b, b + 2, b + 1, b + 1, b + 2, b + 3};
+        memcpy(idx + 6 * q, tri, sizeof(tri));
+    }
+    return tw_tileset_add_mesh(ts, pos, nrm, 4 * n_quads, idx, 2 * n_quads);
+}
+
+/* A tileset of one prototype: three small quads of material 0 (one rotated
+ * and scaled), one small quad of material 1, one strip of 10 triangles of
+ * material 0; merge_triangles 8, clusters of at most 4 triangles. */
+static struct tw_tileset *merge_tileset(uint32_t merge_triangles)
+{
+    struct tw_tileset *ts = NULL;
+    if (tw_tileset_create("merge", 40, 40, &ts))
+        return NULL;
+    ts->merge_triangles = merge_triangles;
+    const float grey[4] = {0.5f, 0.5f, 0.5f, 1}, red[4] = {1, 0, 0, 1};
+    const int quad = add_strip(ts, 1), strip = add_strip(ts, 5);
+    const int m0 = tw_tileset_add_material(ts, grey), m1 = tw_tileset_add_material(ts, red);
+    const int p = tw_tileset_add_prototype(ts, "p", 1.0f);
+    const float at1[12] = {1, 0, 0, 3, 0, 1, 0, 0, 0, 0, 1, 2};
+    /* 90 degrees about y, scaled 2 in x, moved: a transform with rounding. */
+    const float at2[12] = {0, 0, 1.5f, 10.25f, 0, 1, 0, 0.5f, -2.0f, 0, 0, 7.125f};
+    const float at3[12] = {1, 0, 0, 20, 0, 1, 0, 0, 0, 0, 1, 20};
+    const float at4[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 30};
+    if (quad < 0 || strip < 0 || m0 < 0 || m1 < 0 || p < 0 ||
+        tw_tileset_add_instance(ts, 0, (uint32_t)quad, (uint32_t)m0, at1) != 0 ||
+        tw_tileset_add_instance(ts, 0, (uint32_t)quad, (uint32_t)m1, at3) != 1 ||
+        tw_tileset_add_instance(ts, 0, (uint32_t)quad, (uint32_t)m0, at2) != 2 ||
+        tw_tileset_add_instance(ts, 0, (uint32_t)strip, (uint32_t)m0, at4) != 3 ||
+        tw_tileset_add_instance(ts, 0, (uint32_t)quad, (uint32_t)m0, NULL) != 4 ||
+        tw_tileset_finish(ts, 4) != TW_OK) {
+        tw_tileset_destroy(ts);
+        return NULL;
+    }
+    return ts;
+}
+
+static uint64_t mesh_bytes(const struct tw_tileset *ts)
+{
+    uint64_t bytes = 0;
+    for (uint32_t k = 0; k < ts->mesh_count; k++)
+        bytes += 24ull * ts->meshes[k].vertex_count + 12ull * ts->meshes[k].triangle_count;
+    return bytes;
+}
+
+/* Small instances of one material are baked into one tile-local mesh, drawn
+ * in clusters of at most max_cluster_triangles; the rest is as before. */
+static void test_merge_instances(void)
+{
+    struct tw_tileset *ts = merge_tileset(8), *plain = merge_tileset(1);
+    CHECK(ts && plain, "merge tilesets made");
+    if (!ts || !plain)
+        goto out;
+    const struct tw_prototype *p = &ts->prototypes[0], *q = &plain->prototypes[0];
+    /* Unmerged: one cluster per quad, four for the strip of 10 (5 + 5, each 2 + 3). */
+    CHECK(q->instance_count == 5 && q->cluster_count == 4 + 4, "plain: %u instances, %u clusters",
+          q->instance_count, q->cluster_count);
+    CHECK(plain->mesh_count == 2, "plain: %u meshes", plain->mesh_count);
+    /* Merged: quads 0, 2 and 4 (material 0) into instance 5; the red quad is
+     * alone and the strip is not small: both as they were. */
+    CHECK(p->instance_count == 6 && ts->mesh_count == 3, "%u instances, %u meshes",
+          p->instance_count, ts->mesh_count);
+    if (p->instance_count != 6 || ts->mesh_count != 3)
+        goto out;
+    const struct tw_instance *mi = &p->instances[5];
+    CHECK(mi->merged && mi->merged_into == TW_INSTANCE_NONE && mi->material == 0 && mi->mesh == 2,
+          "merged instance: merged %d, mesh %u, material %u", mi->merged, mi->mesh, mi->material);
+    const uint32_t expect_into[5] = {5, TW_INSTANCE_NONE, 5, TW_INSTANCE_NONE, 5};
+    for (uint32_t k = 0; k < 5; k++)
+        CHECK(p->instances[k].merged_into == expect_into[k] && !p->instances[k].merged,
+              "instance %u merged into %u", k, p->instances[k].merged_into);
+    static const float identity[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+    CHECK(memcmp(mi->transform, identity, sizeof(identity)) == 0, "identity placement");
+    const struct tw_mesh *mm = &ts->meshes[2];
+    CHECK(mm->vertex_count == 12 && mm->triangle_count == 6, "merged mesh: %u vertices, %u triangles",
+          mm->vertex_count, mm->triangle_count);
+    /* Clusters: the merged 6 triangles in 2 (<= 4 each), the red quad, the strip's 4. */
+    CHECK(p->cluster_count == 2 + 1 + 4, "%u clusters", p->cluster_count);
+    uint64_t tris = 0;
+    for (uint32_t k = 0; k < p->cluster_count; k++) {
+        const struct tw_cluster *c = &p->clusters[k];
+        CHECK(c->triangle_count <= 4, "cluster %u: %u triangles", k, c->triangle_count);
+        CHECK(p->instances[c->instance].merged_into == TW_INSTANCE_NONE,
+              "cluster %u drawn by a merged-away instance", k);
+        tris += c->triangle_count;
+    }
+    CHECK(tris == p->triangle_count && p->triangle_count == q->triangle_count,
+          "%llu cluster triangles, %llu and %llu in the prototypes", (unsigned long long)tris,
+          (unsigned long long)p->triangle_count, (unsigned long long)q->triangle_count);
+    /* Every transformed vertex of a merged instance is in the merged mesh
+     * (up to float rounding), with its normal transformed the same way. */
+    const struct tw_mesh *quad = &ts->meshes[0];
+    for (uint32_t k = 0; k < 5; k += 2) {
+        const struct tw_instance *in = &p->instances[k];
+        for (uint32_t v = 0; v < quad->vertex_count; v++) {
+            float want[3], n[3];
+            transform_point(in->transform, quad->positions + 3 * v, want);
+            const float *qn = quad->normals + 3 * v;
+            for (int r = 0; r < 3; r++)
+                n[r] = in->transform[4 * r] * qn[0] + in->transform[4 * r + 1] * qn[1] +
+                       in->transform[4 * r + 2] * qn[2];
+            bool found = false;
+            for (uint32_t u = 0; u < mm->vertex_count && !found; u++) {
+                const float *got = mm->positions + 3 * u, *gn = mm->normals + 3 * u;
+                found = fabsf(got[0] - want[0]) < 1e-5f && fabsf(got[1] - want[1]) < 1e-5f &&
+                        fabsf(got[2] - want[2]) < 1e-5f && fabsf(gn[0] - n[0]) < 1e-6f &&
+                        fabsf(gn[1] - n[1]) < 1e-6f && fabsf(gn[2] - n[2]) < 1e-6f;
+            }
+            CHECK(found, "instance %u vertex %u (%g %g %g) not in the merged mesh", k, v,
+                  (double)want[0], (double)want[1], (double)want[2]);
+        }
+        /* Its box is where its triangles are, inside the prototype's. */
+        CHECK(box_contains(&p->box, &in->box), "instance %u box outside the prototype", k);
+    }
+    for (int a = 0; a < 3; a++)
+        CHECK(p->box.min[a] == q->box.min[a] && p->box.max[a] == q->box.max[a],
+              "prototype box axis %d: [%g, %g] vs [%g, %g]", a, (double)p->box.min[a],
+              (double)p->box.max[a], (double)q->box.min[a], (double)q->box.max[a]);
+    /* The merged mesh costs its bytes. */
+    CHECK(tw_tileset_geometry_bytes(ts) == mesh_bytes(ts) &&
+              tw_tileset_geometry_bytes(ts) == tw_tileset_geometry_bytes(plain) + 12 * 24 + 6 * 12,
+          "geometry bytes %llu, plain %llu", (unsigned long long)tw_tileset_geometry_bytes(ts),
+          (unsigned long long)tw_tileset_geometry_bytes(plain));
+out:
+    tw_tileset_destroy(ts);
+    tw_tileset_destroy(plain);
+    /* Whole meshes asked for (no cluster size): nothing merged. */
+    struct tw_tileset *whole = NULL;
+    if (tw_tileset_create("whole", 10, 10, &whole) == TW_OK) {
+        const int one = add_strip(whole, 1);
+        const int m = tw_tileset_add_material(whole, (const float[4]){1, 1, 1, 1});
+        tw_tileset_add_prototype(whole, "p", 1.0f);
+        for (int k = 0; k < 3 && one >= 0 && m >= 0; k++)
+            tw_tileset_add_instance(whole, 0, (uint32_t)one, (uint32_t)m, NULL);
+        CHECK(tw_tileset_finish(whole, 0) == TW_OK && whole->prototypes[0].instance_count == 3 &&
+                  whole->prototypes[0].cluster_count == 3,
+              "max_cluster_triangles 0 merges nothing");
+    }
+    tw_tileset_destroy(whole);
+}
+
+/* The built-in forest: its many small plants are merged, and its clusters
+ * are far fewer than its instances. */
+static void test_merge_builtin(void)
+{
+    struct tw_tileset *ts = NULL;
+    CHECK(tw_tilesets_builtin("forest", 1, 0, NULL, &ts) == TW_OK, "forest");
+    if (!ts)
+        return;
+    for (uint32_t p = 0; p < ts->prototype_count; p++) {
+        const struct tw_prototype *proto = &ts->prototypes[p];
+        uint32_t merged = 0, merged_away = 0;
+        for (uint32_t k = 0; k < proto->instance_count; k++) {
+            merged += proto->instances[k].merged;
+            merged_away += proto->instances[k].merged_into != TW_INSTANCE_NONE;
+            if (proto->instances[k].merged_into != TW_INSTANCE_NONE)
+                CHECK(ts->meshes[proto->instances[k].mesh].triangle_count <
+                          TW_TILESET_MERGE_TRIANGLES,
+                      "%s: instance %u merged with %u triangles", proto->name, k,
+                      ts->meshes[proto->instances[k].mesh].triangle_count);
+        }
+        CHECK(merged > 0 && merged_away > 4 * merged, "%s: %u merged meshes of %u instances",
+              proto->name, merged, merged_away);
+        uint32_t merged_clusters = 0;
+        for (uint32_t k = 0; k < proto->cluster_count; k++)
+            merged_clusters += proto->instances[proto->clusters[k].instance].merged;
+        CHECK(4 * merged_clusters < merged_away, "%s: %u clusters for %u merged instances",
+              proto->name, merged_clusters, merged_away);
+    }
+    tw_tileset_destroy(ts);
+}
+
 int main(void)
 {
     test_city();
@@ -887,6 +1093,8 @@ int main(void)
     test_forest_settings();
     test_hybrid();
     test_builtin();
+    test_merge_instances();
+    test_merge_builtin();
     if (failures) {
         fprintf(stderr, "test-tilesets: %d check(s) failed\n", failures);
         return 1;

@@ -194,10 +194,14 @@ int tw_tileset_add_instance(struct tw_tileset *ts, uint32_t proto, uint32_t mesh
     if (err)
         return err;
     struct tw_instance *in = &p->instances[p->instance_count];
+    /* Zeroed first: padding too, so that equal tilesets compare equal bytewise. */
+    memset(in, 0, sizeof(*in));
     in->mesh = mesh;
     in->material = material;
     memcpy(in->transform, transform, sizeof(in->transform));
     in->box = tw_box_empty();
+    in->merged_into = TW_INSTANCE_NONE;
+    in->merged = false;
     return (int)p->instance_count++;
 }
 
@@ -333,6 +337,116 @@ out:
     return err;
 }
 
+/* ---- finishing: merging small instances ------------------------------------------ */
+
+struct small_instance {
+    uint32_t material;
+    uint32_t instance;
+};
+
+static int compare_small(const void *a, const void *b)
+{
+    const struct small_instance *x = a, *y = b;
+    if (x->material != y->material)
+        return x->material < y->material ? -1 : 1;
+    return (x->instance > y->instance) - (x->instance < y->instance);
+}
+
+/* Bakes instances list[0..count) of prototype p (one material) into one
+ * tile-local mesh placed by a new identity instance, and marks them merged
+ * into it. A group whose merged mesh would be invalid (too large, or
+ * transformed positions that overflow) stays as it is. */
+static int merge_group(struct tw_tileset *ts, uint32_t p, const struct small_instance *list,
+                       uint32_t count, uint64_t *budget)
+{
+    uint64_t vertices = 0, triangles = 0;
+    for (uint32_t k = 0; k < count; k++) {
+        const struct tw_mesh *m = &ts->meshes[ts->prototypes[p].instances[list[k].instance].mesh];
+        vertices += m->vertex_count;
+        triangles += m->triangle_count;
+    }
+    /* Baking copies what instancing shares: within the tileset's budget. */
+    const uint64_t bytes = 24 * vertices + 12 * triangles;
+    if (bytes > *budget)
+        return TW_OK;
+    *budget -= bytes;
+    float *pos = malloc(sizeof(float) * 3 * (size_t)vertices);
+    float *nrm = malloc(sizeof(float) * 3 * (size_t)vertices);
+    uint32_t *idx = malloc(sizeof(uint32_t) * 3 * (size_t)triangles);
+    int err = TW_OK;
+    if (!pos || !nrm || !idx) {
+        err = TW_ERR_NOMEM;
+        goto out;
+    }
+    uint32_t vbase = 0, tbase = 0;
+    for (uint32_t k = 0; k < count; k++) {
+        const struct tw_instance *in = &ts->prototypes[p].instances[list[k].instance];
+        const struct tw_mesh *m = &ts->meshes[in->mesh];
+        const float *x = in->transform;
+        for (uint32_t v = 0; v < m->vertex_count; v++) {
+            const float *a = m->positions + 3 * (size_t)v, *n = m->normals + 3 * (size_t)v;
+            float *q = pos + 3 * (size_t)(vbase + v), *r = nrm + 3 * (size_t)(vbase + v);
+            for (int row = 0; row < 3; row++) {
+                const float *t = x + 4 * row;
+                q[row] = t[0] * a[0] + t[1] * a[1] + t[2] * a[2] + t[3];
+                r[row] = t[0] * n[0] + t[1] * n[1] + t[2] * n[2];
+            }
+        }
+        for (uint32_t i = 0; i < 3 * m->triangle_count; i++)
+            idx[3 * (size_t)tbase + i] = m->indices[i] + vbase;
+        vbase += m->vertex_count;
+        tbase += m->triangle_count;
+    }
+    const int mesh = tw_tileset_add_mesh(ts, pos, nrm, vbase, idx, tbase);
+    if (mesh == TW_ERR_INVALID)
+        goto out;   /* not finite once transformed: leave the group alone */
+    if (mesh < 0) {
+        err = mesh;
+        goto out;
+    }
+    const int merged = tw_tileset_add_instance(ts, p, (uint32_t)mesh, list[0].material, NULL);
+    if (merged < 0) {
+        err = merged;
+        goto out;
+    }
+    ts->prototypes[p].instances[merged].merged = true;
+    for (uint32_t k = 0; k < count; k++)
+        ts->prototypes[p].instances[list[k].instance].merged_into = (uint32_t)merged;
+out:
+    free(pos);
+    free(nrm);
+    free(idx);
+    return err;
+}
+
+/* Merges prototype p's small instances, material by material. */
+static int merge_small_instances(struct tw_tileset *ts, uint32_t p, uint32_t below,
+                                 uint64_t *budget)
+{
+    const uint32_t n = ts->prototypes[p].instance_count;
+    struct small_instance *list = malloc(sizeof(*list) * (n ? n : 1));
+    if (!list)
+        return TW_ERR_NOMEM;
+    uint32_t count = 0;
+    for (uint32_t k = 0; k < n; k++) {
+        const struct tw_instance *in = &ts->prototypes[p].instances[k];
+        if (ts->meshes[in->mesh].triangle_count < below)
+            list[count++] = (struct small_instance){in->material, k};
+    }
+    qsort(list, count, sizeof(*list), compare_small);
+    int err = TW_OK;
+    for (uint32_t k = 0; k < count && !err;) {
+        uint32_t end = k + 1;
+        while (end < count && list[end].material == list[k].material)
+            end++;
+        if (end - k >= 2)
+            err = merge_group(ts, p, &list[k], end - k, budget);
+        k = end;
+    }
+    free(list);
+    return err;
+}
+
 int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
 {
     if (!ts || ts->finished || ts->prototype_count == 0)
@@ -342,6 +456,14 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
             return TW_ERR_INVALID;
 
     int err = TW_OK;
+    /* Without a cluster size the caller wants whole meshes: nothing merged. */
+    const uint32_t below = ts->merge_triangles ? ts->merge_triangles : TW_TILESET_MERGE_TRIANGLES;
+    uint64_t budget = TW_TILESET_MERGE_BYTES;
+    for (uint32_t p = 0; p < ts->prototype_count && max_cluster_triangles > 0 && below > 1; p++) {
+        err = merge_small_instances(ts, p, below, &budget);
+        if (err)
+            return err;
+    }
     for (uint32_t k = 0; k < ts->mesh_count; k++) {
         err = split_mesh(ts, k, max_cluster_triangles, &ts->part_cap);
         if (err)
@@ -353,7 +475,8 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
         struct tw_prototype *proto = &ts->prototypes[p];
         uint64_t clusters = 0;
         for (uint32_t k = 0; k < proto->instance_count; k++)
-            clusters += ts->meshes[proto->instances[k].mesh].part_count;
+            if (proto->instances[k].merged_into == TW_INSTANCE_NONE)
+                clusters += ts->meshes[proto->instances[k].mesh].part_count;
         if (clusters > UINT32_MAX)
             return TW_ERR_LIMIT;
         proto->clusters = malloc(sizeof(*proto->clusters) * clusters);
@@ -365,6 +488,11 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
         for (uint32_t k = 0; k < proto->instance_count; k++) {
             struct tw_instance *in = &proto->instances[k];
             const struct tw_mesh *m = &ts->meshes[in->mesh];
+            if (in->merged_into != TW_INSTANCE_NONE) {
+                /* Drawn by its merged instance; its box still says where it is. */
+                in->box = triangles_box(m, 0, m->triangle_count, in->transform);
+                continue;
+            }
             in->box = tw_box_empty();
             for (uint32_t q = m->first_part; q < m->first_part + m->part_count; q++) {
                 const struct tw_mesh_part *part = &ts->parts[q];

@@ -183,7 +183,24 @@ struct tw_chc_settings {
     uint32_t threshold;         /* T: visible when samples > T; default 0 */
     bool no_multiqueries;       /* issue every I-query alone (for measurements) */
     bool no_tight_boxes;        /* query node boxes, not tight-box lists */
+    bool no_cost_model;         /* ignore tw_chc_set_costs(): every query costs one unit,
+                                   as in the paper (for measurements) */
     uint64_t seed;              /* for the randomised re-query offsets */
+};
+
+/* What work costs on the GPU a frame runs on (DESIGN §14), in milliseconds
+ * of CPU time (a software rasteriser's work is CPU time). A zeroed model
+ * (query == 0) is no model: every query costs one unit, as in the paper. */
+struct tw_cost_model {
+    float query;                /* one occlusion query (issue, one box, read back) */
+    float query_box;            /* each further box of a query */
+    float query_pixel;          /* each pixel its boxes cover */
+    float draw;                 /* one draw call (a cluster) */
+    float triangle;             /* each triangle drawn */
+    float pixels_per_sr;        /* f^2, f the focal length in pixels: a box of surface
+                                   area S at distance d covers about (S / 4) f^2 / d^2
+                                   pixels */
+    float screen_pixels;        /* width * height: no box covers more */
 };
 
 /* Fills in the defaults of every zero field that has one. */
@@ -216,6 +233,10 @@ struct tw_chc_stats {
     uint32_t requeries;         /* single queries re-issued after a failed multiquery */
     uint32_t clusters_drawn;
     uint32_t waits;             /* blocking waits */
+    uint32_t queries_skipped;   /* queries the cost model found not worth issuing: a
+                                   previously hidden node drawn without a query (cheaper
+                                   than a query weighted by the chance that it is hidden),
+                                   or a visible leaf's re-query that could not pay */
 };
 
 /* One tile to traverse. */
@@ -260,6 +281,24 @@ void tw_chc_traverse(struct tw_chc *chc, const struct tw_view *v,
 
 /* This frame's counters (reset by tw_chc_begin_frame). */
 const struct tw_chc_stats *tw_chc_stats(const struct tw_chc *chc);
+
+/* The costs the next traversals decide with (copied; NULL or a zeroed
+ * model: none, every query one unit). With a model:
+ *   - a previously invisible node whose drawing costs less than its query
+ *     weighted by the chance p(i) that it stays hidden (p C_draw < C_query,
+ *     pixels left out: a hidden node's pixels are tested either way) is
+ *     drawn without a query (a leaf) or opened (an interior node: its
+ *     children decide for themselves); it is not marked visible, as
+ *     nothing was learnt, so that its parent can still be found hidden and
+ *     be culled whole by one query;
+ *   - a visible leaf due for a re-query is re-queried only when that can
+ *     pay: when n_av + 1 frames of drawing its parent's subtree (which a
+ *     hidden answer may let be culled whole) cost more than the query;
+ *     else it stays visible, due again in n_av frames;
+ *   - multiquery groups grow while the cost they save, in milliseconds,
+ *     does not fall behind what they cost.
+ * Both decisions only ever draw more: never one that hides a node. */
+void tw_chc_set_costs(struct tw_chc *chc, const struct tw_cost_model *costs);
 
 /* Heap bytes held by the engine. */
 size_t tw_chc_bytes(const struct tw_chc *chc);
@@ -419,6 +458,7 @@ struct tw_cull_driver_settings {
 
 /* Counters of one frame. */
 struct tw_cull_frame_stats {
+    uint32_t queries_skipped;           /* by CHC++'s cost model (tw_chc_stats) */
     uint32_t tiles_queried;
     uint32_t tiles_visible;             /* tiles with something drawn (tile queries:
                                            tiles rendered) */
@@ -449,6 +489,10 @@ void tw_cull_driver_give(struct tw_cull_driver *d, const struct tw_drawn_cluster
 int tw_cull_driver_frame(struct tw_cull_driver *d, const struct tw_view *v,
                          const struct tw_cull_grid *g, const struct tw_query_backend *be,
                          struct tw_cull_cells *cells, struct tw_cull_frame_stats *stats);
+
+/* The costs CHC++ decides with from the next frame on (copied; NULL: none),
+ * see tw_chc_set_costs(). */
+void tw_cull_driver_set_costs(struct tw_cull_driver *d, const struct tw_cost_model *costs);
 
 enum tw_cull_method tw_cull_driver_method(const struct tw_cull_driver *d);
 /* The driver's propagation engine (NULL for methods without tile queries). */

@@ -70,6 +70,30 @@ struct tw_camera {
     float pitch;
 };
 
+/* What work costs on the GPU a world draws with (DESIGN §14), in
+ * milliseconds of process CPU time (on a software rasteriser every thread's
+ * work is CPU time; on a GPU it is what the CPU spends submitting and
+ * waiting). Measured when a world is created, by timing queries of boxes
+ * of known screen size and draws of clusters of known triangle counts, each
+ * batch closed by glFinish; then refined from the frames drawn. */
+struct tw_calibration {
+    double query_ms;         /* one occlusion query of one box: issue, draw, read back */
+    double query_box_ms;     /* each further box of a query (an instance more) */
+    double query_pixel_ns;   /* each pixel its boxes cover, nanoseconds */
+    double draw_ms;          /* one draw call (one cluster) */
+    double triangle_ns;      /* each triangle drawn, nanoseconds */
+    double calibrate_ms;     /* CPU time the measurement took (0: not measured) */
+    bool measured;           /* false: figures given in the settings, or the nominal
+                                ones of a deterministic world; neither is refined */
+    uint32_t frames;         /* frames that refined the scales below */
+    double query_scale;      /* refinement: the process CPU time of each finished frame
+                                (tw_world_finish) is regressed on its queries' and its
+                                draws' costs as calibrated; these are the fitted
+                                factors (running, recent frames weigh more; 1 until
+                                enough frames of both kinds), within [0.1, 20] */
+    double draw_scale;
+};
+
 /* What a frame does with a visible cell whose generated tile is not ready
  * (DESIGN §12). */
 enum tw_stream_policy {
@@ -123,9 +147,12 @@ struct tw_world_settings {
                                           waited on: a run's counts then do not depend
                                           on the GPU's timing (tests, comparisons);
                                           slower, as latency is no longer hidden */
-    struct tw_chc_settings chc;
+    struct tw_chc_settings chc;        /* chc.no_cost_model: CHC++ with unit query costs */
     struct tw_tilequery_settings tilequery;
     struct tw_bvh_settings bvh;
+    struct tw_calibration calibration; /* zeroed (query_ms 0): measured at creation and
+                                          refined (a deterministic world: the nominal
+                                          figures, fixed); else these figures, fixed */
     tw_gl_get_proc_fn get_proc;        /* loader of the current context; required */
     struct tw_log log;                 /* copied; zeroed: silent */
 };
@@ -164,6 +191,8 @@ struct tw_frame_stats {
                                 the GPU's, on a software rasteriser) */
     uint64_t depth_errors;   /* pixels whose depth differs from the oracle's beyond
                                 verify_tolerance, either way */
+    uint32_t blocking_reads; /* query results waited for that were not ready yet */
+    uint32_t queries_skipped;/* queries CHC++'s cost model found not worth issuing */
     /* Streaming (DESIGN §12, §13): world-wide, not per method. */
     uint32_t tiles_pending;  /* visible cells drawn without their tile (policy skip) */
     uint32_t loads_requested;/* generated tiles requested this frame */
@@ -262,6 +291,11 @@ const struct tw_drawn_cluster *tw_world_drawn(const struct tw_world *w, size_t *
 
 /* The world's resolved settings. */
 const struct tw_world_settings *tw_world_settings(const struct tw_world *w);
+
+/* The cost figures the world decides with (DESIGN §14): as calibrated
+ * when it was created, with the refinement of the frames since. Owned by
+ * the world; valid until it is destroyed. */
+const struct tw_calibration *tw_world_calibration(const struct tw_world *w);
 
 /* The BVH of prototype p (built when the world was created). */
 const struct tw_bvh *tw_world_bvh(const struct tw_world *w, uint32_t p);

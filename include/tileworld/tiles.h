@@ -206,11 +206,17 @@ struct tw_mesh_part {
 };
 
 /* One placement of a shared mesh inside a prototype. */
+#define TW_INSTANCE_NONE UINT32_MAX
 struct tw_instance {
     uint32_t mesh;
     uint32_t material;
     float transform[12];  /* affine, row-major 3x4, mesh-local -> tile-local */
     struct tw_box box;    /* tile-local */
+    uint32_t merged_into; /* TW_INSTANCE_NONE, or (after tw_tileset_finish) the instance
+                             of a merged mesh that draws this one's triangles: such an
+                             instance has no clusters of its own */
+    bool merged;          /* made by tw_tileset_finish(): an identity placement of a merged
+                             mesh, drawing the instances merged into it */
 };
 
 /* The unit that the BVH indexes and the renderer draws: one part of one
@@ -251,6 +257,9 @@ struct tw_tileset {
     uint32_t prototype_count;
     struct tw_box common_box;     /* union of every prototype's box */
     uint32_t max_cluster_triangles;
+    uint32_t merge_triangles;     /* set before tw_tileset_finish(): instances whose mesh has
+                                     fewer triangles are merged (0: the default,
+                                     TW_TILESET_MERGE_TRIANGLES; 1: none is) */
     bool finished;
 
     uint32_t material_cap, mesh_cap, prototype_cap, part_cap; /* private */
@@ -287,15 +296,28 @@ int tw_tileset_add_instance(struct tw_tileset *ts, uint32_t proto,
                             uint32_t mesh, uint32_t material,
                             const float transform[12]);
 
-/* Freezes the tileset: splits every mesh into parts of at most
- * max_cluster_triangles triangles (0: never split) by recursive median
- * splits along the longest axis, computes every box, the clusters of every
- * prototype and the common box. Fails on a tileset with no prototype or with
- * an empty prototype (TW_ERR_INVALID), and on one whose common box spans
- * more than TW_TILES_MAX_SPAN footprints along x or z (TW_ERR_LIMIT). */
+/* Freezes the tileset. First, with max_cluster_triangles > 0, the small
+ * instances of each prototype (mesh of fewer than merge_triangles
+ * triangles) are merged per material: when two or more share a material,
+ * their vertices are transformed into tile-local space (normals by the
+ * transform's linear part, as the renderer's shader does) into one new
+ * mesh, placed by a new identity instance; the small instances stay in the
+ * list, marked merged_into, and get no clusters (a draw call then carries
+ * many instances instead of a few triangles); baking copies what instancing
+ * shares, so the merged meshes of a tileset hold TW_TILESET_MERGE_BYTES at
+ * most (groups beyond stay instanced). Then it splits every mesh
+ * into parts of at most max_cluster_triangles triangles (0: never split) by
+ * recursive median splits along the longest axis, computes every box, the
+ * clusters of every prototype and the common box. Fails on a tileset with
+ * no prototype or with an empty prototype (TW_ERR_INVALID), and on one
+ * whose common box spans more than TW_TILES_MAX_SPAN footprints along x or
+ * z (TW_ERR_LIMIT). */
+#define TW_TILESET_MERGE_TRIANGLES 64u
+#define TW_TILESET_MERGE_BYTES (16ull << 20)
 int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles);
 
-/* Sum of all mesh data bytes (what a renderer uploads once). */
+/* Sum of all mesh data bytes, merged meshes included (what a renderer
+ * uploads once). */
 uint64_t tw_tileset_geometry_bytes(const struct tw_tileset *ts);
 
 /* ---- selection ------------------------------------------------------------ */

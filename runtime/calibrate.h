@@ -1,0 +1,51 @@
+/*
+ * The cost calibration of DESIGN §14: what a query, a draw call and a
+ * triangle cost on the GPU a world draws with, measured when the world is
+ * created and refined from the frames it finishes. Private to runtime/.
+ */
+#ifndef TW_RUNTIME_CALIBRATE_H
+#define TW_RUNTIME_CALIBRATE_H
+
+#include "runtime/renderer.h"
+#include "tileworld/cull.h"
+#include "tileworld/runtime.h"
+
+/* Figures for a world whose counts must not depend on timing
+ * (tw_world_settings.deterministic): llvmpipe's, measured on two cores. */
+void tw_calibrate_nominal(struct tw_calibration *out);
+
+/* Measures out (a few tens of milliseconds): queries of one small box read
+ * back one by one (the round trip: the fixed cost), in a batch, of one
+ * large box (of known screen size) and of eight small boxes, draws of the
+ * smallest cluster of ts and of its largest of at most 512 triangles (ts
+ * uploaded with prototype p as content first_content + p; NULL: the draw
+ * figures stay nominal), each batch warmed up first and closed by glFinish,
+ * timed in process CPU time. r must be entered (tw_renderer_enter); its
+ * frame is left cleared. */
+int tw_calibrate_measure(struct tw_renderer *r, const struct tw_tileset *ts,
+                         uint32_t first_content, uint32_t width, uint32_t height, float fov_y,
+                         struct tw_calibration *out);
+
+/* The refinement's running sums: a least-squares fit, recent frames
+ * weighing more, of each frame's CPU time on its queries' and draws'
+ * calibrated costs (and a constant). Zero-initialise. */
+struct tw_calibrate_fit {
+    double s[3][3];     /* decayed sums of x x^T, x = (1, query cost, draw cost) */
+    double sy[3];       /* decayed sums of x y */
+    double weight;      /* decayed frame count */
+    double query_weight, draw_weight;   /* decayed sums of frames with queries, with draws */
+};
+
+/* Adds one finished frame (its CPU time, its counts: queries, their boxes,
+ * draws, triangles) and updates cal's scales. A calibration not measured is
+ * left alone. */
+void tw_calibrate_refine(struct tw_calibrate_fit *fit, struct tw_calibration *cal, double cpu_ms,
+                         uint32_t queries, uint32_t query_boxes, uint32_t draws,
+                         uint64_t triangles);
+
+/* The model CHC++ decides with: cal's figures with their scales, for a
+ * width x height image with a vertical field of view of fov_y degrees. */
+void tw_calibrate_model(const struct tw_calibration *cal, uint32_t width, uint32_t height,
+                        float fov_y, struct tw_cost_model *out);
+
+#endif
