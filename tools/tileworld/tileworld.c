@@ -52,7 +52,8 @@ static void usage(FILE *f)
           "       tileworld view   [options of tileworld view --help]\n"
           "options take their value as --opt VALUE or --opt=VALUE; numbers are plain decimal digits\n"
           "tilesets: city, forest, hybrid, or a manifest; paths: street, flyover, forest, teleport,\n"
-          "spin, or a CSV file; methods: vfc, tilequery, chc, tilequery+chc (default), oracle\n"
+          "spin, or a CSV file; methods: vfc, tilequery, chc, tilequery+chc (default), oracle,\n"
+          "hzb, tilequery+hzb\n"
           "sweep parameters: n_av, b, T, cluster_triangles, evict_after, view_distance, neighbours\n"
           "scenarios: teleport, spin, inside-building, inside-common-box, grazing, far-origin,\n"
           "no-occluders, all\n",
