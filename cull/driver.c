@@ -8,11 +8,23 @@
  * tilequery) or CHC++ over the tile's BVH (chc, tilequery+chc), and every
  * draw and query goes to the query backend. Tile instances (the per-view
  * CHC++ state of a cell) live in the driver's tile cache.
+ *
+ * The HZB methods (hzb, tilequery+hzb) run in two phases:
+ *
+ *   phase 1  the tiles found visible last frame, front to back: their
+ *            clusters found visible last frame, in the frustum
+ *   pyramid  depth read back, depth pyramid built (cull/hzb.c)
+ *   phase 2  hzb: every cell in view, front to back; tilequery+hzb: the
+ *            cells reached by propagation from the camera's, nearest first.
+ *            A cell's common box is tested against the pyramid; a visible
+ *            cell's BVH is traversed testing node boxes, drawing what
+ *            phase 1 did not
  */
-#include "tileworld/cull.h"
+#include "cull/cull-private.h"
 
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 struct tw_cull_driver {
     struct tw_cull_driver_settings s;
@@ -23,6 +35,17 @@ struct tw_cull_driver {
     uint32_t scratch_cap;
     const struct tw_drawn_cluster *given;
     size_t given_count;
+    /* hzb, tilequery+hzb */
+    struct tw_hzb *hzb;                 /* the pyramid, the per-tile traversals */
+    struct tw_cull_cell *hz_last, *hz_next;  /* cells with a visible node: last frame's
+                                           (phase 1 draws them), this frame's */
+    size_t hz_last_count, hz_last_cap, hz_next_count, hz_next_cap;
+    struct tw_cell_map *hz_verdict;     /* cell -> frame << 4 | HZ_* flags of that frame */
+    uint64_t hz_last_prune;
+    struct tw_cull_cell *hz_found;      /* tilequery+hzb: cells found visible this frame */
+    size_t hz_found_count, hz_found_cap;
+    struct tw_distance_entry *hz_heap;  /* of them, those to visit, nearest first */
+    size_t hz_heap_count, hz_heap_cap;
 };
 
 /* What one frame's local methods need. */
@@ -120,13 +143,20 @@ int tw_cull_driver_create(const struct tw_cull_driver_settings *settings,
     tw_chc_default_settings(&d->s.chc);
     tw_tilequery_default_settings(&d->s.tilequery);
     const enum tw_cull_method m = d->s.method;
+    const bool hzb = m == TW_CULL_HZB || m == TW_CULL_TILEQUERY_HZB;
     int err = TW_OK;
-    if (m == TW_CULL_TILEQUERY || m == TW_CULL_CHC || m == TW_CULL_TILEQUERY_CHC)
+    if (m == TW_CULL_TILEQUERY || m == TW_CULL_CHC || m == TW_CULL_TILEQUERY_CHC || hzb)
         err = tw_tile_cache_create(d->s.evict_after_frames, &d->cache);
     if (!err && (m == TW_CULL_CHC || m == TW_CULL_TILEQUERY_CHC))
         err = tw_chc_create(&d->s.chc, &d->chc);
     if (!err && (m == TW_CULL_TILEQUERY || m == TW_CULL_TILEQUERY_CHC))
         err = tw_tilequery_create(&d->s.tilequery, &d->tq);
+    if (!err && hzb)
+        err = tw_hzb_create(&d->hzb);
+    if (!err && hzb)
+        err = tw_cell_map_create(&d->hz_verdict);
+    if (!err && hzb)
+        tw_hzb_set_mutation(d->hzb, d->s.hzb_mutate_shrink);
     if (err) {
         tw_cull_driver_destroy(d);
         return err;
@@ -141,6 +171,12 @@ void tw_cull_driver_destroy(struct tw_cull_driver *d)
         return;
     tw_tilequery_destroy(d->tq);
     tw_chc_destroy(d->chc);
+    tw_hzb_destroy(d->hzb);
+    tw_cell_map_destroy(d->hz_verdict);
+    free(d->hz_last);
+    free(d->hz_next);
+    free(d->hz_found);
+    free(d->hz_heap);
     tw_tile_cache_destroy(d->cache);
     free(d->scratch);
     free(d);
@@ -173,7 +209,10 @@ size_t tw_cull_driver_bytes(const struct tw_cull_driver *d)
 {
     return sizeof(*d) + (d->cache ? tw_tile_cache_bytes(d->cache) : 0) +
            (d->chc ? tw_chc_bytes(d->chc) : 0) + (d->tq ? tw_tilequery_bytes(d->tq) : 0) +
-           sizeof(*d->scratch) * d->scratch_cap;
+           sizeof(*d->scratch) * d->scratch_cap + tw_hzb_bytes(d->hzb) +
+           (d->hz_verdict ? tw_cell_map_bytes(d->hz_verdict) : 0) +
+           sizeof(*d->hz_last) * (d->hz_last_cap + d->hz_next_cap) +
+           sizeof(*d->hz_found) * d->hz_found_cap + sizeof(*d->hz_heap) * d->hz_heap_cap;
 }
 
 /* Room for n cluster indices. */
@@ -237,6 +276,7 @@ static void *instance_state(struct frame *fr, struct tw_cell cell, const struct 
         fr->st->tiles_new++;
         if (fr->d->chc)
             tw_chc_state_init(state, tile->bvh, fr->v->frame);
+        /* HZB state starts zeroed: never visible, never drawn. */
     }
     return state;
 }
@@ -383,6 +423,348 @@ static int frame_given(struct frame *fr)
     return TW_OK;
 }
 
+/* ---- hzb and tilequery+hzb ---------------------------------------------------------- */
+
+/* What a frame learnt of a cell, kept in hz_verdict as frame << 4 | flags. */
+#define HZ_VISIBLE 1u       /* its common box passed the pyramid (or needed no test) */
+#define HZ_PHASE1 2u        /* phase 1 took it for visible: it had a visible node last frame */
+#define HZ_DREW1 4u         /* phase 1 drew some of its clusters */
+#define HZ_TESTED 8u        /* phase 2 decided on it */
+#define HZ_SHIFT 4
+
+static double now_ms(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
+}
+
+static int compare_cells(const void *a, const void *b)
+{
+    return tw_cull_cell_order(a, b);
+}
+
+/* Room for need elements of size elem in *array; out of memory ends the frame. */
+static bool grow(struct frame *fr, void **array, size_t *cap, size_t need, size_t elem)
+{
+    if (tw_cull_reserve(array, cap, need, elem))
+        return true;
+    fr->err = TW_ERR_NOMEM;
+    return false;
+}
+
+/* The cell's common box meets the frustum within the view distance. */
+static bool hz_in_view(const struct frame *fr, struct tw_cell cell, float off[3], float *distance)
+{
+    const struct tw_cull_grid *g = fr->g;
+    tw_tiles_cell_offset(cell, fr->v->cell, g->footprint[0], g->footprint[1], off);
+    *distance = tw_cull_box_distance(fr->v, &g->common_box, off);
+    return *distance <= fr->v->view_distance &&
+           tw_cull_frustum_box(&fr->v->frustum, &g->common_box, off) != TW_CULL_OUTSIDE;
+}
+
+static uint64_t hz_verdict(const struct frame *fr, struct tw_cell cell)
+{
+    const uint64_t *p = tw_cell_map_find(fr->d->hz_verdict, cell);
+    return p ? *p : 0;
+}
+
+static void hz_set_verdict(struct frame *fr, struct tw_cell cell, uint64_t flags)
+{
+    if (tw_cell_map_set(fr->d->hz_verdict, cell, fr->v->frame << HZ_SHIFT | flags))
+        fr->err = TW_ERR_NOMEM;
+}
+
+static bool hz_prune_old(void *user, struct tw_cell cell, uint64_t value)
+{
+    (void)cell;
+    return (value >> HZ_SHIFT) + 1 < *(const uint64_t *)user;
+}
+
+/* The HZB state of the cell's tile, made on first sight; *t is set up for
+ * the traversals. NULL when the tile is not there (pending, refused). */
+static struct tw_hzb_node_state *hz_tile(struct frame *fr, struct tw_cell cell, float distance,
+                                         const float off[3], struct tw_hzb_tile *t)
+{
+    struct tw_cull_tile tile;
+    if (!get_tile(fr, cell, distance, &tile))
+        return NULL;
+    struct tw_tile_handle h;
+    struct tw_hzb_node_state *state =
+        instance_state(fr, cell, &tile, tw_hzb_state_bytes(tile.bvh), &h);
+    if (!state)
+        return NULL;
+    *t = (struct tw_hzb_tile){
+        .cell = cell, .content = tile.content, .proto = tile.proto, .bvh = tile.bvh,
+        .state = state,
+    };
+    memcpy(t->offset, off, sizeof(t->offset));
+    return state;
+}
+
+/* Phase 1: last frame's visible tiles still in view, front to back, each
+ * drawing its clusters visible last frame. Returns how many clusters were
+ * drawn. */
+static uint32_t hz_phase1(struct frame *fr)
+{
+    struct tw_cull_driver *d = fr->d;
+    size_t n = 0;
+    for (size_t k = 0; k < d->hz_last_count; k++) {
+        float off[3], dist;
+        if (hz_in_view(fr, d->hz_last[k].cell, off, &dist))
+            d->hz_last[n++] = (struct tw_cull_cell){d->hz_last[k].cell, dist};
+    }
+    qsort(d->hz_last, n, sizeof(*d->hz_last), compare_cells);
+    uint32_t drawn = 0;
+    for (size_t k = 0; k < n && !fr->err; k++) {
+        const struct tw_cell cell = d->hz_last[k].cell;
+        float off[3];
+        tw_tiles_cell_offset(cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], off);
+        struct tw_hzb_tile t;
+        uint32_t c = 0;
+        if (hz_tile(fr, cell, d->hz_last[k].distance, off, &t))
+            c = tw_hzb_draw_last_visible(d->hzb, fr->v, fr->be, &t);
+        if (c > 0)
+            fr->st->tiles_visible++;
+        drawn += c;
+        hz_set_verdict(fr, cell, HZ_PHASE1 | (c > 0 ? HZ_DREW1 : 0));
+    }
+    return drawn;
+}
+
+/* The depth of phase 1 as a pyramid; none (every box visible) when phase 1
+ * drew nothing or there is no depth to read. */
+static void hz_pyramid(struct frame *fr, bool drawn)
+{
+    struct tw_hzb *h = fr->d->hzb;
+    const struct tw_query_backend *be = fr->be;
+    uint32_t w = 0, hh = 0;
+    bool reversed = false;
+    tw_hzb_clear(h);
+    if (!drawn || !be->read_depth || !be->read_depth(be->ctx, NULL, &w, &hh, &reversed))
+        return;
+    float *depth = tw_hzb_depth_buffer(h, w, hh);
+    if (!depth)
+        return;     /* out of memory: no pyramid, nothing culled */
+    const double t0 = now_ms();
+    if (!be->read_depth(be->ctx, depth, &w, &hh, &reversed))
+        return;
+    const double t1 = now_ms();
+    tw_hzb_build(h, reversed);
+    fr->st->ms_hzb_read += t1 - t0;
+    fr->st->ms_hzb_build += now_ms() - t1;
+}
+
+/* Phase 2's verdict on a cell in view: free (visible without a test: the
+ * start of propagation, the near-plane rule) or its common box tested
+ * against the pyramid. Counts a failed prediction and records the verdict;
+ * *prev receives what phase 1 recorded. */
+static bool hz_decide(struct frame *fr, struct tw_cell cell, const float off[3], bool free_pass,
+                      uint64_t *prev)
+{
+    const uint64_t f = fr->v->frame;
+    const uint64_t old = hz_verdict(fr, cell);
+    bool visible = true;
+    if (!free_pass) {
+        fr->st->tiles_queried++;
+        fr->st->hzb_boxes++;
+        visible = tw_hzb_visible(fr->d->hzb, fr->v, &fr->g->common_box, off);
+    }
+    /* A prediction: phase 1 drew the cell (predicted visible), or last
+     * frame's phase 2 decided on it. */
+    const bool this_frame = old >> HZ_SHIFT == f;
+    const bool known = this_frame || (old >> HZ_SHIFT == f - 1 && (old & HZ_TESTED));
+    const bool predicted = this_frame ? (old & HZ_PHASE1) != 0 : (old & HZ_VISIBLE) != 0;
+    if (known && predicted != visible)
+        fr->st->predict_fail++;
+    *prev = this_frame ? old : 0;
+    hz_set_verdict(fr, cell, (*prev & (HZ_PHASE1 | HZ_DREW1)) | HZ_TESTED |
+                                 (visible ? HZ_VISIBLE : 0));
+    return visible;
+}
+
+/* Phase 2 in a visible cell: its BVH against the pyramid; the cell is kept
+ * for the next frame's phase 1 if a node of it was found visible. */
+static void hz_visit(struct frame *fr, struct tw_cell cell, float distance, const float off[3],
+                     uint64_t prev)
+{
+    struct tw_cull_driver *d = fr->d;
+    struct tw_hzb_tile t;
+    if (!hz_tile(fr, cell, distance, off, &t))
+        return;
+    const uint32_t tested = tw_hzb_stats(d->hzb)->boxes_tested;
+    const uint32_t c = tw_hzb_traverse(d->hzb, fr->v, fr->be, &t);
+    fr->st->hzb_boxes += tw_hzb_stats(d->hzb)->boxes_tested - tested;
+    if (c > 0 && !(prev & HZ_DREW1))
+        fr->st->tiles_visible++;
+    if (t.state[0].visible_frame == fr->v->frame &&
+        grow(fr, (void **)&d->hz_next, &d->hz_next_cap, d->hz_next_count + 1,
+             sizeof(*d->hz_next)))
+        d->hz_next[d->hz_next_count++] = (struct tw_cull_cell){cell, distance};
+}
+
+/* hzb's phase 2: every cell in view, front to back. */
+static void hz_cells(struct frame *fr, struct tw_cull_cells *cells)
+{
+    int err = tw_cull_cells_of_frame(cells, fr->v, fr->g);
+    if (err) {
+        fr->err = err;
+        return;
+    }
+    for (size_t k = 0; k < cells->count && !fr->err; k++) {
+        const struct tw_cell cell = cells->cells[k].cell;
+        float off[3];
+        tw_tiles_cell_offset(cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], off);
+        uint64_t prev;
+        if (hz_decide(fr, cell, off, tw_cull_near_box(fr->v, &fr->g->common_box, off), &prev))
+            hz_visit(fr, cell, cells->cells[k].distance, off, prev);
+    }
+}
+
+/* Reached by this frame's propagation already. */
+static bool hz_reached(const struct frame *fr, struct tw_cell cell)
+{
+    const uint64_t v = hz_verdict(fr, cell);
+    return v >> HZ_SHIFT == fr->v->frame && (v & HZ_TESTED);
+}
+
+/* A cell found visible by propagation, queued for its visit. */
+static void hz_queue(struct frame *fr, struct tw_cell cell, float distance)
+{
+    struct tw_cull_driver *d = fr->d;
+    const size_t n = d->hz_found_count;
+    if (!grow(fr, (void **)&d->hz_found, &d->hz_found_cap, n + 1, sizeof(*d->hz_found)) ||
+        !grow(fr, (void **)&d->hz_heap, &d->hz_heap_cap, n + 1, sizeof(*d->hz_heap)))
+        return;
+    d->hz_found[d->hz_found_count++] = (struct tw_cull_cell){cell, distance};
+    tw_distance_push(d->hz_heap, &d->hz_heap_count, distance, (uint32_t)n);
+}
+
+/* tilequery+hzb's phase 2: §4 with immediate answers. From the camera's
+ * cell (or the nearest cell in view), visible cells are visited nearest
+ * first; each visit traverses the cell's tile, then decides on its
+ * neighbours in view not reached yet, and the visible ones join the queue.
+ * A hidden cell stops propagation there. No pending or postponed queue:
+ * the pyramid answers at once. */
+static void hz_propagate(struct frame *fr, struct tw_cull_cells *cells)
+{
+    static const int8_t di[8] = {1, -1, 0, 0, 1, 1, -1, -1};
+    static const int8_t dj[8] = {0, 0, 1, -1, 1, -1, 1, -1};
+    struct tw_cull_driver *d = fr->d;
+    const struct tw_cull_grid *g = fr->g;
+    struct tw_cull_cell start;
+    float off[3];
+    if (hz_in_view(fr, fr->v->cell, off, &start.distance)) {
+        start.cell = fr->v->cell;
+    } else {
+        const int err = tw_cull_cells_of_frame(cells, fr->v, g);
+        if (err) {
+            fr->err = err;
+            return;
+        }
+        if (cells->count == 0)
+            return;
+        start = cells->cells[0];
+    }
+    d->hz_found_count = d->hz_heap_count = 0;
+    uint64_t prev;
+    tw_tiles_cell_offset(start.cell, fr->v->cell, g->footprint[0], g->footprint[1], off);
+    hz_decide(fr, start.cell, off, true, &prev);
+    hz_queue(fr, start.cell, start.distance);
+    while (d->hz_heap_count > 0 && !fr->err) {
+        const struct tw_cull_cell c = d->hz_found[tw_distance_pop(d->hz_heap, &d->hz_heap_count)];
+        tw_tiles_cell_offset(c.cell, fr->v->cell, g->footprint[0], g->footprint[1], off);
+        if (g->source.prefetch)
+            prefetch_neighbours(fr, c.cell);
+        hz_visit(fr, c.cell, c.distance, off, hz_verdict(fr, c.cell));
+        for (uint32_t k = 0; k < d->s.tilequery.neighbours && !fr->err; k++) {
+            const struct tw_cell nc = {(int64_t)((uint64_t)c.cell.i + (uint64_t)(int64_t)di[k]),
+                                       (int64_t)((uint64_t)c.cell.j + (uint64_t)(int64_t)dj[k])};
+            float noff[3], dist;
+            if (hz_reached(fr, nc) || !hz_in_view(fr, nc, noff, &dist))
+                continue;
+            /* Decided once per frame (hz_reached), so queued at most once. */
+            const bool free_pass = tw_cull_near_box(fr->v, &g->common_box, noff);
+            if (hz_decide(fr, nc, noff, free_pass, &prev))
+                hz_queue(fr, nc, dist);
+        }
+    }
+}
+
+/* The visible set for the next frame, decided again against the frame's
+ * final depth: the tiles kept are those with a node still visible. */
+static void hz_retest(struct frame *fr)
+{
+    struct tw_cull_driver *d = fr->d;
+    const struct tw_cull_grid *g = fr->g;
+    const uint32_t tested = tw_hzb_stats(d->hzb)->boxes_tested;
+    size_t n = 0;
+    for (size_t k = 0; k < d->hz_next_count; k++) {
+        const struct tw_cell cell = d->hz_next[k].cell;
+        struct tw_cull_tile tile;
+        struct tw_tile_handle h;
+        const struct tw_tile_info *info;
+        /* The tile was at hand a moment ago: never wait, never request. */
+        if (g->source.get(g->source.ctx, cell, 0.0f,
+                          d->s.source_flags | TW_TILE_SOURCE_RESIDENT | TW_TILE_SOURCE_QUIET,
+                          &tile) != TW_OK ||
+            !tile.proto || !tw_tile_cache_find(d->cache, cell, &h) ||
+            !(info = tw_tile_cache_info(d->cache, h)) || info->prototype != tile.key) {
+            d->hz_next[n++] = d->hz_next[k];    /* kept: the next phase 1 sorts it out */
+            continue;
+        }
+        struct tw_hzb_tile t = {
+            .cell = cell, .content = tile.content, .proto = tile.proto, .bvh = tile.bvh,
+            .state = tw_tile_cache_state(d->cache, h),
+        };
+        tw_tiles_cell_offset(cell, fr->v->cell, g->footprint[0], g->footprint[1], t.offset);
+        if (tw_hzb_retest(d->hzb, fr->v, &t))
+            d->hz_next[n++] = d->hz_next[k];
+    }
+    d->hz_next_count = n;
+    fr->st->hzb_boxes += tw_hzb_stats(d->hzb)->boxes_tested - tested;
+}
+
+static int frame_hzb(struct frame *fr, struct tw_cull_cells *cells)
+{
+    struct tw_cull_driver *d = fr->d;
+    const uint64_t f = fr->v->frame;
+    if (f >= d->hz_last_prune + 16) {
+        tw_cell_map_filter(d->hz_verdict, hz_prune_old, (void *)&f);
+        d->hz_last_prune = f;
+    }
+    tw_hzb_begin_frame(d->hzb);
+    d->hz_next_count = 0;
+    const uint32_t phase1 = hz_phase1(fr);
+    if (!fr->err)
+        hz_pyramid(fr, phase1 > 0);
+    if (!fr->err) {
+        if (d->s.method == TW_CULL_HZB)
+            hz_cells(fr, cells);
+        else
+            hz_propagate(fr, cells);
+    }
+    /* Phase 2 drew more than phase 1 (the first frame, a jump, a fast turn):
+     * what it drew was tested against too little depth, and would all be
+     * drawn blind by the next phase 1. Worth a second readback. */
+    const uint32_t phase2 = tw_hzb_stats(d->hzb)->clusters_drawn - phase1;
+    if (!fr->err && phase2 > phase1) {
+        hz_pyramid(fr, true);
+        if (tw_hzb_built(d->hzb))
+            hz_retest(fr);
+    }
+    /* This frame's visible cells are the next one's phase 1. */
+    struct tw_cull_cell *t = d->hz_last;
+    const size_t cap = d->hz_last_cap;
+    d->hz_last = d->hz_next;
+    d->hz_last_cap = d->hz_next_cap;
+    d->hz_last_count = d->hz_next_count;
+    d->hz_next = t;
+    d->hz_next_cap = cap;
+    d->hz_next_count = 0;
+    return fr->err;
+}
+
 int tw_cull_driver_frame(struct tw_cull_driver *d, const struct tw_view *v,
                          const struct tw_cull_grid *g, const struct tw_query_backend *be,
                          struct tw_cull_cells *cells, struct tw_cull_frame_stats *stats)
@@ -405,6 +787,10 @@ int tw_cull_driver_frame(struct tw_cull_driver *d, const struct tw_view *v,
         break;
     case TW_CULL_GIVEN:
         err = frame_given(&fr);
+        break;
+    case TW_CULL_HZB:
+    case TW_CULL_TILEQUERY_HZB:
+        err = frame_hzb(&fr, cells);
         break;
     default:
         err = TW_ERR_INVALID;

@@ -1,5 +1,5 @@
 /* Frusta, the view, cell enumeration and per-tile frustum culling (cull.h). */
-#include "tileworld/cull.h"
+#include "cull/cull-private.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -160,12 +160,7 @@ float tw_cull_box_distance(const struct tw_view *v, const struct tw_box *b, cons
 
 static int compare_cells(const void *a, const void *b)
 {
-    const struct tw_cull_cell *x = a, *y = b;
-    if (x->distance != y->distance)
-        return x->distance < y->distance ? -1 : 1;
-    if (x->cell.i != y->cell.i)
-        return x->cell.i < y->cell.i ? -1 : 1;
-    return (x->cell.j > y->cell.j) - (x->cell.j < y->cell.j);
+    return tw_cull_cell_order(a, b);
 }
 
 /* The cells [*lo, *hi] along one axis that a box [box_lo, box_hi] placed at

@@ -158,7 +158,7 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
     tw_cell_map_clear(o->tiles);
     tw_renderer_id_begin(w->renderer, v);
     struct id_backend ib = {w};
-    const struct tw_query_backend be = {&ib, id_issue, id_ready, id_wait, id_draw, id_flush};
+    const struct tw_query_backend be = {&ib, id_issue, id_ready, id_wait, id_draw, id_flush, NULL};
     int err = tw_cull_driver_frame(o->vfc, v, &w->grid, &be, &w->cells, NULL);
     if (!err)
         err = o->err;

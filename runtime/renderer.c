@@ -1130,6 +1130,25 @@ static void backend_flush(void *ctx)
     r->gl.Flush();
 }
 
+/* The HZB methods' depth readback: on llvmpipe glReadPixels first finishes
+ * what was drawn, so the time is counted as waiting, like a query's. */
+static bool backend_read_depth(void *ctx, float *depth, uint32_t *width, uint32_t *height,
+                               bool *reversed)
+{
+    struct tw_renderer *r = ctx;
+    *width = r->width;
+    *height = r->height;
+    *reversed = r->reversed_z;
+    if (!depth)
+        return true;
+    const double t0 = tw_renderer_now_ms();
+    tw_renderer_read_depth(r, depth);
+    const double dt = tw_renderer_now_ms() - t0;
+    r->counters.ms_wait += dt;
+    r->counters.ms_backend += dt;
+    return true;
+}
+
 struct tw_query_backend tw_renderer_backend(struct tw_renderer *r)
 {
     struct tw_query_backend be = {
@@ -1139,6 +1158,7 @@ struct tw_query_backend tw_renderer_backend(struct tw_renderer *r)
         .wait = backend_wait,
         .draw = backend_draw,
         .flush = backend_flush,
+        .read_depth = backend_read_depth,
     };
     return be;
 }

@@ -18,6 +18,8 @@ static const char *const method_names[TW_METHOD_COUNT] = {
     [TW_METHOD_CHC] = "chc",
     [TW_METHOD_TILEQUERY_CHC] = "tilequery+chc",
     [TW_METHOD_ORACLE] = "oracle",
+    [TW_METHOD_HZB] = "hzb",
+    [TW_METHOD_TILEQUERY_HZB] = "tilequery+hzb",
 };
 
 const char *tw_method_name(enum tw_method m)
@@ -54,6 +56,8 @@ bool tw_method_conservative(enum tw_method m, const struct tw_world_settings *s)
     switch (tw_method_resolve(m)) {
     case TW_METHOD_VFC:
     case TW_METHOD_ORACLE:
+    case TW_METHOD_HZB:             /* no queries, no threshold */
+    case TW_METHOD_TILEQUERY_HZB:
         return true;
     case TW_METHOD_TILEQUERY:
         return tq_t == 0;
@@ -107,12 +111,15 @@ static int create_driver(const struct tw_world *w, enum tw_method m, struct tw_c
         [TW_METHOD_CHC] = TW_CULL_CHC,
         [TW_METHOD_TILEQUERY_CHC] = TW_CULL_TILEQUERY_CHC,
         [TW_METHOD_ORACLE] = TW_CULL_GIVEN,
+        [TW_METHOD_HZB] = TW_CULL_HZB,
+        [TW_METHOD_TILEQUERY_HZB] = TW_CULL_TILEQUERY_HZB,
     };
     const struct tw_cull_driver_settings ds = {
         .method = drivers[m],
         .evict_after_frames = w->s.evict_after_frames,
         .chc = w->s.chc,
         .tilequery = w->s.tilequery,
+        .hzb_mutate_shrink = w->s.mutate_query_shrink,
     };
     return tw_cull_driver_create(&ds, out);
 }
@@ -654,6 +661,9 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     st.predict_fail = cs.predict_fail;
     st.tiles_pending = cs.tiles_pending;
     st.queries_skipped = cs.queries_skipped;
+    st.hzb_boxes = cs.hzb_boxes;
+    st.ms_hzb_build = cs.ms_hzb_build;
+    st.ms_hzb_read = cs.ms_hzb_read;
     if (err)
         return err;
     if (w->stream)

@@ -1,8 +1,9 @@
 /* Fuzz target for a whole frame: LLVMFuzzerTestOneInput imports the input as
  * glTF (from memory), builds a tileset of it, the Embree BVH of every
  * prototype (bvh/), and runs two frames of tile-query propagation with
- * CHC++ inside every visible tile (cull/), plus a frustum-culled scan, from
- * a few cameras, against a deterministic fake query backend. What the
+ * CHC++ inside every visible tile (cull/), plus a frustum-culled scan and
+ * the two HZB methods (over a depth made of the input's hash), from a few
+ * cameras, against a deterministic fake query backend. What the
  * glTF target cannot reach: Embree's build on hostile boxes, the cell scan
  * on hostile footprints and common boxes, CHC++ on hostile trees.
  *
@@ -37,6 +38,7 @@ struct fake {
     uint32_t issued, cap;
     const struct tw_tileset *ts;
     uint64_t draws, clusters;
+    uint64_t depth_reads;
 };
 
 static uint32_t fake_issue(void *ctx, const struct tw_box *boxes, uint32_t count,
@@ -105,6 +107,26 @@ static void fake_flush(void *ctx)
     (void)ctx;
 }
 
+/* The HZB methods' depth: a small buffer of blocks at depths drawn from the
+ * seed and the number of reads (reversed float depth, some of it far). */
+static bool fake_read_depth(void *ctx, float *depth, uint32_t *width, uint32_t *height,
+                            bool *reversed)
+{
+    struct fake *fk = ctx;
+    *width = 64;
+    *height = 36;
+    *reversed = true;
+    if (depth) {
+        fk->depth_reads++;
+        for (uint32_t k = 0; k < 64 * 36; k++) {
+            const int64_t block = (k % 64) / 8 + (k / 512) * 8;
+            const uint64_t h = tw_tiles_hash(fk->seed, (int64_t)fk->depth_reads, block);
+            depth[k] = (h & 3) == 0 ? 0.0f : (float)(h >> 40) / (float)(1u << 24);
+        }
+    }
+    return true;
+}
+
 /* ---- frames ------------------------------------------------------------------------- */
 
 /* Cameras: in the middle of the tile, above it, far below the ground, far
@@ -155,9 +177,10 @@ static void run_frames(const struct tw_tileset *ts, struct tw_bvh *const *bvhs, 
     fk.seed = h;
     fk.ts = ts;
     const struct tw_query_backend be = {&fk, fake_issue, fake_ready, fake_wait, fake_draw,
-                                        fake_flush};
+                                        fake_flush, fake_read_depth};
     static const enum tw_cull_method methods[] = {TW_CULL_TILEQUERY_CHC, TW_CULL_VFC,
-                                                  TW_CULL_CHC, TW_CULL_TILEQUERY};
+                                                  TW_CULL_CHC, TW_CULL_TILEQUERY,
+                                                  TW_CULL_HZB, TW_CULL_TILEQUERY_HZB};
     enum { METHODS = sizeof(methods) / sizeof(methods[0]) };
     struct tw_cull_driver *drivers[METHODS] = {NULL};
     const struct tw_selection sel = {0};
@@ -193,8 +216,11 @@ static void run_frames(const struct tw_tileset *ts, struct tw_bvh *const *bvhs, 
             v.view_distance = view_distance;
             v.frame = ++frame;
             for (uint32_t m = 0; m < METHODS; m++) {
+                /* The HZB methods draw everything in view on a first frame:
+                 * beyond reach that is the scan's cost again, twice. */
                 if (!within && (methods[m] == TW_CULL_TILEQUERY_CHC ||
-                                methods[m] == TW_CULL_TILEQUERY))
+                                methods[m] == TW_CULL_TILEQUERY || methods[m] == TW_CULL_HZB ||
+                                methods[m] == TW_CULL_TILEQUERY_HZB))
                     continue;
                 struct tw_cull_frame_stats st;
                 tw_cull_driver_frame(drivers[m], &v, &grid, &be, &cells, &st);

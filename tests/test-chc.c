@@ -421,7 +421,7 @@ static struct world *world_create(struct tree *t, const struct tw_chc_settings *
     tw_chc_set_costs(w->chc, world_costs);
     w->fake.ready_after = ready_after;
     w->be = (struct tw_query_backend){&w->fake, fake_issue, fake_ready, fake_wait, fake_draw,
-                                      fake_flush};
+                                      fake_flush, NULL};
     w->tree = t;
     w->tile_count = 1;
     w->tile[0] = (struct tw_chc_tile){

@@ -138,7 +138,8 @@ static int run_frame(struct tw_tilequery *tq, struct fake *fk, uint64_t frame, f
                      float eye_y, float eye_z, float pitch, float view_distance,
                      struct tw_tilequery_stats *st)
 {
-    const struct tw_query_backend be = {fk, fake_issue, fake_ready, fake_wait, fake_draw, fake_flush};
+    const struct tw_query_backend be = {fk, fake_issue, fake_ready, fake_wait, fake_draw, fake_flush,
+                                        NULL};
     struct tw_view v;
     const float eye[3] = {eye_x, eye_y, eye_z};
     tw_cull_view_setup(&v, (struct tw_cell){0, 0}, eye, 0.0f, pitch, 60.0f, 16.0f / 9.0f, 0.1f,

@@ -91,8 +91,8 @@ differs queries plain 0.03
 # Freeze at frame 5 while the flyover rises: the frozen set, seen from above.
 shot frozen 640x360 --path flyover --frames 60 --freeze-at 5 --debug all
 
-# Every method, a few frames each (1-5 in the window).
-for m in vfc tilequery chc tilequery+chc oracle; do
+# Every method, a few frames each (1-7 in the window).
+for m in vfc tilequery chc tilequery+chc oracle hzb tilequery+hzb; do
     shot "method-$m" 320x180 --path street --frames 4 --method "$m" --debug all
 done
 

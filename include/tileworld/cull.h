@@ -165,6 +165,16 @@ struct tw_query_backend {
                  uint32_t count);
     /* Sends issued work to the GPU. */
     void (*flush)(void *ctx);
+    /* The depth of everything drawn so far this frame, for the HZB methods
+     * (DESIGN §6): fills *width, *height and *reversed (window depth near =
+     * 1, far = 0; else near = 0, far = 1) and, when depth is not NULL,
+     * blocks until what was drawn is done and copies width * height window
+     * depths, bottom row first, into depth (the caller's, that many
+     * floats). Returns false when there is no depth to read; may itself be
+     * NULL. Either way nothing can then be proven hidden, and the HZB
+     * methods draw everything in the frustum. */
+    bool (*read_depth)(void *ctx, float *depth, uint32_t *width, uint32_t *height,
+                       bool *reversed);
 };
 
 /* ---- vfc: view-frustum culling inside one tile ------------------------------ */
@@ -302,6 +312,115 @@ void tw_chc_set_costs(struct tw_chc *chc, const struct tw_cost_model *costs);
 
 /* Heap bytes held by the engine. */
 size_t tw_chc_bytes(const struct tw_chc *chc);
+
+/* ---- HZB: a hierarchical depth buffer (DESIGN §6, after Greene, Kass, Miller 1993) -- */
+
+/* The depth pyramid of one frame and the per-tile traversals of the two
+ * HZB methods. Level 0 is the depth buffer as read back (width x height);
+ * level k + 1 is ceil(w_k / 2) x ceil(h_k / 2), each texel the *farthest*
+ * depth of the up to 2 x 2 texels of level k it covers (at an odd edge
+ * only the texels that exist), so that texel (x, y) of level k bounds the
+ * depth of every pixel in [x 2^k, (x + 1) 2^k) x [y 2^k, (y + 1) 2^k)
+ * clipped to the buffer. A box is hidden when the *nearest* depth of its
+ * query box (tw_cull_query_box: the margin of a hardware query) lies
+ * farther than the farthest depth of every texel that its screen
+ * rectangle, rounded outwards by a pixel, touches, tested at the finest
+ * level where that rectangle spans at most TW_HZB_SPAN texels along each
+ * axis. A box that reaches the near plane is never hidden. Scratch space
+ * is kept across frames: no allocation per frame once warm. */
+struct tw_hzb;
+
+#define TW_HZB_SPAN 8
+
+int tw_hzb_create(struct tw_hzb **out);
+/* Accepts NULL. */
+void tw_hzb_destroy(struct tw_hzb *h);
+
+/* Room for a width x height depth buffer (level 0), to be filled by the
+ * caller, bottom row first, then turned into a pyramid by tw_hzb_build().
+ * Returns NULL when out of memory or for a zero size. The pyramid reads as
+ * empty (every box visible) until tw_hzb_build(). The buffer belongs to h
+ * and lives until the next call or tw_hzb_destroy(). */
+float *tw_hzb_depth_buffer(struct tw_hzb *h, uint32_t width, uint32_t height);
+/* Builds the pyramid over the buffer's window depths; reversed: near = 1,
+ * far = 0 (float depth with glClipControl), else near = 0, far = 1. The
+ * buffer's contents are used up (it becomes level 0). */
+void tw_hzb_build(struct tw_hzb *h, bool reversed);
+/* No pyramid: every box reads as visible until the next build. */
+void tw_hzb_clear(struct tw_hzb *h);
+/* True if the pyramid holds a built depth buffer. */
+bool tw_hzb_built(const struct tw_hzb *h);
+/* Levels of the built pyramid (0 when none). */
+uint32_t tw_hzb_levels(const struct tw_hzb *h);
+
+/* False only if box b moved by offset (view-relative) is certainly hidden
+ * behind the depth the pyramid was built from, seen with view v (whose
+ * viewport is the depth buffer's size, and whose matrices match the depth
+ * convention: view_proj_rz for reversed depth, view_proj else). */
+bool tw_hzb_visible(const struct tw_hzb *h, const struct tw_view *v, const struct tw_box *b,
+                    const float offset[3]);
+
+/* Testing only: every tested box shrunk by this fraction of its size about
+ * its centre before the test (a deliberately broken culler that the
+ * accuracy checks must catch); 0 (the default) tests boxes as they are. */
+void tw_hzb_set_mutation(struct tw_hzb *h, float shrink_fraction);
+
+/* Per-view state of one tile instance: one entry per BVH node. Lives in the
+ * tile cache, zeroed by the cache (0: never visible, never drawn). */
+struct tw_hzb_node_state {
+    uint64_t visible_frame;     /* last frame found visible: a leaf whose box passed, and
+                                   its ancestors (0: never) */
+    uint64_t drawn_frame;       /* leaf: last frame its clusters were drawn */
+};
+
+/* Bytes of per-node state a tile instance with this BVH needs. */
+size_t tw_hzb_state_bytes(const struct tw_bvh *bvh);
+
+/* One tile to traverse (as struct tw_chc_tile). */
+struct tw_hzb_tile {
+    struct tw_cell cell;
+    uint32_t content;                   /* handed to be->draw */
+    const struct tw_prototype *proto;
+    const struct tw_bvh *bvh;
+    struct tw_hzb_node_state *state;    /* bvh->node_count entries */
+    float offset[3];                    /* view-relative placement of the tile */
+};
+
+/* Counters since tw_hzb_begin_frame(), summed over tiles. */
+struct tw_hzb_stats {
+    uint32_t boxes_tested;      /* node boxes tested against the pyramid */
+    uint32_t boxes_hidden;      /* of which found hidden (their subtrees skipped) */
+    uint32_t clusters_drawn;
+};
+
+/* Starts a frame: resets the counters. */
+void tw_hzb_begin_frame(struct tw_hzb *h);
+const struct tw_hzb_stats *tw_hzb_stats(const struct tw_hzb *h);
+
+/* Phase 1 of frame v->frame: draws, front to back in one call of be->draw,
+ * the clusters of the tile's leaves found visible in frame v->frame - 1
+ * that lie in the frustum within the view distance, and marks them drawn
+ * in this frame. Returns how many clusters were drawn. */
+uint32_t tw_hzb_draw_last_visible(struct tw_hzb *h, const struct tw_view *v,
+                                  const struct tw_query_backend *be,
+                                  const struct tw_hzb_tile *t);
+/* Phase 2: traverses the tile's BVH front to back from the root, testing
+ * each node in the frustum within the view distance against the pyramid
+ * and skipping the subtrees of hidden ones; a visible leaf is marked
+ * visible in this frame (with its ancestors) and, unless phase 1 drew it,
+ * drawn (one call of be->draw). Returns how many clusters it drew. */
+uint32_t tw_hzb_traverse(struct tw_hzb *h, const struct tw_view *v,
+                         const struct tw_query_backend *be, const struct tw_hzb_tile *t);
+
+/* After phase 2, with the pyramid rebuilt from the frame's final depth:
+ * decides again which of the tile's leaves drawn in this frame are visible
+ * (their boxes tested against it, front to back, hidden subtrees skipped),
+ * so that the next frame's phase 1 draws those only. Returns whether a node
+ * of the tile is still visible. */
+bool tw_hzb_retest(struct tw_hzb *h, const struct tw_view *v, const struct tw_hzb_tile *t);
+
+/* Heap bytes held: the pyramid and the scratch space. */
+size_t tw_hzb_bytes(const struct tw_hzb *h);
 
 /* ---- tile-query propagation (DESIGN §4) ------------------------------------------- */
 
@@ -445,6 +564,9 @@ enum tw_cull_method {
     TW_CULL_CHC,            /* CHC++ in every cell in view, front to back */
     TW_CULL_TILEQUERY_CHC,  /* §4 with CHC++ inside each visible tile */
     TW_CULL_GIVEN,          /* exactly the set of tw_cull_driver_give() */
+    TW_CULL_HZB,            /* two-phase HZB: last frame's visible clusters, then every
+                               cell and node in view tested against their depth pyramid */
+    TW_CULL_TILEQUERY_HZB,  /* §4 with every tile and node test answered by that pyramid */
     TW_CULL_METHOD_COUNT
 };
 
@@ -454,6 +576,7 @@ struct tw_cull_driver_settings {
     uint32_t evict_after_frames;        /* tile instances unseen this long go; default 60 */
     struct tw_chc_settings chc;
     struct tw_tilequery_settings tilequery;
+    float hzb_mutate_shrink;            /* testing only: tw_hzb_set_mutation() */
 };
 
 /* Counters of one frame. */
@@ -467,6 +590,14 @@ struct tw_cull_frame_stats {
     uint32_t tiles_cached;
     uint64_t cache_bytes;               /* the tile cache's heap bytes */
     uint32_t predict_fail;
+    /* The HZB methods: tiles_queried counts common boxes tested against the
+     * pyramid, predict_fail cells drawn in phase 1 and found hidden, or
+     * tested hidden last frame and visible now. */
+    uint32_t hzb_boxes;                 /* boxes tested against the pyramid: common boxes
+                                           and BVH nodes */
+    double ms_hzb_read;                 /* reading the depth back (be->read_depth), blocked
+                                           until phase 1 is drawn */
+    double ms_hzb_build;                /* building the pyramid */
 };
 
 /* A method with its temporal state: the tile cache of its instances, its

@@ -38,13 +38,15 @@ enum tw_method {
     TW_METHOD_CHC,
     TW_METHOD_TILEQUERY_CHC,
     TW_METHOD_ORACLE,
+    TW_METHOD_HZB,              /* two-phase hierarchical-Z culling (DESIGN §6) */
+    TW_METHOD_TILEQUERY_HZB,    /* §4 answered by the depth pyramid instead of queries */
     TW_METHOD_COUNT
 };
 /* The first real method: loops over methods run [TW_METHOD_FIRST, TW_METHOD_COUNT). */
 #define TW_METHOD_FIRST TW_METHOD_VFC
 
-/* "vfc", "tilequery", "chc", "tilequery+chc", "oracle" ("default" for
- * TW_METHOD_DEFAULT). */
+/* "vfc", "tilequery", "chc", "tilequery+chc", "oracle", "hzb",
+ * "tilequery+hzb" ("default" for TW_METHOD_DEFAULT). */
 const char *tw_method_name(enum tw_method m);
 /* Parses a method name (not "default"); returns TW_ERR_INVALID for an
  * unknown one. */
@@ -209,6 +211,11 @@ struct tw_frame_stats {
     bool over_budget;        /* bytes_cpu + bytes_gpu > cache_budget_bytes after trimming:
                                 what the frame needed exceeds the budget */
     double ms_upload;        /* render-thread time uploading finished tiles */
+    /* The HZB methods' depth pyramid (0 for the others). */
+    uint32_t hzb_boxes;      /* boxes tested against it: common boxes and BVH nodes */
+    double ms_hzb_build;     /* building it from the depth read back (in ms_cull) */
+    double ms_hzb_read;      /* reading the depth back, blocked until phase 1 is drawn
+                                (in ms_wait) */
 };
 
 struct tw_world;

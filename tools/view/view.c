@@ -54,7 +54,8 @@ static void usage(FILE *f)
           "                      [--freeze-at N] [--quiet]\n"
           "options take their value as --opt VALUE or --opt=VALUE; numbers are plain decimal digits\n"
           "keys: mouse drag or Tab (captured mouse) to look; W A S D to fly, Q/E down/up, Shift\n"
-          "fast, wheel changes speed; 1-5 method (vfc, tilequery, chc, tilequery+chc, oracle);\n"
+          "fast, wheel changes speed; 1-7 method (vfc, tilequery, chc, tilequery+chc, oracle,\n"
+          "hzb, tilequery+hzb);\n"
           "C cells, B BVH nodes, X query boxes; F freeze the culled set; P screenshot;\n"
           "H help; O overlay; Esc quits\n",
           f);
@@ -500,9 +501,11 @@ static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods)
             glfwSetWindowShouldClose(win, GLFW_TRUE);
         }
         break;
-    case GLFW_KEY_1: case GLFW_KEY_2: case GLFW_KEY_3: case GLFW_KEY_4: case GLFW_KEY_5: {
-        static const enum tw_method by_key[5] = {TW_METHOD_VFC, TW_METHOD_TILEQUERY, TW_METHOD_CHC,
-                                                 TW_METHOD_TILEQUERY_CHC, TW_METHOD_ORACLE};
+    case GLFW_KEY_1: case GLFW_KEY_2: case GLFW_KEY_3: case GLFW_KEY_4: case GLFW_KEY_5:
+    case GLFW_KEY_6: case GLFW_KEY_7: {
+        static const enum tw_method by_key[7] = {TW_METHOD_VFC, TW_METHOD_TILEQUERY, TW_METHOD_CHC,
+                                                 TW_METHOD_TILEQUERY_CHC, TW_METHOD_ORACLE,
+                                                 TW_METHOD_HZB, TW_METHOD_TILEQUERY_HZB};
         if (tw_world_set_method(v->world, by_key[key - GLFW_KEY_1]) == TW_OK)
             set_title(v);
         break;
@@ -723,7 +726,7 @@ static void draw_stats(struct viewer *v)
              (long long)v->cam.pos.cell.i, (long long)v->cam.pos.cell.j, v->cam.pos.local[0],
              v->cam.pos.local[1], v->cam.pos.local[2], lroundf(v->cam.yaw), lroundf(v->cam.pitch));
     memcpy(colors[n++], dim, sizeof(dim));
-    snprintf(lines[n], sizeof(lines[n]), "[1-5] method  [C] cells %s  [B] nodes %s  [X] queries %s  [H] help",
+    snprintf(lines[n], sizeof(lines[n]), "[1-7] method  [C] cells %s  [B] nodes %s  [X] queries %s  [H] help",
              v->debug & TW_DEBUG_CELLS ? "ON" : "off", v->debug & TW_DEBUG_NODES ? "ON" : "off",
              v->debug & TW_DEBUG_QUERIES ? "ON" : "off");
     memcpy(colors[n++], dim, sizeof(dim));

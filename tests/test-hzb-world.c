@@ -1,0 +1,254 @@
+/* GL tests of the HZB methods (DESIGN §6, §8; suite gl): on fixed city
+ * views and along short walks of every built-in path, hzb and
+ * tilequery+hzb draw a superset of what the oracle's ID pass finds visible
+ * (0 missed pixels on every frame), cull once warm, issue no query and
+ * report their pyramid's cost; with the tested boxes deliberately shrunk
+ * the same checks catch missed pixels. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "tileworld/context.h"
+#include "tileworld/runtime.h"
+#include "tileworld/tilesets.h"
+#include "tests/check.h"
+
+static void log_stderr(void *user, enum tw_log_level level, const char *msg)
+{
+    (void)user;
+    if (level <= TW_LOG_WARN)
+        fprintf(stderr, "log: %s\n", msg);
+}
+
+static const struct tw_log test_log = {log_stderr, NULL};
+
+static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tileset *ts,
+                                   uint32_t w, uint32_t h, float shrink)
+{
+    struct tw_world_settings s = {0};
+    s.tileset = ts;
+    s.selection.seed = 3;
+    s.width = w;
+    s.height = h;
+    s.view_distance = 450.0f;
+    s.verify = true;
+    s.mutate_query_shrink = shrink;
+    s.get_proc = tw_context_get_proc(ctx);
+    s.log = test_log;
+    struct tw_world *world = NULL;
+    CHECK(tw_world_create(&s, &world) == TW_OK);
+    if (world)
+        tw_world_record_draws(world, true);
+    return world;
+}
+
+static int compare_drawn(const void *a, const void *b)
+{
+    const struct tw_drawn_cluster *x = a, *y = b;
+    if (x->cell.i != y->cell.i) return x->cell.i < y->cell.i ? -1 : 1;
+    if (x->cell.j != y->cell.j) return x->cell.j < y->cell.j ? -1 : 1;
+    if (x->prototype != y->prototype) return x->prototype < y->prototype ? -1 : 1;
+    return (x->cluster > y->cluster) - (x->cluster < y->cluster);
+}
+
+static struct tw_drawn_cluster *copy_drawn(struct tw_world *w, size_t *n)
+{
+    const struct tw_drawn_cluster *d = tw_world_drawn(w, n);
+    struct tw_drawn_cluster *c = malloc(sizeof(*c) * (*n ? *n : 1));
+    if (!c) {
+        *n = 0;
+        return NULL;
+    }
+    memcpy(c, d, sizeof(*c) * *n);
+    qsort(c, *n, sizeof(*c), compare_drawn);
+    return c;
+}
+
+/* Every element of sub (sorted) is in all (sorted); all has no duplicate. */
+static bool is_superset(const struct tw_drawn_cluster *all, size_t na,
+                        const struct tw_drawn_cluster *sub, size_t ns)
+{
+    size_t k = 0;
+    for (size_t q = 0; q < na; q++)
+        if (q > 0 && compare_drawn(&all[q - 1], &all[q]) == 0)
+            return false;   /* a cluster drawn twice in one frame */
+    for (size_t q = 0; q < ns; q++) {
+        while (k < na && compare_drawn(&all[k], &sub[q]) < 0)
+            k++;
+        if (k == na || compare_drawn(&all[k], &sub[q]) != 0)
+            return false;
+    }
+    return true;
+}
+
+struct totals {
+    uint64_t missed, triangles, vfc_triangles;
+    uint32_t frames, warm_culled, warm_frames;
+};
+
+/* One camera, every method: the oracle's visible set, then each HZB method
+ * checked against it. warm: the methods have seen this neighbourhood. */
+static void check_frame(struct tw_world *w, const struct tw_camera *cam, bool warm,
+                        struct totals *t, const char *what, uint32_t f)
+{
+    struct tw_frame_stats st;
+    CHECK(tw_world_set_method(w, TW_METHOD_VFC) == TW_OK);
+    CHECK(tw_world_frame(w, cam, &st) == TW_OK);
+    const uint64_t vfc_triangles = st.triangles;
+    CHECK(tw_world_set_method(w, TW_METHOD_ORACLE) == TW_OK);
+    CHECK(tw_world_frame(w, cam, &st) == TW_OK);
+    size_t nv = 0;
+    struct tw_drawn_cluster *visible = copy_drawn(w, &nv);
+    static const enum tw_method methods[2] = {TW_METHOD_HZB, TW_METHOD_TILEQUERY_HZB};
+    for (int m = 0; m < 2; m++) {
+        CHECK(tw_world_set_method(w, methods[m]) == TW_OK);
+        CHECK(tw_world_frame(w, cam, &st) == TW_OK);
+        size_t n = 0;
+        struct tw_drawn_cluster *drawn = copy_drawn(w, &n);
+        const bool superset = is_superset(drawn, n, visible, nv);
+        if (st.missed_pixels || !superset)
+            fprintf(stderr, "%s frame %u: %s missed %llu pixels in %u clusters%s\n", what, f,
+                    tw_method_name(methods[m]), (unsigned long long)st.missed_pixels,
+                    st.missed_clusters, superset ? "" : ", not a superset of the visible set");
+        CHECK(superset);
+        CHECK(st.missed_pixels == 0 && st.missed_clusters == 0);
+        CHECK(st.queries == 0);
+        CHECK(n == st.clusters);
+        t->missed += st.missed_pixels;
+        t->triangles += st.triangles;
+        t->vfc_triangles += vfc_triangles;
+        t->frames++;
+        if (warm) {
+            t->warm_frames++;
+            t->warm_culled += st.triangles < vfc_triangles;
+            /* Phase 1 drew something, so the depth was read and built on. */
+            CHECK(st.ms_hzb_read > 0.0 && st.hzb_boxes > 0);
+        }
+        free(drawn);
+    }
+    free(visible);
+}
+
+/* Fixed views: the first frames from each, then small steps. */
+static void test_views(struct tw_context *ctx, const struct tw_tileset *ts)
+{
+    struct tw_world *w = make_world(ctx, ts, 320, 180, 0.0f);
+    if (!w)
+        return;
+    const struct tw_camera views[] = {
+        {{{0, 0}, {0.0f, 1.7f, 2.0f}}, 10.0f, 3.0f},
+        {{{3, -2}, {0.5f, 1.7f, 40.0f}}, 180.0f, 0.0f},
+        {{{-5, 7}, {30.0f, 1.7f, 0.2f}}, 95.0f, 5.0f},
+        {{{1, 1}, {10.0f, 45.0f, 10.0f}}, 40.0f, -12.0f},
+        {{{2, 2}, {0.1f, 1.7f, 0.1f}}, 225.0f, 1.0f},
+        {{{4, 4}, {20.0f, 250.0f, 20.0f}}, 60.0f, -20.0f},
+    };
+    struct totals t = {0};
+    for (size_t v = 0; v < sizeof(views) / sizeof(views[0]); v++)
+        for (uint32_t f = 0; f < 4; f++) {
+            struct tw_camera cam = views[v];
+            cam.pos.local[2] += 0.5f * (float)f;
+            cam.yaw += 2.0f * (float)f;
+            char what[32];
+            snprintf(what, sizeof(what), "view %zu", v);
+            check_frame(w, &cam, f >= 2, &t, what, f);
+        }
+    /* Once warm they cull: fewer triangles than vfc on most frames. */
+    CHECK(t.warm_culled * 4 >= t.warm_frames * 3);
+    CHECK(t.triangles < t.vfc_triangles);
+    printf("fixed views: %u frames, %.0f%% of vfc's triangles, %u of %u warm frames culled\n",
+           t.frames, 100.0 * (double)t.triangles / (double)t.vfc_triangles, t.warm_culled,
+           t.warm_frames);
+    tw_world_destroy(w);
+}
+
+/* Frames [first, last) of a built-in path at an odd size (partial pyramid
+ * blocks at the right and top edges). */
+static void test_walk(struct tw_context *ctx, const char *tileset, const char *path_name,
+                      uint32_t first, uint32_t last)
+{
+    struct tw_tileset *ts = NULL;
+    if (tw_tilesets_builtin(tileset, 3, 0, &test_log, &ts) != TW_OK) {
+        fprintf(stderr, "cannot build tileset %s\n", tileset);
+        failures++;
+        return;
+    }
+    struct tw_path path;
+    CHECK(tw_path_builtin(path_name, 3, last, ts->footprint[0], ts->footprint[1], &path) == TW_OK);
+    struct tw_world *w = make_world(ctx, ts, 161, 91, 0.0f);
+    struct totals t = {0};
+    char what[64];
+    snprintf(what, sizeof(what), "%s/%s", tileset, path_name);
+    for (uint32_t f = first; w && f < path.count; f++)
+        check_frame(w, &path.keys[f], false, &t, what, f);
+    printf("%-7s %-9s frames %u-%u: %.0f%% of vfc's triangles, %llu missed pixels\n", tileset,
+           path_name, first, last - 1, 100.0 * (double)t.triangles / (double)t.vfc_triangles,
+           (unsigned long long)t.missed);
+    tw_world_destroy(w);
+    tw_path_finish(&path);
+    tw_tileset_destroy(ts);
+}
+
+/* The checks can fail: boxes tested shrunk by 40 % hide visible clusters. */
+static void test_mutation(struct tw_context *ctx, const struct tw_tileset *ts)
+{
+    struct tw_world *w = make_world(ctx, ts, 320, 180, 0.4f);
+    if (!w)
+        return;
+    uint64_t missed = 0;
+    const struct tw_camera cam = {{{0, 0}, {0.0f, 1.7f, 2.0f}}, 10.0f, 3.0f};
+    for (int f = 0; f < 4; f++) {
+        struct tw_camera c = cam;
+        c.yaw += 3.0f * (float)f;
+        struct tw_frame_stats st;
+        CHECK(tw_world_set_method(w, TW_METHOD_HZB) == TW_OK);
+        CHECK(tw_world_frame(w, &c, &st) == TW_OK);
+        missed += st.missed_pixels;
+    }
+    CHECK(missed > 0);
+    printf("boxes shrunk by 40%%: %llu missed pixels caught\n", (unsigned long long)missed);
+    tw_world_destroy(w);
+}
+
+/* With "standard" the test runs in a context without glClipControl (meson
+ * sets MESA_GL_VERSION_OVERRIDE=3.3 and takes ARB_clip_control away): the
+ * world then renders standard 24-bit depth, and the pyramid is built from
+ * that convention; fewer walks. */
+int main(int argc, char **argv)
+{
+    const bool standard = argc > 1 && strcmp(argv[1], "standard") == 0;
+    struct tw_context *ctx = NULL;
+    if (tw_context_create_headless(320, 180, &test_log, &ctx) != TW_OK) {
+        fprintf(stderr, "cannot create the headless context\n");
+        return 1;
+    }
+    struct tw_tileset *ts = NULL;
+    if (tw_tilesets_builtin("city", 3, 0, &test_log, &ts) != TW_OK) {
+        fprintf(stderr, "cannot build the city\n");
+        tw_context_destroy(ctx);
+        return 1;
+    }
+    struct tw_world *probe = make_world(ctx, ts, 16, 16, 0.0f);
+    const bool reversed = tw_world_reversed_z(probe);
+    CHECK(probe && reversed == !standard);
+    tw_world_destroy(probe);
+    printf("depth: %s\n", reversed ? "reversed float" : "standard 24-bit");
+    test_views(ctx, ts);
+    test_mutation(ctx, ts);
+    tw_tileset_destroy(ts);
+    test_walk(ctx, "city", "street", 0, 12);
+    test_walk(ctx, "city", "teleport", 47, 54);    /* the jump at frame 50 */
+    if (!standard) {
+        test_walk(ctx, "city", "flyover", 200, 206);   /* high up: grazing, little occlusion */
+        test_walk(ctx, "city", "spin", 39, 47);        /* the 180-degree turn */
+        test_walk(ctx, "forest", "forest", 0, 10);
+        test_walk(ctx, "hybrid", "street", 0, 10);
+    }
+    tw_context_destroy(ctx);
+    if (failures) {
+        fprintf(stderr, "test-hzb-world: %d checks failed\n", failures);
+        return 1;
+    }
+    printf("test-hzb-world: all checks passed\n");
+    return 0;
+}
