@@ -239,6 +239,16 @@ else
     bad "info failed: $(cat "$tmp/err")"
 fi
 
+# info --calibrate prints the cost model measured in a world at --size:
+# a query and a draw that cost something, a query dearer than a draw.
+if "$tw" info --tileset city --calibrate --size 96x54 >"$tmp/cal" 2>"$tmp/err"; then
+    awk '/^cost model at 96x54 \(measured/ {m=1} $1 == "query" && $2 > 0 {q=$2}
+         $1 == "draw" && $3 > 0 {d=$3} END {exit !(m && q > 0 && d > 0 && q > d)}' "$tmp/cal" &&
+        ok || bad "info --calibrate output: $(cat "$tmp/cal")"
+else
+    bad "info --calibrate failed: $(cat "$tmp/err")"
+fi
+
 # ---- output that never lies ----------------------------------------------------
 # expect_write_error NAME PATTERN CMD...: exit status 1 and exactly one
 # stderr line matching the extended regex PATTERN.

@@ -35,7 +35,8 @@ int tw_report_make_dirs(const char *dir)
 static const char *const csv_header =
     "frame,method,ms_frame,ms_cull,ms_wait,triangles,clusters,draws,queries,tiles_queried,"
     "tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,"
-    "missed_clusters,overdraw_triangles,cpu_ms,depth_errors\n";
+    "missed_clusters,overdraw_triangles,cpu_ms,depth_errors,blocking_reads,queries_skipped,"
+    "hzb_boxes,ms_hzb_build,ms_hzb_read\n";
 
 /* A row of frames.csv as the row of a gnuplot data file: blank-separated,
  * without the method (its file says it). */
@@ -107,14 +108,16 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st, char *er
 {
     char row[512];
     snprintf(row, sizeof(row),
-             "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu,%.3f,%llu\n",
+             "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu,%.3f,%llu,%u,%u,"
+             "%u,%.3f,%.3f\n",
              (unsigned long long)st->frame, tw_method_name(st->method), st->ms_frame, st->ms_cull,
              st->ms_wait, (unsigned long long)st->triangles, st->clusters, st->draws, st->queries,
              st->tiles_queried, st->tiles_visible, st->tiles_new, st->tiles_cached,
              (unsigned long long)st->cache_bytes, st->predict_fail,
              (unsigned long long)st->missed_pixels, st->missed_clusters,
              (unsigned long long)st->overdraw_triangles, st->cpu_ms,
-             (unsigned long long)st->depth_errors);
+             (unsigned long long)st->depth_errors, st->blocking_reads, st->queries_skipped,
+             st->hzb_boxes, st->ms_hzb_build, st->ms_hzb_read);
     if (!tw_outfile_printf(&r->frames_csv, "%s", row))
         return tw_outfile_report(&r->frames_csv, err, err_size);
     if (r->chart_data) {

@@ -34,6 +34,7 @@ struct options {
     uint32_t cluster_triangles;
     const char *sweep;
     const char *scenario;
+    bool calibrate;             /* info --calibrate */
 };
 
 static const uint32_t default_frames = 300;
@@ -50,6 +51,7 @@ static void usage(FILE *f)
           "       tileworld bench  [same options] [--methods M1,M2,...] [--sweep PARAM=v1,v2,...]\n"
           "                        [--scenario NAME|all]\n"
           "       tileworld info   [--tileset NAME|FILE.json] [--seed N] [--cluster-triangles N]\n"
+          "                        [--calibrate [--size WxH]]\n"
           "       tileworld import FILE.gltf|FILE.glb\n"
           "       tileworld view   [options of tileworld view --help]\n"
           "options take their value as --opt VALUE or --opt=VALUE; numbers are plain decimal digits\n"
@@ -86,6 +88,7 @@ enum {
     OPT_DETERMINISTIC,
     OPT_VERIFY_TOLERANCE,
     OPT_MUTATE_QUERY_SHRINK,
+    OPT_CALIBRATE,
 };
 
 static const struct option options_table[] = {
@@ -105,6 +108,7 @@ static const struct option options_table[] = {
     {"deterministic", no_argument, NULL, OPT_DETERMINISTIC},
     {"verify-tolerance", required_argument, NULL, OPT_VERIFY_TOLERANCE},
     {"mutate-query-shrink", required_argument, NULL, OPT_MUTATE_QUERY_SHRINK},
+    {"calibrate", no_argument, NULL, OPT_CALIBRATE},
     {NULL, 0, NULL, 0},
 };
 
@@ -181,6 +185,7 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
         if (!(ws->verify_tolerance > 0.0f && ws->verify_tolerance < 1.0f))
             tw_cli_fail(program, name, "'%s' is not above 0 and below 1", v);
         break;
+    case OPT_CALIBRATE: o->calibrate = true; break;
     case OPT_MUTATE_QUERY_SHRINK:
         ws->mutate_query_shrink = tw_cli_float(program, name, v, 0.0f, 1.0f);
         if (ws->mutate_query_shrink >= 1.0f)
@@ -318,6 +323,49 @@ out:
     return rc;
 }
 
+/* info --calibrate: the cost model's figures (DESIGN §14) as a world over
+ * the tileset measures them at creation in a headless context of --size. */
+static int print_calibration(const struct options *o, const struct tw_tileset *ts,
+                             const struct tw_log *log)
+{
+    struct tw_world_settings ws = o->cli.world;
+    if (ws.width == 0 || ws.height == 0) {
+        ws.width = 640;
+        ws.height = 360;
+    }
+    struct tw_context *ctx = NULL;
+    int err = tw_context_create_headless(ws.width, ws.height, log, &ctx);
+    if (err) {
+        tw_cli_message(program, "cannot create the headless OpenGL context: %s",
+                       tw_error_to_str(err));
+        return 1;
+    }
+    ws.tileset = ts;
+    ws.get_proc = tw_context_get_proc(ctx);
+    ws.log = *log;
+    struct tw_world *w = NULL;
+    err = tw_world_create(&ws, &w);
+    if (err) {
+        tw_cli_message(program, "cannot create the world: %s", tw_error_to_str(err));
+        tw_context_destroy(ctx);
+        return err == TW_ERR_INVALID || err == TW_ERR_LIMIT ? EXIT_USAGE : 1;
+    }
+    const struct tw_calibration *c = tw_world_calibration(w);
+    printf("cost model at %ux%u (%s, %.1f ms of CPU time to measure):\n", ws.width, ws.height,
+           c->measured ? "measured" : "nominal", c->calibrate_ms);
+    printf("  query          %9.4f ms (issue, one box drawn, result read back)\n", c->query_ms);
+    printf("  query box      %9.4f ms (each further box of a query)\n", c->query_box_ms);
+    printf("  query pixel    %9.4f ns (each pixel its boxes cover)\n", c->query_pixel_ns);
+    printf("  draw call      %9.4f ms (one cluster)\n", c->draw_ms);
+    printf("  triangle       %9.4f ns\n", c->triangle_ns);
+    printf("  a query costs as much as %.0f triangles or %.1f draw calls\n",
+           c->triangle_ns > 0 ? c->query_ms * 1e6 / c->triangle_ns : 0.0,
+           c->draw_ms > 0 ? c->query_ms / c->draw_ms : 0.0);
+    tw_world_destroy(w);
+    tw_context_destroy(ctx);
+    return 0;
+}
+
 static int info(const struct options *o)
 {
     const struct tw_log log = {tw_cli_log, (void *)&o->cli};
@@ -365,8 +413,9 @@ static int info(const struct options *o)
            cb->min[2], cb->max[0], cb->max[1], cb->max[2]);
     printf("geometry: %llu bytes uploaded once\n",
            (unsigned long long)tw_tileset_geometry_bytes(ts));
+    const int rc = o->calibrate ? print_calibration(o, ts, &log) : 0;
     tw_tileset_destroy(ts);
-    return 0;
+    return rc;
 }
 
 int main(int argc, char **argv)
