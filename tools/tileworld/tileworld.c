@@ -14,6 +14,7 @@
 
 #include "tools/tileworld/bench.h"
 #include "tools/cli.h"
+#include "tools/tileworld/memtest.h"
 #include "tools/tileworld/report.h"
 #include "tileworld/context.h"
 #include "tileworld/runtime.h"
@@ -52,6 +53,10 @@ static void usage(FILE *f)
           "                        [--scenario NAME|all]\n"
           "       tileworld info   [--tileset NAME|FILE.json] [--seed N] [--cluster-triangles N]\n"
           "       tileworld import FILE.gltf|FILE.glb\n"
+          "       tileworld memtest [--tileset NAME] [--path straight|wander|FILE.csv] [--distance KM]\n"
+          "                        [--budget BYTES] [--workers N] [--policy wait|skip] [--size WxH]\n"
+          "                        [--every METRES] [--sweep budget=B1,B2,...] [--out DIR]\n"
+          "                        (the tile cache's memory against distance: tileworld memtest --help)\n"
           "       tileworld view   [options of tileworld view --help]\n"
           "options take their value as --opt VALUE or --opt=VALUE; numbers are plain decimal digits\n"
           "tilesets: city, forest, hybrid, the providers city-gen and forest-gen (every cell\n"
@@ -422,7 +427,7 @@ static int info(const struct options *o)
 int main(int argc, char **argv)
 {
     if (argc < 2) {
-        fprintf(stderr, "tileworld: no command given (walk, bench, info, view, import; "
+        fprintf(stderr, "tileworld: no command given (walk, bench, info, view, import, memtest; "
                         "tileworld --help for the options)\n");
         return EXIT_USAGE;
     }
@@ -437,6 +442,8 @@ int main(int argc, char **argv)
         parse_options(argc - 1, argv + 1, &o);
     } else if (strcmp(argv[1], "import") == 0) {
         return import(argc, argv);
+    } else if (strcmp(argv[1], "memtest") == 0) {
+        return tw_memtest_main(argc - 1, argv + 1);
     } else if (strcmp(argv[1], "view") == 0) {
         /* The window is tileworld-view, beside this program and built only
          * with GLFW: a process of its own that links libGL, never libOSMesa. */
@@ -457,7 +464,7 @@ int main(int argc, char **argv)
         tw_cli_message(program, "view: cannot run %s: %s", viewer, strerror(errno));
         return 1;
     } else {
-        tw_cli_message(program, "unknown command '%s' (walk, bench, info, view, import)", argv[1]);
+        tw_cli_message(program, "unknown command '%s' (walk, bench, info, view, import, memtest)", argv[1]);
         return EXIT_USAGE;
     }
     if (strcmp(o.command, "info") == 0)
