@@ -121,9 +121,14 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
     struct options *o = user;
     switch (opt) {
     case OPT_DISTANCE:
-        o->distance_m = 1000.0 * tw_cli_float(program, name, v, 0.001f, 10000.0f);
+        /* Checked as a float, taken in double: 0.2 km is 200 m, not 200.000003. */
+        tw_cli_float(program, name, v, 0.001f, 10000.0f);
+        o->distance_m = 1000.0 * strtod(v, NULL);
         break;
-    case OPT_EVERY: o->every_m = tw_cli_float(program, name, v, 1.0f, 1000000.0f); break;
+    case OPT_EVERY:
+        tw_cli_float(program, name, v, 1.0f, 1000000.0f);
+        o->every_m = strtod(v, NULL);
+        break;
     case OPT_OUT:
         if (*v == '\0')
             tw_cli_fail(program, name, "the output folder name is empty");
@@ -544,8 +549,8 @@ static int walk_once(const struct options *o, const struct tw_cli_world *shown, 
         total_ms += st.ms_frame;
         cpu_total += st.cpu_ms;
 
-        const bool done = distance >= o->distance_m;
-        if (done || distance >= next_record) {
+        const bool done = distance >= o->distance_m - 1e-3;
+        if (done || distance >= next_record - 1e-3) {
             const double lat_median = tw_report_percentile(iv.latency.v, iv.latency.n, 50.0);
             const double lat_p99 = tw_report_percentile(iv.latency.v, iv.latency.n, 99.0);
             tw_outfile_printf(&csv, "%.1f,%u,%llu,%llu,%llu,%llu,%llu,%llu,%u,%u,%llu,%llu,%llu,"
@@ -564,7 +569,7 @@ static int walk_once(const struct options *o, const struct tw_cli_world *shown, 
             memset(&iv, 0, sizeof(iv));
             iv.latency = keep;
             iv.latency.n = 0;
-            while (next_record <= distance)
+            while (next_record <= distance + 1e-3)
                 next_record += o->every_m;
             progress(o, dir, distance, total_ms / (f + 1));
         }
