@@ -159,7 +159,7 @@ if "$tw" walk --path "$tmp/good.csv" --size 96x54 --png-every 0 --quiet --out "$
 if "$tw" walk --tileset city --path street --frames 5 --method vfc --size 160x90 --png-every 2 \
       --quiet --out "$tmp/walk" 2>"$tmp/err"; then
     [ "$(wc -l <"$tmp/walk/frames.csv")" -eq 6 ] && ok || bad "frames.csv row count"
-    head -1 "$tmp/walk/frames.csv" | grep -q '^frame,method,ms_frame,ms_cull,ms_wait,triangles,clusters,draws,queries,tiles_queried,tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,missed_clusters,overdraw_triangles,cpu_ms,depth_errors' \
+    head -1 "$tmp/walk/frames.csv" | grep -q '^frame,method,ms_frame,ms_cull,ms_wait,triangles,clusters,draws,queries,tiles_queried,tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,missed_clusters,overdraw_triangles,cpu_ms,depth_errors,tiles_pending,loads_requested,loads_done,evictions,bytes_cpu,bytes_gpu,bytes_state,bytes_needed,over_budget,ms_upload,blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read$' \
         && ok || bad "frames.csv header"
     for key in '"methods"' '"vfc"' '"mean_ms"' '"median_ms"' '"p95_ms"' '"p99_ms"' '"mean_triangles"' \
                '"mean_queries"' '"missed_pixels_total"' '"frames_with_missed_pixels"' \
@@ -248,6 +248,36 @@ if "$tw" info --tileset city --calibrate --size 96x54 >"$tmp/cal" 2>"$tmp/err"; 
 else
     bad "info --calibrate failed: $(cat "$tmp/err")"
 fi
+
+# ---- providers and the streaming options (issue 14) -----------------------------
+for a in "--budget 12X" "--budget -1" "--budget 1.5M" "--budget ''" "--budget 99999999999999999999" \
+         "--budget 2000000T" "--budget 64m5" "--policy nope" "--policy" "--workers 0" "--workers 65" \
+         "--workers x" "--upload-budget 0"; do
+    eval "expect_usage_error walk $a \"\${small[@]}\""
+done
+# A world the library refuses for the user's settings: its one line, exit 2.
+expect_usage_error walk --view-distance 100000 "${small[@]}"
+"$tw" walk --view-distance 100000 "${small[@]}" 2>"$tmp/err"
+grep -q 'view distance of 100000 m' "$tmp/err" && ok || bad "--view-distance 100000: $(cat "$tmp/err")"
+expect_usage_error bench --tileset city-gen --scenario spin "${small[@]}"
+expect_usage_error bench --tileset city-gen --sweep cluster_triangles=512,1024 "${small[@]}"
+# city-gen walks, with a budget, workers and either policy; frames.csv has
+# the streaming columns.
+for pol in wait skip; do
+    if "$tw" walk --tileset city-gen --frames 4 --size 96x54 --png-every 0 --quiet --budget 64M \
+          --workers 2 --policy $pol --upload-budget 8M --out "$tmp/gen-$pol" 2>"$tmp/err" &&
+       [ "$(wc -l <"$tmp/gen-$pol/frames.csv")" -eq 5 ] && [ ! -s "$tmp/err" ]; then ok; else
+        bad "city-gen walk under $pol: $(cat "$tmp/err")"; fi
+done
+awk -F, 'NR == 1 { for (k = 1; k <= NF; k++) col[$k] = k; next }
+         $col["bytes_cpu"] <= 0 || $col["bytes_gpu"] <= 0 || $col["bytes_needed"] <= 0 { exit 1 }
+         { loads += $col["loads_done"] } END { exit loads > 0 ? 0 : 1 }' "$tmp/gen-wait/frames.csv" &&
+    ok || bad "city-gen frames.csv: no bytes or no loads: $(head -3 "$tmp/gen-wait/frames.csv")"
+if "$tw" info --tileset city-gen >"$tmp/info" 2>"$tmp/err" && grep -q '^provider city-gen: footprint 80 x 80 m' "$tmp/info" &&
+   grep -q '^bound (the query box): ' "$tmp/info"; then ok; else bad "info city-gen: $(cat "$tmp/info" "$tmp/err")"; fi
+if "$tw" bench --tileset forest-gen --methods vfc,tilequery+chc --frames 2 --size 96x54 --png-every 0 \
+      --quiet --path forest --out "$tmp/forest-gen" 2>"$tmp/err" >/dev/null; then ok; else
+    bad "bench forest-gen: $(cat "$tmp/err")"; fi
 
 # ---- output that never lies ----------------------------------------------------
 # expect_write_error NAME PATTERN CMD...: exit status 1 and exactly one

@@ -179,11 +179,51 @@ enum tw_method tw_cli_method(const char *program, const char *opt, const char *s
     return m;
 }
 
+uint64_t tw_cli_bytes(const char *program, const char *opt, const char *s, uint64_t hi)
+{
+    static const char units[] = "KMGT";
+    size_t digits = 0;
+    while (s && is_digit(s[digits]))
+        digits++;
+    const char *suffix = s ? s + digits : "";
+    unsigned shift = 0;
+    if (*suffix) {
+        const char *u = strchr(units, suffix[0]);
+        if (u && (suffix[1] == '\0' || strcmp(suffix + 1, "iB") == 0))
+            shift = 10u * (unsigned)(u - units + 1);
+        else
+            digits = 0;
+    }
+    if (digits == 0 || digits > 20)
+        tw_cli_fail(program, opt, "'%s' is not a byte count such as 1048576, 512K, 64M or 1G "
+                    "(binary: 64M = 64 MiB)", s ? s : "");
+    char number[32];
+    memcpy(number, s, digits);
+    number[digits] = '\0';
+    errno = 0;
+    const unsigned long long v = strtoull(number, NULL, 10);
+    if (errno == ERANGE || (shift && v > (UINT64_MAX >> shift)) || (v << shift) > hi)
+        tw_cli_fail(program, opt, "'%s' is more than %llu bytes", s, (unsigned long long)hi);
+    return (uint64_t)v << shift;
+}
+
+enum tw_stream_policy tw_cli_policy(const char *program, const char *opt, const char *s)
+{
+    if (s && strcmp(s, "wait") == 0)
+        return TW_STREAM_WAIT;
+    if (s && strcmp(s, "skip") == 0)
+        return TW_STREAM_SKIP;
+    tw_cli_fail(program, opt, "unknown policy '%s' (wait: a frame waits for its tiles; skip: it "
+                "draws without the ones not ready)", s ? s : "");
+}
+
 void tw_cli_log(void *user, enum tw_log_level level, const char *msg)
 {
-    const struct tw_cli *c = user;
+    struct tw_cli *c = user;
     if (level <= TW_LOG_WARN)
         tw_cli_message(c->program, "%s", msg);
+    if (level <= TW_LOG_ERROR)
+        c->errors_logged++;
 }
 
 struct tw_tileset *tw_cli_load_tileset(const struct tw_cli *c, uint32_t cluster_triangles,
@@ -204,7 +244,7 @@ struct tw_tileset *tw_cli_load_tileset(const struct tw_cli *c, uint32_t cluster_
     }
     if (access(c->tileset, F_OK) != 0)
         tw_cli_fail(c->program, "--tileset", "unknown tileset '%s' (built-in: city, forest, hybrid; "
-                    "or a manifest file)", c->tileset);
+                    "providers: city-gen, forest-gen; or a manifest file)", c->tileset);
     /* A manifest: its loader logs one line naming the file, the place and the reason. */
     const struct tw_manifest_settings ms = {.max_cluster_triangles = cluster_triangles};
     const int err = tw_tilesets_load_manifest_ex(c->tileset, &ms, log, &ts);
@@ -213,10 +253,52 @@ struct tw_tileset *tw_cli_load_tileset(const struct tw_cli *c, uint32_t cluster_
     return ts;
 }
 
-void tw_cli_load_path(const struct tw_cli *c, const char *name, uint32_t frames,
-                      const struct tw_tileset *ts, struct tw_path *p)
+void tw_cli_world_load(const struct tw_cli *c, uint32_t cluster_triangles,
+                       const struct tw_log *log, struct tw_cli_world *out)
 {
-    const float w = ts->footprint[0], d = ts->footprint[1];
+    memset(out, 0, sizeof(*out));
+    if (!tw_tilesets_is_provider(c->tileset)) {
+        out->tileset = tw_cli_load_tileset(c, cluster_triangles, log);
+        out->name = out->tileset->name;
+        out->footprint[0] = out->tileset->footprint[0];
+        out->footprint[1] = out->tileset->footprint[1];
+        return;
+    }
+    const int err = tw_tilesets_provider_create(c->tileset, c->world.selection.seed,
+                                                cluster_triangles, log, &out->provider);
+    if (err) {
+        tw_cli_message(c->program, "--tileset %s: the provider cannot start: %s", c->tileset,
+                       tw_error_to_str(err));
+        exit(err == TW_ERR_INVALID ? TW_CLI_EXIT_USAGE : 1);
+    }
+    out->source = tw_tilesets_provider_get(out->provider);
+    out->name = out->source->name ? out->source->name : c->tileset;
+    out->footprint[0] = out->source->footprint[0];
+    out->footprint[1] = out->source->footprint[1];
+}
+
+void tw_cli_world_apply(const struct tw_cli_world *w, struct tw_world_settings *ws)
+{
+    ws->tileset = w->tileset;
+    ws->provider = w->source;
+}
+
+void tw_cli_world_finish(struct tw_cli_world *w)
+{
+    tw_tileset_destroy(w->tileset);
+    tw_tilesets_provider_destroy(w->provider);
+    memset(w, 0, sizeof(*w));
+}
+
+int tw_cli_world_exit_status(int err)
+{
+    return err == TW_ERR_INVALID || err == TW_ERR_LIMIT ? TW_CLI_EXIT_USAGE : 1;
+}
+
+void tw_cli_load_path(const struct tw_cli *c, const char *name, uint32_t frames,
+                      const float footprint[2], struct tw_path *p)
+{
+    const float w = footprint[0], d = footprint[1];
     bool builtin = false;
     for (const char *const *n = tw_path_builtin_names; *n; n++)
         builtin |= strcmp(*n, name) == 0;
@@ -272,6 +354,17 @@ static bool apply_common(struct tw_cli *c, int opt, const char *place, const cha
         ws->view_distance = tw_cli_float(p, place, arg, 1.0f, 100000.0f);
         break;
     case TW_CLI_OPT_QUIET: c->quiet = true; break;
+    case TW_CLI_OPT_WORKERS: ws->workers = (uint32_t)tw_cli_u64(p, place, arg, 1, 64); break;
+    case TW_CLI_OPT_POLICY: ws->policy = tw_cli_policy(p, place, arg); break;
+    case TW_CLI_OPT_BUDGET:
+        ws->cache_budget_bytes = tw_cli_bytes(p, place, arg, (uint64_t)1 << 50);
+        break;
+    case TW_CLI_OPT_UPLOAD_BUDGET:
+        /* The library reads 0 as its default (32 MiB): at least one byte here. */
+        ws->upload_budget_bytes = tw_cli_bytes(p, place, arg, (uint64_t)1 << 50);
+        if (ws->upload_budget_bytes == 0)
+            tw_cli_fail(p, place, "'%s' is not above 0 bytes", arg);
+        break;
     default: return false;
     }
     c->given |= 1u << (opt - TW_CLI_OPT_TILESET);

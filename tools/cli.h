@@ -40,6 +40,10 @@ enum {
     TW_CLI_OPT_REPEAT,
     TW_CLI_OPT_VIEW_DISTANCE,
     TW_CLI_OPT_QUIET,
+    TW_CLI_OPT_WORKERS,
+    TW_CLI_OPT_POLICY,
+    TW_CLI_OPT_BUDGET,
+    TW_CLI_OPT_UPLOAD_BUDGET,
     TW_CLI_OPT_PROGRAM = 512,
 };
 
@@ -55,19 +59,24 @@ enum {
     {"repeat", required_argument, NULL, TW_CLI_OPT_REPEAT}, \
     {"view-distance", required_argument, NULL, TW_CLI_OPT_VIEW_DISTANCE}, \
     {"quiet", no_argument, NULL, TW_CLI_OPT_QUIET}, \
+    {"workers", required_argument, NULL, TW_CLI_OPT_WORKERS}, \
+    {"policy", required_argument, NULL, TW_CLI_OPT_POLICY}, \
+    {"budget", required_argument, NULL, TW_CLI_OPT_BUDGET}, \
+    {"upload-budget", required_argument, NULL, TW_CLI_OPT_UPLOAD_BUDGET}, \
     {"help", no_argument, NULL, 'h'}
 
 /* What the shared options set. */
 struct tw_cli {
     const char *program;             /* "tileworld", for messages; borrowed */
-    struct tw_world_settings world;  /* seed, repeat, method, size, view distance, and what a
-                                      * program's own options add */
+    struct tw_world_settings world;  /* seed, repeat, method, size, view distance, workers,
+                                      * policy, budgets, and what a program's own options add */
     const char *tileset;             /* a built-in name or a manifest file; borrowed from argv */
     const char *path;                /* a built-in path or a CSV file; NULL: none given */
     uint32_t frames;                 /* 0: the path's length */
     struct tw_cell start_cell;
     bool quiet;
     uint32_t given;                  /* shared options given: bit opt - TW_CLI_OPT_TILESET */
+    _Atomic uint32_t errors_logged;  /* error lines tw_cli_log() printed (from any thread) */
 };
 
 /* True when the shared option opt (TW_CLI_OPT_*) was on the command line. */
@@ -129,11 +138,17 @@ float tw_cli_float(const char *program, const char *opt, const char *s, float lo
 void tw_cli_size(const char *program, const char *opt, const char *s, uint32_t *w, uint32_t *h);
 /* I,J within +-2^62 cells, where neighbour arithmetic cannot overflow. */
 void tw_cli_cell(const char *program, const char *opt, const char *s, struct tw_cell *c);
+/* A byte count: digits with an optional binary suffix K, M, G or T (also
+ * KiB, MiB, GiB, TiB; 64M = 64 MiB), at most hi bytes. */
+uint64_t tw_cli_bytes(const char *program, const char *opt, const char *s, uint64_t hi);
+/* A stream policy: "wait" or "skip". */
+enum tw_stream_policy tw_cli_policy(const char *program, const char *opt, const char *s);
 /* A method implemented in this build. */
 enum tw_method tw_cli_method(const char *program, const char *opt, const char *s);
 
-/* A logger that prints warnings and errors as tw_cli_message() lines;
- * user is the struct tw_cli. */
+/* A logger that prints warnings and errors as tw_cli_message() lines and
+ * counts the errors in errors_logged; user is the struct tw_cli (not
+ * const: the count is written, atomically, from any thread). */
 void tw_cli_log(void *user, enum tw_log_level level, const char *msg);
 
 /* The tileset of --tileset (a built-in one, made with clusters of at most
@@ -142,10 +157,35 @@ void tw_cli_log(void *user, enum tw_log_level level, const char *msg);
 struct tw_tileset *tw_cli_load_tileset(const struct tw_cli *c, uint32_t cluster_triangles,
                                        const struct tw_log *log);
 
+/* What a world shows, from --tileset: a fixed tileset (built-in or a
+ * manifest) or a built-in provider (city-gen, forest-gen). Exactly one of
+ * tileset and provider is set; both are owned by this struct. */
+struct tw_cli_world {
+    struct tw_tileset *tileset;             /* a fixed tileset, or NULL */
+    struct tw_tilesets_provider *provider;  /* a built-in provider, or NULL */
+    const struct tw_tile_provider *source;  /* the provider's (borrowed from provider), or NULL */
+    const char *name;                       /* the tileset's or the provider's name; borrowed */
+    float footprint[2];                     /* W, D metres of the grid's cells */
+};
+
+/* Loads what --tileset names (a provider's tiles and a built-in tileset
+ * made with clusters of at most cluster_triangles, 0: the default). Exits on
+ * failure (status 2 for bad input, 1 otherwise). */
+void tw_cli_world_load(const struct tw_cli *c, uint32_t cluster_triangles,
+                       const struct tw_log *log, struct tw_cli_world *out);
+/* Sets ws->tileset or ws->provider (the other NULL) to what w shows. */
+void tw_cli_world_apply(const struct tw_cli_world *w, struct tw_world_settings *ws);
+/* Frees what w owns; accepts a zeroed w. */
+void tw_cli_world_finish(struct tw_cli_world *w);
+
+/* How a failed tw_world_create() ends a program: for bad input
+ * (TW_ERR_INVALID, TW_ERR_LIMIT) TW_CLI_EXIT_USAGE, else 1. */
+int tw_cli_world_exit_status(int err);
+
 /* The camera path name (a built-in one of frames keys, or a CSV file of
- * c->frames rows, 0: all), moved by --start-cell, into *p (the caller
- * finishes it). Exits on failure. */
+ * c->frames rows, 0: all) over cells of footprint (W, D metres), moved by
+ * --start-cell, into *p (the caller finishes it). Exits on failure. */
 void tw_cli_load_path(const struct tw_cli *c, const char *name, uint32_t frames,
-                      const struct tw_tileset *ts, struct tw_path *p);
+                      const float footprint[2], struct tw_path *p);
 
 #endif

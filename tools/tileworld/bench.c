@@ -60,9 +60,11 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     int rc = TW_OK;
     struct tw_world_settings ws = run->world;
     ws.tileset = run->tileset;
+    ws.provider = run->provider;
     ws.method = run->methods[0];
     ws.get_proc = tw_context_get_proc(ctx);
     rc = tw_world_create(&ws, &world);
+    run->world_error = rc;
     if (rc) {
         snprintf(err, err_size, "cannot create the world: %s", tw_error_to_str(rc));
         goto out;
@@ -287,6 +289,7 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
     struct tw_run base = *run;
     base.defer_charts = true;
     rc = tw_run_execute(&base, ctx, err, err_size);
+    run->world_error = base.world_error;
     if (rc)
         return rc;
     memcpy(run->figures, base.figures, sizeof(run->figures));
@@ -317,6 +320,12 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
         r.bench = false;
         r.png_every = 0;
         struct tw_tileset *own = NULL;
+        if (param == P_CLUSTER && !run->tileset) {
+            snprintf(err, err_size, "--sweep: cluster_triangles needs a prototype tileset; '%s' is "
+                     "a provider", run->tileset_name);
+            rc = TW_ERR_INVALID;
+            break;
+        }
         if (param == P_CLUSTER) {
             own = make_tileset(maker_user, (uint32_t)values[k], err, err_size);
             if (!own) {
@@ -328,6 +337,7 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
             apply_sweep(&r.world, param, values[k]);
         }
         rc = tw_run_execute(&r, ctx, err, err_size);
+        run->world_error = r.world_error;
         tw_tileset_destroy(own);
         memcpy(figures[k], r.figures, sizeof(figures[k]));
         for (uint32_t m = 0; m < r.method_count && !rc; m++) {
@@ -740,6 +750,11 @@ int tw_run_scenarios(struct tw_run *run, struct tw_context *ctx, const char *nam
     struct scenario_result results[16];
     uint32_t count = 0;
     int rc = TW_OK;
+    if (!run->tileset) {
+        snprintf(err, err_size, "--scenario: scenarios need a prototype tileset (they place the "
+                 "camera by its prototypes); '%s' is a provider", run->tileset_name);
+        return TW_ERR_INVALID;
+    }
     bool known = strcmp(name, "all") == 0;
     for (const char *const *n = tw_scenario_names; *n; n++)
         known |= strcmp(*n, name) == 0;

@@ -21,7 +21,8 @@ typedef void (*tw_run_frame_fn)(void *user, uint32_t frame_index, struct tw_worl
                                 const struct tw_frame_stats *st);
 
 struct tw_run {
-    const struct tw_tileset *tileset;   /* borrowed */
+    const struct tw_tileset *tileset;   /* borrowed; NULL with a provider */
+    const struct tw_tile_provider *provider; /* borrowed: instead of tileset; NULL with one */
     const char *tileset_name;
     const struct tw_path *path;         /* borrowed */
     const char *path_name;
@@ -38,6 +39,7 @@ struct tw_run {
     void *on_frame_user;
     /* results */
     struct tw_method_figures figures[TW_METHOD_COUNT];
+    int world_error;                    /* tw_world_create()'s error when it failed, else 0 */
 };
 
 /* Runs every frame of run->path with every method, writing frames.csv,
@@ -45,7 +47,8 @@ struct tw_run {
  * context must be current and as large as run->world's size. On failure
  * returns a negative code with a one-line reason in err: TW_ERR_INVALID
  * when the output folder cannot be made, TW_ERR_IO when a file cannot be
- * written. */
+ * written; when the world cannot be created, its error (also in
+ * run->world_error: the library has logged why). */
 int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t err_size);
 
 /* Makes a tileset again with another cluster size (for sweeps); returns a
@@ -66,7 +69,8 @@ int tw_run_sweep_check(const char *spec, char *err, size_t err_size);
 /* Names of the stability scenarios, NULL-terminated. */
 extern const char *const tw_scenario_names[];
 
-/* --scenario NAME|all: runs each scenario over the run's tileset with every
+/* --scenario NAME|all: runs each scenario over the run's tileset (not a
+ * provider: scenarios place the camera by the prototypes) with every
  * conservative method under --verify, into run->out/scenario-NAME/, and
  * writes run->out/scenarios.md and scenarios.json saying what had to hold
  * and whether it held. *all_held tells whether every check held. */

@@ -290,7 +290,7 @@ static double now_s(void)
 
 /* Runs `gnuplot -e "cd 'DIR'; tw_temporaries = 1" charts.gp`, its output in
  * DIR/gnuplot.log. Returns TW_OK, TW_CHARTS_NOT_DRAWN or a negative error. */
-static int run_gnuplot(const char *dir, char *err, size_t err_size)
+int tw_charts_run_gnuplot(const char *dir, char *err, size_t err_size)
 {
     char log_file[TW_OUTFILE_PATH];
     snprintf(log_file, sizeof(log_file), "%s/gnuplot.log", dir);
@@ -391,5 +391,5 @@ int tw_charts_write(const struct tw_chart_run *run, char *err, size_t err_size)
         rc = write_run(run, order, err, err_size);
     if (!rc)
         rc = tw_outfile_write_all(file, TW_CHARTS_GP, strlen(TW_CHARTS_GP), err, err_size);
-    return rc ? rc : run_gnuplot(run->dir, err, err_size);
+    return rc ? rc : tw_charts_run_gnuplot(run->dir, err, err_size);
 }

@@ -64,4 +64,11 @@ struct tw_chart_run {
  * tw_error with "FILE: reason" in err when a file cannot be written. */
 int tw_charts_write(const struct tw_chart_run *run, char *err, size_t err_size);
 
+/* Runs `gnuplot charts.gp` in dir (a script already written there, which
+ * draws each chart as .chart-NAME.png.tmp when tw_temporaries is defined),
+ * as tw_charts_write() does: output in dir/gnuplot.log, killed after
+ * TW_CHARTS_TIMEOUT_S, the charts renamed once it succeeded. Returns
+ * TW_OK, TW_CHARTS_NOT_DRAWN with a reason in err, or a negative tw_error. */
+int tw_charts_run_gnuplot(const char *dir, char *err, size_t err_size);
+
 #endif

@@ -16,7 +16,7 @@ enum folder { RUN_FOLDER, CHART_DATA, SCENARIO_FOLDER };
 
 static const char *const run_files[] = {
     "frames.csv", "summary.json", "summary.md", "sweep.csv", "sweep.md", "scenarios.md",
-    "scenarios.json", "charts.gp", "gnuplot.log", NULL,
+    "scenarios.json", "charts.gp", "gnuplot.log", "memory.csv", NULL,
 };
 
 static bool ends_with(const char *s, size_t n, const char *end)
@@ -67,7 +67,8 @@ static bool is_output_file(enum folder kind, const char *s, size_t n)
 static bool is_output_folder(enum folder kind, const char *s, enum folder *inner)
 {
     static const char *const params[] = {
-        "n_av", "b", "T", "cluster_triangles", "evict_after", "view_distance", "neighbours", NULL,
+        "n_av", "b", "T", "cluster_triangles", "evict_after", "view_distance", "neighbours",
+        "budget", NULL,
     };
     if (kind == CHART_DATA)
         return false;

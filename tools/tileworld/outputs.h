@@ -4,8 +4,9 @@
  * never mixes the files of two runs (a new frames.csv beside an old
  * summary.json). Only these names are ever removed, never anything else:
  *   frames.csv summary.json summary.md sweep.csv sweep.md scenarios.md scenarios.json
+ *   memory.csv (tileworld memtest)
  *   charts.gp gnuplot.log chart-*.png frame-NNNNN.png frame-NNNNN-METHOD.png
- *   chart-data/ (its .dat and run.gp files), sweep-PARAM-VALUE/ and
+ *   chart-data/ (its .dat and run.gp files), sweep-PARAM-VALUE/ (sweep-budget-VALUE/ of memtest) and
  *   scenario-NAME/ (and scenario-NAME/far/) with the same files inside, and
  *   the temporaries .NAME.tmp of all of these (a killed run's).
  * A folder is removed only when nothing else is left in it.

@@ -35,8 +35,9 @@ int tw_report_make_dirs(const char *dir)
 static const char *const csv_header =
     "frame,method,ms_frame,ms_cull,ms_wait,triangles,clusters,draws,queries,tiles_queried,"
     "tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,"
-    "missed_clusters,overdraw_triangles,cpu_ms,depth_errors,blocking_reads,queries_skipped,"
-    "hzb_boxes,ms_hzb_build,ms_hzb_read\n";
+    "missed_clusters,overdraw_triangles,cpu_ms,depth_errors,tiles_pending,loads_requested,"
+    "loads_done,evictions,bytes_cpu,bytes_gpu,bytes_state,bytes_needed,over_budget,ms_upload,"
+    "blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read\n";
 
 /* A row of frames.csv as the row of a gnuplot data file: blank-separated,
  * without the method (its file says it). */
@@ -92,7 +93,7 @@ static struct tw_outfile *chart_frames(struct tw_report *r, enum tw_method m, ch
     struct tw_outfile *o = &r->chart_frames[m];
     if (o->f)
         return o;
-    char file[1100], header[512];
+    char file[1100], header[1024];
     snprintf(file, sizeof(file), "%s/" TW_REPORT_CHART_DATA "/frames-%s.dat", r->dir,
              tw_method_name(m));
     if (tw_outfile_open(o, file, err, err_size))
@@ -106,25 +107,30 @@ static struct tw_outfile *chart_frames(struct tw_report *r, enum tw_method m, ch
 int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st, char *err,
                   size_t err_size)
 {
-    char row[512];
+    char row[1024];
     snprintf(row, sizeof(row),
-             "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu,%.3f,%llu,%u,%u,"
-             "%u,%.3f,%.3f\n",
+             "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu,%.3f,%llu,"
+             "%u,%u,%u,%u,%llu,%llu,%llu,%llu,%d,%.3f,"
+             "%u,%u,%u,%.3f,%.3f\n",
              (unsigned long long)st->frame, tw_method_name(st->method), st->ms_frame, st->ms_cull,
              st->ms_wait, (unsigned long long)st->triangles, st->clusters, st->draws, st->queries,
              st->tiles_queried, st->tiles_visible, st->tiles_new, st->tiles_cached,
              (unsigned long long)st->cache_bytes, st->predict_fail,
              (unsigned long long)st->missed_pixels, st->missed_clusters,
              (unsigned long long)st->overdraw_triangles, st->cpu_ms,
-             (unsigned long long)st->depth_errors, st->blocking_reads, st->queries_skipped,
-             st->hzb_boxes, st->ms_hzb_build, st->ms_hzb_read);
+             (unsigned long long)st->depth_errors, st->tiles_pending, st->loads_requested,
+             st->loads_done, st->evictions, (unsigned long long)st->bytes_cpu,
+             (unsigned long long)st->bytes_gpu, (unsigned long long)st->bytes_state,
+             (unsigned long long)st->bytes_needed, st->over_budget ? 1 : 0, st->ms_upload,
+             st->blocking_reads, st->queries_skipped, st->hzb_boxes, st->ms_hzb_build,
+             st->ms_hzb_read);
     if (!tw_outfile_printf(&r->frames_csv, "%s", row))
         return tw_outfile_report(&r->frames_csv, err, err_size);
     if (r->chart_data) {
         struct tw_outfile *o = chart_frames(r, st->method, err, err_size);
         if (!o)
             return TW_ERR_IO;
-        char data[512];
+        char data[1024];
         csv_to_data(row, data, sizeof(data));
         if (!tw_outfile_printf(o, "%s", data))
             return tw_outfile_report(o, err, err_size);

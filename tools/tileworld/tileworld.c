@@ -14,6 +14,7 @@
 
 #include "tools/tileworld/bench.h"
 #include "tools/cli.h"
+#include "tools/tileworld/memtest.h"
 #include "tools/tileworld/report.h"
 #include "tileworld/context.h"
 #include "tileworld/runtime.h"
@@ -47,17 +48,32 @@ static void usage(FILE *f)
           "                        [--view-distance M] [--cluster-triangles N] [--tile-neighbours 4|8]\n"
           "                        [--evict-after N] [--chc-batch N] [--chc-nav N] [--threshold T]\n"
           "                        [--deterministic] [--verify-tolerance X]\n"
-          "                        [--mutate-query-shrink F]\n"
+          "                        [--mutate-query-shrink F] [--workers N] [--policy wait|skip]\n"
+          "                        [--budget BYTES] [--upload-budget BYTES]\n"
           "       tileworld bench  [same options] [--methods M1,M2,...] [--sweep PARAM=v1,v2,...]\n"
           "                        [--scenario NAME|all]\n"
           "       tileworld info   [--tileset NAME|FILE.json] [--seed N] [--cluster-triangles N]\n"
           "                        [--calibrate [--size WxH]]\n"
           "       tileworld import FILE.gltf|FILE.glb\n"
+          "       tileworld memtest [--tileset NAME] [--path straight|wander|FILE.csv] [--distance KM]\n"
+          "                        [--budget BYTES] [--workers N] [--policy wait|skip] [--size WxH]\n"
+          "                        [--every METRES] [--sweep budget=B1,B2,...] [--out DIR]\n"
+          "                        (the tile cache's memory against distance: tileworld memtest --help)\n"
           "       tileworld view   [options of tileworld view --help]\n"
           "options take their value as --opt VALUE or --opt=VALUE; numbers are plain decimal digits\n"
-          "tilesets: city, forest, hybrid, or a manifest; paths: street, flyover, forest, teleport,\n"
-          "spin, or a CSV file; methods: vfc, tilequery, chc, tilequery+chc (default), oracle,\n"
-          "hzb, tilequery+hzb\n"
+          "tilesets: city, forest, hybrid, the providers city-gen and forest-gen (every cell\n"
+          "generated on demand), or a manifest; paths: street, flyover, forest, teleport, spin,\n"
+          "or a CSV file; methods: vfc, tilequery, chc, tilequery+chc (default), oracle, hzb,\n"
+          "tilequery+hzb\n"
+          "--workers N           threads generating a provider's tiles, 1..64 (default: cores - 1)\n"
+          "--policy wait|skip    a visible tile not ready: the frame waits for it (wait, default)\n"
+          "                      or draws without it, a hole counted in tiles_pending (skip)\n"
+          "--budget BYTES        the tile cache's budget, every byte a tile costs, CPU and GPU;\n"
+          "                      a number with an optional binary suffix K, M, G (64M = 64 MiB);\n"
+          "                      0: none (the default)\n"
+          "--upload-budget BYTES per frame, bytes of finished tiles uploaded ahead of need\n"
+          "                      (default 32M)\n"
+          "scenarios and --sweep cluster_triangles need a prototype tileset (not a provider)\n"
           "sweep parameters: n_av, b, T, cluster_triangles, evict_after, view_distance, neighbours\n"
           "scenarios: teleport, spin, inside-building, inside-common-box, grazing, far-origin,\n"
           "no-occluders, all; each runs its own path (no --path, --start-cell, --repeat, --sweep)\n"
@@ -251,14 +267,16 @@ static struct tw_tileset *remake_tileset(void *user, uint32_t cluster_triangles,
 static int run(const struct options *o, bool bench)
 {
     const struct tw_log log = {tw_cli_log, (void *)&o->cli};
-    struct tw_tileset *ts = tw_cli_load_tileset(&o->cli, o->cluster_triangles, &log);
+    struct tw_cli_world shown;
+    tw_cli_world_load(&o->cli, o->cluster_triangles, &log, &shown);
     struct tw_path path = {0};
     if (!o->scenario)
-        tw_cli_load_path(&o->cli, o->cli.path, o->cli.frames ? o->cli.frames : default_frames, ts,
-                         &path);
+        tw_cli_load_path(&o->cli, o->cli.path, o->cli.frames ? o->cli.frames : default_frames,
+                         shown.footprint, &path);
 
     struct tw_run r = {0};
-    r.tileset = ts;
+    r.tileset = shown.tileset;
+    r.provider = shown.source;
     r.tileset_name = o->cli.tileset;
     r.path = &path;
     r.path_name = o->cli.path;
@@ -305,10 +323,18 @@ static int run(const struct options *o, bool bench)
     }
     if (err) {
         /* Bad input found on the way (an output folder that cannot be
-         * made, a sweep the tileset cannot do) is the user's; a failed
-         * write or frame is not. */
-        tw_cli_message(program, "%s", msg);
-        rc = err == TW_ERR_INVALID ? EXIT_USAGE : 1;
+         * made, a sweep the tileset cannot do, settings the world refuses)
+         * is the user's; a failed write or frame is not. A world that
+         * cannot be created has said why in the library's own line: one
+         * line, not two. */
+        if (r.world_error) {
+            if (o->cli.errors_logged == 0)
+                tw_cli_message(program, "%s", msg);
+            rc = tw_cli_world_exit_status(r.world_error);
+        } else {
+            tw_cli_message(program, "%s", msg);
+            rc = err == TW_ERR_INVALID ? EXIT_USAGE : 1;
+        }
         goto out;
     }
     if (rc == 3)
@@ -319,13 +345,13 @@ static int run(const struct options *o, bool bench)
 out:
     tw_context_destroy(ctx);
     tw_path_finish(&path);
-    tw_tileset_destroy(ts);
+    tw_cli_world_finish(&shown);
     return rc;
 }
 
 /* info --calibrate: the cost model's figures (DESIGN §14) as a world over
  * the tileset measures them at creation in a headless context of --size. */
-static int print_calibration(const struct options *o, const struct tw_tileset *ts,
+static int print_calibration(const struct options *o, const struct tw_cli_world *shown,
                              const struct tw_log *log)
 {
     struct tw_world_settings ws = o->cli.world;
@@ -340,7 +366,7 @@ static int print_calibration(const struct options *o, const struct tw_tileset *t
                        tw_error_to_str(err));
         return 1;
     }
-    ws.tileset = ts;
+    tw_cli_world_apply(shown, &ws);
     ws.get_proc = tw_context_get_proc(ctx);
     ws.log = *log;
     struct tw_world *w = NULL;
@@ -348,7 +374,7 @@ static int print_calibration(const struct options *o, const struct tw_tileset *t
     if (err) {
         tw_cli_message(program, "cannot create the world: %s", tw_error_to_str(err));
         tw_context_destroy(ctx);
-        return err == TW_ERR_INVALID || err == TW_ERR_LIMIT ? EXIT_USAGE : 1;
+        return tw_cli_world_exit_status(err);
     }
     const struct tw_calibration *c = tw_world_calibration(w);
     printf("cost model at %ux%u (%s, %.1f ms of CPU time to measure):\n", ws.width, ws.height,
@@ -366,10 +392,40 @@ static int print_calibration(const struct options *o, const struct tw_tileset *t
     return 0;
 }
 
+/* info on a provider: its name, footprint, bound and shared tileset. */
+static int info_provider(const struct tw_cli_world *shown)
+{
+    const struct tw_tile_provider *p = shown->source;
+    char name[1024];
+    printf("provider %s: footprint %g x %g m, clusters of <= %u triangles, every cell's content "
+           "generated on demand\n", tw_cli_escape(shown->name, name, sizeof(name)),
+           p->footprint[0], p->footprint[1],
+           p->max_cluster_triangles ? p->max_cluster_triangles : 2048u);
+    const struct tw_box *b = &p->bound;
+    printf("bound (the query box): [%.2f, %.2f, %.2f] .. [%.2f, %.2f, %.2f]\n", b->min[0],
+           b->min[1], b->min[2], b->max[0], b->max[1], b->max[2]);
+    if (p->shared)
+        printf("shared tileset: %s, %u prototypes, %llu bytes of geometry\n",
+               tw_cli_escape(p->shared->name, name, sizeof(name)), p->shared->prototype_count,
+               (unsigned long long)tw_tileset_geometry_bytes(p->shared));
+    else
+        printf("shared tileset: none (no two cells share content)\n");
+    return 0;
+}
+
 static int info(const struct options *o)
 {
     const struct tw_log log = {tw_cli_log, (void *)&o->cli};
-    struct tw_tileset *ts = tw_cli_load_tileset(&o->cli, o->cluster_triangles, &log);
+    struct tw_cli_world shown;
+    tw_cli_world_load(&o->cli, o->cluster_triangles, &log, &shown);
+    if (shown.provider) {
+        int rc = info_provider(&shown);
+        if (!rc && o->calibrate)
+            rc = print_calibration(o, &shown, &log);
+        tw_cli_world_finish(&shown);
+        return rc;
+    }
+    struct tw_tileset *ts = shown.tileset;
     struct tw_bvh_builder *b = NULL;
     int err = tw_bvh_builder_create(&log, &b);
     if (err) {
@@ -377,8 +433,9 @@ static int info(const struct options *o)
         fprintf(stderr, "tileworld: cannot start Embree: %s\n", tw_error_to_str(err));
         return 1;
     }
+    char name[1024];
     printf("tileset %s: %u prototypes, footprint %g x %g m, clusters of <= %u triangles\n",
-           ts->name, ts->prototype_count, ts->footprint[0], ts->footprint[1],
+           tw_cli_escape(ts->name, name, sizeof(name)), ts->prototype_count, ts->footprint[0], ts->footprint[1],
            ts->max_cluster_triangles);
     printf("%-16s %10s %9s %9s %6s %6s %9s %10s\n", "tile", "triangles", "instances", "clusters",
            "nodes", "depth", "build_ms", "bvh_bytes");
@@ -390,7 +447,8 @@ static int info(const struct options *o)
         err = tw_bvh_build(b, proto, NULL, &bvh);
         if (err)
             break;
-        printf("%-16s %10llu %9u %9u %6u %6u %9.3f %10llu\n", proto->name,
+        printf("%-16s %10llu %9u %9u %6u %6u %9.3f %10llu\n",
+               tw_cli_escape(proto->name, name, sizeof(name)),
                (unsigned long long)proto->triangle_count, proto->instance_count,
                proto->cluster_count, bvh->node_count, bvh->depth, bvh->build_ms,
                (unsigned long long)bvh->bytes);
@@ -413,7 +471,7 @@ static int info(const struct options *o)
            cb->min[2], cb->max[0], cb->max[1], cb->max[2]);
     printf("geometry: %llu bytes uploaded once\n",
            (unsigned long long)tw_tileset_geometry_bytes(ts));
-    const int rc = o->calibrate ? print_calibration(o, ts, &log) : 0;
+    const int rc = o->calibrate ? print_calibration(o, &shown, &log) : 0;
     tw_tileset_destroy(ts);
     return rc;
 }
@@ -421,7 +479,7 @@ static int info(const struct options *o)
 int main(int argc, char **argv)
 {
     if (argc < 2) {
-        fprintf(stderr, "tileworld: no command given (walk, bench, info, view, import; "
+        fprintf(stderr, "tileworld: no command given (walk, bench, info, view, import, memtest; "
                         "tileworld --help for the options)\n");
         return EXIT_USAGE;
     }
@@ -436,6 +494,8 @@ int main(int argc, char **argv)
         parse_options(argc - 1, argv + 1, &o);
     } else if (strcmp(argv[1], "import") == 0) {
         return import(argc, argv);
+    } else if (strcmp(argv[1], "memtest") == 0) {
+        return tw_memtest_main(argc - 1, argv + 1);
     } else if (strcmp(argv[1], "view") == 0) {
         /* The window is tileworld-view, beside this program and built only
          * with GLFW: a process of its own that links libGL, never libOSMesa. */
@@ -456,7 +516,7 @@ int main(int argc, char **argv)
         tw_cli_message(program, "view: cannot run %s: %s", viewer, strerror(errno));
         return 1;
     } else {
-        tw_cli_message(program, "unknown command '%s' (walk, bench, info, view, import)", argv[1]);
+        tw_cli_message(program, "unknown command '%s' (walk, bench, info, view, import, memtest)", argv[1]);
         return EXIT_USAGE;
     }
     if (strcmp(o.command, "info") == 0)
@@ -468,6 +528,14 @@ int main(int argc, char **argv)
             tw_cli_fail(program, "--sweep", "--sweep belongs to bench");
         if (o.scenario)
             tw_cli_fail(program, "--scenario", "--scenario belongs to bench");
+    }
+    if (tw_tilesets_is_provider(o.cli.tileset)) {
+        if (o.scenario)
+            tw_cli_fail(program, "--scenario", "scenarios need a prototype tileset (they place the "
+                        "camera by its prototypes); '%s' is a provider", o.cli.tileset);
+        if (o.sweep && strncmp(o.sweep, "cluster_triangles=", 18) == 0)
+            tw_cli_fail(program, "--sweep", "cluster_triangles needs a prototype tileset; '%s' is a "
+                        "provider (give --cluster-triangles N for one size)", o.cli.tileset);
     }
     if (o.scenario) {
         /* A scenario makes its own path and selection (far-origin its own

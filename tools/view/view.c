@@ -51,7 +51,9 @@ static void usage(FILE *f)
           "                      [--start-cell I,J] [--repeat P] [--view-distance M]\n"
           "                      [--debug cells,nodes,queries|all] [--no-overlay]\n"
           "                      [--path NAME|FILE.csv] [--frames N] [--screenshot FILE.png]\n"
-          "                      [--freeze-at N] [--quiet]\n"
+          "                      [--freeze-at N] [--quiet] [--workers N] [--policy wait|skip]\n"
+          "                      [--budget BYTES] [--upload-budget BYTES]\n"
+          "tilesets: city, forest, hybrid, the providers city-gen and forest-gen, or a manifest\n"
           "options take their value as --opt VALUE or --opt=VALUE; numbers are plain decimal digits\n"
           "keys: mouse drag or Tab (captured mouse) to look; W A S D to fly, Q/E down/up, Shift\n"
           "fast, wheel changes speed; 1-7 method (vfc, tilequery, chc, tilequery+chc, oracle,\n"
@@ -429,7 +431,7 @@ static void overlay_draw(struct overlay *o, int fb_w, int fb_h)
 struct viewer {
     struct options opt;
     GLFWwindow *win;
-    const struct tw_tileset *ts;
+    struct tw_cli_world shown;   /* the tileset or provider shown */
     struct tw_world *world;
     struct overlay ov;
     struct tw_camera cam;
@@ -462,7 +464,9 @@ struct viewer {
 static void set_title(struct viewer *v)
 {
     char title[256];
-    snprintf(title, sizeof(title), "tileworld view: %s, %s%s", v->ts->name,
+    char name[256];
+    snprintf(title, sizeof(title), "tileworld view: %s, %s%s",
+             tw_cli_escape(v->shown.name, name, sizeof(name)),
              tw_method_name(tw_world_settings(v->world)->method), v->frozen ? " (frozen)" : "");
     glfwSetWindowTitle(v->win, title);
 }
@@ -616,7 +620,7 @@ static void fly(struct viewer *v, float dt)
     if (v->cam.pos.local[1] > 20000.0f)
         v->cam.pos.local[1] = 20000.0f;
     struct tw_world_pos p = v->cam.pos;
-    if (tw_tiles_normalize(&p, v->ts->footprint[0], v->ts->footprint[1]) == TW_OK)
+    if (tw_tiles_normalize(&p, v->shown.footprint[0], v->shown.footprint[1]) == TW_OK)
         v->cam.pos = p;
 }
 
@@ -829,7 +833,7 @@ static void draw_map(struct viewer *v, const struct tw_debug_box *boxes, size_t 
     const float mpp = 2.1f * s->view_distance / size;   /* metres per pixel */
     const float yaw = v->cam.yaw * pi_f / 180.0f;
     const float fx = sinf(yaw), fz = cosf(yaw), rx = -cosf(yaw), rz = sinf(yaw);
-    const float *fp = v->ts->footprint;
+    const float *fp = v->shown.footprint;
     static const float frame_color[4] = {0.0f, 0.0f, 0.0f, 0.6f};
     overlay_rect(o, x0, y0, x0 + size, y0 + size, frame_color);
     o->clip_first = o->count;
@@ -948,14 +952,13 @@ int main(int argc, char **argv)
     parse_options(argc, argv, &v.opt);
     const struct options *o = &v.opt;
     const struct tw_log log = {tw_cli_log, &v.opt.cli};
-    struct tw_tileset *ts = tw_cli_load_tileset(&o->cli, 0, &log);
-    v.ts = ts;
+    tw_cli_world_load(&o->cli, 0, &log, &v.shown);
     /* With --path, the path to fly; for the keyboard, a one-key path: the
      * start of the street path, where a camera is on a street at eye height. */
     struct tw_path path = {0};
     const char *path_name = o->cli.path ? o->cli.path : "street";
-    tw_cli_load_path(&o->cli, path_name, !o->cli.path ? 1 : o->cli.frames ? o->cli.frames : 300, ts,
-                     &path);
+    tw_cli_load_path(&o->cli, path_name, !o->cli.path ? 1 : o->cli.frames ? o->cli.frames : 300,
+                     v.shown.footprint, &path);
     if (path.count == 0)
         tw_cli_fail(program, "--path", "'%s' has no camera keys", path_name);
     v.cam = path.keys[0];
@@ -970,7 +973,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "tileworld view: cannot open a window (%s); without a display, run it "
                         "under xvfb-run\n", why ? why : "GLFW failed to start");
         tw_path_finish(&path);
-        tw_tileset_destroy(ts);
+        tw_cli_world_finish(&v.shown);
         return 1;
     }
     v.win = open_window(o);
@@ -981,12 +984,15 @@ int main(int argc, char **argv)
     glfwSetWindowUserPointer(v.win, &v);
 
     struct tw_world_settings ws = o->cli.world;
-    ws.tileset = ts;
+    tw_cli_world_apply(&v.shown, &ws);
     ws.get_proc = glfw_get_proc;
     ws.log = log;
     int err = tw_world_create(&ws, &v.world);
     if (err) {
-        fprintf(stderr, "tileworld view: cannot set up the world: %s\n", tw_error_to_str(err));
+        /* The library has said why in one line; bad settings are the user's. */
+        if (v.opt.cli.errors_logged == 0)
+            fprintf(stderr, "tileworld view: cannot set up the world: %s\n", tw_error_to_str(err));
+        rc = tw_cli_world_exit_status(err);
         goto out;
     }
     err = overlay_init(&v.ov);
@@ -1101,6 +1107,6 @@ out:
         glfwDestroyWindow(v.win);
     glfwTerminate();
     tw_path_finish(&path);
-    tw_tileset_destroy(ts);
+    tw_cli_world_finish(&v.shown);
     return rc;
 }

@@ -1,0 +1,95 @@
+#!/usr/bin/env bash
+# tileworld memtest (issue 14), fast: bad input is one line and exit 2; a
+# short walk (200 m) writes memory.csv with its header, one row per record
+# interval, summary.json with the four checks, summary.md; --budget 0 makes
+# the budget check "not applicable"; a prototype tileset has no load to
+# time; a budget sweep writes one folder per value and sweep.csv.
+set -u
+tw=${1:?usage: test-memtest.sh PATH/TO/tileworld}
+. "$(dirname "$0")/test-lib.sh"
+
+expect_usage_error() {
+    "$tw" memtest "$@" >"$tmp/out" 2>"$tmp/err"
+    local rc=$?
+    if [ "$rc" -ne 2 ] || [ "$(wc -l <"$tmp/err")" -ne 1 ] || ! grep -q '^tileworld: ' "$tmp/err"; then
+        bad "memtest $* exited $rc with: $(head -c 300 "$tmp/err")"
+    else
+        ok
+    fi
+}
+quick=(--size 96x54 --quiet --out "$tmp/bad")
+expect_usage_error --distance 0 "${quick[@]}"
+expect_usage_error --distance -1 "${quick[@]}"
+expect_usage_error --distance 1e3 "${quick[@]}"
+expect_usage_error --every 0 "${quick[@]}"
+expect_usage_error --budget 5X "${quick[@]}"
+expect_usage_error --sweep T=0,1 "${quick[@]}"
+expect_usage_error --sweep budget=16M,,32M "${quick[@]}"
+expect_usage_error --sweep budget=16M,16M "${quick[@]}"
+expect_usage_error --sweep budget=16M --budget 8M "${quick[@]}"
+expect_usage_error --path street "${quick[@]}"
+expect_usage_error --path nope "${quick[@]}"
+expect_usage_error --frames 10 "${quick[@]}"
+expect_usage_error --tileset nope "${quick[@]}"
+expect_usage_error --view-distance 100000 --distance 0.01 "${quick[@]}"
+expect_usage_error --bogus "${quick[@]}"
+if "$tw" memtest --help | grep -q '^usage: tileworld memtest'; then ok; else bad "memtest --help"; fi
+
+header='distance_m,frame,bytes_state,bytes_geometry,bytes_gpu,bytes_total,bytes_needed,budget,tiles_cached,tiles_ready,loads_requested,loads_done,evictions,reloads,latency_median,latency_p99,holes,rss_bytes,ms_frame,cpu_ms,ms_frame_max'
+# run DIR ARGS...: a short memtest, exit 0 or 3 (a check's verdict is the
+# slow test's business, not this one's).
+run() {
+    local dir=$1
+    shift
+    "$tw" memtest --distance 0.2 --every 50 --size 96x54 --quiet --out "$dir" "$@" >"$tmp/out" 2>"$tmp/err"
+    local rc=$?
+    if [ "$rc" -eq 0 ] || [ "$rc" -eq 3 ]; then ok; else bad "memtest $* exited $rc: $(cat "$tmp/err")"; fi
+}
+
+run "$tmp/m" --budget 32M --workers 2
+[ "$(head -1 "$tmp/m/memory.csv")" = "$header" ] && ok || bad "memory.csv header: $(head -1 "$tmp/m/memory.csv")"
+rows=$(tail -n +2 "$tmp/m/memory.csv" | wc -l)
+# A row at 0 m, one every 50 m: 5 rows (the last at >= 200 m).
+[ "$rows" -eq 5 ] && ok || bad "memory.csv has $rows rows (expected 5)"
+awk -F, 'NR > 1 && ($6 <= 0 || $18 <= 0 || $6 != $3 + $4 + $5) { exit 1 }' "$tmp/m/memory.csv" && ok ||
+    bad "memory.csv: bytes or RSS do not add up"
+tail -1 "$tmp/m/memory.csv" | awk -F, '$1 >= 200 && $1 < 210 { ok = 1 } END { exit !ok }' && ok ||
+    bad "memory.csv: the walk did not end at 200 m: $(tail -1 "$tmp/m/memory.csv")"
+for key in '"checks"' '"all_held"' '"budget_bytes": 33554432' '"peak_cache_bytes"' '"reloads"' \
+           '"latency_p99_frames"' '"rss_bytes_by_km"' '"loads_done"' '"workers": 2'; do
+    grep -q "$key" "$tmp/m/summary.json" && ok || bad "summary.json lacks $key"
+done
+[ "$(grep -c '"must_hold"' "$tmp/m/summary.json")" -eq 4 ] && ok || bad "summary.json: not four checks"
+for what in 'cache bytes <= the budget' 'RSS flat' 'no leak' 'load latency p99'; do
+    grep -q "| $what" "$tmp/m/summary.md" && ok || bad "summary.md lacks the check '$what'"
+done
+# The accounting check holds on any walk: it is exact.
+grep -A2 '"must_hold": "no leak' "$tmp/m/summary.json" | grep -q '"held": "yes"' && ok ||
+    bad "no-leak check did not hold: $(grep -A2 'no leak' "$tmp/m/summary.json")"
+if command -v gnuplot >/dev/null; then
+    [ -s "$tmp/m/chart-memory.png" ] && [ -s "$tmp/m/chart-loads.png" ] && ok || bad "charts missing: $(cat "$tmp/m/gnuplot.log")"
+fi
+
+# No budget: check 1 is not applicable, never "yes".
+run "$tmp/none" --budget 0
+grep -A2 '"must_hold": "cache bytes <= the budget' "$tmp/none/summary.json" | grep -q '"held": "not applicable"' &&
+    ok || bad "--budget 0: budget check not 'not applicable'"
+# A prototype tileset: no tile is loaded, latency is not applicable.
+run "$tmp/city" --tileset city --budget 64M
+grep -A2 '"must_hold": "load latency' "$tmp/city/summary.json" | grep -q '"held": "not applicable"' &&
+    ok || bad "city: latency check not 'not applicable'"
+
+# A budget sweep: a folder per value, sweep.csv, the summary of each run.
+"$tw" memtest --distance 0.1 --every 50 --size 96x54 --quiet --sweep budget=8M,48M --out "$tmp/sw" 2>"$tmp/err"
+rc=$?
+[ "$rc" -eq 0 ] || [ "$rc" -eq 3 ] && ok || bad "sweep exited $rc: $(cat "$tmp/err")"
+[ -s "$tmp/sw/sweep-budget-8M/memory.csv" ] && [ -s "$tmp/sw/sweep-budget-48M/memory.csv" ] && ok ||
+    bad "sweep folders: $(ls "$tmp/sw")"
+[ "$(wc -l <"$tmp/sw/sweep.csv")" -eq 3 ] && head -1 "$tmp/sw/sweep.csv" | grep -q '^budget_bytes,' && ok ||
+    bad "sweep.csv: $(cat "$tmp/sw/sweep.csv")"
+grep -q '"runs"' "$tmp/sw/summary.json" && ok || bad "sweep summary.json"
+# A run removes what an earlier one left: the sweep's folders and files go.
+run "$tmp/sw" --budget 16M
+[ ! -e "$tmp/sw/sweep.csv" ] && [ ! -e "$tmp/sw/sweep-budget-8M" ] && ok || bad "stale sweep outputs left: $(ls "$tmp/sw")"
+
+finish test-memtest
