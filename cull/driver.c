@@ -514,7 +514,8 @@ static uint32_t hz_phase1(struct frame *fr)
         if (hz_in_view(fr, d->hz_last[k].cell, off, &dist))
             d->hz_last[n++] = (struct tw_cull_cell){d->hz_last[k].cell, dist};
     }
-    qsort(d->hz_last, n, sizeof(*d->hz_last), compare_cells);
+    if (n > 1) /* qsort() wants a valid pointer even for no elements */
+        qsort(d->hz_last, n, sizeof(*d->hz_last), compare_cells);
     uint32_t drawn = 0;
     for (size_t k = 0; k < n && !fr->err; k++) {
         const struct tw_cell cell = d->hz_last[k].cell;
