@@ -171,9 +171,13 @@ void tw_cli_cell(const char *program, const char *opt, const char *s, struct tw_
 enum tw_method tw_cli_method(const char *program, const char *opt, const char *s)
 {
     enum tw_method m;
-    if (tw_method_from_name(s, &m) != TW_OK)
-        tw_cli_fail(program, opt, "unknown method '%s' (vfc, tilequery, chc, tilequery+chc, oracle)",
-                    s);
+    if (tw_method_from_name(s, &m) != TW_OK) {
+        char names[256] = "";
+        for (int k = TW_METHOD_FIRST; k < TW_METHOD_COUNT; k++)
+            snprintf(names + strlen(names), sizeof(names) - strlen(names), "%s%s",
+                     k > TW_METHOD_FIRST ? ", " : "", tw_method_name((enum tw_method)k));
+        tw_cli_fail(program, opt, "unknown method '%s' (%s)", s, names);
+    }
     if (!tw_method_available(m))
         tw_cli_fail(program, opt, "method '%s' is not implemented in this build yet", s);
     return m;
@@ -313,9 +317,14 @@ void tw_cli_load_path(const struct tw_cli *c, const char *name, uint32_t frames,
         const int err = tw_path_load_csv(name, c->frames, w, d, p, msg, sizeof(msg));
         if (err) {
             if (err == TW_ERR_IO && access(name, F_OK) != 0 && !strchr(name, '/') &&
-                !strstr(name, ".csv"))
-                tw_cli_fail(c->program, "--path", "unknown path '%s' (built-in: street, flyover, "
-                            "forest, teleport, spin; or a CSV file)", name);
+                !strstr(name, ".csv")) {
+                char names[256] = "";
+                for (const char *const *n = tw_path_builtin_names; *n; n++)
+                    snprintf(names + strlen(names), sizeof(names) - strlen(names), "%s%s",
+                             n > tw_path_builtin_names ? ", " : "", *n);
+                tw_cli_fail(c->program, "--path", "unknown path '%s' (built-in: %s; or a CSV file)",
+                            name, names);
+            }
             tw_cli_message(c->program, "%s", msg);
             exit(TW_CLI_EXIT_USAGE);
         }
