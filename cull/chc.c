@@ -18,6 +18,7 @@
  *   render    clusters to draw, flushed before every query batch.
  */
 #include "tileworld/cull.h"
+#include "cull/cull-private.h"
 
 #include <assert.h>
 #include <math.h>
@@ -26,11 +27,6 @@
 
 #define DEFAULT_BATCH_SIZE 50
 #define DEFAULT_ASSUMED_VISIBLE 8
-
-struct heap_entry {
-    float distance;
-    uint32_t node;
-};
 
 /* A previously invisible node waiting in the I-queue; seq keeps the front-to-
  * back order among nodes of equal probability, so that sorting is total and
@@ -70,7 +66,7 @@ struct tw_chc {
     struct tw_cost_model costs;
     bool model;             /* decide with costs (DESIGN §14) */
 
-    struct heap_entry *heap;
+    struct tw_distance_entry *heap;
     size_t heap_count, heap_cap;
     struct iqueue_item *iqueue;
     size_t iqueue_count, iqueue_cap;
@@ -309,50 +305,15 @@ static void apply_vquery(struct tw_chc *chc, struct tw_chc_node_state *state,
 
 /* ---- traversal queue ---------------------------------------------------------- */
 
-static bool heap_less(const struct heap_entry *a, const struct heap_entry *b)
-{
-    if (a->distance != b->distance)
-        return a->distance < b->distance;
-    return a->node < b->node;
-}
-
 static void heap_push(struct tw_chc *chc, float distance, uint32_t node)
 {
     assert(chc->heap_count < chc->heap_cap);
-    struct heap_entry *h = chc->heap;
-    const struct heap_entry e = {distance, node};
-    size_t i = chc->heap_count++;
-    while (i > 0) {
-        const size_t parent = (i - 1) / 2;
-        if (!heap_less(&e, &h[parent]))
-            break;
-        h[i] = h[parent];
-        i = parent;
-    }
-    h[i] = e;
+    tw_distance_push(chc->heap, &chc->heap_count, distance, node);
 }
 
 static uint32_t heap_pop(struct tw_chc *chc)
 {
-    struct heap_entry *h = chc->heap;
-    const uint32_t top = h[0].node;
-    const struct heap_entry last = h[--chc->heap_count];
-    const size_t n = chc->heap_count;
-    size_t i = 0;
-    for (;;) {
-        size_t c = 2 * i + 1;
-        if (c >= n)
-            break;
-        if (c + 1 < n && heap_less(&h[c + 1], &h[c]))
-            c++;
-        if (!heap_less(&h[c], &last))
-            break;
-        h[i] = h[c];
-        i = c;
-    }
-    if (n > 0)
-        h[i] = last;
-    return top;
+    return tw_distance_pop(chc->heap, &chc->heap_count);
 }
 
 /* Queues node for traversal unless it is outside the frustum or beyond the
