@@ -126,7 +126,9 @@ static int compare_order(const void *a, const void *b)
  * front-to-back renderer would, and overdraw does not flatter the methods. */
 static void sort_visible(struct tw_oracle *o, const struct tw_world *w, const struct tw_view *v)
 {
-    const struct tw_tileset *ts = w->s.tileset;
+    /* Each tile's content through the renderer: a shared prototype or a
+     * generated tile's own. */
+    const float *footprint = w->grid.footprint;
     size_t k = 0;
     while (k < o->visible_count) {
         const struct tw_drawn_cluster *first = &o->visible[k];
@@ -136,8 +138,12 @@ static void sort_visible(struct tw_oracle *o, const struct tw_world *w, const st
                o->visible[end].prototype == first->prototype)
             end++;
         float offset[3];
-        tw_tiles_cell_offset(first->cell, v->cell, ts->footprint[0], ts->footprint[1], offset);
-        const struct tw_prototype *proto = &ts->prototypes[first->prototype];
+        tw_tiles_cell_offset(first->cell, v->cell, footprint[0], footprint[1], offset);
+        const struct tw_prototype *proto = tw_renderer_content(w->renderer, first->prototype, NULL);
+        if (!proto) { /* not live: cannot happen within a frame; left as drawn */
+            k = end;
+            continue;
+        }
         for (size_t c = k; c < end; c++) {
             o->order[c - k].cluster = o->visible[c];
             o->order[c - k].distance =

@@ -269,6 +269,14 @@ for pol in wait skip; do
        [ "$(wc -l <"$tmp/gen-$pol/frames.csv")" -eq 5 ] && [ ! -s "$tmp/err" ]; then ok; else
         bad "city-gen walk under $pol: $(cat "$tmp/err")"; fi
 done
+# The oracle and --verify over generated tiles (the oracle sorts each tile's
+# clusters by the tile's own content, not a shared tileset's): 0 missed.
+if "$tw" bench --tileset city-gen --frames 3 --size 96x54 --png-every 0 --quiet --verify \
+       --methods tilequery+chc,oracle,hzb --out "$tmp/gen-verify" 2>"$tmp/err" &&
+   [ "$(awk -F, 'NR == 1 {for (i = 1; i <= NF; i++) if ($i == "missed_pixels") c = i; next}
+                 {s += $c} END {print s + 0}' "$tmp/gen-verify/frames.csv")" = 0 ] &&
+   [ "$(wc -l <"$tmp/gen-verify/frames.csv")" -eq 10 ]; then ok; else
+    bad "bench --verify over city-gen: $(cat "$tmp/err")"; fi
 awk -F, 'NR == 1 { for (k = 1; k <= NF; k++) col[$k] = k; next }
          $col["bytes_cpu"] <= 0 || $col["bytes_gpu"] <= 0 || $col["bytes_needed"] <= 0 { exit 1 }
          { loads += $col["loads_done"] } END { exit loads > 0 ? 0 : 1 }' "$tmp/gen-wait/frames.csv" &&
