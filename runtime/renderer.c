@@ -583,6 +583,11 @@ int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_pr
         goto fail;
     r->gl_loaded = true;
     const struct tw_gl *gl = &r->gl;
+    {
+        GLenum pending = gl->GetError();
+        if (pending != GL_NO_ERROR)
+            tw_log_printf(&r->log, TW_LOG_WARN, "DEBUG pending GL error 0x%x before setup", pending);
+    }
     GLint major = 0, minor = 0;
     gl->GetIntegerv(GL_MAJOR_VERSION, &major);
     gl->GetIntegerv(GL_MINOR_VERSION, &minor);
@@ -1368,7 +1373,22 @@ void tw_renderer_set_deterministic(struct tw_renderer *r, bool on)
 
 void tw_renderer_set_count_samples(struct tw_renderer *r, bool on)
 {
-    r->query_target = on ? GL_SAMPLES_PASSED : GL_ANY_SAMPLES_PASSED;
+    const GLenum target = on ? GL_SAMPLES_PASSED : GL_ANY_SAMPLES_PASSED;
+    if (target == r->query_target)
+        return;
+    r->query_target = target;
+    /* A query object keeps the target it was first begun with (beginning
+     * it with another is GL_INVALID_OPERATION): the pool made for the old
+     * one (the calibration's queries) goes. Called between frames, when no
+     * query is in flight. */
+    assert(r->free_count == r->query_count);
+    if (r->query_count) {
+        tw_renderer_enter(r);
+        r->gl.DeleteQueries((GLsizei)r->query_count, r->queries);
+        tw_renderer_leave(r);
+    }
+    r->query_count = 0;
+    r->free_count = 0;
 }
 
 void tw_renderer_set_mutation(struct tw_renderer *r, float shrink_fraction)
