@@ -726,10 +726,16 @@ int tw_world_finish(struct tw_world *w, struct tw_frame_stats *st)
     if (st) {
         st->ms_frame += tw_renderer_now_ms() - t0;
         st->cpu_ms += tw_renderer_cpu_ms() - cpu0;
-        /* A finished frame's CPU time refines what queries and draws cost. */
+        /* A finished frame's CPU time refines what queries and draws cost;
+         * not while tiles were being made: the workers' CPU time is in the
+         * process's, and the fit took it for the queries' (a city-gen walk
+         * then skipped twice the queries and drew twice the triangles). */
+        const bool workers_busy =
+            w->stream && (st->loads_done > 0 || tw_stream_loading_count(w->stream) > 0);
         const struct tw_render_counters *rc = tw_renderer_counters(w->renderer);
-        tw_calibrate_refine(&w->fit, &w->calibration, st->cpu_ms, rc->queries, rc->query_boxes,
-                            rc->draws, rc->triangles);
+        if (!workers_busy)
+            tw_calibrate_refine(&w->fit, &w->calibration, st->cpu_ms, rc->queries,
+                                rc->query_boxes, rc->draws, rc->triangles);
     }
     return TW_OK;
 }
