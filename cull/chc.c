@@ -199,26 +199,6 @@ size_t tw_chc_bytes(const struct tw_chc *chc)
 
 /* ---- small helpers ------------------------------------------------------------ */
 
-/* Grows *p to hold at least need elements (geometrically; never shrinks).
- * New elements are zeroed. */
-static bool reserve(void **p, size_t *cap, size_t need, size_t elem)
-{
-    if (need <= *cap)
-        return true;
-    size_t n = *cap ? *cap : 16;
-    while (n < need) {
-        if (n > SIZE_MAX / 2 / elem)
-            return false;
-        n *= 2;
-    }
-    void *q = realloc(*p, n * elem);
-    if (!q)
-        return false;
-    memset((char *)q + *cap * elem, 0, (n - *cap) * elem);
-    *p = q;
-    *cap = n;
-    return true;
-}
 
 /* splitmix64: the engine's own stream, so that two engines never interfere and
  * a run is reproducible from settings.seed. */
@@ -392,7 +372,8 @@ static uint32_t issue_nodes(struct pass *p, const uint32_t *list, uint32_t count
     }
     /* Room for one box per node is reserved before the traversal; if tight
      * lists do not fit and cannot grow, node boxes still give a correct query. */
-    const bool tight = reserve((void **)&chc->boxes, &chc->box_cap, need, sizeof(*chc->boxes));
+    const bool tight =
+        tw_cull_reserve((void **)&chc->boxes, &chc->box_cap, need, sizeof(*chc->boxes));
     size_t nb = 0;
     for (uint32_t k = 0; k < count; k++) {
         uint32_t tc = 1;
@@ -674,18 +655,18 @@ static bool reserve_pass(struct tw_chc *chc, const struct tw_chc_tile *tile)
     if (tile->proto && tile->proto->cluster_count > clusters)
         clusters = tile->proto->cluster_count;
     const bool ok =
-        reserve((void **)&chc->heap, &chc->heap_cap, nodes, sizeof(*chc->heap)) &&
-        reserve((void **)&chc->iqueue, &chc->iqueue_cap, nodes, sizeof(*chc->iqueue)) &&
-        reserve((void **)&chc->vqueue, &chc->vqueue_cap, nodes, sizeof(*chc->vqueue)) &&
-        reserve((void **)&chc->iqueries, &chc->iq_cap, 2 * nodes, sizeof(*chc->iqueries)) &&
-        reserve((void **)&chc->query_nodes, &chc->query_node_cap, 2 * nodes,
+        tw_cull_reserve((void **)&chc->heap, &chc->heap_cap, nodes, sizeof(*chc->heap)) &&
+        tw_cull_reserve((void **)&chc->iqueue, &chc->iqueue_cap, nodes, sizeof(*chc->iqueue)) &&
+        tw_cull_reserve((void **)&chc->vqueue, &chc->vqueue_cap, nodes, sizeof(*chc->vqueue)) &&
+        tw_cull_reserve((void **)&chc->iqueries, &chc->iq_cap, 2 * nodes, sizeof(*chc->iqueries)) &&
+        tw_cull_reserve((void **)&chc->query_nodes, &chc->query_node_cap, 2 * nodes,
                 sizeof(*chc->query_nodes)) &&
-        reserve((void **)&chc->vqueries, &chc->vq_cap, nodes, sizeof(*chc->vqueries)) &&
-        reserve((void **)&chc->render, &chc->render_cap, clusters, sizeof(*chc->render)) &&
-        reserve((void **)&chc->cluster_stamp, &chc->stamp_cap, clusters,
+        tw_cull_reserve((void **)&chc->vqueries, &chc->vq_cap, nodes, sizeof(*chc->vqueries)) &&
+        tw_cull_reserve((void **)&chc->render, &chc->render_cap, clusters, sizeof(*chc->render)) &&
+        tw_cull_reserve((void **)&chc->cluster_stamp, &chc->stamp_cap, clusters,
                 sizeof(*chc->cluster_stamp)) &&
-        reserve((void **)&chc->boxes, &chc->box_cap, nodes, sizeof(*chc->boxes)) &&
-        reserve((void **)&chc->deferred, &chc->deferred_cap, chc->deferred_count + nodes,
+        tw_cull_reserve((void **)&chc->boxes, &chc->box_cap, nodes, sizeof(*chc->boxes)) &&
+        tw_cull_reserve((void **)&chc->deferred, &chc->deferred_cap, chc->deferred_count + nodes,
                 sizeof(*chc->deferred));
     if (!ok)
         return false;

@@ -12,11 +12,13 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "tileworld/cull.h"
 
 /* Grows *p to hold at least need elements of size elem (geometrically,
- * never shrinking); false when out of memory (*p unchanged). */
+ * never shrinking); the new elements are zeroed. False when out of memory
+ * (*p unchanged). */
 static inline bool tw_cull_reserve(void **p, size_t *cap, size_t need, size_t elem)
 {
     if (need <= *cap)
@@ -30,6 +32,7 @@ static inline bool tw_cull_reserve(void **p, size_t *cap, size_t need, size_t el
     void *q = realloc(*p, n * elem);
     if (!q)
         return false;
+    memset((char *)q + *cap * elem, 0, (n - *cap) * elem);
     *p = q;
     *cap = n;
     return true;

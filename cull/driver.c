@@ -32,7 +32,7 @@ struct tw_cull_driver {
     struct tw_chc *chc;                 /* chc, tilequery+chc */
     struct tw_tilequery *tq;            /* tilequery, tilequery+chc */
     uint32_t *scratch;                  /* cluster indices of one tile */
-    uint32_t scratch_cap;
+    size_t scratch_cap;
     const struct tw_drawn_cluster *given;
     size_t given_count;
     /* hzb, tilequery+hzb */
@@ -215,20 +215,14 @@ size_t tw_cull_driver_bytes(const struct tw_cull_driver *d)
            sizeof(*d->hz_found) * d->hz_found_cap + sizeof(*d->hz_heap) * d->hz_heap_cap;
 }
 
+static bool grow(struct frame *fr, void **array, size_t *cap, size_t need, size_t elem);
+
 /* Room for n cluster indices. */
 static uint32_t *scratch(struct frame *fr, uint32_t n)
 {
     struct tw_cull_driver *d = fr->d;
-    if (n > d->scratch_cap) {
-        uint32_t *s = realloc(d->scratch, sizeof(*s) * n);
-        if (!s) {
-            fr->err = TW_ERR_NOMEM;
-            return NULL;
-        }
-        d->scratch = s;
-        d->scratch_cap = n;
-    }
-    return d->scratch;
+    return grow(fr, (void **)&d->scratch, &d->scratch_cap, n, sizeof(*d->scratch)) ? d->scratch
+                                                                                  : NULL;
 }
 
 /* The tile at cell, if ready; a tile not ready is counted as pending. */

@@ -7,6 +7,7 @@
 #include "runtime/world-private.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -52,8 +53,11 @@ static int grow(void **array, size_t *cap, size_t need, size_t elem)
     if (need <= *cap)
         return TW_OK;
     size_t n = *cap ? *cap : 4096;
-    while (n < need)
+    while (n < need) {
+        if (n > SIZE_MAX / 2 / elem)
+            return TW_ERR_NOMEM;
         n *= 2;
+    }
     void *p = realloc(*array, n * elem);
     if (!p)
         return TW_ERR_NOMEM;

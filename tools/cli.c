@@ -168,15 +168,25 @@ void tw_cli_cell(const char *program, const char *opt, const char *s, struct tw_
         tw_cli_fail(program, opt, "'%s' lies outside +-2^62 cells", s);
 }
 
+/* names (NULL-terminated) as "a, b, c" in out. */
+static const char *join(const char *const *names, char *out, size_t size)
+{
+    size_t n = 0;
+    out[0] = '\0';
+    for (const char *const *k = names; *k && n < size; k++)
+        n += (size_t)snprintf(out + n, size - n, "%s%s", k > names ? ", " : "", *k);
+    return out;
+}
+
 enum tw_method tw_cli_method(const char *program, const char *opt, const char *s)
 {
     enum tw_method m;
     if (tw_method_from_name(s, &m) != TW_OK) {
-        char names[256] = "";
+        const char *list[TW_METHOD_COUNT + 1] = {NULL};
         for (int k = TW_METHOD_FIRST; k < TW_METHOD_COUNT; k++)
-            snprintf(names + strlen(names), sizeof(names) - strlen(names), "%s%s",
-                     k > TW_METHOD_FIRST ? ", " : "", tw_method_name((enum tw_method)k));
-        tw_cli_fail(program, opt, "unknown method '%s' (%s)", s, names);
+            list[k - TW_METHOD_FIRST] = tw_method_name((enum tw_method)k);
+        char names[256];
+        tw_cli_fail(program, opt, "unknown method '%s' (%s)", s, join(list, names, sizeof(names)));
     }
     if (!tw_method_available(m))
         tw_cli_fail(program, opt, "method '%s' is not implemented in this build yet", s);
@@ -318,12 +328,9 @@ void tw_cli_load_path(const struct tw_cli *c, const char *name, uint32_t frames,
         if (err) {
             if (err == TW_ERR_IO && access(name, F_OK) != 0 && !strchr(name, '/') &&
                 !strstr(name, ".csv")) {
-                char names[256] = "";
-                for (const char *const *n = tw_path_builtin_names; *n; n++)
-                    snprintf(names + strlen(names), sizeof(names) - strlen(names), "%s%s",
-                             n > tw_path_builtin_names ? ", " : "", *n);
+                char names[256];
                 tw_cli_fail(c->program, "--path", "unknown path '%s' (built-in: %s; or a CSV file)",
-                            name, names);
+                            name, join(tw_path_builtin_names, names, sizeof(names)));
             }
             tw_cli_message(c->program, "%s", msg);
             exit(TW_CLI_EXIT_USAGE);
