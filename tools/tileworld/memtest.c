@@ -50,6 +50,7 @@ struct options {
     char sweep_text[MAX_SWEEP][32];
     uint32_t sweep_count;
     bool allocator_default;         /* --allocator default: glibc's malloc left as it is */
+    bool allocator_untuned;         /* tuned was asked for, and malloc did not take it */
 };
 
 static void usage(FILE *f)
@@ -696,7 +697,9 @@ static json_object *result_json(const struct options *o, const struct tw_cli_wor
     json_object_object_add(root, "size", json_object_new_string(size));
     json_object_object_add(root, "seed", u64(o->cli.world.selection.seed));
     json_object_object_add(root, "allocator",
-                           json_object_new_string(o->allocator_default ? "default" : "tuned"));
+                           json_object_new_string(o->allocator_default   ? "default"
+                                                  : o->allocator_untuned ? "not tunable"
+                                                                         : "tuned"));
     json_object_object_add(root, "heap_used_bytes", u64(r->heap_used));
     json_object_object_add(root, "heap_free_bytes", u64(r->heap_free));
     json_object_object_add(root, "peak_heap_free_bytes", u64(r->heap_free_peak));
@@ -807,8 +810,10 @@ static int write_run_summary(const struct options *o, const struct tw_cli_world 
     tw_outfile_printf(&f, "| the view's need, peak | %.1f MiB |\n", r->peak_needed / MIB);
     tw_outfile_printf(&f, "| RSS, start / peak / final | %.1f / %.1f / %.1f MiB |\n",
                       r->rss_start / MIB, r->peak_rss / MIB, r->final_rss / MIB);
-    tw_outfile_printf(&f, "| allocator | %s |\n", o->allocator_default ? "default (glibc's own "
-                      "settings)" : "tuned (mmap threshold 128 KiB, 2 arenas)");
+    tw_outfile_printf(&f, "| allocator | %s |\n",
+                      o->allocator_default   ? "default (glibc's own settings)"
+                      : o->allocator_untuned ? "not tunable (not glibc's malloc)"
+                                             : "tuned (mmap threshold 128 KiB, 2 arenas)");
     tw_outfile_printf(&f, "| heap in use / held free by the allocator, final (peak free) | %.1f / "
                       "%.1f (%.1f) MiB |\n", r->heap_used / MIB, r->heap_free / MIB,
                       r->heap_free_peak / MIB);
@@ -998,9 +1003,11 @@ int tw_memtest_main(int argc, char **argv)
         tw_cli_fail(program, "--sweep", "--sweep budget=... and --budget are two kinds of run; "
                     "give one");
 
-    if (!o.allocator_default && !tune_allocator())
-        tw_cli_message(program, "warning: cannot tune the allocator (not glibc); RSS may grow with "
-                       "the allocator's retention");
+    if (!o.allocator_default && !tune_allocator()) {
+        o.allocator_untuned = true;
+        tw_cli_message(program, "warning: malloc did not take the tuning (not glibc's malloc, or "
+                       "a sanitizer's): RSS may grow with what the allocator keeps");
+    }
 
     const struct tw_log log = {tw_cli_log, &o.cli};
     struct tw_cli_world shown;
