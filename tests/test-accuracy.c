@@ -232,10 +232,5 @@ int main(void)
     for (size_t k = 0; k < 3; k++)
         tw_tileset_destroy(ts[k]);
     tw_context_destroy(ctx);
-    if (failures) {
-        fprintf(stderr, "test-accuracy: %d checks failed\n", failures);
-        return 1;
-    }
-    printf("test-accuracy: all checks passed\n");
-    return 0;
+    return check_summary("test-accuracy");
 }

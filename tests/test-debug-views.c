@@ -230,10 +230,5 @@ int main(void)
     test_fixed(ctx, ts);
     tw_tileset_destroy(ts);
     tw_context_destroy(ctx);
-    if (failures) {
-        fprintf(stderr, "test-debug-views: %d checks failed\n", failures);
-        return 1;
-    }
-    printf("test-debug-views: all checks passed\n");
-    return 0;
+    return check_summary("test-debug-views");
 }

@@ -245,10 +245,5 @@ int main(int argc, char **argv)
         test_walk(ctx, "hybrid", "street", 0, 10);
     }
     tw_context_destroy(ctx);
-    if (failures) {
-        fprintf(stderr, "test-hzb-world: %d checks failed\n", failures);
-        return 1;
-    }
-    printf("test-hzb-world: all checks passed\n");
-    return 0;
+    return check_summary("test-hzb-world");
 }

@@ -245,10 +245,5 @@ int main(void)
     free(b);
     tw_tileset_destroy(ts);
     tw_context_destroy(ctx);
-    if (failures) {
-        fprintf(stderr, "test-runtime: %d checks failed\n", failures);
-        return 1;
-    }
-    printf("test-runtime: all checks passed\n");
-    return 0;
+    return check_summary("test-runtime");
 }

@@ -502,9 +502,5 @@ int main(void)
     test_skip(ctx);
     test_many_cells(ctx);
     tw_context_destroy(ctx);
-    if (failures) {
-        fprintf(stderr, "test-stream: %d checks failed\n", failures);
-        return 1;
-    }
-    return 0;
+    return check_summary("test-stream");
 }
