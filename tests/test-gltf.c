@@ -22,6 +22,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "tests/base64.h"
+#include "tests/captured-log.h"
 #include "tests/check.h"
 
 #if defined(__SANITIZE_ADDRESS__)
@@ -35,21 +37,7 @@
 static const char *shared_dir;
 static const char *source_root;
 
-/* ---- a logger that keeps the errors ------------------------------------------------ */
-
-struct captured_log {
-    char last[2048];
-    int errors;
-};
-
-static void capture(void *user, enum tw_log_level level, const char *msg)
-{
-    struct captured_log *c = user;
-    if (level == TW_LOG_ERROR) {
-        c->errors++;
-        snprintf(c->last, sizeof(c->last), "%s", msg);
-    }
-}
+/* ---- names ------------------------------------------------------------------------- */
 
 static char *join(const char *a, const char *b)
 {
@@ -301,21 +289,6 @@ static void test_valid_models(void)
 }
 
 /* ---- synthetic documents ------------------------------------------------------------- */
-
-static void base64(const uint8_t *data, size_t n, char *out)
-{
-    static const char abc[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    size_t o = 0;
-    for (size_t k = 0; k < n; k += 3) {
-        const uint32_t v = (uint32_t)data[k] << 16 | (k + 1 < n ? (uint32_t)data[k + 1] << 8 : 0) |
-                           (k + 2 < n ? data[k + 2] : 0);
-        out[o++] = abc[v >> 18 & 63];
-        out[o++] = abc[v >> 12 & 63];
-        out[o++] = k + 1 < n ? abc[v >> 6 & 63] : '=';
-        out[o++] = k + 2 < n ? abc[v & 63] : '=';
-    }
-    out[o] = '\0';
-}
 
 /* Five vertices and six 16-bit indices (two triangles), 72 bytes. */
 static char data_uri[256];

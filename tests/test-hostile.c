@@ -26,6 +26,7 @@
 #include <unistd.h>
 
 #include "tilesets/confined-path.h"
+#include "tests/base64.h"
 #include "tests/check.h"
 
 #if defined(__SANITIZE_ADDRESS__)
@@ -122,21 +123,6 @@ static void copy_kenney(const char *piece, const char *to)
         fclose(in);
     }
     free(from);
-}
-
-static void base64(const uint8_t *data, size_t n, char *out)
-{
-    static const char abc[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    size_t o = 0;
-    for (size_t k = 0; k < n; k += 3) {
-        const uint32_t v = (uint32_t)data[k] << 16 | (k + 1 < n ? (uint32_t)data[k + 1] << 8 : 0) |
-                           (k + 2 < n ? data[k + 2] : 0);
-        out[o++] = abc[v >> 18 & 63];
-        out[o++] = abc[v >> 12 & 63];
-        out[o++] = k + 1 < n ? abc[v >> 6 & 63] : '=';
-        out[o++] = k + 2 < n ? abc[v & 63] : '=';
-    }
-    out[o] = '\0';
 }
 
 static int import_text(const char *doc, const char *name, const char *dir,

@@ -15,25 +15,12 @@
 #include <string.h>
 #include <time.h>
 
+#include "tests/captured-log.h"
 #include "tests/check.h"
 
 static const uint64_t seed = 1;
 
 /* ---- helpers ------------------------------------------------------------------------ */
-
-struct captured_log {
-    char last[1024];
-    int errors;
-};
-
-static void capture(void *user, enum tw_log_level level, const char *msg)
-{
-    struct captured_log *c = user;
-    if (level == TW_LOG_ERROR) {
-        c->errors++;
-        snprintf(c->last, sizeof(c->last), "%s", msg);
-    }
-}
 
 /* CPU time of the calling thread: what generation costs, whatever else the
  * machine runs. */

@@ -8,22 +8,8 @@
 #include <string.h>
 #include <time.h>
 
+#include "tests/captured-log.h"
 #include "tests/check.h"
-
-/* A logger that keeps the last error message. */
-struct captured_log {
-    char last[1024];
-    int errors;
-};
-
-static void capture(void *user, enum tw_log_level level, const char *msg)
-{
-    struct captured_log *c = user;
-    if (level == TW_LOG_ERROR) {
-        c->errors++;
-        snprintf(c->last, sizeof(c->last), "%s", msg);
-    }
-}
 
 static double now_seconds(void)
 {
