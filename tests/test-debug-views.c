@@ -6,34 +6,16 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "tileworld/context.h"
-#include "tileworld/runtime.h"
-#include "tileworld/tilesets.h"
 #include "tests/check.h"
+#include "tests/headless-world.h"
 
 enum { W = 320, H = 180, FRAMES = 8 };
-
-static void log_stderr(void *user, enum tw_log_level level, const char *msg)
-{
-    (void)user;
-    if (level <= TW_LOG_WARN)
-        fprintf(stderr, "log: %s\n", msg);
-}
-
-static const struct tw_log test_log = {log_stderr, NULL};
 
 static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tileset *ts,
                                    enum tw_method method)
 {
-    struct tw_world_settings s = {0};
-    s.tileset = ts;
-    s.selection.seed = 1;
+    struct tw_world_settings s = world_settings(ctx, ts, W, H, 1, 400.0f);
     s.method = method;
-    s.width = W;
-    s.height = H;
-    s.view_distance = 400.0f;
-    s.get_proc = tw_context_get_proc(ctx);
-    s.log = test_log;
     struct tw_world *w = NULL;
     return tw_world_create(&s, &w) == TW_OK ? w : NULL;
 }
@@ -214,16 +196,9 @@ out:
 int main(void)
 {
     struct tw_context *ctx = NULL;
-    if (tw_context_create_headless(W, H, &test_log, &ctx) != TW_OK) {
-        fprintf(stderr, "cannot create the headless context\n");
-        return 1;
-    }
     struct tw_tileset *ts = NULL;
-    if (tw_tilesets_builtin("city", 1, 0, &test_log, &ts) != TW_OK) {
-        fprintf(stderr, "cannot build the city\n");
-        tw_context_destroy(ctx);
+    if (!open_headless(W, H, "city", 1, &ctx, &ts))
         return 1;
-    }
     test_off(ctx, ts);
     for (int m = TW_METHOD_FIRST; m < TW_METHOD_COUNT; m++)
         test_records(ctx, ts, (enum tw_method)m);

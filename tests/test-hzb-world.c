@@ -8,33 +8,15 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "tileworld/context.h"
-#include "tileworld/runtime.h"
-#include "tileworld/tilesets.h"
 #include "tests/check.h"
-
-static void log_stderr(void *user, enum tw_log_level level, const char *msg)
-{
-    (void)user;
-    if (level <= TW_LOG_WARN)
-        fprintf(stderr, "log: %s\n", msg);
-}
-
-static const struct tw_log test_log = {log_stderr, NULL};
+#include "tests/headless-world.h"
 
 static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tileset *ts,
                                    uint32_t w, uint32_t h, float shrink)
 {
-    struct tw_world_settings s = {0};
-    s.tileset = ts;
-    s.selection.seed = 3;
-    s.width = w;
-    s.height = h;
-    s.view_distance = 450.0f;
+    struct tw_world_settings s = world_settings(ctx, ts, w, h, 3, 450.0f);
     s.verify = true;
     s.mutate_query_shrink = shrink;
-    s.get_proc = tw_context_get_proc(ctx);
-    s.log = test_log;
     struct tw_world *world = NULL;
     CHECK(tw_world_create(&s, &world) == TW_OK);
     if (world)
@@ -218,16 +200,9 @@ int main(int argc, char **argv)
 {
     const bool standard = argc > 1 && strcmp(argv[1], "standard") == 0;
     struct tw_context *ctx = NULL;
-    if (tw_context_create_headless(320, 180, &test_log, &ctx) != TW_OK) {
-        fprintf(stderr, "cannot create the headless context\n");
-        return 1;
-    }
     struct tw_tileset *ts = NULL;
-    if (tw_tilesets_builtin("city", 3, 0, &test_log, &ts) != TW_OK) {
-        fprintf(stderr, "cannot build the city\n");
-        tw_context_destroy(ctx);
+    if (!open_headless(320, 180, "city", 3, &ctx, &ts))
         return 1;
-    }
     struct tw_world *probe = make_world(ctx, ts, 16, 16, 0.0f);
     const bool reversed = tw_world_reversed_z(probe);
     CHECK(probe && reversed == !standard);

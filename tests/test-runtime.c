@@ -4,35 +4,17 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "tileworld/context.h"
-#include "tileworld/runtime.h"
-#include "tileworld/tilesets.h"
 #include "tests/check.h"
+#include "tests/headless-world.h"
 
 enum { W = 320, H = 180 };
-
-static void log_stderr(void *user, enum tw_log_level level, const char *msg)
-{
-    (void)user;
-    if (level <= TW_LOG_WARN)
-        fprintf(stderr, "log: %s\n", msg);
-}
-
-static const struct tw_log test_log = {log_stderr, NULL};
 
 static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tileset *ts,
                                    int64_t repeat)
 {
-    struct tw_world_settings s = {0};
-    s.tileset = ts;
-    s.selection.seed = 1;
+    struct tw_world_settings s = world_settings(ctx, ts, W, H, 1, 400.0f);
     s.selection.repeat = repeat;
-    s.width = W;
-    s.height = H;
-    s.view_distance = 400.0f;
     s.verify = true;
-    s.get_proc = tw_context_get_proc(ctx);
-    s.log = test_log;
     struct tw_world *w = NULL;
     if (tw_world_create(&s, &w) != TW_OK)
         return NULL;
@@ -159,15 +141,9 @@ static void test_methods_match_vfc(struct tw_context *ctx, const struct tw_tiles
 int main(void)
 {
     struct tw_context *ctx = NULL;
-    if (tw_context_create_headless(W, H, &test_log, &ctx) != TW_OK) {
-        fprintf(stderr, "cannot create the headless context\n");
-        return 1;
-    }
     struct tw_tileset *ts = NULL;
-    if (tw_tilesets_builtin("city", 1, 0, &test_log, &ts) != TW_OK) {
-        fprintf(stderr, "cannot build the city\n");
+    if (!open_headless(W, H, "city", 1, &ctx, &ts))
         return 1;
-    }
     uint8_t *a = malloc(W * H * 3), *b = malloc(W * H * 3);
 
     /* A known view: on the street at a crossing, looking down +z. */
