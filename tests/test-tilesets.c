@@ -350,6 +350,70 @@ static float ray_world(const struct tw_tileset *ts, uint64_t seed, const float o
     return INFINITY;
 }
 
+/* The three generators behind one signature, for generate_seeds(). */
+static int city(uint64_t seed, const void *set, const struct tw_log *log, struct tw_tileset **out)
+{
+    return tw_tilesets_city(seed, set, log, out);
+}
+
+static int forest(uint64_t seed, const void *set, const struct tw_log *log, struct tw_tileset **out)
+{
+    return tw_tilesets_forest(seed, set, log, out);
+}
+
+static int hybrid(uint64_t seed, const void *set, const struct tw_log *log, struct tw_tileset **out)
+{
+    return tw_tilesets_hybrid(seed, set, log, out);
+}
+
+/* What every generator promises of its seeds: makes ts[0] from seed 1 with
+ * the defaults (settings NULL), timed; ts[1] from seed 1 again with the
+ * default settings spelled out (defaults); ts[2] from seed 2 with
+ * seed2_settings. None logs an error, ts[1] is ts[0] bit for bit, ts[2]
+ * differs, and ts[0] has the default 80 m footprint and prototypes
+ * prototypes. False, with nothing made, if seed 1 fails. */
+static bool generate_seeds(const char *name,
+                           int (*generate)(uint64_t seed, const void *set, const struct tw_log *log,
+                                           struct tw_tileset **out),
+                           const void *defaults, const void *seed2_settings, uint32_t prototypes,
+                           struct tw_tileset *ts[3])
+{
+    struct captured_log captured = {0};
+    const struct tw_log log = {capture, &captured};
+    ts[0] = ts[1] = ts[2] = NULL;
+    const double t0 = now_seconds();
+    int err = generate(1, NULL, &log, &ts[0]);
+    const double t1 = now_seconds();
+    CHECK_MSG(err == 0 && ts[0], "%s(seed 1) failed: %s", name, tw_error_to_str(err));
+    if (err || !ts[0])
+        return false;
+    const struct tw_tileset *a = ts[0];
+    printf("%s seed 1: generated in %.3f s, %u meshes, %u parts, %.1f MB geometry\n", name,
+           t1 - t0, a->mesh_count, a->part_count, (double)tw_tileset_geometry_bytes(a) / 1e6);
+
+    err = generate(1, defaults, &log, &ts[1]);
+    CHECK_MSG(err == 0 && ts[1], "%s(seed 1) again failed: %s", name, tw_error_to_str(err));
+    err = generate(2, seed2_settings, &log, &ts[2]);
+    CHECK_MSG(err == 0 && ts[2], "%s(seed 2) failed: %s", name, tw_error_to_str(err));
+    CHECK_MSG(captured.errors == 0, "%s: unexpected error message: %s", name, captured.last);
+    if (ts[1])
+        CHECK_MSG(tilesets_identical(a, ts[1]), "%s: the same seed gave different tilesets", name);
+    if (ts[2])
+        CHECK_MSG(!tilesets_identical(a, ts[2]), "%s: seeds 1 and 2 gave identical tilesets", name);
+
+    CHECK_MSG(a->footprint[0] == 80.0f && a->footprint[1] == 80.0f, "%s footprint %g x %g", name,
+              (double)a->footprint[0], (double)a->footprint[1]);
+    CHECK_MSG(a->prototype_count == prototypes, "%s prototype_count = %u", name,
+              a->prototype_count);
+    return true;
+}
+
+static void destroy_seeds(struct tw_tileset *ts[3])
+{
+    for (int k = 0; k < 3; k++)
+        tw_tileset_destroy(ts[k]);
+}
+
 static void test_city(void)
 {
     struct tw_city_settings set = {0};
@@ -358,33 +422,11 @@ static void test_city(void)
               set.max_height == 90.0f && set.max_cluster_triangles == 2048,
               "unexpected defaults");
 
-    struct captured_log captured = {0};
-    const struct tw_log log = {capture, &captured};
-    struct tw_tileset *a = NULL, *b = NULL, *other = NULL;
-
-    const double t0 = now_seconds();
-    int err = tw_tilesets_city(1, NULL, &log, &a);
-    const double t1 = now_seconds();
-    CHECK_MSG(err == 0 && a, "city(seed 1) failed: %s", tw_error_to_str(err));
-    if (err || !a)
+    struct tw_tileset *seeds[3];
+    if (!generate_seeds("city", city, &set, &set, 12, seeds))
         return;
-    printf("city seed 1: generated in %.3f s, %u meshes, %u parts, %.1f MB geometry\n",
-           t1 - t0, a->mesh_count, a->part_count, (double)tw_tileset_geometry_bytes(a) / 1e6);
-
-    err = tw_tilesets_city(1, &set, &log, &b);
-    CHECK_MSG(err == 0 && b, "city(seed 1) again failed: %s", tw_error_to_str(err));
-    err = tw_tilesets_city(2, &set, &log, &other);
-    CHECK_MSG(err == 0 && other, "city(seed 2) failed: %s", tw_error_to_str(err));
-    CHECK_MSG(captured.errors == 0, "unexpected error message: %s", captured.last);
-    if (b)
-        CHECK_MSG(tilesets_identical(a, b), "the same seed gave different tilesets");
-    if (other)
-        CHECK_MSG(!tilesets_identical(a, other), "seeds 1 and 2 gave identical tilesets");
-
+    struct tw_tileset *a = seeds[0];
     CHECK_MSG(a->finished, "tileset not finished");
-    CHECK_MSG(a->footprint[0] == 80.0f && a->footprint[1] == 80.0f, "footprint %g x %g",
-              (double)a->footprint[0], (double)a->footprint[1]);
-    CHECK_MSG(a->prototype_count == 12, "prototype_count = %u", a->prototype_count);
     CHECK_MSG(a->material_count >= 5, "only %u materials", a->material_count);
     CHECK_MSG(a->max_cluster_triangles == 2048, "max_cluster_triangles = %u",
               a->max_cluster_triangles);
@@ -451,9 +493,7 @@ static void test_city(void)
     CHECK_MSG(street_band_violations(a, 0.5f * set.street_width + 0.5f, &where) > 0,
               "band check does not see buildings at the lot line");
 
-    tw_tileset_destroy(a);
-    tw_tileset_destroy(b);
-    tw_tileset_destroy(other);
+    destroy_seeds(seeds);
 }
 
 static void test_city_settings(void)
@@ -532,32 +572,11 @@ static void test_forest(void)
               set.path_clearance == 1.0f && set.max_cluster_triangles == 2048,
               "unexpected forest defaults");
 
-    struct captured_log captured = {0};
-    const struct tw_log log = {capture, &captured};
-    struct tw_tileset *a = NULL, *b = NULL, *other = NULL;
-    const double t0 = now_seconds();
-    int err = tw_tilesets_forest(1, NULL, &log, &a);
-    const double t1 = now_seconds();
-    CHECK_MSG(err == 0 && a, "forest(seed 1) failed: %s", tw_error_to_str(err));
-    if (err || !a)
+    struct tw_tileset *seeds[3];
+    if (!generate_seeds("forest", forest, &set, NULL, 10, seeds))
         return;
-    printf("forest seed 1: generated in %.3f s, %u meshes, %u parts, %.1f MB geometry\n",
-           t1 - t0, a->mesh_count, a->part_count, (double)tw_tileset_geometry_bytes(a) / 1e6);
+    struct tw_tileset *a = seeds[0];
     print_prototypes(a);
-
-    err = tw_tilesets_forest(1, &set, &log, &b);
-    CHECK_MSG(err == 0 && b, "forest(seed 1) again failed: %s", tw_error_to_str(err));
-    err = tw_tilesets_forest(2, NULL, &log, &other);
-    CHECK_MSG(err == 0 && other, "forest(seed 2) failed: %s", tw_error_to_str(err));
-    CHECK_MSG(captured.errors == 0, "unexpected error message: %s", captured.last);
-    if (b)
-        CHECK_MSG(tilesets_identical(a, b), "forest: the same seed gave different tilesets");
-    if (other)
-        CHECK_MSG(!tilesets_identical(a, other), "forest: seeds 1 and 2 gave identical tilesets");
-
-    CHECK_MSG(a->footprint[0] == 80.0f && a->footprint[1] == 80.0f, "forest footprint %g x %g",
-              (double)a->footprint[0], (double)a->footprint[1]);
-    CHECK_MSG(a->prototype_count == 10, "forest prototype_count = %u", a->prototype_count);
     check_common(a, "forest");
 
     /* The stands differ, and each kind the design asks for is there. */
@@ -639,9 +658,7 @@ static void test_forest(void)
     CHECK_MSG(near * 4 <= rays * 3, "forest: %u of %u rays stopped within 10 m: a wall, not trees",
               near, rays);
 
-    tw_tileset_destroy(a);
-    tw_tileset_destroy(b);
-    tw_tileset_destroy(other);
+    destroy_seeds(seeds);
 }
 
 static void test_forest_settings(void)
@@ -705,32 +722,11 @@ static void test_hybrid(void)
               set.max_height == 90.0f && set.green_share == 0.4f &&
               set.max_cluster_triangles == 2048, "unexpected hybrid defaults");
 
-    struct captured_log captured = {0};
-    const struct tw_log log = {capture, &captured};
-    struct tw_tileset *a = NULL, *b = NULL, *other = NULL;
-    const double t0 = now_seconds();
-    int err = tw_tilesets_hybrid(1, NULL, &log, &a);
-    const double t1 = now_seconds();
-    CHECK_MSG(err == 0 && a, "hybrid(seed 1) failed: %s", tw_error_to_str(err));
-    if (err || !a)
+    struct tw_tileset *seeds[3];
+    if (!generate_seeds("hybrid", hybrid, &set, NULL, 12, seeds))
         return;
-    printf("hybrid seed 1: generated in %.3f s, %u meshes, %u parts, %.1f MB geometry\n",
-           t1 - t0, a->mesh_count, a->part_count, (double)tw_tileset_geometry_bytes(a) / 1e6);
+    struct tw_tileset *a = seeds[0];
     print_prototypes(a);
-
-    err = tw_tilesets_hybrid(1, &set, &log, &b);
-    CHECK_MSG(err == 0 && b, "hybrid(seed 1) again failed: %s", tw_error_to_str(err));
-    err = tw_tilesets_hybrid(2, NULL, &log, &other);
-    CHECK_MSG(err == 0 && other, "hybrid(seed 2) failed: %s", tw_error_to_str(err));
-    CHECK_MSG(captured.errors == 0, "unexpected error message: %s", captured.last);
-    if (b)
-        CHECK_MSG(tilesets_identical(a, b), "hybrid: the same seed gave different tilesets");
-    if (other)
-        CHECK_MSG(!tilesets_identical(a, other), "hybrid: seeds 1 and 2 gave identical tilesets");
-
-    CHECK_MSG(a->footprint[0] == 80.0f && a->footprint[1] == 80.0f, "hybrid footprint %g x %g",
-              (double)a->footprint[0], (double)a->footprint[1]);
-    CHECK_MSG(a->prototype_count == 12, "hybrid prototype_count = %u", a->prototype_count);
     check_common(a, "hybrid");
 
     uint32_t woods = 0, parks = 0, city = 0;
@@ -763,16 +759,15 @@ static void test_hybrid(void)
     CHECK_MSG(street_band_violations(a, 0.5f * set.street_width + 0.5f, &where) > 0,
               "hybrid: band check does not see the blocks");
 
-    tw_tileset_destroy(a);
-    tw_tileset_destroy(b);
-    tw_tileset_destroy(other);
+    destroy_seeds(seeds);
 
     /* Settings: the city's checks apply, and green_share's own. */
+    struct captured_log captured = {0};
+    const struct tw_log log = {capture, &captured};
     struct tw_tileset *ts = NULL;
     set = (struct tw_hybrid_settings){0};
     set.green_share = 1.5f;
-    captured.errors = 0;
-    err = tw_tilesets_hybrid(1, &set, &log, &ts);
+    int err = tw_tilesets_hybrid(1, &set, &log, &ts);
     CHECK_MSG(err == TW_ERR_INVALID && !ts, "hybrid, green_share 1.5: %s", tw_error_to_str(err));
     CHECK_MSG(captured.errors > 0 && strstr(captured.last, "green_share"),
               "no message about green_share: \"%s\"", captured.last);
