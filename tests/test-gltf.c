@@ -390,55 +390,66 @@ static void test_synthetic(void)
     }
     tw_gltf_scene_destroy(s);
 
-    /* Strips and fans without indices: 5 vertices, 3 triangles. */
-    err = import_doc(NULL, "{\"attributes\":{\"POSITION\":0},\"mode\":5}", NULL, NULL, NULL, NULL,
-                     &cap, &s);
-    CHECK_MSG(err == 0 && s->triangle_count == 3, "strip: %s", cap.last);
-    if (!err) {
-        const uint32_t *ix = s->primitives[0].indices;
-        CHECK_MSG(ix[0] == 0 && ix[1] == 1 && ix[2] == 2 && ix[3] == 2 && ix[4] == 1 && ix[5] == 3,
-                  "strip winding: %u %u %u, %u %u %u", ix[0], ix[1], ix[2], ix[3], ix[4], ix[5]);
+    /* Strips and fans: the triangles they make, and the order of the
+     * indices at[] they are made of. */
+    static const struct {
+        const char *what, *primitive;
+        uint64_t triangles;
+        unsigned checked;   /* how many of at[] and want[] */
+        unsigned at[6];
+        uint32_t want[6];
+    } modes[] = {
+        /* Without indices: 5 vertices, 3 triangles. */
+        {"strip", "{\"attributes\":{\"POSITION\":0},\"mode\":5}", 3, 6, {0, 1, 2, 3, 4, 5},
+         {0, 1, 2, 2, 1, 3}},
+        {"fan", "{\"attributes\":{\"POSITION\":0},\"mode\":6}", 3, 6, {0, 1, 2, 6, 7, 8},
+         {1, 2, 0, 3, 4, 0}},
+        /* Indexed strip: 6 indices, 4 triangles. */
+        {"indexed strip", "{\"attributes\":{\"POSITION\":0},\"indices\":1,\"mode\":5}", 4, 0,
+         {0}, {0}},
+    };
+    for (size_t m = 0; m < sizeof(modes) / sizeof(modes[0]); m++) {
+        err = import_doc(NULL, modes[m].primitive, NULL, NULL, NULL, NULL, &cap, &s);
+        CHECK_MSG(err == 0 && s->triangle_count == modes[m].triangles, "%s: %s", modes[m].what,
+                  cap.last);
+        if (!err && modes[m].checked) {
+            const uint32_t *ix = s->primitives[0].indices;
+            bool order = true;
+            for (unsigned q = 0; q < modes[m].checked; q++)
+                order &= ix[modes[m].at[q]] == modes[m].want[q];
+            CHECK_MSG(order, "%s order: %u %u %u, %u %u %u", modes[m].what, ix[modes[m].at[0]],
+                      ix[modes[m].at[1]], ix[modes[m].at[2]], ix[modes[m].at[3]],
+                      ix[modes[m].at[4]], ix[modes[m].at[5]]);
+        }
+        tw_gltf_scene_destroy(s);
     }
-    tw_gltf_scene_destroy(s);
-    err = import_doc(NULL, "{\"attributes\":{\"POSITION\":0},\"mode\":6}", NULL, NULL, NULL, NULL,
-                     &cap, &s);
-    CHECK_MSG(err == 0 && s->triangle_count == 3, "fan: %s", cap.last);
-    if (!err) {
-        const uint32_t *ix = s->primitives[0].indices;
-        CHECK_MSG(ix[0] == 1 && ix[1] == 2 && ix[2] == 0 && ix[6] == 3 && ix[7] == 4 && ix[8] == 0,
-                  "fan order");
-    }
-    tw_gltf_scene_destroy(s);
-    /* Indexed strip: 6 indices, 4 triangles. */
-    err = import_doc(NULL, "{\"attributes\":{\"POSITION\":0},\"indices\":1,\"mode\":5}", NULL,
-                     NULL, NULL, NULL, &cap, &s);
-    CHECK_MSG(err == 0 && s->triangle_count == 4, "indexed strip: %s", cap.last);
-    tw_gltf_scene_destroy(s);
 
-    /* Transforms: a matrix, and a TRS hierarchy. */
-    err = import_doc(NULL, NULL,
-                     "[{\"mesh\":0,\"matrix\":[2,0,0,0, 0,2,0,0, 0,0,2,0, 1,2,3,1]}]", NULL, NULL,
-                     NULL, &cap, &s);
-    CHECK_MSG(err == 0, "matrix: %s", cap.last);
-    if (!err)
-        CHECK_MSG(near(s->bounds.min[0], 1) && near(s->bounds.min[1], 2) &&
-                      near(s->bounds.min[2], 3) && near(s->bounds.max[0], 5) &&
-                      near(s->bounds.max[1], 4) && near(s->bounds.max[2], 3),
-                  "matrix bounds [%g %g %g]..[%g %g %g]", s->bounds.min[0], s->bounds.min[1],
-                  s->bounds.min[2], s->bounds.max[0], s->bounds.max[1], s->bounds.max[2]);
-    tw_gltf_scene_destroy(s);
-    err = import_doc(NULL, NULL,
-                     "[{\"translation\":[10,0,0],\"rotation\":[0,0.70710678,0,0.70710678],"
-                     "\"children\":[1]},{\"mesh\":0,\"scale\":[2,2,2]}]",
-                     NULL, NULL, NULL, &cap, &s);
-    CHECK_MSG(err == 0, "hierarchy: %s", cap.last);
-    if (!err)
-        CHECK_MSG(near(s->bounds.min[0], 10) && near(s->bounds.max[0], 10) &&
-                      near(s->bounds.min[1], 0) && near(s->bounds.max[1], 2) &&
-                      near(s->bounds.min[2], -4) && near(s->bounds.max[2], 0),
-                  "hierarchy bounds [%g %g %g]..[%g %g %g]", s->bounds.min[0], s->bounds.min[1],
-                  s->bounds.min[2], s->bounds.max[0], s->bounds.max[1], s->bounds.max[2]);
-    tw_gltf_scene_destroy(s);
+    /* Transforms: a matrix, and a TRS hierarchy, and the bounds they give. */
+    static const struct {
+        const char *what, *nodes;
+        float min[3], max[3];
+    } transforms[] = {
+        {"matrix", "[{\"mesh\":0,\"matrix\":[2,0,0,0, 0,2,0,0, 0,0,2,0, 1,2,3,1]}]", {1, 2, 3},
+         {5, 4, 3}},
+        {"hierarchy",
+         "[{\"translation\":[10,0,0],\"rotation\":[0,0.70710678,0,0.70710678],"
+         "\"children\":[1]},{\"mesh\":0,\"scale\":[2,2,2]}]",
+         {10, 0, -4}, {10, 2, 0}},
+    };
+    for (size_t t = 0; t < sizeof(transforms) / sizeof(transforms[0]); t++) {
+        err = import_doc(NULL, NULL, transforms[t].nodes, NULL, NULL, NULL, &cap, &s);
+        CHECK_MSG(err == 0, "%s: %s", transforms[t].what, cap.last);
+        if (!err) {
+            bool bounds = true;
+            for (int k = 0; k < 3; k++)
+                bounds &= near(s->bounds.min[k], transforms[t].min[k]) &&
+                          near(s->bounds.max[k], transforms[t].max[k]);
+            CHECK_MSG(bounds, "%s bounds [%g %g %g]..[%g %g %g]", transforms[t].what,
+                      s->bounds.min[0], s->bounds.min[1], s->bounds.min[2], s->bounds.max[0],
+                      s->bounds.max[1], s->bounds.max[2]);
+        }
+        tw_gltf_scene_destroy(s);
+    }
 
     /* No scene: every root node is drawn. */
     err = import_doc(NULL, NULL, "[{\"mesh\":0},{\"mesh\":0}]", "", NULL, NULL, &cap, &s);
@@ -498,54 +509,15 @@ static void test_synthetic(void)
                    "[{\"scale\":[1e30,1e30,1e30],\"children\":[1]},"
                    "{\"mesh\":0,\"scale\":[1e30,1e30,1e30]}]",
                    NULL, NULL);
+    /* 45 nodes each scaling by 1e7, each under the last: every one is within
+     * the node limit, their product is not finite. */
+    char chain[2048] = "[";
+    for (int k = 1; k <= 45; k++)
+        snprintf(chain + strlen(chain), sizeof(chain) - strlen(chain),
+                 "{\"scale\":[1e7,1e7,1e7],\"children\":[%d]},", k);
+    strcat(chain, "{\"mesh\":0}]");
     expect_refused("composed transform overflow", TW_ERR_FORMAT, "is not finite", NULL, NULL,
-                   "[{\"scale\":[1e7,1e7,1e7],\"children\":[1]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[2]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[3]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[4]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[5]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[6]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[7]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[8]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[9]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[10]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[11]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[12]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[13]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[14]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[15]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[16]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[17]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[18]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[19]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[20]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[21]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[22]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[23]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[24]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[25]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[26]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[27]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[28]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[29]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[30]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[31]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[32]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[33]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[34]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[35]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[36]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[37]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[38]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[39]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[40]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[41]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[42]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[43]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[44]},"
-                   "{\"scale\":[1e7,1e7,1e7],\"children\":[45]},"
-                   "{\"mesh\":0}]",
-                   NULL, NULL);
+                   chain, NULL, NULL);
     expect_refused("accessor overrun", TW_ERR_FORMAT, "accessors[0]: 6 elements", 
                    "[{\"bufferView\":0,\"componentType\":5126,\"count\":6,\"type\":\"VEC3\"},"
                    "{\"bufferView\":1,\"componentType\":5123,\"count\":6,\"type\":\"SCALAR\"}]",
