@@ -178,43 +178,43 @@ static void expect_refused(const char *what, const char *doc, int err_want, cons
 
 static void test_coordinates(void)
 {
-    /* The audit's file: a translation near the float limit passed the
-     * finiteness check and aborted in Embree's binning. */
+    static const float far[9] = {0, 0, 0, 9e4f, 0, 0, 0, 1, 0};
+    static const float huge[9] = {0, 0, 0, 3e38f, 0, 0, 0, 1, 0};
+    static const struct {
+        const char *what;
+        const float *positions;
+        const char *nodes, *want;
+    } refused[] = {
+        /* The audit's file: a translation near the float limit passed the
+         * finiteness check and aborted in Embree's binning. */
+        {"translation 3.4e38", unit_triangle,
+         "[{\"children\":[1]},{\"children\":[3]},{},"
+         "{\"mesh\":0,\"translation\":[3.4e38,0,0]}],"
+         "\"scenes\":[{\"nodes\":[0,2]}]",
+         "nodes[3].translation: 3.4e+38 is beyond +-1e+07"},
+        {"matrix translation", unit_triangle,
+         "[{\"mesh\":0,\"matrix\":[1,0,0,0,0,1,0,0,0,0,1,0,0,-2e30,0,1]}]",
+         "nodes[0].matrix: -2e+30 is beyond"},
+        /* Within a node's limit, but placed 200 km away. */
+        {"composed translation", unit_triangle,
+         "[{\"translation\":[1.5e5,0,0],\"children\":[1]},"
+         "{\"mesh\":0,\"translation\":[5e4,0,0]}]",
+         "nodes[1]: its transform, composed with its ancestors', has a translation of "
+         "200000, beyond +-100000"},
+        /* The mesh itself reaches beyond. */
+        {"placed mesh", far, "[{\"mesh\":0,\"translation\":[5e4,0,0]}]",
+         "nodes[0]: its mesh, placed by the node's transform composed with its "
+         "ancestors', reaches x = 140000 m, beyond +-100000 m"},
+        {"huge position", huge, "[{\"mesh\":0}]",
+         "meshes[0].primitives[0].attributes.POSITION: accessors[0] element 1 has "
+         "x = 3e+38, beyond +-1e+07"},
+    };
     char *doc = NULL;
-    doc = triangle_doc(unit_triangle,
-                       "[{\"children\":[1]},{\"children\":[3]},{},"
-                       "{\"mesh\":0,\"translation\":[3.4e38,0,0]}],"
-                       "\"scenes\":[{\"nodes\":[0,2]}]",
-                       NULL);
-    expect_refused("translation 3.4e38", doc, TW_ERR_LIMIT,
-                   "nodes[3].translation: 3.4e+38 is beyond +-1e+07");
-    free(doc);
-    doc = triangle_doc(unit_triangle, "[{\"mesh\":0,\"matrix\":[1,0,0,0,0,1,0,0,0,0,1,0,"
-                                      "0,-2e30,0,1]}]",
-                       NULL);
-    expect_refused("matrix translation", doc, TW_ERR_LIMIT, "nodes[0].matrix: -2e+30 is beyond");
-    free(doc);
-    /* Within a node's limit, but placed 200 km away. */
-    doc = triangle_doc(unit_triangle, "[{\"translation\":[1.5e5,0,0],\"children\":[1]},"
-                                      "{\"mesh\":0,\"translation\":[5e4,0,0]}]",
-                       NULL);
-    expect_refused("composed translation", doc, TW_ERR_LIMIT,
-                   "nodes[1]: its transform, composed with its ancestors', has a translation of "
-                   "200000, beyond +-100000");
-    free(doc);
-    /* The mesh itself reaches beyond. */
-    const float far[9] = {0, 0, 0, 9e4f, 0, 0, 0, 1, 0};
-    doc = triangle_doc(far, "[{\"mesh\":0,\"translation\":[5e4,0,0]}]", NULL);
-    expect_refused("placed mesh", doc, TW_ERR_LIMIT,
-                   "nodes[0]: its mesh, placed by the node's transform composed with its "
-                   "ancestors', reaches x = 140000 m, beyond +-100000 m");
-    free(doc);
-    const float huge[9] = {0, 0, 0, 3e38f, 0, 0, 0, 1, 0};
-    doc = triangle_doc(huge, "[{\"mesh\":0}]", NULL);
-    expect_refused("huge position", doc, TW_ERR_LIMIT,
-                   "meshes[0].primitives[0].attributes.POSITION: accessors[0] element 1 has "
-                   "x = 3e+38, beyond +-1e+07");
-    free(doc);
+    for (size_t k = 0; k < sizeof(refused) / sizeof(refused[0]); k++) {
+        doc = triangle_doc(refused[k].positions, refused[k].nodes, NULL);
+        expect_refused(refused[k].what, doc, TW_ERR_LIMIT, refused[k].want);
+        free(doc);
+    }
     /* Millimetres placed by a 0.001 scale: fine. */
     const float mm[9] = {0, 0, 0, 5e6f, 0, 0, 0, 5e6f, 0};
     doc = triangle_doc(mm, "[{\"mesh\":0,\"scale\":[0.001,0.001,0.001]}]", NULL);
