@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "tests/check.h"
+#include "tests/drawn-set.h"
 #include "tests/headless-world.h"
 
 static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tileset *ts,
@@ -22,45 +23,6 @@ static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tiles
     if (world)
         tw_world_record_draws(world, true);
     return world;
-}
-
-static int compare_drawn(const void *a, const void *b)
-{
-    const struct tw_drawn_cluster *x = a, *y = b;
-    if (x->cell.i != y->cell.i) return x->cell.i < y->cell.i ? -1 : 1;
-    if (x->cell.j != y->cell.j) return x->cell.j < y->cell.j ? -1 : 1;
-    if (x->prototype != y->prototype) return x->prototype < y->prototype ? -1 : 1;
-    return (x->cluster > y->cluster) - (x->cluster < y->cluster);
-}
-
-static struct tw_drawn_cluster *copy_drawn(struct tw_world *w, size_t *n)
-{
-    const struct tw_drawn_cluster *d = tw_world_drawn(w, n);
-    struct tw_drawn_cluster *c = malloc(sizeof(*c) * (*n ? *n : 1));
-    if (!c) {
-        *n = 0;
-        return NULL;
-    }
-    memcpy(c, d, sizeof(*c) * *n);
-    qsort(c, *n, sizeof(*c), compare_drawn);
-    return c;
-}
-
-/* Every element of sub (sorted) is in all (sorted); all has no duplicate. */
-static bool is_superset(const struct tw_drawn_cluster *all, size_t na,
-                        const struct tw_drawn_cluster *sub, size_t ns)
-{
-    size_t k = 0;
-    for (size_t q = 0; q < na; q++)
-        if (q > 0 && compare_drawn(&all[q - 1], &all[q]) == 0)
-            return false;   /* a cluster drawn twice in one frame */
-    for (size_t q = 0; q < ns; q++) {
-        while (k < na && compare_drawn(&all[k], &sub[q]) < 0)
-            k++;
-        if (k == na || compare_drawn(&all[k], &sub[q]) != 0)
-            return false;
-    }
-    return true;
 }
 
 struct totals {
@@ -87,7 +49,7 @@ static void check_frame(struct tw_world *w, const struct tw_camera *cam, bool wa
         CHECK(tw_world_frame(w, cam, &st) == TW_OK);
         size_t n = 0;
         struct tw_drawn_cluster *drawn = copy_drawn(w, &n);
-        const bool superset = is_superset(drawn, n, visible, nv);
+        const bool superset = !has_duplicate(drawn, n) && includes(drawn, n, visible, nv);
         if (st.missed_pixels || !superset)
             fprintf(stderr, "%s frame %u: %s missed %llu pixels in %u clusters%s\n", what, f,
                     tw_method_name(methods[m]), (unsigned long long)st.missed_pixels,

@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "tests/check.h"
+#include "tests/drawn-set.h"
 #include "tests/headless-world.h"
 
 enum { W = 320, H = 180 };
@@ -43,39 +44,6 @@ static uint32_t count_differing(const uint8_t *a, const uint8_t *b)
     for (uint32_t k = 0; k < W * H; k++)
         n += memcmp(a + 3 * k, b + 3 * k, 3) != 0;
     return n;
-}
-
-static int compare_drawn(const void *a, const void *b)
-{
-    const struct tw_drawn_cluster *x = a, *y = b;
-    if (x->cell.i != y->cell.i) return x->cell.i < y->cell.i ? -1 : 1;
-    if (x->cell.j != y->cell.j) return x->cell.j < y->cell.j ? -1 : 1;
-    return (x->cluster > y->cluster) - (x->cluster < y->cluster);
-}
-
-static struct tw_drawn_cluster *copy_drawn(struct tw_world *w, size_t *n)
-{
-    const struct tw_drawn_cluster *d = tw_world_drawn(w, n);
-    struct tw_drawn_cluster *c = malloc(sizeof(*c) * (*n ? *n : 1));
-    memcpy(c, d, sizeof(*c) * *n);
-    qsort(c, *n, sizeof(*c), compare_drawn);
-    return c;
-}
-
-/* sub is a subset of all (both sorted), and sub has no duplicates. */
-static bool is_subset(const struct tw_drawn_cluster *sub, size_t ns,
-                      const struct tw_drawn_cluster *all, size_t na)
-{
-    size_t k = 0;
-    for (size_t q = 0; q < ns; q++) {
-        if (q > 0 && compare_drawn(&sub[q - 1], &sub[q]) == 0)
-            return false;
-        while (k < na && compare_drawn(&all[k], &sub[q]) < 0)
-            k++;
-        if (k == na || compare_drawn(&all[k], &sub[q]) != 0)
-            return false;
-    }
-    return true;
 }
 
 /* On fixed city views, every occlusion-culling method gives the image of
@@ -120,7 +88,7 @@ static void test_methods_match_vfc(struct tw_context *ctx, const struct tw_tiles
                 const bool same = differing <= W * H / 10000;
                 CHECK(same);
                 CHECK(st.missed_pixels == 0 && st.missed_clusters == 0);
-                CHECK(is_subset(d, n, dv, nv));
+                CHECK(!has_duplicate(d, n) && includes(dv, nv, d, n));
                 if (f >= 2 && methods[m] != TW_METHOD_TILEQUERY && views[v].pos.local[1] < 10.0f)
                     CHECK(n < nv);
                 if (!same || f == 3 || differing)
