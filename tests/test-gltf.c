@@ -826,41 +826,33 @@ static void test_manifests(void)
     }
     free(fifo);
 
-    /* A good manifest, both forms; road.glb is placed three times. */
+    /* A good manifest, both forms; road.glb is placed three times, the third
+     * time by the path third_road. */
+    static const char good_manifest[] =
+        "{\"name\": \"test-city\", \"footprint\": [30, 20],\n"
+        " \"comment\": \"a test\", \"max_cluster_triangles\": 64,\n"
+        " \"prototypes\": [\n"
+        "  {\"name\": \"one\", \"gltf\": \"house.glb\", \"scale\": 10,\n"
+        "   \"offset\": [5, 0, 5], \"weight\": 2},\n"
+        "  {\"name\": \"block\", \"objects\": [\n"
+        "    {\"gltf\": \"road.glb\", \"position\": [5, 0, 5], \"scale\": 10},\n"
+        "    {\"gltf\": \"./road.glb\", \"position\": [15, 0, 5], \"scale\": 10,\n"
+        "     \"yaw\": 90},\n"
+        "    {\"gltf\": \"%s\", \"position\": [25, 0, 5]},\n"
+        "    {\"gltf\": \"house.glb\", \"position\": [5, 0, 15], \"yaw\": 180}\n"
+        "  ]}\n"
+        " ]}\n";
+    char manifest[1024];
     struct captured_log cap;
     struct tw_tileset *ts = NULL;
-    int err = load_manifest_text(tmp_root,
-                                 "{\"name\": \"test-city\", \"footprint\": [30, 20],\n"
-                                 " \"comment\": \"a test\", \"max_cluster_triangles\": 64,\n"
-                                 " \"prototypes\": [\n"
-                                 "  {\"name\": \"one\", \"gltf\": \"house.glb\", \"scale\": 10,\n"
-                                 "   \"offset\": [5, 0, 5], \"weight\": 2},\n"
-                                 "  {\"name\": \"block\", \"objects\": [\n"
-                                 "    {\"gltf\": \"road.glb\", \"position\": [5, 0, 5], \"scale\": 10},\n"
-                                 "    {\"gltf\": \"./road.glb\", \"position\": [15, 0, 5], \"scale\": 10,\n"
-                                 "     \"yaw\": 90},\n"
-                                 "    {\"gltf\": \"sub/../road.glb\", \"position\": [25, 0, 5]},\n"
-                                 "    {\"gltf\": \"house.glb\", \"position\": [5, 0, 15], \"yaw\": 180}\n"
-                                 "  ]}\n"
-                                 " ]}\n",
-                                 &cap, &ts);
+    /* A path through a folder that does not exist is refused, though it
+     * would lead back to road.glb. */
+    snprintf(manifest, sizeof(manifest), good_manifest, "sub/../road.glb");
+    int err = load_manifest_text(tmp_root, manifest, &cap, &ts);
     CHECK_MSG(err == TW_ERR_IO && strstr(cap.last, "sub/../road.glb"),
               "a missing folder in a path: %d %s", err, cap.last);
-    err = load_manifest_text(tmp_root,
-                             "{\"name\": \"test-city\", \"footprint\": [30, 20],\n"
-                             " \"comment\": \"a test\", \"max_cluster_triangles\": 64,\n"
-                             " \"prototypes\": [\n"
-                             "  {\"name\": \"one\", \"gltf\": \"house.glb\", \"scale\": 10,\n"
-                             "   \"offset\": [5, 0, 5], \"weight\": 2},\n"
-                             "  {\"name\": \"block\", \"objects\": [\n"
-                             "    {\"gltf\": \"road.glb\", \"position\": [5, 0, 5], \"scale\": 10},\n"
-                             "    {\"gltf\": \"./road.glb\", \"position\": [15, 0, 5], \"scale\": 10,\n"
-                             "     \"yaw\": 90},\n"
-                             "    {\"gltf\": \"road.glb\", \"position\": [25, 0, 5]},\n"
-                             "    {\"gltf\": \"house.glb\", \"position\": [5, 0, 15], \"yaw\": 180}\n"
-                             "  ]}\n"
-                             " ]}\n",
-                             &cap, &ts);
+    snprintf(manifest, sizeof(manifest), good_manifest, "road.glb");
+    err = load_manifest_text(tmp_root, manifest, &cap, &ts);
     CHECK_MSG(err == 0 && ts, "good manifest: %s", cap.last);
     if (ts) {
         CHECK_MSG(strcmp(ts->name, "test-city") == 0, "name %s", ts->name);
@@ -898,100 +890,112 @@ static void test_manifests(void)
     /* Refusals: each names the manifest, the place and the reason. */
     const char *d = tmp_root;
 #define PROTO(body) "{\"footprint\": [10, 10], \"prototypes\": [" body "]}"
-    expect_manifest_refused(d, "escape", PROTO("{\"name\": \"a\", \"gltf\": \"../outside.glb\"}"),
-                            "prototypes[0].gltf: \"../outside.glb\" climbs out");
-    expect_manifest_refused(d, "deep escape",
-                            PROTO("{\"name\": \"a\", \"objects\": [{\"gltf\": \"road.glb\"}, "
-                                  "{\"gltf\": \"x/../../outside.glb\"}]}"),
-                            "prototypes[0].objects[1].gltf: \"x/../../outside.glb\" climbs out");
+    static const struct {
+        const char *what, *text, *want;
+    } refusals[] = {
+        {"escape",
+         PROTO("{\"name\": \"a\", \"gltf\": \"../outside.glb\"}"),
+         "prototypes[0].gltf: \"../outside.glb\" climbs out"},
+        {"deep escape",
+         PROTO("{\"name\": \"a\", \"objects\": [{\"gltf\": \"road.glb\"}, "
+               "{\"gltf\": \"x/../../outside.glb\"}]}"),
+         "prototypes[0].objects[1].gltf: \"x/../../outside.glb\" climbs out"},
+        {"http",
+         PROTO("{\"name\": \"a\", \"gltf\": \"http://example.com/a.glb\"}"),
+         "prototypes[0].gltf: \"http://example.com/a.glb\" is a URI"},
+        {"file URI", PROTO("{\"name\": \"a\", \"gltf\": \"file:road.glb\"}"), "is a URI"},
+        {"backslash", PROTO("{\"name\": \"a\", \"gltf\": \"..\\\\outside.glb\"}"), "backslash"},
+        {"symbolic link", PROTO("{\"name\": \"a\", \"gltf\": \"link.glb\"}"), "symbolic link"},
+        {"missing file",
+         PROTO("{\"name\": \"a\", \"gltf\": \"nope.glb\"}"),
+         "prototypes[0].gltf: \"nope.glb\" does not exist"},
+        {"FIFO",
+         PROTO("{\"name\": \"a\", \"gltf\": \"fifo.glb\"}"),
+         "\"fifo.glb\" is not a regular file"},
+        {"folder",
+         PROTO("{\"name\": \"a\", \"gltf\": \".\"}"),
+         "\".\" is the document's folder, not a file"},
+        {"unknown key",
+         PROTO("{\"name\": \"a\", \"gltf\": \"road.glb\", \"scael\": 2}"),
+         "prototypes[0]: unknown key \"scael\""},
+        {"unknown object key",
+         PROTO("{\"name\": \"a\", \"objects\": [{\"gltf\": \"road.glb\", "
+               "\"offset\": [1, 2, 3]}]}"),
+         "prototypes[0].objects[0]: unknown key \"offset\""},
+        {"unknown top key",
+         "{\"footprint\": [10, 10], \"prototype\": []}",
+         "(top level): unknown key \"prototype\""},
+        {"footprint type",
+         "{\"footprint\": \"10\", \"prototypes\": []}",
+         "footprint: must be an array of 2 numbers, not a string"},
+        {"footprint sign",
+         "{\"footprint\": [10, -1], \"prototypes\": []}",
+         "footprint: both sides must be positive"},
+        {"missing footprint", "{\"prototypes\": []}", "footprint: is missing"},
+        {"no prototypes",
+         "{\"footprint\": [10, 10], \"prototypes\": []}",
+         "prototypes: has 0 prototypes"},
+        {"weight type",
+         PROTO("{\"name\": \"a\", \"gltf\": \"road.glb\", \"weight\": \"1\"}"),
+         "prototypes[0].weight: must be a number, not a string"},
+        {"weight zero",
+         PROTO("{\"name\": \"a\", \"gltf\": \"road.glb\", \"weight\": 0}"),
+         "prototypes[0].weight: 0 is not in [1e-06, 1e+06]"},
+        {"scale negative",
+         PROTO("{\"name\": \"a\", \"objects\": [{\"gltf\": \"road.glb\", "
+               "\"scale\": -1}]}"),
+         "prototypes[0].objects[0].scale: -1 is not in [1e-06, 1e+06]"},
+        {"position length",
+         PROTO("{\"name\": \"a\", \"objects\": [{\"gltf\": \"road.glb\", "
+               "\"position\": [1, 2]}]}"),
+         "prototypes[0].objects[0].position: must be an array of 3 numbers"},
+        {"position element",
+         PROTO("{\"name\": \"a\", \"objects\": [{\"gltf\": \"road.glb\", "
+               "\"position\": [1, true, 2]}]}"),
+         "prototypes[0].objects[0].position: must be a number, not a boolean"},
+        {"objects type",
+         PROTO("{\"name\": \"a\", \"objects\": {}}"),
+         "prototypes[0].objects: must be an array, not an object"},
+        {"object type",
+         PROTO("{\"name\": \"a\", \"objects\": [3]}"),
+         "prototypes[0].objects[0]: must be an object, not a number"},
+        {"gltf type",
+         PROTO("{\"name\": \"a\", \"gltf\": 3}"),
+         "prototypes[0].gltf: must be a string, not a number"},
+        {"name type",
+         PROTO("{\"name\": 5, \"gltf\": \"road.glb\"}"),
+         "prototypes[0].name: must be a string"},
+        {"name missing", PROTO("{\"gltf\": \"road.glb\"}"), "prototypes[0].name: is missing"},
+        {"duplicate names",
+         PROTO("{\"name\": \"a\", \"gltf\": \"road.glb\"},"
+               "{\"name\": \"a\", \"gltf\": \"road.glb\"}"),
+         "prototypes[1].name: \"a\" is already the name of prototypes[0]"},
+        {"both forms",
+         PROTO("{\"name\": \"a\", \"gltf\": \"road.glb\", \"objects\": []}"),
+         "must have either \"gltf\" or \"objects\", not both"},
+        {"neither form", PROTO("{\"name\": \"a\"}"), "must have either \"gltf\" or \"objects\""},
+        {"cluster type",
+         "{\"footprint\": [10, 10], \"max_cluster_triangles\": 1.5, "
+         "\"prototypes\": [{\"name\": \"a\", \"gltf\": \"road.glb\"}]}",
+         "max_cluster_triangles: must be an integer"},
+        {"bad glTF inside",
+         PROTO("{\"name\": \"a\", \"gltf\": \"oob.gltf\"}"),
+         "prototypes[0].gltf: "},
+        {"not an object", "[1, 2]", "must be a JSON object, not an array"},
+        {"syntax", "{\"footprint\": [10, 10],,}", "line 1, column"},
+        {"NaN",
+         PROTO("{\"name\": \"a\", \"gltf\": \"road.glb\", "
+               "\"scale\": NaN}"),
+         "prototypes[0].scale: must be a finite number"},
+        {"trailing text", "{\"footprint\": [10, 10]} x", "line 1, column 25"},
+        {"unclosed", "{\"footprint\": [10, 10]", "ends early"},
+        {"empty", "", "ends early"},
+    };
+    for (size_t k = 0; k < sizeof(refusals) / sizeof(refusals[0]); k++)
+        expect_manifest_refused(d, refusals[k].what, refusals[k].text, refusals[k].want);
     char text[1024];
     snprintf(text, sizeof(text), PROTO("{\"name\": \"a\", \"gltf\": \"%s/outside.glb\"}"), d);
     expect_manifest_refused(d, "absolute", text, "is an absolute path");
-    expect_manifest_refused(d, "http", PROTO("{\"name\": \"a\", \"gltf\": \"http://example.com/a.glb\"}"),
-                            "prototypes[0].gltf: \"http://example.com/a.glb\" is a URI");
-    expect_manifest_refused(d, "file URI", PROTO("{\"name\": \"a\", \"gltf\": \"file:road.glb\"}"),
-                            "is a URI");
-    expect_manifest_refused(d, "backslash", PROTO("{\"name\": \"a\", \"gltf\": \"..\\\\outside.glb\"}"),
-                            "backslash");
-    expect_manifest_refused(d, "symbolic link", PROTO("{\"name\": \"a\", \"gltf\": \"link.glb\"}"),
-                            "symbolic link");
-    expect_manifest_refused(d, "missing file", PROTO("{\"name\": \"a\", \"gltf\": \"nope.glb\"}"),
-                            "prototypes[0].gltf: \"nope.glb\" does not exist");
-    expect_manifest_refused(d, "FIFO", PROTO("{\"name\": \"a\", \"gltf\": \"fifo.glb\"}"),
-                            "\"fifo.glb\" is not a regular file");
-    expect_manifest_refused(d, "folder", PROTO("{\"name\": \"a\", \"gltf\": \".\"}"),
-                            "\".\" is the document's folder, not a file");
-    expect_manifest_refused(d, "unknown key",
-                            PROTO("{\"name\": \"a\", \"gltf\": \"road.glb\", \"scael\": 2}"),
-                            "prototypes[0]: unknown key \"scael\"");
-    expect_manifest_refused(d, "unknown object key",
-                            PROTO("{\"name\": \"a\", \"objects\": [{\"gltf\": \"road.glb\", "
-                                  "\"offset\": [1, 2, 3]}]}"),
-                            "prototypes[0].objects[0]: unknown key \"offset\"");
-    expect_manifest_refused(d, "unknown top key",
-                            "{\"footprint\": [10, 10], \"prototype\": []}",
-                            "(top level): unknown key \"prototype\"");
-    expect_manifest_refused(d, "footprint type",
-                            "{\"footprint\": \"10\", \"prototypes\": []}",
-                            "footprint: must be an array of 2 numbers, not a string");
-    expect_manifest_refused(d, "footprint sign", "{\"footprint\": [10, -1], \"prototypes\": []}",
-                            "footprint: both sides must be positive");
-    expect_manifest_refused(d, "missing footprint", "{\"prototypes\": []}", "footprint: is missing");
-    expect_manifest_refused(d, "no prototypes", "{\"footprint\": [10, 10], \"prototypes\": []}",
-                            "prototypes: has 0 prototypes");
-    expect_manifest_refused(d, "weight type",
-                            PROTO("{\"name\": \"a\", \"gltf\": \"road.glb\", \"weight\": \"1\"}"),
-                            "prototypes[0].weight: must be a number, not a string");
-    expect_manifest_refused(d, "weight zero",
-                            PROTO("{\"name\": \"a\", \"gltf\": \"road.glb\", \"weight\": 0}"),
-                            "prototypes[0].weight: 0 is not in [1e-06, 1e+06]");
-    expect_manifest_refused(d, "scale negative",
-                            PROTO("{\"name\": \"a\", \"objects\": [{\"gltf\": \"road.glb\", "
-                                  "\"scale\": -1}]}"),
-                            "prototypes[0].objects[0].scale: -1 is not in [1e-06, 1e+06]");
-    expect_manifest_refused(d, "position length",
-                            PROTO("{\"name\": \"a\", \"objects\": [{\"gltf\": \"road.glb\", "
-                                  "\"position\": [1, 2]}]}"),
-                            "prototypes[0].objects[0].position: must be an array of 3 numbers");
-    expect_manifest_refused(d, "position element",
-                            PROTO("{\"name\": \"a\", \"objects\": [{\"gltf\": \"road.glb\", "
-                                  "\"position\": [1, true, 2]}]}"),
-                            "prototypes[0].objects[0].position: must be a number, not a boolean");
-    expect_manifest_refused(d, "objects type", PROTO("{\"name\": \"a\", \"objects\": {}}"),
-                            "prototypes[0].objects: must be an array, not an object");
-    expect_manifest_refused(d, "object type", PROTO("{\"name\": \"a\", \"objects\": [3]}"),
-                            "prototypes[0].objects[0]: must be an object, not a number");
-    expect_manifest_refused(d, "gltf type", PROTO("{\"name\": \"a\", \"gltf\": 3}"),
-                            "prototypes[0].gltf: must be a string, not a number");
-    expect_manifest_refused(d, "name type", PROTO("{\"name\": 5, \"gltf\": \"road.glb\"}"),
-                            "prototypes[0].name: must be a string");
-    expect_manifest_refused(d, "name missing", PROTO("{\"gltf\": \"road.glb\"}"),
-                            "prototypes[0].name: is missing");
-    expect_manifest_refused(d, "duplicate names",
-                            PROTO("{\"name\": \"a\", \"gltf\": \"road.glb\"},"
-                                  "{\"name\": \"a\", \"gltf\": \"road.glb\"}"),
-                            "prototypes[1].name: \"a\" is already the name of prototypes[0]");
-    expect_manifest_refused(d, "both forms",
-                            PROTO("{\"name\": \"a\", \"gltf\": \"road.glb\", \"objects\": []}"),
-                            "must have either \"gltf\" or \"objects\", not both");
-    expect_manifest_refused(d, "neither form", PROTO("{\"name\": \"a\"}"),
-                            "must have either \"gltf\" or \"objects\"");
-    expect_manifest_refused(d, "cluster type",
-                            "{\"footprint\": [10, 10], \"max_cluster_triangles\": 1.5, "
-                            "\"prototypes\": [{\"name\": \"a\", \"gltf\": \"road.glb\"}]}",
-                            "max_cluster_triangles: must be an integer");
-    expect_manifest_refused(d, "bad glTF inside",
-                            PROTO("{\"name\": \"a\", \"gltf\": \"oob.gltf\"}"),
-                            "prototypes[0].gltf: ");
-    expect_manifest_refused(d, "not an object", "[1, 2]", "must be a JSON object, not an array");
-    expect_manifest_refused(d, "syntax", "{\"footprint\": [10, 10],,}", "line 1, column");
-    expect_manifest_refused(d, "NaN", PROTO("{\"name\": \"a\", \"gltf\": \"road.glb\", "
-                                            "\"scale\": NaN}"),
-                            "prototypes[0].scale: must be a finite number");
-    expect_manifest_refused(d, "trailing text", "{\"footprint\": [10, 10]} x",
-                            "line 1, column 25");
-    expect_manifest_refused(d, "unclosed", "{\"footprint\": [10, 10]", "ends early");
-    expect_manifest_refused(d, "empty", "", "ends early");
 #undef PROTO
     /* The glTF message is carried whole, after the manifest's place. */
     err = load_manifest_text(tmp_root,
