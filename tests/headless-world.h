@@ -23,6 +23,16 @@ static void log_stderr(void *user, enum tw_log_level level, const char *msg)
 
 static const struct tw_log test_log = {log_stderr, NULL};
 
+/* Fixed views of a city world that the tests compare methods from: at eye
+ * height on streets and across blocks, and one from 45 m up. */
+static const struct tw_camera city_views[5] = {
+    {{{0, 0}, {0.0f, 1.7f, 2.0f}}, 10.0f, 3.0f},
+    {{{3, -2}, {0.5f, 1.7f, 40.0f}}, 180.0f, 0.0f},
+    {{{-5, 7}, {30.0f, 1.7f, 0.2f}}, 95.0f, 5.0f},
+    {{{1, 1}, {10.0f, 45.0f, 10.0f}}, 40.0f, -12.0f},
+    {{{2, 2}, {0.1f, 1.7f, 0.1f}}, 225.0f, 1.0f},
+};
+
 /* A headless context of width x height and the built-in tileset named
  * tileset, made with seed, both logging to test_log. False, after a message
  * and with nothing left to destroy, if either cannot be made. */

@@ -79,12 +79,9 @@ static void test_views(struct tw_context *ctx, const struct tw_tileset *ts)
     struct tw_world *w = make_world(ctx, ts, 320, 180, 0.0f);
     if (!w)
         return;
+    /* The city views of test-runtime, and one from 250 m up. */
     const struct tw_camera views[] = {
-        {{{0, 0}, {0.0f, 1.7f, 2.0f}}, 10.0f, 3.0f},
-        {{{3, -2}, {0.5f, 1.7f, 40.0f}}, 180.0f, 0.0f},
-        {{{-5, 7}, {30.0f, 1.7f, 0.2f}}, 95.0f, 5.0f},
-        {{{1, 1}, {10.0f, 45.0f, 10.0f}}, 40.0f, -12.0f},
-        {{{2, 2}, {0.1f, 1.7f, 0.1f}}, 225.0f, 1.0f},
+        city_views[0], city_views[1], city_views[2], city_views[3], city_views[4],
         {{{4, 4}, {20.0f, 250.0f, 20.0f}}, 60.0f, -20.0f},
     };
     struct totals t = {0};
