@@ -318,7 +318,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 
 int main(int argc, char **argv)
 {
-    const int rc = fuzz_driver_main(argc, argv, "fuzz-frame");
+    struct fuzz_driver d = {.target = "fuzz-frame"};
+    const int rc = fuzz_driver_main(argc, argv, &d);
     tw_bvh_builder_destroy(builder());
     return rc;
 }

@@ -14,9 +14,6 @@
 #include "tilesets/gltf-scan.h"
 #include "tilesets/gltf-shim.h"
 
-#include <stdlib.h>
-#include <string.h>
-
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
 static void exercise(const struct tw_gltf_scene *scene)
@@ -93,40 +90,17 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 }
 
 #ifndef TW_LIBFUZZER
-#include <dirent.h>
-#include <sys/stat.h>
+#include "tests/fuzz-driver.h"
 
 struct counts {
-    unsigned inputs, imported_memory, imported_path;
+    unsigned imported_memory, imported_path;
 };
 
-static void run_file(const char *path, struct counts *c)
+/* An input from memory, named after its file, then by path (so that its
+ * external buffers are read), counting what imports. */
+static void run_input(void *user, const char *path, const uint8_t *data, size_t size)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        fprintf(stderr, "fuzz-gltf: cannot open %s\n", path);
-        exit(2);
-    }
-    size_t cap = 1 << 16, size = 0;
-    uint8_t *data = malloc(cap);
-    size_t n;
-    while (data && (n = fread(data + size, 1, cap - size, f)) > 0) {
-        size += n;
-        if (size == cap) {
-            uint8_t *grown = realloc(data, cap *= 2);
-            if (!grown) {
-                free(data);
-                data = NULL;
-            }
-            data = grown;
-        }
-    }
-    fclose(f);
-    if (!data) {
-        fprintf(stderr, "fuzz-gltf: out of memory reading %s\n", path);
-        exit(2);
-    }
-    c->inputs++;
+    struct counts *c = user;
     struct tw_gltf_scene *scene = NULL;
     const struct tw_gltf_settings limits = {16u << 20, 1u << 20};
     if (tw_gltf_import_memory(data, size, path, NULL, &limits, NULL, &scene) == 0)
@@ -139,60 +113,16 @@ static void run_file(const char *path, struct counts *c)
         exercise(scene);
     }
     tw_gltf_scene_destroy(scene);
-    free(data);
-}
-
-static void run_path(const char *path, struct counts *c)
-{
-    struct stat st;
-    if (stat(path, &st) != 0) {
-        /* A corpus in ../shared may be absent: skipped. */
-        fprintf(stderr, "fuzz-gltf: %s does not exist: skipped\n", path);
-        return;
-    }
-    if (!S_ISDIR(st.st_mode)) {
-        run_file(path, c);
-        return;
-    }
-    struct dirent **entries = NULL;
-    int n = scandir(path, &entries, NULL, alphasort);
-    if (n < 0) {
-        fprintf(stderr, "fuzz-gltf: cannot list %s\n", path);
-        exit(2);
-    }
-    for (int k = 0; k < n; k++) {
-        const char *name = entries[k]->d_name;
-        if (strcmp(name, ".") != 0 && strcmp(name, "..") != 0) {
-            const size_t len = strlen(path) + strlen(name) + 2;
-            char *child = malloc(len);
-            if (!child) {
-                fprintf(stderr, "fuzz-gltf: out of memory\n");
-                exit(2);
-            }
-            snprintf(child, len, "%s/%s", path, name);
-            run_path(child, c);
-            free(child);
-        }
-        free(entries[k]);
-    }
-    free(entries);
 }
 
 int main(int argc, char **argv)
 {
-    if (argc < 2) {
-        fprintf(stderr, "usage: fuzz-gltf FILE|FOLDER...\n");
-        return 2;
-    }
     struct counts c = {0};
-    for (int k = 1; k < argc; k++)
-        run_path(argv[k], &c);
-    if (c.inputs == 0) {
-        fprintf(stderr, "fuzz-gltf: no inputs found: skipped\n");
-        return 77;
-    }
-    printf("fuzz-gltf: %u inputs ran without a crash; %u imported from memory, %u by path\n",
-           c.inputs, c.imported_memory, c.imported_path);
-    return 0;
+    struct fuzz_driver d = {.target = "fuzz-gltf", .run = run_input, .user = &c};
+    const int rc = fuzz_driver_main(argc, argv, &d);
+    if (rc == 0)
+        printf("fuzz-gltf: %u imported from memory, %u by path\n", c.imported_memory,
+               c.imported_path);
+    return rc;
 }
 #endif

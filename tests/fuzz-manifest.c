@@ -32,90 +32,23 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 }
 
 #ifndef TW_LIBFUZZER
-#include <dirent.h>
-#include <sys/stat.h>
+#include "tests/fuzz-driver.h"
 
-struct counts {
-    unsigned inputs, loaded;
-};
-
-static void run_file(const char *path, struct counts *c)
+static void run_input(void *user, const char *path, const uint8_t *data, size_t size)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        fprintf(stderr, "fuzz-manifest: cannot open %s\n", path);
-        exit(2);
-    }
-    size_t cap = 1 << 16, size = 0, n;
-    uint8_t *data = malloc(cap);
-    while (data && (n = fread(data + size, 1, cap - size, f)) > 0) {
-        size += n;
-        if (size == cap) {
-            uint8_t *grown = realloc(data, cap *= 2);
-            if (!grown)
-                free(data);
-            data = grown;
-        }
-    }
-    fclose(f);
-    if (!data) {
-        fprintf(stderr, "fuzz-manifest: out of memory reading %s\n", path);
-        exit(2);
-    }
-    c->inputs++;
+    unsigned *loaded = user;
+    (void)path;
     if (parse(data, size) == 0)
-        c->loaded++;
-    free(data);
-}
-
-static void run_path(const char *path, struct counts *c)
-{
-    struct stat st;
-    if (stat(path, &st) != 0) {
-        /* A corpus in ../shared may be absent: skipped. */
-        fprintf(stderr, "fuzz-manifest: %s does not exist: skipped\n", path);
-        return;
-    }
-    if (!S_ISDIR(st.st_mode)) {
-        run_file(path, c);
-        return;
-    }
-    struct dirent **entries = NULL;
-    const int n = scandir(path, &entries, NULL, alphasort);
-    if (n < 0) {
-        fprintf(stderr, "fuzz-manifest: cannot list %s\n", path);
-        exit(2);
-    }
-    for (int k = 0; k < n; k++) {
-        const char *name = entries[k]->d_name;
-        if (strcmp(name, ".") != 0 && strcmp(name, "..") != 0) {
-            const size_t len = strlen(path) + strlen(name) + 2;
-            char *child = malloc(len);
-            if (!child)
-                exit(2);
-            snprintf(child, len, "%s/%s", path, name);
-            run_path(child, c);
-            free(child);
-        }
-        free(entries[k]);
-    }
-    free(entries);
+        ++*loaded;
 }
 
 int main(int argc, char **argv)
 {
-    if (argc < 2) {
-        fprintf(stderr, "usage: fuzz-manifest FILE|FOLDER...\n");
-        return 2;
-    }
-    struct counts c = {0};
-    for (int k = 1; k < argc; k++)
-        run_path(argv[k], &c);
-    if (c.inputs == 0) {
-        fprintf(stderr, "fuzz-manifest: no inputs found: skipped\n");
-        return 77;
-    }
-    printf("fuzz-manifest: %u inputs ran without a crash; %u loaded\n", c.inputs, c.loaded);
-    return 0;
+    unsigned loaded = 0;
+    struct fuzz_driver d = {.target = "fuzz-manifest", .run = run_input, .user = &loaded};
+    const int rc = fuzz_driver_main(argc, argv, &d);
+    if (rc == 0)
+        printf("fuzz-manifest: %u loaded\n", loaded);
+    return rc;
 }
 #endif

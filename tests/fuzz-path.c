@@ -46,6 +46,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 
 int main(int argc, char **argv)
 {
-    return fuzz_driver_main(argc, argv, "fuzz-path");
+    struct fuzz_driver d = {.target = "fuzz-path"};
+    return fuzz_driver_main(argc, argv, &d);
 }
 #endif

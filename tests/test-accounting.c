@@ -138,9 +138,5 @@ int main(void)
     tw_path_finish(&path);
     tw_tilesets_provider_destroy(gen);
     tw_context_destroy(ctx);
-    if (failures) {
-        fprintf(stderr, "test-accounting: %d checks failed\n", failures);
-        return 1;
-    }
-    return 0;
+    return check_summary("test-accounting");
 }

@@ -11,18 +11,7 @@
 
 #include "tileworld/bvh.h"
 #include "tileworld/tilesets.h"
-
-static int failures;
-
-#define CHECK(cond, ...)                                                   \
-    do {                                                                   \
-        if (!(cond)) {                                                     \
-            fprintf(stderr, "%s:%d: check failed: %s: ", __FILE__, __LINE__, #cond); \
-            fprintf(stderr, __VA_ARGS__);                                  \
-            fputc('\n', stderr);                                           \
-            failures++;                                                    \
-        }                                                                  \
-    } while (0)
+#include "tests/check.h"
 
 /* ---- hand-made prototypes ------------------------------------------------ */
 
@@ -157,20 +146,20 @@ static void check_bvh(const struct tw_bvh *bvh, const struct tw_prototype *proto
     char why[256];
 
     int r = tw_bvh_validate(bvh, proto, s.max_depth, why, sizeof(why));
-    CHECK(r == TW_OK, "%s '%s': validate: %s", what, proto->name, why);
+    CHECK_MSG(r == TW_OK, "%s '%s': validate: %s", what, proto->name, why);
     if (r != TW_OK)
         return;
 
-    CHECK(bvh->depth <= s.max_depth, "%s: depth %u > %u", what, bvh->depth, s.max_depth);
+    CHECK_MSG(bvh->depth <= s.max_depth, "%s: depth %u > %u", what, bvh->depth, s.max_depth);
     const uint64_t bytes = sizeof(*bvh) + (uint64_t)bvh->node_count * sizeof(*bvh->nodes) +
                            (uint64_t)bvh->cluster_count * sizeof(uint32_t) +
                            (uint64_t)bvh->tight_box_count * sizeof(struct tw_box);
-    CHECK(bvh->bytes == bytes, "%s: bytes %llu, expected %llu", what,
-          (unsigned long long)bvh->bytes, (unsigned long long)bytes);
-    CHECK(bvh->build_ms >= 0.0, "%s: negative build time", what);
-    CHECK(bvh->nodes[0].triangle_count == proto->triangle_count,
-          "%s: root has %u triangles, prototype %llu", what, bvh->nodes[0].triangle_count,
-          (unsigned long long)proto->triangle_count);
+    CHECK_MSG(bvh->bytes == bytes, "%s: bytes %llu, expected %llu", what,
+              (unsigned long long)bvh->bytes, (unsigned long long)bytes);
+    CHECK_MSG(bvh->build_ms >= 0.0, "%s: negative build time", what);
+    CHECK_MSG(bvh->nodes[0].triangle_count == proto->triangle_count,
+              "%s: root has %u triangles, prototype %llu", what, bvh->nodes[0].triangle_count,
+              (unsigned long long)proto->triangle_count);
 
     struct tw_box *list = malloc((size_t)bvh->node_count * sizeof(*list));
     if (!list) {
@@ -190,20 +179,20 @@ static void check_bvh(const struct tw_bvh *bvh, const struct tw_prototype *proto
             tw_box_add_box(&u, &bvh->nodes[n->child[0]].box);
             tw_box_add_box(&u, &bvh->nodes[n->child[1]].box);
         }
-        CHECK(box_equal(&u, &n->box), "%s: node %u's box is not tight", what, i);
+        CHECK_MSG(box_equal(&u, &n->box), "%s: node %u's box is not tight", what, i);
 
         /* Leaf rules: a leaf holds one cluster unless the depth limit or the
          * triangle floor made it; an interior node is above both. */
         if (is_leaf(n)) {
-            CHECK(n->cluster_count == 1 || n->depth == s.max_depth ||
-                  n->triangle_count < s.min_leaf_triangles,
-                  "%s: leaf %u holds %u clusters at depth %u with %u triangles", what, i,
-                  n->cluster_count, n->depth, n->triangle_count);
+            CHECK_MSG(n->cluster_count == 1 || n->depth == s.max_depth ||
+                      n->triangle_count < s.min_leaf_triangles,
+                      "%s: leaf %u holds %u clusters at depth %u with %u triangles", what, i,
+                      n->cluster_count, n->depth, n->triangle_count);
         } else {
-            CHECK(n->depth < s.max_depth, "%s: interior node %u at the depth limit", what, i);
-            CHECK(n->triangle_count >= s.min_leaf_triangles,
-                  "%s: interior node %u has %u triangles < %u", what, i, n->triangle_count,
-                  s.min_leaf_triangles);
+            CHECK_MSG(n->depth < s.max_depth, "%s: interior node %u at the depth limit", what, i);
+            CHECK_MSG(n->triangle_count >= s.min_leaf_triangles,
+                      "%s: interior node %u has %u triangles < %u", what, i, n->triangle_count,
+                      s.min_leaf_triangles);
         }
 
         /* Tight-box lists: the frontier when its area passes the rule. */
@@ -212,24 +201,24 @@ static void check_bvh(const struct tw_bvh *bvh, const struct tw_prototype *proto
         frontier(bvh, i, s.tight_depth, list, &count, &area);
         const double own = tw_box_surface_area(&n->box);
         const bool use = count > 1 && area <= (double)s.tight_area_ratio * own;
-        CHECK(n->tight_count == (use ? count : 1), "%s: node %u has %u tight boxes, expected %u",
-              what, i, n->tight_count, use ? count : 1);
-        CHECK(n->first_tight == tight_total, "%s: node %u's tight boxes are not packed", what, i);
+        CHECK_MSG(n->tight_count == (use ? count : 1), "%s: node %u has %u tight boxes, expected %u",
+                  what, i, n->tight_count, use ? count : 1);
+        CHECK_MSG(n->first_tight == tight_total, "%s: node %u's tight boxes are not packed", what, i);
         if (n->tight_count == (use ? count : 1)) {
             const struct tw_box *got = &bvh->tight_boxes[n->first_tight];
             if (use) {
                 for (uint32_t k = 0; k < count; k++)
-                    CHECK(box_equal(&got[k], &list[k]), "%s: node %u tight box %u differs", what,
-                          i, k);
+                    CHECK_MSG(box_equal(&got[k], &list[k]), "%s: node %u tight box %u differs", what,
+                              i, k);
             } else {
-                CHECK(box_equal(got, &n->box), "%s: node %u's single tight box is not its own",
-                      what, i);
+                CHECK_MSG(box_equal(got, &n->box), "%s: node %u's single tight box is not its own",
+                          what, i);
             }
         }
         tight_total += n->tight_count;
     }
-    CHECK(tight_total == bvh->tight_box_count, "%s: %u tight boxes listed, %u stored", what,
-          tight_total, bvh->tight_box_count);
+    CHECK_MSG(tight_total == bvh->tight_box_count, "%s: %u tight boxes listed, %u stored", what,
+              tight_total, bvh->tight_box_count);
     free(list);
 }
 
@@ -255,33 +244,33 @@ static void test_errors(struct tw_bvh_builder *b, struct log_capture *cap)
 
     proto_init(&tp, "empty", 0);
     const int before = cap->messages;
-    CHECK(tw_bvh_build(b, &tp.proto, NULL, &bvh) == TW_ERR_INVALID, "zero clusters accepted");
-    CHECK(bvh == NULL, "*out not reset on failure");
-    CHECK(cap->messages > before && strstr(cap->last, "empty"),
-          "no logged message naming the prototype: '%s'", cap->last);
-    CHECK(tw_bvh_build_median(&tp.proto, NULL, &bvh) == TW_ERR_INVALID,
-          "median: zero clusters accepted");
+    CHECK_MSG(tw_bvh_build(b, &tp.proto, NULL, &bvh) == TW_ERR_INVALID, "zero clusters accepted");
+    CHECK_MSG(bvh == NULL, "*out not reset on failure");
+    CHECK_MSG(cap->messages > before && strstr(cap->last, "empty"),
+              "no logged message naming the prototype: '%s'", cap->last);
+    CHECK_MSG(tw_bvh_build_median(&tp.proto, NULL, &bvh) == TW_ERR_INVALID,
+              "median: zero clusters accepted");
     proto_finish(&tp);
 
     proto_init(&tp, "inverted", 2);
     proto_set(&tp, 0, make_box(0, 0, 0, 1, 1, 1), 2);
     proto_set(&tp, 1, make_box(2, 2, 2, 1, 1, 1), 2);
     proto_seal(&tp);
-    CHECK(tw_bvh_build(b, &tp.proto, NULL, &bvh) == TW_ERR_INVALID, "empty cluster box accepted");
+    CHECK_MSG(tw_bvh_build(b, &tp.proto, NULL, &bvh) == TW_ERR_INVALID, "empty cluster box accepted");
     tp.clusters[1].box = make_box(0, 0, 0, NAN, 1, 1);
-    CHECK(tw_bvh_build(b, &tp.proto, NULL, &bvh) == TW_ERR_INVALID, "NaN cluster box accepted");
+    CHECK_MSG(tw_bvh_build(b, &tp.proto, NULL, &bvh) == TW_ERR_INVALID, "NaN cluster box accepted");
     tp.clusters[1].box = make_box(0, 0, 0, 1, 1, 1);
     struct tw_bvh_settings s = {.tight_area_ratio = -1.0f};
-    CHECK(tw_bvh_build(b, &tp.proto, &s, &bvh) == TW_ERR_INVALID, "negative ratio accepted");
-    CHECK(tw_bvh_build(NULL, &tp.proto, NULL, &bvh) == TW_ERR_INVALID, "NULL builder accepted");
-    CHECK(tw_bvh_build(b, NULL, NULL, &bvh) == TW_ERR_INVALID, "NULL prototype accepted");
-    CHECK(tw_bvh_build(b, &tp.proto, NULL, NULL) == TW_ERR_INVALID, "NULL out accepted");
+    CHECK_MSG(tw_bvh_build(b, &tp.proto, &s, &bvh) == TW_ERR_INVALID, "negative ratio accepted");
+    CHECK_MSG(tw_bvh_build(NULL, &tp.proto, NULL, &bvh) == TW_ERR_INVALID, "NULL builder accepted");
+    CHECK_MSG(tw_bvh_build(b, NULL, NULL, &bvh) == TW_ERR_INVALID, "NULL prototype accepted");
+    CHECK_MSG(tw_bvh_build(b, &tp.proto, NULL, NULL) == TW_ERR_INVALID, "NULL out accepted");
     proto_finish(&tp);
 
     tw_bvh_destroy(NULL);
     tw_bvh_builder_destroy(NULL);
-    CHECK(tw_bvh_sah_cost(NULL) == 0.0, "cost of nothing");
-    CHECK(tw_bvh_validate(NULL, NULL, 32, NULL, 0) == TW_ERR_STATE, "validate(NULL) passed");
+    CHECK_MSG(tw_bvh_sah_cost(NULL) == 0.0, "cost of nothing");
+    CHECK_MSG(tw_bvh_validate(NULL, NULL, 32, NULL, 0) == TW_ERR_STATE, "validate(NULL) passed");
 }
 
 static void test_one_cluster(struct tw_bvh_builder *b)
@@ -295,23 +284,23 @@ static void test_one_cluster(struct tw_bvh_builder *b)
         struct tw_bvh *bvh = NULL;
         const int r = median ? tw_bvh_build_median(&tp.proto, NULL, &bvh)
                              : tw_bvh_build(b, &tp.proto, NULL, &bvh);
-        CHECK(r == TW_OK, "one cluster: build failed: %s", tw_error_to_str(r));
+        CHECK_MSG(r == TW_OK, "one cluster: build failed: %s", tw_error_to_str(r));
         if (r != TW_OK)
             continue;
         const struct tw_bvh_node *n = &bvh->nodes[0];
-        CHECK(bvh->node_count == 1 && bvh->leaf_count == 1 && bvh->depth == 0,
-              "one cluster: %u nodes, %u leaves, depth %u", bvh->node_count, bvh->leaf_count,
-              bvh->depth);
-        CHECK(is_leaf(n) && n->child[1] == TW_BVH_NONE && n->parent == TW_BVH_NONE,
-              "one cluster: root is not a lone leaf");
-        CHECK(n->first_cluster == 0 && n->cluster_count == 1 && bvh->cluster_order[0] == 0,
-              "one cluster: wrong cluster range");
-        CHECK(box_equal(&n->box, &tp.clusters[0].box), "one cluster: box differs");
-        CHECK(n->tight_count == 1 && bvh->tight_box_count == 1 &&
-              box_equal(&bvh->tight_boxes[0], &n->box), "one cluster: tight list");
-        CHECK(n->triangle_count == 100, "one cluster: %u triangles", n->triangle_count);
-        CHECK(fabs(tw_bvh_sah_cost(bvh) - 100.0 / 64.0) < 1e-9, "one cluster: cost %g",
-              tw_bvh_sah_cost(bvh));
+        CHECK_MSG(bvh->node_count == 1 && bvh->leaf_count == 1 && bvh->depth == 0,
+                  "one cluster: %u nodes, %u leaves, depth %u", bvh->node_count, bvh->leaf_count,
+                  bvh->depth);
+        CHECK_MSG(is_leaf(n) && n->child[1] == TW_BVH_NONE && n->parent == TW_BVH_NONE,
+                  "one cluster: root is not a lone leaf");
+        CHECK_MSG(n->first_cluster == 0 && n->cluster_count == 1 && bvh->cluster_order[0] == 0,
+                  "one cluster: wrong cluster range");
+        CHECK_MSG(box_equal(&n->box, &tp.clusters[0].box), "one cluster: box differs");
+        CHECK_MSG(n->tight_count == 1 && bvh->tight_box_count == 1 &&
+                  box_equal(&bvh->tight_boxes[0], &n->box), "one cluster: tight list");
+        CHECK_MSG(n->triangle_count == 100, "one cluster: %u triangles", n->triangle_count);
+        CHECK_MSG(fabs(tw_bvh_sah_cost(bvh) - 100.0 / 64.0) < 1e-9, "one cluster: cost %g",
+                  tw_bvh_sah_cost(bvh));
         check_bvh(bvh, &tp.proto, NULL, median ? "median one" : "sah one");
         tw_bvh_destroy(bvh);
     }
@@ -330,47 +319,47 @@ static void test_two_clusters(struct tw_bvh_builder *b)
         struct tw_bvh *bvh = NULL;
         const int r = median ? tw_bvh_build_median(&tp.proto, NULL, &bvh)
                              : tw_bvh_build(b, &tp.proto, NULL, &bvh);
-        CHECK(r == TW_OK, "two clusters: build failed: %s", tw_error_to_str(r));
+        CHECK_MSG(r == TW_OK, "two clusters: build failed: %s", tw_error_to_str(r));
         if (r != TW_OK)
             continue;
-        CHECK(bvh->node_count == 3 && bvh->leaf_count == 2 && bvh->depth == 1,
-              "two clusters: %u nodes, %u leaves, depth %u", bvh->node_count, bvh->leaf_count,
-              bvh->depth);
+        CHECK_MSG(bvh->node_count == 3 && bvh->leaf_count == 2 && bvh->depth == 1,
+                  "two clusters: %u nodes, %u leaves, depth %u", bvh->node_count, bvh->leaf_count,
+                  bvh->depth);
         const struct tw_bvh_node *root = &bvh->nodes[0];
-        CHECK(!is_leaf(root) && root->cluster_count == 0 && root->triangle_count == 40,
-              "two clusters: root");
-        CHECK(box_equal(&root->box, &tp.proto.box), "two clusters: root box is not the union");
+        CHECK_MSG(!is_leaf(root) && root->cluster_count == 0 && root->triangle_count == 40,
+                  "two clusters: root");
+        CHECK_MSG(box_equal(&root->box, &tp.proto.box), "two clusters: root box is not the union");
         uint32_t seen = 0;
         for (int k = 0; k < 2 && !is_leaf(root); k++) {
             const struct tw_bvh_node *leaf = &bvh->nodes[root->child[k]];
-            CHECK(is_leaf(leaf) && leaf->cluster_count == 1 && leaf->parent == 0 &&
-                  leaf->depth == 1, "two clusters: child %d is not a leaf under the root", k);
+            CHECK_MSG(is_leaf(leaf) && leaf->cluster_count == 1 && leaf->parent == 0 &&
+                      leaf->depth == 1, "two clusters: child %d is not a leaf under the root", k);
             const uint32_t c = bvh->cluster_order[leaf->first_cluster];
             seen |= 1u << c;
-            CHECK(box_equal(&leaf->box, &tp.clusters[c].box), "two clusters: leaf box");
-            CHECK(leaf->triangle_count == tp.clusters[c].triangle_count, "two clusters: leaf tris");
+            CHECK_MSG(box_equal(&leaf->box, &tp.clusters[c].box), "two clusters: leaf box");
+            CHECK_MSG(leaf->triangle_count == tp.clusters[c].triangle_count, "two clusters: leaf tris");
         }
-        CHECK(seen == 3, "two clusters: leaves hold clusters mask %u", seen);
+        CHECK_MSG(seen == 3, "two clusters: leaves hold clusters mask %u", seen);
         /* The leaves' areas (6 + 10) are below 1.4 x the root's 40. */
-        CHECK(root->tight_count == 2, "two clusters: root should use its children as tight boxes");
+        CHECK_MSG(root->tight_count == 2, "two clusters: root should use its children as tight boxes");
         /* Cost: root 1 + leaves 6/40*10/64 + 10/40*30/64. */
         const double expect = 1.0 + (6.0 / 40.0) * 10.0 / 64.0 + (10.0 / 40.0) * 30.0 / 64.0;
-        CHECK(fabs(tw_bvh_sah_cost(bvh) - expect) < 1e-6, "two clusters: cost %g, expected %g",
-              tw_bvh_sah_cost(bvh), expect);
+        CHECK_MSG(fabs(tw_bvh_sah_cost(bvh) - expect) < 1e-6, "two clusters: cost %g, expected %g",
+                  tw_bvh_sah_cost(bvh), expect);
         check_bvh(bvh, &tp.proto, NULL, median ? "median two" : "sah two");
 
         /* Corrupt a copy: validate must notice. */
         struct tw_bvh_node saved = bvh->nodes[1];
         char why[128];
         bvh->nodes[1].box.max[0] += 100.0f;
-        CHECK(tw_bvh_validate(bvh, &tp.proto, 32, why, sizeof(why)) == TW_ERR_STATE,
-              "validate missed a child box outside its parent");
+        CHECK_MSG(tw_bvh_validate(bvh, &tp.proto, 32, why, sizeof(why)) == TW_ERR_STATE,
+                  "validate missed a child box outside its parent");
         bvh->nodes[1] = saved;
         bvh->cluster_order[1] = bvh->cluster_order[0];
-        CHECK(tw_bvh_validate(bvh, &tp.proto, 32, why, sizeof(why)) == TW_ERR_STATE,
-              "validate missed a cluster in two leaves");
-        CHECK(tw_bvh_validate(bvh, &tp.proto, 0, why, sizeof(why)) == TW_ERR_STATE,
-              "validate missed the depth limit");
+        CHECK_MSG(tw_bvh_validate(bvh, &tp.proto, 32, why, sizeof(why)) == TW_ERR_STATE,
+                  "validate missed a cluster in two leaves");
+        CHECK_MSG(tw_bvh_validate(bvh, &tp.proto, 0, why, sizeof(why)) == TW_ERR_STATE,
+                  "validate missed the depth limit");
         tw_bvh_destroy(bvh);
     }
 
@@ -378,14 +367,14 @@ static void test_two_clusters(struct tw_bvh_builder *b)
     struct tw_bvh_settings s = {.min_leaf_triangles = 41};
     struct tw_bvh *bvh = NULL;
     int r = tw_bvh_build(b, &tp.proto, &s, &bvh);
-    CHECK(r == TW_OK && bvh->node_count == 1 && bvh->nodes[0].cluster_count == 2,
-          "two clusters: min_leaf_triangles 41 should give one leaf");
+    CHECK_MSG(r == TW_OK && bvh->node_count == 1 && bvh->nodes[0].cluster_count == 2,
+              "two clusters: min_leaf_triangles 41 should give one leaf");
     if (r == TW_OK)
         check_bvh(bvh, &tp.proto, &s, "sah two floor");
     tw_bvh_destroy(bvh);
     s.min_leaf_triangles = 40;
     r = tw_bvh_build(b, &tp.proto, &s, &bvh);
-    CHECK(r == TW_OK && bvh->node_count == 3, "two clusters: min_leaf_triangles 40 splits");
+    CHECK_MSG(r == TW_OK && bvh->node_count == 3, "two clusters: min_leaf_triangles 40 splits");
     tw_bvh_destroy(bvh);
     proto_finish(&tp);
 }
@@ -403,16 +392,16 @@ static void test_two_pairs(struct tw_bvh_builder *b)
 
     struct tw_bvh *bvh = NULL;
     const int r = tw_bvh_build(b, &tp.proto, NULL, &bvh);
-    CHECK(r == TW_OK, "pairs: build failed");
+    CHECK_MSG(r == TW_OK, "pairs: build failed");
     if (r != TW_OK)
         return;
-    CHECK(bvh->node_count == 7 && bvh->depth == 2 && bvh->leaf_count == 4,
-          "pairs: %u nodes, depth %u", bvh->node_count, bvh->depth);
+    CHECK_MSG(bvh->node_count == 7 && bvh->depth == 2 && bvh->leaf_count == 4,
+              "pairs: %u nodes, depth %u", bvh->node_count, bvh->depth);
     const struct tw_bvh_node *root = &bvh->nodes[0];
     for (int k = 0; k < 2 && !is_leaf(root); k++) {
         const struct tw_bvh_node *pair = &bvh->nodes[root->child[k]];
-        CHECK(pair->box.max[0] - pair->box.min[0] == 2.5f,
-              "pairs: child %d spans %g m, not one pair", k, pair->box.max[0] - pair->box.min[0]);
+        CHECK_MSG(pair->box.max[0] - pair->box.min[0] == 2.5f,
+                  "pairs: child %d spans %g m, not one pair", k, pair->box.max[0] - pair->box.min[0]);
     }
     check_bvh(bvh, &tp.proto, NULL, "sah pairs");
 
@@ -420,9 +409,9 @@ static void test_two_pairs(struct tw_bvh_builder *b)
     struct tw_bvh_settings s = {.max_depth = 1};
     tw_bvh_destroy(bvh);
     bvh = NULL;
-    CHECK(tw_bvh_build(b, &tp.proto, &s, &bvh) == TW_OK && bvh->node_count == 3 &&
-          bvh->nodes[1].cluster_count == 2 && bvh->nodes[2].cluster_count == 2,
-          "pairs: max_depth 1 should leave two leaves of two");
+    CHECK_MSG(tw_bvh_build(b, &tp.proto, &s, &bvh) == TW_OK && bvh->node_count == 3 &&
+              bvh->nodes[1].cluster_count == 2 && bvh->nodes[2].cluster_count == 2,
+              "pairs: max_depth 1 should leave two leaves of two");
     if (bvh)
         check_bvh(bvh, &tp.proto, &s, "sah pairs depth 1");
     tw_bvh_destroy(bvh);
@@ -441,9 +430,9 @@ static void test_prototype(struct tw_bvh_builder *b, const struct tw_prototype *
 {
     struct tw_bvh *sah = NULL, *median = NULL;
     int r = tw_bvh_build(b, proto, NULL, &sah);
-    CHECK(r == TW_OK, "'%s': build failed: %s", proto->name, tw_error_to_str(r));
+    CHECK_MSG(r == TW_OK, "'%s': build failed: %s", proto->name, tw_error_to_str(r));
     r = tw_bvh_build_median(proto, NULL, &median);
-    CHECK(r == TW_OK, "'%s': median build failed: %s", proto->name, tw_error_to_str(r));
+    CHECK_MSG(r == TW_OK, "'%s': median build failed: %s", proto->name, tw_error_to_str(r));
     if (!sah || !median)
         goto out;
 
@@ -453,12 +442,12 @@ static void test_prototype(struct tw_bvh_builder *b, const struct tw_prototype *
     uint32_t balanced = 0;
     while ((1ull << balanced) < proto->cluster_count)
         balanced++;
-    CHECK(median->depth == (balanced < 32 ? balanced : 32),
-          "'%s': median tree depth %u, expected %u", proto->name, median->depth, balanced);
+    CHECK_MSG(median->depth == (balanced < 32 ? balanced : 32),
+              "'%s': median tree depth %u, expected %u", proto->name, median->depth, balanced);
     const double sah_cost = tw_bvh_sah_cost(sah), median_cost = tw_bvh_sah_cost(median);
     if (proto->cluster_count > 2)
-        CHECK(sah_cost < median_cost, "'%s': SAH cost %g not below median split's %g",
-              proto->name, sah_cost, median_cost);
+        CHECK_MSG(sah_cost < median_cost, "'%s': SAH cost %g not below median split's %g",
+                  proto->name, sah_cost, median_cost);
 
     printf("%-20.20s %8u %7u %5u %9.3f %10llu %12.0f %9.3f %9.3f %8.3f\n", proto->name,
            proto->cluster_count, sah->node_count, sah->depth, sah->build_ms,
@@ -469,11 +458,11 @@ static void test_prototype(struct tw_bvh_builder *b, const struct tw_prototype *
     /* Embree's build is deterministic: the same input gives the same tree. */
     struct tw_bvh *again = NULL;
     if (tw_bvh_build(b, proto, NULL, &again) == TW_OK) {
-        CHECK(again->node_count == sah->node_count &&
-              memcmp(again->nodes, sah->nodes, sah->node_count * sizeof(*sah->nodes)) == 0 &&
-              memcmp(again->cluster_order, sah->cluster_order,
-                     sah->cluster_count * sizeof(uint32_t)) == 0,
-              "'%s': two builds differ", proto->name);
+        CHECK_MSG(again->node_count == sah->node_count &&
+                  memcmp(again->nodes, sah->nodes, sah->node_count * sizeof(*sah->nodes)) == 0 &&
+                  memcmp(again->cluster_order, sah->cluster_order,
+                         sah->cluster_count * sizeof(uint32_t)) == 0,
+                  "'%s': two builds differ", proto->name);
     }
     tw_bvh_destroy(again);
 
@@ -488,23 +477,23 @@ static void test_prototype(struct tw_bvh_builder *b, const struct tw_prototype *
     };
     for (size_t v = 0; v < sizeof(variants) / sizeof(variants[0]); v++) {
         struct tw_bvh *t = NULL, *m = NULL;
-        CHECK(tw_bvh_build(b, proto, &variants[v], &t) == TW_OK, "'%s': variant %zu failed",
-              proto->name, v);
-        CHECK(tw_bvh_build_median(proto, &variants[v], &m) == TW_OK,
-              "'%s': median variant %zu failed", proto->name, v);
+        CHECK_MSG(tw_bvh_build(b, proto, &variants[v], &t) == TW_OK, "'%s': variant %zu failed",
+                  proto->name, v);
+        CHECK_MSG(tw_bvh_build_median(proto, &variants[v], &m) == TW_OK,
+                  "'%s': median variant %zu failed", proto->name, v);
         if (t)
             check_bvh(t, proto, &variants[v], "sah variant");
         if (m)
             check_bvh(m, proto, &variants[v], "median variant");
         if (t && variants[v].max_depth)
-            CHECK(t->depth <= variants[v].max_depth, "'%s': depth %u over %u", proto->name,
-                  t->depth, variants[v].max_depth);
+            CHECK_MSG(t->depth <= variants[v].max_depth, "'%s': depth %u over %u", proto->name,
+                      t->depth, variants[v].max_depth);
         if (t && v == 3) {
             /* Ratio 100 at depth 1: every interior node lists its children. */
             for (uint32_t i = 0; i < t->node_count; i++)
-                CHECK(t->nodes[i].tight_count == (is_leaf(&t->nodes[i]) ? 1u : 2u),
-                      "'%s': node %u tight count %u with ratio 100", proto->name, i,
-                      t->nodes[i].tight_count);
+                CHECK_MSG(t->nodes[i].tight_count == (is_leaf(&t->nodes[i]) ? 1u : 2u),
+                          "'%s': node %u tight count %u with ratio 100", proto->name, i,
+                          t->nodes[i].tight_count);
         }
         tw_bvh_destroy(t);
         tw_bvh_destroy(m);
@@ -551,15 +540,11 @@ int main(void)
 
     struct tw_tileset *ts = NULL;
     r = tw_tilesets_builtin("city", 1, 0, NULL, &ts);
-    CHECK(r == TW_OK && ts, "city tileset: %s", tw_error_to_str(r));
+    CHECK_MSG(r == TW_OK && ts, "city tileset: %s", tw_error_to_str(r));
     for (uint32_t p = 0; ts && p < ts->prototype_count; p++)
         test_prototype(b, &ts->prototypes[p]);
     tw_tileset_destroy(ts);
 
     tw_bvh_builder_destroy(b);
-    if (failures) {
-        fprintf(stderr, "test-bvh: %d check(s) failed\n", failures);
-        return 1;
-    }
-    return 0;
+    return check_summary("test-bvh");
 }

@@ -170,10 +170,5 @@ int main(void)
     test_near_rule();
     test_cells_in_view();
     test_cells_in_view_bounded();
-    if (failures) {
-        fprintf(stderr, "test-cull: %d checks failed\n", failures);
-        return 1;
-    }
-    printf("test-cull: all checks passed\n");
-    return 0;
+    return check_summary("test-cull");
 }

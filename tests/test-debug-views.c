@@ -6,34 +6,17 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "tileworld/context.h"
-#include "tileworld/runtime.h"
-#include "tileworld/tilesets.h"
 #include "tests/check.h"
+#include "tests/headless-world.h"
+#include "tests/image-diff.h"
 
 enum { W = 320, H = 180, FRAMES = 8 };
-
-static void log_stderr(void *user, enum tw_log_level level, const char *msg)
-{
-    (void)user;
-    if (level <= TW_LOG_WARN)
-        fprintf(stderr, "log: %s\n", msg);
-}
-
-static const struct tw_log test_log = {log_stderr, NULL};
 
 static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tileset *ts,
                                    enum tw_method method)
 {
-    struct tw_world_settings s = {0};
-    s.tileset = ts;
-    s.selection.seed = 1;
+    struct tw_world_settings s = world_settings(ctx, ts, W, H, 1, 400.0f);
     s.method = method;
-    s.width = W;
-    s.height = H;
-    s.view_distance = 400.0f;
-    s.get_proc = tw_context_get_proc(ctx);
-    s.log = test_log;
     struct tw_world *w = NULL;
     return tw_world_create(&s, &w) == TW_OK ? w : NULL;
 }
@@ -43,14 +26,6 @@ static struct tw_camera camera(int k)
 {
     struct tw_camera cam = {{{0, 0}, {0.0f, 1.7f, 2.0f + 1.5f * (float)k}}, 10.0f, 3.0f};
     return cam;
-}
-
-static uint32_t count_differing(const uint8_t *a, const uint8_t *b)
-{
-    uint32_t n = 0;
-    for (uint32_t k = 0; k < W * H; k++)
-        n += memcmp(a + 3 * k, b + 3 * k, 3) != 0;
-    return n;
 }
 
 /* Debug views off: nothing recorded. Bad masks and drawing before any
@@ -140,7 +115,7 @@ static void test_records(struct tw_context *ctx, const struct tw_tileset *ts, en
         /* Drawn over the image: the colour changes, the world's frame does not. */
         CHECK(tw_world_draw_debug(w, d, n) == TW_OK);
         CHECK(tw_world_read_rgb(w, b) == TW_OK);
-        CHECK(count_differing(a, b) > W * H / 20);
+        CHECK(count_differing(a, b, W * H) > W * H / 20);
     }
     printf("debug views of %s: records agree with the statistics on %d frames\n",
            tw_method_name(m), FRAMES);
@@ -182,7 +157,7 @@ static void test_fixed(struct tw_context *ctx, const struct tw_tileset *ts)
     CHECK(tw_world_frame_fixed(w, &same, set, n, &fixed) == TW_OK);
     CHECK(tw_world_read_rgb(w, b) == TW_OK);
     CHECK(fixed.clusters == n && fixed.triangles == st.triangles && fixed.queries == 0);
-    CHECK(count_differing(a, b) == 0);
+    CHECK(count_differing(a, b, W * H) == 0);
 
     /* From 300 m up, looking down the street: the same clusters. */
     struct tw_camera above = camera(3);
@@ -192,7 +167,7 @@ static void test_fixed(struct tw_context *ctx, const struct tw_tileset *ts)
     CHECK(tw_world_frame_fixed(w, &above, set, n, &fixed) == TW_OK);
     CHECK(fixed.clusters == n && fixed.triangles == st.triangles);
     CHECK(tw_world_read_rgb(w, b) == TW_OK);
-    CHECK(count_differing(a, b) > W * H / 10);
+    CHECK(count_differing(a, b, W * H) > W * H / 10);
 
     /* The methods' state was left alone: the next frame is frame + 1. */
     const struct tw_camera next = camera(4);
@@ -214,26 +189,14 @@ out:
 int main(void)
 {
     struct tw_context *ctx = NULL;
-    if (tw_context_create_headless(W, H, &test_log, &ctx) != TW_OK) {
-        fprintf(stderr, "cannot create the headless context\n");
-        return 1;
-    }
     struct tw_tileset *ts = NULL;
-    if (tw_tilesets_builtin("city", 1, 0, &test_log, &ts) != TW_OK) {
-        fprintf(stderr, "cannot build the city\n");
-        tw_context_destroy(ctx);
+    if (!open_headless(W, H, "city", 1, &ctx, &ts))
         return 1;
-    }
     test_off(ctx, ts);
     for (int m = TW_METHOD_FIRST; m < TW_METHOD_COUNT; m++)
         test_records(ctx, ts, (enum tw_method)m);
     test_fixed(ctx, ts);
     tw_tileset_destroy(ts);
     tw_context_destroy(ctx);
-    if (failures) {
-        fprintf(stderr, "test-debug-views: %d checks failed\n", failures);
-        return 1;
-    }
-    printf("test-debug-views: all checks passed\n");
-    return 0;
+    return check_summary("test-debug-views");
 }

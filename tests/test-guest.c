@@ -249,5 +249,5 @@ int main(void)
     free(guest);
     tw_tileset_destroy(ts);
     tw_context_destroy(ctx);
-    return failures ? 1 : 0;
+    return check_summary("test-guest");
 }

@@ -26,6 +26,8 @@
 #include <unistd.h>
 
 #include "tilesets/confined-path.h"
+#include "tests/base64.h"
+#include "tests/check.h"
 
 #if defined(__SANITIZE_ADDRESS__)
 #define UNDER_ASAN 1
@@ -34,19 +36,6 @@
 #define UNDER_ASAN 1
 #endif
 #endif
-
-static int failures, checks;
-
-#define CHECK(cond, ...)                                                              \
-    do {                                                                              \
-        checks++;                                                                     \
-        if (!(cond)) {                                                                \
-            fprintf(stderr, "%s:%d: check failed: %s: ", __FILE__, __LINE__, #cond);  \
-            fprintf(stderr, __VA_ARGS__);                                             \
-            fputc('\n', stderr);                                                      \
-            failures++;                                                               \
-        }                                                                             \
-    } while (0)
 
 static const char *source_root;
 static char tmp[64];
@@ -111,7 +100,7 @@ static char *in_tmp(const char *name)
 static void write_file(const char *path, const void *data, size_t n)
 {
     FILE *f = fopen(path, "wb");
-    CHECK(f != NULL, "cannot write %s", path);
+    CHECK_MSG(f != NULL, "cannot write %s", path);
     if (f) {
         fwrite(data, 1, n, f);
         fclose(f);
@@ -122,7 +111,7 @@ static void copy_kenney(const char *piece, const char *to)
 {
     char *from = format("%s/tilesets/kenney-city/%s", source_root, piece);
     FILE *in = fopen(from, "rb");
-    CHECK(in != NULL, "cannot read %s", from);
+    CHECK_MSG(in != NULL, "cannot read %s", from);
     if (in) {
         char buf[1 << 16];
         size_t n;
@@ -134,21 +123,6 @@ static void copy_kenney(const char *piece, const char *to)
         fclose(in);
     }
     free(from);
-}
-
-static void base64(const uint8_t *data, size_t n, char *out)
-{
-    static const char abc[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    size_t o = 0;
-    for (size_t k = 0; k < n; k += 3) {
-        const uint32_t v = (uint32_t)data[k] << 16 | (k + 1 < n ? (uint32_t)data[k + 1] << 8 : 0) |
-                           (k + 2 < n ? data[k + 2] : 0);
-        out[o++] = abc[v >> 18 & 63];
-        out[o++] = abc[v >> 12 & 63];
-        out[o++] = k + 1 < n ? abc[v >> 6 & 63] : '=';
-        out[o++] = k + 2 < n ? abc[v & 63] : '=';
-    }
-    out[o] = '\0';
 }
 
 static int import_text(const char *doc, const char *name, const char *dir,
@@ -193,10 +167,10 @@ static void expect_refused(const char *what, const char *doc, int err_want, cons
     const int err = import_text(doc, "hostile.gltf", NULL, &cap, &s);
     char full[1024];
     snprintf(full, sizeof(full), "hostile.gltf: %s", want);
-    CHECK(err == err_want && s == NULL && cap.errors == 1 && strncmp(cap.error, full,
-                                                                      strlen(full)) == 0 &&
-              !cap.control,
-          "%s: error %d, \"%s\"; expected %d, \"%s...\"", what, err, cap.error, err_want, full);
+    CHECK_MSG(err == err_want && s == NULL && cap.errors == 1 && strncmp(cap.error, full,
+                                                                          strlen(full)) == 0 &&
+                  !cap.control,
+              "%s: error %d, \"%s\"; expected %d, \"%s...\"", what, err, cap.error, err_want, full);
     tw_gltf_scene_destroy(s);
 }
 
@@ -204,50 +178,50 @@ static void expect_refused(const char *what, const char *doc, int err_want, cons
 
 static void test_coordinates(void)
 {
-    /* The audit's file: a translation near the float limit passed the
-     * finiteness check and aborted in Embree's binning. */
+    static const float far[9] = {0, 0, 0, 9e4f, 0, 0, 0, 1, 0};
+    static const float huge[9] = {0, 0, 0, 3e38f, 0, 0, 0, 1, 0};
+    static const struct {
+        const char *what;
+        const float *positions;
+        const char *nodes, *want;
+    } refused[] = {
+        /* The audit's file: a translation near the float limit passed the
+         * finiteness check and aborted in Embree's binning. */
+        {"translation 3.4e38", unit_triangle,
+         "[{\"children\":[1]},{\"children\":[3]},{},"
+         "{\"mesh\":0,\"translation\":[3.4e38,0,0]}],"
+         "\"scenes\":[{\"nodes\":[0,2]}]",
+         "nodes[3].translation: 3.4e+38 is beyond +-1e+07"},
+        {"matrix translation", unit_triangle,
+         "[{\"mesh\":0,\"matrix\":[1,0,0,0,0,1,0,0,0,0,1,0,0,-2e30,0,1]}]",
+         "nodes[0].matrix: -2e+30 is beyond"},
+        /* Within a node's limit, but placed 200 km away. */
+        {"composed translation", unit_triangle,
+         "[{\"translation\":[1.5e5,0,0],\"children\":[1]},"
+         "{\"mesh\":0,\"translation\":[5e4,0,0]}]",
+         "nodes[1]: its transform, composed with its ancestors', has a translation of "
+         "200000, beyond +-100000"},
+        /* The mesh itself reaches beyond. */
+        {"placed mesh", far, "[{\"mesh\":0,\"translation\":[5e4,0,0]}]",
+         "nodes[0]: its mesh, placed by the node's transform composed with its "
+         "ancestors', reaches x = 140000 m, beyond +-100000 m"},
+        {"huge position", huge, "[{\"mesh\":0}]",
+         "meshes[0].primitives[0].attributes.POSITION: accessors[0] element 1 has "
+         "x = 3e+38, beyond +-1e+07"},
+    };
     char *doc = NULL;
-    doc = triangle_doc(unit_triangle,
-                       "[{\"children\":[1]},{\"children\":[3]},{},"
-                       "{\"mesh\":0,\"translation\":[3.4e38,0,0]}],"
-                       "\"scenes\":[{\"nodes\":[0,2]}]",
-                       NULL);
-    expect_refused("translation 3.4e38", doc, TW_ERR_LIMIT,
-                   "nodes[3].translation: 3.4e+38 is beyond +-1e+07");
-    free(doc);
-    doc = triangle_doc(unit_triangle, "[{\"mesh\":0,\"matrix\":[1,0,0,0,0,1,0,0,0,0,1,0,"
-                                      "0,-2e30,0,1]}]",
-                       NULL);
-    expect_refused("matrix translation", doc, TW_ERR_LIMIT, "nodes[0].matrix: -2e+30 is beyond");
-    free(doc);
-    /* Within a node's limit, but placed 200 km away. */
-    doc = triangle_doc(unit_triangle, "[{\"translation\":[1.5e5,0,0],\"children\":[1]},"
-                                      "{\"mesh\":0,\"translation\":[5e4,0,0]}]",
-                       NULL);
-    expect_refused("composed translation", doc, TW_ERR_LIMIT,
-                   "nodes[1]: its transform, composed with its ancestors', has a translation of "
-                   "200000, beyond +-100000");
-    free(doc);
-    /* The mesh itself reaches beyond. */
-    const float far[9] = {0, 0, 0, 9e4f, 0, 0, 0, 1, 0};
-    doc = triangle_doc(far, "[{\"mesh\":0,\"translation\":[5e4,0,0]}]", NULL);
-    expect_refused("placed mesh", doc, TW_ERR_LIMIT,
-                   "nodes[0]: its mesh, placed by the node's transform composed with its "
-                   "ancestors', reaches x = 140000 m, beyond +-100000 m");
-    free(doc);
-    const float huge[9] = {0, 0, 0, 3e38f, 0, 0, 0, 1, 0};
-    doc = triangle_doc(huge, "[{\"mesh\":0}]", NULL);
-    expect_refused("huge position", doc, TW_ERR_LIMIT,
-                   "meshes[0].primitives[0].attributes.POSITION: accessors[0] element 1 has "
-                   "x = 3e+38, beyond +-1e+07");
-    free(doc);
+    for (size_t k = 0; k < sizeof(refused) / sizeof(refused[0]); k++) {
+        doc = triangle_doc(refused[k].positions, refused[k].nodes, NULL);
+        expect_refused(refused[k].what, doc, TW_ERR_LIMIT, refused[k].want);
+        free(doc);
+    }
     /* Millimetres placed by a 0.001 scale: fine. */
     const float mm[9] = {0, 0, 0, 5e6f, 0, 0, 0, 5e6f, 0};
     doc = triangle_doc(mm, "[{\"mesh\":0,\"scale\":[0.001,0.001,0.001]}]", NULL);
     struct log_capture cap;
     struct tw_gltf_scene *s = NULL;
-    CHECK(import_text(doc, "mm.gltf", NULL, &cap, &s) == 0 && fabsf(s->bounds.max[0] - 5000) < 1,
-          "millimetres: %s", cap.error);
+    CHECK_MSG(import_text(doc, "mm.gltf", NULL, &cap, &s) == 0 && fabsf(s->bounds.max[0] - 5000) < 1,
+              "millimetres: %s", cap.error);
     tw_gltf_scene_destroy(s);
     free(doc);
 }
@@ -300,12 +274,12 @@ static long long in_child(void (*fn)(void *), void *arg, int cpu_seconds, const 
         _exit(failures ? 255 : (int)(grown >> 20 > 254 ? 254 : grown >> 20));
     }
     int status = 0;
-    CHECK(pid > 0 && waitpid(pid, &status, 0) == pid, "fork");
-    CHECK(WIFEXITED(status) && WEXITSTATUS(status) != 255,
-          "%s: the child %s %d%s", what, WIFEXITED(status) ? "exited with" : "died of signal",
-          WIFEXITED(status) ? WEXITSTATUS(status) : WTERMSIG(status),
-          WIFSIGNALED(status) && WTERMSIG(status) == SIGXCPU ? " (SIGXCPU: over the CPU limit)"
-                                                             : "");
+    CHECK_MSG(pid > 0 && waitpid(pid, &status, 0) == pid, "fork");
+    CHECK_MSG(WIFEXITED(status) && WEXITSTATUS(status) != 255,
+              "%s: the child %s %d%s", what, WIFEXITED(status) ? "exited with" : "died of signal",
+              WIFEXITED(status) ? WEXITSTATUS(status) : WTERMSIG(status),
+              WIFSIGNALED(status) && WTERMSIG(status) == SIGXCPU ? " (SIGXCPU: over the CPU limit)"
+                                                                 : "");
     if (!WIFEXITED(status) || WEXITSTATUS(status) == 255)
         return -1;
     return (long long)WEXITSTATUS(status) << 20;
@@ -326,9 +300,9 @@ static void import_big(void *arg)
     struct tw_gltf_scene *s = NULL;
     const struct tw_gltf_settings limits = {64u << 20, 0};
     const int err = tw_gltf_import_memory(b->text, b->size, "big.gltf", NULL, &limits, &log, &s);
-    CHECK(err == b->want_err && (!b->want || strstr(cap.error, b->want)),
-          "big document: error %d, \"%s\"; expected %d, \"%s\"", err, cap.error, b->want_err,
-          b->want ? b->want : "");
+    CHECK_MSG(err == b->want_err && (!b->want || strstr(cap.error, b->want)),
+              "big document: error %d, \"%s\"; expected %d, \"%s\"", err, cap.error, b->want_err,
+              b->want ? b->want : "");
     printf("  %zu bytes: %s\n", b->size, err ? cap.error : "imported");
     tw_gltf_scene_destroy(s);
 }
@@ -383,8 +357,8 @@ static void test_import_cost(void)
     long long grown = in_child(import_big, &b, 60, "10^6 root nodes");
     free(b.text);
 #ifndef UNDER_ASAN
-    CHECK(grown >= 0 && grown <= (64ll << 20), "10^6 roots: peak memory grew %lld MiB",
-          grown >> 20);
+    CHECK_MSG(grown >= 0 && grown <= (64ll << 20), "10^6 roots: peak memory grew %lld MiB",
+              grown >> 20);
 #endif
 
     /* The second: 8 MB of empty nodes peaked at 1.7 GB. */
@@ -393,8 +367,8 @@ static void test_import_cost(void)
     b.want = "JSON: importing its";
     grown = in_child(import_big, &b, 60, "8 MB of empty nodes");
 #ifndef UNDER_ASAN
-    CHECK(grown >= 0 && grown <= (64ll << 20), "empty nodes: peak memory grew %lld MiB",
-          grown >> 20);
+    CHECK_MSG(grown >= 0 && grown <= (64ll << 20), "empty nodes: peak memory grew %lld MiB",
+              grown >> 20);
 #endif
     free(b.text);
 
@@ -405,8 +379,8 @@ static void test_import_cost(void)
     const long long budget = (64ll << 20) + 32ll * (long long)b.size;
     grown = in_child(import_big, &b, 60, "100000 instances");
 #ifndef UNDER_ASAN
-    CHECK(grown >= 0 && grown <= budget, "100000 instances: peak memory grew %lld MiB, budget %lld",
-          grown >> 20, budget >> 20);
+    CHECK_MSG(grown >= 0 && grown <= budget, "100000 instances: peak memory grew %lld MiB, budget %lld",
+              grown >> 20, budget >> 20);
 #endif
     printf("  100000 instances: peak memory grew %lld MiB (budget %lld MiB)\n", grown >> 20,
            budget >> 20);
@@ -465,23 +439,23 @@ static void test_quantized(void)
         struct log_capture cap;
         struct tw_gltf_scene *s = NULL;
         const int err = import_text(doc, "quantized.gltf", NULL, &cap, &s);
-        CHECK(err == 0, "quantized: %s", cap.error);
+        CHECK_MSG(err == 0, "quantized: %s", cap.error);
         if (!err) {
             const struct tw_gltf_primitive *p = &s->primitives[0];
-            CHECK(p->positions[3] == 1000.0f && p->positions[7] == 1000.0f,
-                  "positions read as integers: %g %g", p->positions[3], p->positions[7]);
-            CHECK(fabsf(s->bounds.max[0] - 1.0f) < 1e-5f && fabsf(s->bounds.max[1] - 1.0f) < 1e-5f,
-                  "dequantised by the node: bounds to %g, %g", s->bounds.max[0], s->bounds.max[1]);
-            CHECK(p->normals && fabsf(p->normals[2] - 1.0f) < 1e-6f && p->normals[0] == 0.0f,
-                  "normals dequantised");
+            CHECK_MSG(p->positions[3] == 1000.0f && p->positions[7] == 1000.0f,
+                      "positions read as integers: %g %g", p->positions[3], p->positions[7]);
+            CHECK_MSG(fabsf(s->bounds.max[0] - 1.0f) < 1e-5f && fabsf(s->bounds.max[1] - 1.0f) < 1e-5f,
+                      "dequantised by the node: bounds to %g, %g", s->bounds.max[0], s->bounds.max[1]);
+            CHECK_MSG(p->normals && fabsf(p->normals[2] - 1.0f) < 1e-6f && p->normals[0] == 0.0f,
+                      "normals dequantised");
             /* The centroid's u is 1/3: red without the transform, 2/3 (blue)
              * with it. */
             const float *c = s->materials[p->material].base_color;
             if (t == 0)
-                CHECK(c[0] > 0.9f && c[2] < 0.1f, "untransformed: %g %g %g", c[0], c[1], c[2]);
+                CHECK_MSG(c[0] > 0.9f && c[2] < 0.1f, "untransformed: %g %g %g", c[0], c[1], c[2]);
             else
-                CHECK(c[2] > 0.9f && c[0] < 0.1f, "KHR_texture_transform: %g %g %g", c[0], c[1],
-                      c[2]);
+                CHECK_MSG(c[2] > 0.9f && c[0] < 0.1f, "KHR_texture_transform: %g %g %g", c[0], c[1],
+                          c[2]);
         }
         tw_gltf_scene_destroy(s);
         free(doc);
@@ -519,12 +493,12 @@ static void test_valid_files(void)
     struct log_capture cap;
     struct tw_gltf_scene *s = NULL;
     int err = import_text(doc, "lines.gltf", NULL, &cap, &s);
-    CHECK(err == 0 && s->primitive_count == 1 && s->triangle_count == 1, "lines: %s", cap.error);
-    CHECK(cap.warnings == 1 &&
-              strcmp(cap.warning, "lines.gltf: meshes[0].primitives[0].mode: 1 (LINES) and 1 "
-                                  "more point or line primitives are not drawn: only "
-                                  "triangles, triangle strips and triangle fans are") == 0,
-          "lines: %d warnings, last \"%s\"", cap.warnings, cap.warning);
+    CHECK_MSG(err == 0 && s->primitive_count == 1 && s->triangle_count == 1, "lines: %s", cap.error);
+    CHECK_MSG(cap.warnings == 1 &&
+                  strcmp(cap.warning, "lines.gltf: meshes[0].primitives[0].mode: 1 (LINES) and 1 "
+                                      "more point or line primitives are not drawn: only "
+                                      "triangles, triangle strips and triangle fans are") == 0,
+              "lines: %d warnings, last \"%s\"", cap.warnings, cap.warning);
     tw_gltf_scene_destroy(s);
     free(doc);
 
@@ -575,7 +549,7 @@ static void test_valid_files(void)
         write_file(gltf, text, strlen(text));
         const struct tw_log log = new_log(&cap);
         err = tw_gltf_import(gltf, NULL, &log, &s);
-        CHECK(err == 0 && s->triangle_count == 1, "buffer uri %s: %s", names[k][0], cap.error);
+        CHECK_MSG(err == 0 && s->triangle_count == 1, "buffer uri %s: %s", names[k][0], cap.error);
         tw_gltf_scene_destroy(s);
         free(gltf);
         free(text);
@@ -603,8 +577,8 @@ static void test_valid_files(void)
         write_file(gltf, text, strlen(text));
         const struct tw_log log = new_log(&cap);
         err = tw_gltf_import(gltf, NULL, &log, &s);
-        CHECK(err == 0 && fabsf(s->bounds.max[0] - 1.0f) < 1e-6f,
-              "a+b.bin and a%%20b.bin: %s, bounds %g", cap.error, s ? s->bounds.max[0] : -1.0);
+        CHECK_MSG(err == 0 && fabsf(s->bounds.max[0] - 1.0f) < 1e-6f,
+                  "a+b.bin and a%%20b.bin: %s, bounds %g", cap.error, s ? s->bounds.max[0] : -1.0);
         tw_gltf_scene_destroy(s);
         free(gltf);
         free(text);
@@ -625,16 +599,16 @@ static void test_escapes(void)
     struct tw_gltf_scene *s = NULL;
     doc = triangle_doc(unit_triangle, "[{\"mesh\":0}]", NULL);
     int err = import_text(doc, "evil\x1b]0;title\a.gltf", NULL, &cap, &s);
-    CHECK(err == 0, "escape in a file name: %s", cap.error);
+    CHECK_MSG(err == 0, "escape in a file name: %s", cap.error);
     tw_gltf_scene_destroy(s);
     free(doc);
     doc = format("{\"asset\":{\"version\":\"2.0\"},\"meshes\":[{\"primitives\":[{\"attributes\":"
                  "{\"\\u009b31m\":7}}]}],\"nodes\":[{\"mesh\":0}]}");
     err = import_text(doc, "evil\x1b[2J.gltf", NULL, &cap, &s);
-    CHECK(err == TW_ERR_FORMAT && !cap.control &&
-              strstr(cap.error, "evil\\x1b[2J.gltf: meshes[0].primitives[0].attributes."
-                                "\\u009b31m: 7 is not an accessor"),
-          "escaped attribute: \"%s\"", cap.error);
+    CHECK_MSG(err == TW_ERR_FORMAT && !cap.control &&
+                  strstr(cap.error, "evil\\x1b[2J.gltf: meshes[0].primitives[0].attributes."
+                                    "\\u009b31m: 7 is not an accessor"),
+              "escaped attribute: \"%s\"", cap.error);
     free(doc);
 }
 
@@ -658,9 +632,9 @@ static void expect_manifest(const char *what, const char *text, int err_want, co
     const int err = load_manifest(text, &cap, &ts);
     char *path = in_tmp("m/test.json");
     char *full = format("%s: %s", path, want);
-    CHECK(err == err_want && ts == NULL && cap.errors == 1 &&
-              strncmp(cap.error, full, strlen(full)) == 0 && !cap.control,
-          "%s: error %d, \"%s\"; expected %d, \"%s...\"", what, err, cap.error, err_want, full);
+    CHECK_MSG(err == err_want && ts == NULL && cap.errors == 1 &&
+                  strncmp(cap.error, full, strlen(full)) == 0 && !cap.control,
+              "%s: error %d, \"%s\"; expected %d, \"%s...\"", what, err, cap.error, err_want, full);
     free(full);
     free(path);
     tw_tileset_destroy(ts);
@@ -759,15 +733,15 @@ static void test_manifests(void)
             placed += !ts->prototypes[0].instances[k].merged;
             merged_meshes += ts->prototypes[0].instances[k].merged;
         }
-        CHECK(err == 0 && ts && placed == 20000 * (ts->mesh_count - merged_meshes),
-              "20000 objects: %s", cap.error);
+        CHECK_MSG(err == 0 && ts && placed == 20000 * (ts->mesh_count - merged_meshes),
+                  "20000 objects: %s", cap.error);
         tw_tileset_destroy(ts);
         free(text);
     }
 
     /* Class 4: a FIFO as the manifest is refused, not waited on. */
     char *fifo = in_tmp("m/fifo.json");
-    CHECK(mkfifo(fifo, 0600) == 0, "mkfifo");
+    CHECK_MSG(mkfifo(fifo, 0600) == 0, "mkfifo");
     signal(SIGALRM, on_alarm);
     alarm(20);
     struct log_capture cap;
@@ -776,15 +750,15 @@ static void test_manifests(void)
     int err = tw_tilesets_load_manifest(fifo, &log, &ts);
     alarm(0);
     char *want = format("%s: is not a regular file (a FIFO)", fifo);
-    CHECK(err == TW_ERR_IO && ts == NULL && strcmp(cap.error, want) == 0, "FIFO manifest: %s",
-          cap.error);
+    CHECK_MSG(err == TW_ERR_IO && ts == NULL && strcmp(cap.error, want) == 0, "FIFO manifest: %s",
+              cap.error);
     free(want);
     unlink(fifo);
     free(fifo);
     /* ... and so is /dev/zero. */
     err = tw_tilesets_load_manifest("/dev/zero", &log, &ts);
-    CHECK(err == TW_ERR_IO && strstr(cap.error, "/dev/zero: is not a regular file (a device)"),
-          "/dev/zero: %s", cap.error);
+    CHECK_MSG(err == TW_ERR_IO && strstr(cap.error, "/dev/zero: is not a regular file (a device)"),
+              "/dev/zero: %s", cap.error);
     free(road);
     free(house);
     free(m);
@@ -818,16 +792,16 @@ static void test_confined(void)
     };
     for (size_t k = 0; k < sizeof(links) / sizeof(links[0]); k++) {
         char *at = in_tmp(links[k].name);
-        CHECK(symlink(links[k].target ? links[k].target : secret, at) == 0, "symlink %s",
-              links[k].name);
+        CHECK_MSG(symlink(links[k].target ? links[k].target : secret, at) == 0, "symlink %s",
+                  links[k].name);
         free(at);
     }
     char *hard = in_tmp("c/in/hard.bin");
-    CHECK(link(secret, hard) == 0, "link");
+    CHECK_MSG(link(secret, hard) == 0, "link");
     char *fifo = in_tmp("c/in/fifo");
-    CHECK(mkfifo(fifo, 0600) == 0, "mkfifo");
+    CHECK_MSG(mkfifo(fifo, 0600) == 0, "mkfifo");
     const int dir_fd = tw_confined_open_folder(dir);
-    CHECK(dir_fd >= 0, "open the folder");
+    CHECK_MSG(dir_fd >= 0, "open the folder");
     const struct {
         const char *rel;
         int err;
@@ -867,29 +841,29 @@ static void test_confined(void)
                 got[n > 0 ? n : 0] = '\0';
                 close(fd);
             }
-            CHECK(err == cases[k].err && (err ? fd < 0 : fd >= 0) &&
-                      (!cases[k].reason || (reason && strstr(reason, cases[k].reason))) &&
-                      (!cases[k].bytes || strcmp(got, cases[k].bytes) == 0),
-                  "%s (%s): error %d, \"%s\", read \"%s\"", cases[k].rel,
-                  mode ? "walk" : "openat2", err, reason ? reason : "", got);
+            CHECK_MSG(err == cases[k].err && (err ? fd < 0 : fd >= 0) &&
+                          (!cases[k].reason || (reason && strstr(reason, cases[k].reason))) &&
+                          (!cases[k].bytes || strcmp(got, cases[k].bytes) == 0),
+                      "%s (%s): error %d, \"%s\", read \"%s\"", cases[k].rel,
+                      mode ? "walk" : "openat2", err, reason ? reason : "", got);
         }
         /* The folder of a file beneath. */
         int fd = -1;
         const char *reason = NULL;
-        CHECK(tw_confined_open_parent(dir_fd, "subdir/f.bin", (enum tw_confined_mode)mode, &fd,
-                                      &reason) == 0 && fd >= 0,
-              "parent: %s", reason ? reason : "");
+        CHECK_MSG(tw_confined_open_parent(dir_fd, "subdir/f.bin", (enum tw_confined_mode)mode, &fd,
+                                          &reason) == 0 && fd >= 0,
+                  "parent: %s", reason ? reason : "");
         if (fd >= 0) {
             int f2 = -1;
-            CHECK(tw_confined_open(fd, "f.bin", (enum tw_confined_mode)mode, &f2, &reason) == 0,
-                  "beneath the parent");
+            CHECK_MSG(tw_confined_open(fd, "f.bin", (enum tw_confined_mode)mode, &f2, &reason) == 0,
+                      "beneath the parent");
             if (f2 >= 0)
                 close(f2);
             close(fd);
         }
-        CHECK(tw_confined_open_parent(dir_fd, "up/x", (enum tw_confined_mode)mode, &fd,
-                                      &reason) != 0 && fd < 0,
-              "parent through an escaping link");
+        CHECK_MSG(tw_confined_open_parent(dir_fd, "up/x", (enum tw_confined_mode)mode, &fd,
+                                          &reason) != 0 && fd < 0,
+                  "parent through an escaping link");
     }
     close(dir_fd);
     free(root);
@@ -938,6 +912,5 @@ int main(int argc, char **argv)
     test_confined();
     test_import_cost();
     remove_tree(tmp);
-    printf("test-hostile: %d passed, %d failed\n", checks - failures, failures);
-    return failures ? 1 : 0;
+    return check_summary("test-hostile");
 }

@@ -8,77 +8,21 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "tileworld/context.h"
-#include "tileworld/runtime.h"
-#include "tileworld/tilesets.h"
 #include "tests/check.h"
-
-static void log_stderr(void *user, enum tw_log_level level, const char *msg)
-{
-    (void)user;
-    if (level <= TW_LOG_WARN)
-        fprintf(stderr, "log: %s\n", msg);
-}
-
-static const struct tw_log test_log = {log_stderr, NULL};
+#include "tests/drawn-set.h"
+#include "tests/headless-world.h"
 
 static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tileset *ts,
                                    uint32_t w, uint32_t h, float shrink)
 {
-    struct tw_world_settings s = {0};
-    s.tileset = ts;
-    s.selection.seed = 3;
-    s.width = w;
-    s.height = h;
-    s.view_distance = 450.0f;
+    struct tw_world_settings s = world_settings(ctx, ts, w, h, 3, 450.0f);
     s.verify = true;
     s.mutate_query_shrink = shrink;
-    s.get_proc = tw_context_get_proc(ctx);
-    s.log = test_log;
     struct tw_world *world = NULL;
     CHECK(tw_world_create(&s, &world) == TW_OK);
     if (world)
         tw_world_record_draws(world, true);
     return world;
-}
-
-static int compare_drawn(const void *a, const void *b)
-{
-    const struct tw_drawn_cluster *x = a, *y = b;
-    if (x->cell.i != y->cell.i) return x->cell.i < y->cell.i ? -1 : 1;
-    if (x->cell.j != y->cell.j) return x->cell.j < y->cell.j ? -1 : 1;
-    if (x->prototype != y->prototype) return x->prototype < y->prototype ? -1 : 1;
-    return (x->cluster > y->cluster) - (x->cluster < y->cluster);
-}
-
-static struct tw_drawn_cluster *copy_drawn(struct tw_world *w, size_t *n)
-{
-    const struct tw_drawn_cluster *d = tw_world_drawn(w, n);
-    struct tw_drawn_cluster *c = malloc(sizeof(*c) * (*n ? *n : 1));
-    if (!c) {
-        *n = 0;
-        return NULL;
-    }
-    memcpy(c, d, sizeof(*c) * *n);
-    qsort(c, *n, sizeof(*c), compare_drawn);
-    return c;
-}
-
-/* Every element of sub (sorted) is in all (sorted); all has no duplicate. */
-static bool is_superset(const struct tw_drawn_cluster *all, size_t na,
-                        const struct tw_drawn_cluster *sub, size_t ns)
-{
-    size_t k = 0;
-    for (size_t q = 0; q < na; q++)
-        if (q > 0 && compare_drawn(&all[q - 1], &all[q]) == 0)
-            return false;   /* a cluster drawn twice in one frame */
-    for (size_t q = 0; q < ns; q++) {
-        while (k < na && compare_drawn(&all[k], &sub[q]) < 0)
-            k++;
-        if (k == na || compare_drawn(&all[k], &sub[q]) != 0)
-            return false;
-    }
-    return true;
 }
 
 struct totals {
@@ -105,7 +49,7 @@ static void check_frame(struct tw_world *w, const struct tw_camera *cam, bool wa
         CHECK(tw_world_frame(w, cam, &st) == TW_OK);
         size_t n = 0;
         struct tw_drawn_cluster *drawn = copy_drawn(w, &n);
-        const bool superset = is_superset(drawn, n, visible, nv);
+        const bool superset = !has_duplicate(drawn, n) && includes(drawn, n, visible, nv);
         if (st.missed_pixels || !superset)
             fprintf(stderr, "%s frame %u: %s missed %llu pixels in %u clusters%s\n", what, f,
                     tw_method_name(methods[m]), (unsigned long long)st.missed_pixels,
@@ -135,12 +79,9 @@ static void test_views(struct tw_context *ctx, const struct tw_tileset *ts)
     struct tw_world *w = make_world(ctx, ts, 320, 180, 0.0f);
     if (!w)
         return;
+    /* The city views of test-runtime, and one from 250 m up. */
     const struct tw_camera views[] = {
-        {{{0, 0}, {0.0f, 1.7f, 2.0f}}, 10.0f, 3.0f},
-        {{{3, -2}, {0.5f, 1.7f, 40.0f}}, 180.0f, 0.0f},
-        {{{-5, 7}, {30.0f, 1.7f, 0.2f}}, 95.0f, 5.0f},
-        {{{1, 1}, {10.0f, 45.0f, 10.0f}}, 40.0f, -12.0f},
-        {{{2, 2}, {0.1f, 1.7f, 0.1f}}, 225.0f, 1.0f},
+        city_views[0], city_views[1], city_views[2], city_views[3], city_views[4],
         {{{4, 4}, {20.0f, 250.0f, 20.0f}}, 60.0f, -20.0f},
     };
     struct totals t = {0};
@@ -218,16 +159,9 @@ int main(int argc, char **argv)
 {
     const bool standard = argc > 1 && strcmp(argv[1], "standard") == 0;
     struct tw_context *ctx = NULL;
-    if (tw_context_create_headless(320, 180, &test_log, &ctx) != TW_OK) {
-        fprintf(stderr, "cannot create the headless context\n");
-        return 1;
-    }
     struct tw_tileset *ts = NULL;
-    if (tw_tilesets_builtin("city", 3, 0, &test_log, &ts) != TW_OK) {
-        fprintf(stderr, "cannot build the city\n");
-        tw_context_destroy(ctx);
+    if (!open_headless(320, 180, "city", 3, &ctx, &ts))
         return 1;
-    }
     struct tw_world *probe = make_world(ctx, ts, 16, 16, 0.0f);
     const bool reversed = tw_world_reversed_z(probe);
     CHECK(probe && reversed == !standard);
@@ -245,10 +179,5 @@ int main(int argc, char **argv)
         test_walk(ctx, "hybrid", "street", 0, 10);
     }
     tw_context_destroy(ctx);
-    if (failures) {
-        fprintf(stderr, "test-hzb-world: %d checks failed\n", failures);
-        return 1;
-    }
-    printf("test-hzb-world: all checks passed\n");
-    return 0;
+    return check_summary("test-hzb-world");
 }

@@ -683,10 +683,5 @@ int main(void)
     test_random();
     test_traversal();
     test_drivers();
-    if (failures) {
-        fprintf(stderr, "test-hzb: %d checks failed\n", failures);
-        return 1;
-    }
-    printf("test-hzb: all checks passed\n");
-    return 0;
+    return check_summary("test-hzb");
 }

@@ -134,10 +134,5 @@ int main(void)
     }
     unlink(file);
     rmdir(dir);
-    if (failures) {
-        fprintf(stderr, "test-pareto: %d checks failed\n", failures);
-        return 1;
-    }
-    printf("test-pareto: all checks passed\n");
-    return 0;
+    return check_summary("test-pareto");
 }

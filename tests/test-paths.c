@@ -201,10 +201,5 @@ int main(void)
     test_messages();
     test_good_file();
     test_files();
-    if (failures) {
-        fprintf(stderr, "test-paths: %d checks failed\n", failures);
-        return 1;
-    }
-    printf("test-paths: all checks passed\n");
-    return 0;
+    return check_summary("test-paths");
 }

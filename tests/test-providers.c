@@ -15,35 +15,12 @@
 #include <string.h>
 #include <time.h>
 
-static int failures;
-
-#define CHECK(cond, ...)                                                             \
-    do {                                                                             \
-        if (!(cond)) {                                                               \
-            fprintf(stderr, "%s:%d: check failed: %s: ", __FILE__, __LINE__, #cond); \
-            fprintf(stderr, __VA_ARGS__);                                            \
-            fputc('\n', stderr);                                                     \
-            failures++;                                                              \
-        }                                                                            \
-    } while (0)
+#include "tests/captured-log.h"
+#include "tests/check.h"
 
 static const uint64_t seed = 1;
 
 /* ---- helpers ------------------------------------------------------------------------ */
-
-struct captured_log {
-    char last[1024];
-    int errors;
-};
-
-static void capture(void *user, enum tw_log_level level, const char *msg)
-{
-    struct captured_log *c = user;
-    if (level == TW_LOG_ERROR) {
-        c->errors++;
-        snprintf(c->last, sizeof(c->last), "%s", msg);
-    }
-}
 
 /* CPU time of the calling thread: what generation costs, whatever else the
  * machine runs. */
@@ -266,8 +243,8 @@ static void fixed_density(const char *name, uint64_t first_seed, uint32_t seeds,
     for (uint32_t s = 0; s < seeds; s++) {
         struct tw_tileset *ts = NULL;
         const int err = tw_tilesets_builtin(name, first_seed + s, 0, NULL, &ts);
-        CHECK(err == 0, "%s seed %llu: %s", name, (unsigned long long)(first_seed + s),
-              tw_error_to_str(err));
+        CHECK_MSG(err == 0, "%s seed %llu: %s", name, (unsigned long long)(first_seed + s),
+                  tw_error_to_str(err));
         if (err)
             continue;
         double ws = 0.0, sums = 0.0, sum2s = 0.0;
@@ -295,32 +272,32 @@ static void fixed_density(const char *name, uint64_t first_seed, uint32_t seeds,
 
 static void test_registry(void)
 {
-    CHECK(tw_tilesets_provider_names[0] && strcmp(tw_tilesets_provider_names[0], "city-gen") == 0 &&
-              tw_tilesets_provider_names[1] &&
-              strcmp(tw_tilesets_provider_names[1], "forest-gen") == 0 &&
-              !tw_tilesets_provider_names[2],
-          "provider names");
-    CHECK(tw_tilesets_is_provider("city-gen") && tw_tilesets_is_provider("forest-gen"),
-          "is_provider misses a provider");
-    CHECK(!tw_tilesets_is_provider("city") && !tw_tilesets_is_provider("forest") &&
-              !tw_tilesets_is_provider("") && !tw_tilesets_is_provider(NULL) &&
-              !tw_tilesets_is_provider("city-gen2"),
-          "is_provider takes a non-provider");
+    CHECK_MSG(tw_tilesets_provider_names[0] && strcmp(tw_tilesets_provider_names[0], "city-gen") == 0 &&
+                  tw_tilesets_provider_names[1] &&
+                  strcmp(tw_tilesets_provider_names[1], "forest-gen") == 0 &&
+                  !tw_tilesets_provider_names[2],
+              "provider names");
+    CHECK_MSG(tw_tilesets_is_provider("city-gen") && tw_tilesets_is_provider("forest-gen"),
+              "is_provider misses a provider");
+    CHECK_MSG(!tw_tilesets_is_provider("city") && !tw_tilesets_is_provider("forest") &&
+                  !tw_tilesets_is_provider("") && !tw_tilesets_is_provider(NULL) &&
+                  !tw_tilesets_is_provider("city-gen2"),
+              "is_provider takes a non-provider");
 
     struct captured_log captured = {0};
     const struct tw_log log = {capture, &captured};
     struct tw_tilesets_provider *p = (struct tw_tilesets_provider *)&captured;
     int err = tw_tilesets_provider_create("town-gen", 1, 0, &log, &p);
-    CHECK(err == TW_ERR_INVALID && !p, "unknown name: %s", tw_error_to_str(err));
-    CHECK(captured.errors == 1 && strstr(captured.last, "town-gen") &&
-              strstr(captured.last, "city-gen"),
-          "unknown name: message \"%s\"", captured.last);
+    CHECK_MSG(err == TW_ERR_INVALID && !p, "unknown name: %s", tw_error_to_str(err));
+    CHECK_MSG(captured.errors == 1 && strstr(captured.last, "town-gen") &&
+                  strstr(captured.last, "city-gen"),
+              "unknown name: message \"%s\"", captured.last);
     err = tw_tilesets_provider_create(NULL, 1, 0, &log, &p);
-    CHECK(err == TW_ERR_INVALID && !p, "NULL name: %s", tw_error_to_str(err));
+    CHECK_MSG(err == TW_ERR_INVALID && !p, "NULL name: %s", tw_error_to_str(err));
     err = tw_tilesets_provider_create("city-gen", 1, 0, &log, NULL);
-    CHECK(err == TW_ERR_INVALID, "NULL out: %s", tw_error_to_str(err));
+    CHECK_MSG(err == TW_ERR_INVALID, "NULL out: %s", tw_error_to_str(err));
     tw_tilesets_provider_destroy(NULL);
-    CHECK(tw_tilesets_provider_get(NULL) == NULL, "get(NULL)");
+    CHECK_MSG(tw_tilesets_provider_get(NULL) == NULL, "get(NULL)");
 
     /* Bad settings are refused with a message that names the provider;
      * prototypes means nothing to a provider and is ignored. */
@@ -328,34 +305,34 @@ static void test_registry(void)
     struct tw_city_settings city = {0};
     city.max_height = 5.0f;
     err = tw_tilesets_provider_create_city(1, &city, &log, &p);
-    CHECK(err == TW_ERR_INVALID && !p && captured.errors == 1 &&
-              strstr(captured.last, "city-gen") && strstr(captured.last, "max_height"),
-          "city-gen max_height 5: %s, \"%s\"", tw_error_to_str(err), captured.last);
+    CHECK_MSG(err == TW_ERR_INVALID && !p && captured.errors == 1 &&
+                  strstr(captured.last, "city-gen") && strstr(captured.last, "max_height"),
+              "city-gen max_height 5: %s, \"%s\"", tw_error_to_str(err), captured.last);
     struct tw_forest_settings forest = {0};
     forest.density = 9.0f;
     err = tw_tilesets_provider_create_forest(1, &forest, &log, &p);
-    CHECK(err == TW_ERR_INVALID && !p && captured.errors == 2 &&
-              strstr(captured.last, "forest-gen") && strstr(captured.last, "density"),
-          "forest-gen density 9: %s, \"%s\"", tw_error_to_str(err), captured.last);
+    CHECK_MSG(err == TW_ERR_INVALID && !p && captured.errors == 2 &&
+                  strstr(captured.last, "forest-gen") && strstr(captured.last, "density"),
+              "forest-gen density 9: %s, \"%s\"", tw_error_to_str(err), captured.last);
     city.max_height = 0.0f;
     city.prototypes = 3;
     err = tw_tilesets_provider_create_city(1, &city, &log, &p);
-    CHECK(err == 0 && p, "city-gen with prototypes 3: %s", tw_error_to_str(err));
+    CHECK_MSG(err == 0 && p, "city-gen with prototypes 3: %s", tw_error_to_str(err));
     tw_tilesets_provider_destroy(p);
 
     for (const char *const *name = tw_tilesets_provider_names; *name; name++) {
         p = NULL;
         err = tw_tilesets_provider_create(*name, 7, 512, &log, &p);
-        CHECK(err == 0 && p, "%s: %s", *name, tw_error_to_str(err));
+        CHECK_MSG(err == 0 && p, "%s: %s", *name, tw_error_to_str(err));
         if (err || !p)
             continue;
         const struct tw_tile_provider *tp = tw_tilesets_provider_get(p);
-        CHECK(tp && strcmp(tp->name, *name) == 0, "%s: provider name", *name);
-        CHECK(tp->footprint[0] == 80.0f && tp->footprint[1] == 80.0f, "%s: footprint %g x %g",
-              *name, (double)tp->footprint[0], (double)tp->footprint[1]);
-        CHECK(tp->max_cluster_triangles == 512, "%s: max_cluster_triangles %u", *name,
-              tp->max_cluster_triangles);
-        CHECK(!tp->content && !tp->shared && tp->generate && tp->user, "%s: callbacks", *name);
+        CHECK_MSG(tp && strcmp(tp->name, *name) == 0, "%s: provider name", *name);
+        CHECK_MSG(tp->footprint[0] == 80.0f && tp->footprint[1] == 80.0f, "%s: footprint %g x %g",
+                  *name, (double)tp->footprint[0], (double)tp->footprint[1]);
+        CHECK_MSG(tp->max_cluster_triangles == 512, "%s: max_cluster_triangles %u", *name,
+                  tp->max_cluster_triangles);
+        CHECK_MSG(!tp->content && !tp->shared && tp->generate && tp->user, "%s: callbacks", *name);
 
         /* generate() is given a fresh tileset of the provider's footprint:
          * anything else is the caller's bug, refused with the cell named. */
@@ -364,25 +341,25 @@ static void test_registry(void)
         captured.errors = 0;
         tw_tileset_create("wrong", 60.0f, 80.0f, &ts);
         err = tp->generate(tp->user, cell, ts);
-        CHECK(err == TW_ERR_INVALID && captured.errors == 1 && strstr(captured.last, "(-3, 12)") &&
-                  strstr(captured.last, "footprint"),
-              "%s: wrong footprint: %s, \"%s\"", *name, tw_error_to_str(err), captured.last);
+        CHECK_MSG(err == TW_ERR_INVALID && captured.errors == 1 && strstr(captured.last, "(-3, 12)") &&
+                      strstr(captured.last, "footprint"),
+                  "%s: wrong footprint: %s, \"%s\"", *name, tw_error_to_str(err), captured.last);
         tw_tileset_destroy(ts);
         tw_tileset_create("taken", 80.0f, 80.0f, &ts);
         tw_tileset_add_prototype(ts, "someone else's", 1.0f);
         err = tp->generate(tp->user, cell, ts);
-        CHECK(err == TW_ERR_INVALID && captured.errors == 2 && strstr(captured.last, "prototype"),
-              "%s: tileset with a prototype: %s, \"%s\"", *name, tw_error_to_str(err),
-              captured.last);
+        CHECK_MSG(err == TW_ERR_INVALID && captured.errors == 2 && strstr(captured.last, "prototype"),
+                  "%s: tileset with a prototype: %s, \"%s\"", *name, tw_error_to_str(err),
+                  captured.last);
         tw_tileset_destroy(ts);
         err = tp->generate(tp->user, cell, NULL);
-        CHECK(err == TW_ERR_INVALID && captured.errors == 3, "%s: NULL tileset: %s", *name,
-              tw_error_to_str(err));
+        CHECK_MSG(err == TW_ERR_INVALID && captured.errors == 3, "%s: NULL tileset: %s", *name,
+                  tw_error_to_str(err));
         /* A good call after the bad ones, with the smaller clusters. */
         ts = NULL;
         err = make_tile(tp, cell, &ts, NULL, NULL);
-        CHECK(err == 0 && ts && captured.errors == 3, "%s: generate: %s (%s)", *name,
-              tw_error_to_str(err), captured.last);
+        CHECK_MSG(err == 0 && ts && captured.errors == 3, "%s: generate: %s (%s)", *name,
+                  tw_error_to_str(err), captured.last);
         if (ts) {
             const struct tw_prototype *proto = &ts->prototypes[0];
             uint32_t largest = 0;
@@ -390,7 +367,7 @@ static void test_registry(void)
                 largest = proto->clusters[k].triangle_count > largest
                               ? proto->clusters[k].triangle_count
                               : largest;
-            CHECK(largest <= 512, "%s: a cluster of %u triangles", *name, largest);
+            CHECK_MSG(largest <= 512, "%s: a cluster of %u triangles", *name, largest);
         }
         tw_tileset_destroy(ts);
         tw_tilesets_provider_destroy(p);
@@ -405,7 +382,7 @@ static void sweep(const char *name, uint32_t cells)
     const struct tw_log log = {capture, &captured};
     struct tw_tilesets_provider *p = NULL;
     int err = tw_tilesets_provider_create(name, seed, 0, &log, &p);
-    CHECK(err == 0 && p, "%s: %s", name, tw_error_to_str(err));
+    CHECK_MSG(err == 0 && p, "%s: %s", name, tw_error_to_str(err));
     if (err || !p)
         return;
     const struct tw_tile_provider *tp = tw_tilesets_provider_get(p);
@@ -424,7 +401,7 @@ static void sweep(const char *name, uint32_t cells)
     uint64_t *digests = calloc(cells, sizeof(uint64_t));
     uint32_t *tri_count = calloc(cells, sizeof(uint32_t));
     if (!triangles || !generate_ms || !total_ms || !bytes || !digests || !tri_count) {
-        CHECK(false, "%s: out of memory", name);
+        CHECK_MSG(false, "%s: out of memory", name);
         goto out;
     }
 
@@ -477,22 +454,22 @@ static void sweep(const char *name, uint32_t cells)
         tw_tileset_destroy(ts);
     }
     const uint32_t checked_borders = cells < 500 ? cells : 500;
-    CHECK(failed == 0 && captured.errors == 0, "%s: %u of %u cells failed (%s)", name, failed,
-          cells, captured.last);
-    CHECK(outside == 0, "%s: %u tiles leave the bound (first: cell %u)", name, outside,
-          outside_first);
-    CHECK(off_ground == 0, "%s: %u tiles do not span the footprint from y = 0", name, off_ground);
-    CHECK(wasted == 0, "%s: %u meshes that no instance draws", name, wasted);
-    CHECK(band_bad == 0, "%s: %u of %u tiles block the %s (first: cell %u)", name, band_bad,
-          checked_borders, city ? "street" : "trail", band_first);
-    CHECK(band_seen * 2 > checked_borders, "%s: the border check sees nothing beyond the band "
-          "(%u of %u tiles)", name, band_seen, checked_borders);
+    CHECK_MSG(failed == 0 && captured.errors == 0, "%s: %u of %u cells failed (%s)", name, failed,
+              cells, captured.last);
+    CHECK_MSG(outside == 0, "%s: %u tiles leave the bound (first: cell %u)", name, outside,
+              outside_first);
+    CHECK_MSG(off_ground == 0, "%s: %u tiles do not span the footprint from y = 0", name, off_ground);
+    CHECK_MSG(wasted == 0, "%s: %u meshes that no instance draws", name, wasted);
+    CHECK_MSG(band_bad == 0, "%s: %u of %u tiles block the %s (first: cell %u)", name, band_bad,
+              checked_borders, city ? "street" : "trail", band_first);
+    CHECK_MSG(band_seen * 2 > checked_borders, "%s: the border check sees nothing beyond the band "
+              "(%u of %u tiles)", name, band_seen, checked_borders);
     /* A true bound and not a loose one: within 10 % of the tallest tile. */
     printf("  tallest of %u tiles %.3f m: bound %.3f m is %.2f %% above\n", cells,
            (double)tallest, (double)bound.max[1],
            100.0 * ((double)bound.max[1] / (double)tallest - 1.0));
-    CHECK(bound.max[1] <= 1.1f * tallest, "%s: bound height %g m is loose (tallest %g m)", name,
-          (double)bound.max[1], (double)tallest);
+    CHECK_MSG(bound.max[1] <= 1.1f * tallest, "%s: bound height %g m is loose (tallest %g m)", name,
+              (double)bound.max[1], (double)tallest);
 
     /* No two cells alike: every digest differs, and neighbours differ even
      * in their triangle counts. */
@@ -514,9 +491,9 @@ static void sweep(const char *name, uint32_t cells)
     printf("  variety: %u equal digests among %u tiles; %u of %u neighbour pairs with equal "
            "triangle counts\n",
            equal_digests, cells, same_count, neighbours);
-    CHECK(equal_digests == 0, "%s: %u pairs of equal tiles", name, equal_digests);
-    CHECK(same_count * 100 <= neighbours, "%s: %u of %u neighbours have equal triangle counts",
-          name, same_count, neighbours);
+    CHECK_MSG(equal_digests == 0, "%s: %u pairs of equal tiles", name, equal_digests);
+    CHECK_MSG(same_count * 100 <= neighbours, "%s: %u of %u neighbours have equal triangle counts",
+              name, same_count, neighbours);
 
     /* Density: the fixed tileset's cells, over 16 seeds (the first one
      * alone shown too), against every swept cell and the first 200. */
@@ -540,10 +517,10 @@ static void sweep(const char *name, uint32_t cells)
            "mean %+.1f %%, sd %+.1f %%\n",
            100.0 * (tri.mean / fixed_mean - 1.0), 100.0 * (tri.sd / fixed_sd - 1.0),
            100.0 * (s200.mean / fixed_mean - 1.0), 100.0 * (s200.sd / fixed_sd - 1.0));
-    CHECK(fabs(tri.mean / fixed_mean - 1.0) <= 0.10, "%s: mean %.0f triangles, fixed %.0f", name,
-          tri.mean, fixed_mean);
-    CHECK(fabs(tri.sd / fixed_sd - 1.0) <= 0.10, "%s: sd %.0f triangles, fixed %.0f", name,
-          tri.sd, fixed_sd);
+    CHECK_MSG(fabs(tri.mean / fixed_mean - 1.0) <= 0.10, "%s: mean %.0f triangles, fixed %.0f", name,
+              tri.mean, fixed_mean);
+    CHECK_MSG(fabs(tri.sd / fixed_sd - 1.0) <= 0.10, "%s: sd %.0f triangles, fixed %.0f", name,
+              tri.sd, fixed_sd);
 
     const struct summary mb = summarize(bytes, cells);
     const struct summary g = summarize(generate_ms, cells);
@@ -551,7 +528,7 @@ static void sweep(const char *name, uint32_t cells)
     print_summary("tw_tileset_bytes per tile, MB", &mb);
     print_summary("generate, CPU ms", &g);
     print_summary("generate + finish, CPU ms", &t);
-    CHECK(mb.min > 0.0, "%s: a tile of no bytes", name);
+    CHECK_MSG(mb.min > 0.0, "%s: a tile of no bytes", name);
 
 out:
     free(triangles);
@@ -598,7 +575,7 @@ static void test_determinism(const char *name)
 {
     struct tw_tilesets_provider *p = NULL;
     int err = tw_tilesets_provider_create(name, seed, 0, NULL, &p);
-    CHECK(err == 0 && p, "%s: %s", name, tw_error_to_str(err));
+    CHECK_MSG(err == 0 && p, "%s: %s", name, tw_error_to_str(err));
     if (err || !p)
         return;
     const struct tw_tile_provider *tp = tw_tilesets_provider_get(p);
@@ -612,8 +589,8 @@ static void test_determinism(const char *name)
     uint32_t made = 0, same_again = 0;
     for (uint32_t k = 0; k < SHARED_CELLS; k++) {
         err = make_tile(tp, cells[k], &reference[k], NULL, NULL);
-        CHECK(err == 0, "%s: cell (%lld, %lld): %s", name, (long long)cells[k].i,
-              (long long)cells[k].j, tw_error_to_str(err));
+        CHECK_MSG(err == 0, "%s: cell (%lld, %lld): %s", name, (long long)cells[k].i,
+                  (long long)cells[k].j, tw_error_to_str(err));
         if (err)
             continue;
         made++;
@@ -623,12 +600,12 @@ static void test_determinism(const char *name)
             same_again++;
         tw_tileset_destroy(again);
     }
-    CHECK(made == SHARED_CELLS && same_again == SHARED_CELLS,
-          "%s: %u of %u cells the same when made again", name, same_again, made);
+    CHECK_MSG(made == SHARED_CELLS && same_again == SHARED_CELLS,
+              "%s: %u of %u cells the same when made again", name, same_again, made);
     /* The comparison can fail: neighbours are not identical. */
     if (reference[0] && reference[1])
-        CHECK(!tiles_identical(reference[0], reference[1]), "%s: cells (0, 0) and (1, 0) are "
-              "identical", name);
+        CHECK_MSG(!tiles_identical(reference[0], reference[1]), "%s: cells (0, 0) and (1, 0) are "
+                  "identical", name);
     if (made != SHARED_CELLS)
         goto out;
 
@@ -638,7 +615,7 @@ static void test_determinism(const char *name)
     for (uint32_t t = 0; t < THREADS; t++) {
         workers[t] = (struct worker){tp, cells, reference, 3 * t, 0, 0, 0};
         started[t] = pthread_create(&threads[t], NULL, work, &workers[t]) == 0;
-        CHECK(started[t], "%s: pthread_create failed", name);
+        CHECK_MSG(started[t], "%s: pthread_create failed", name);
     }
     uint32_t tiles = 0, errors = 0, mismatches = 0;
     for (uint32_t t = 0; t < THREADS; t++) {
@@ -652,9 +629,9 @@ static void test_determinism(const char *name)
     printf("%s: %u tiles made by %d threads at once, %u errors, %u differ from the "
            "single-threaded ones\n",
            name, tiles, THREADS, errors, mismatches);
-    CHECK(errors == 0 && mismatches == 0 && tiles == THREADS * 2 * SHARED_CELLS,
-          "%s: %u errors, %u of %u tiles differ when made by %d threads", name, errors,
-          mismatches, tiles, THREADS);
+    CHECK_MSG(errors == 0 && mismatches == 0 && tiles == THREADS * 2 * SHARED_CELLS,
+              "%s: %u errors, %u of %u tiles differ when made by %d threads", name, errors,
+              mismatches, tiles, THREADS);
 out:
     for (uint32_t k = 0; k < SHARED_CELLS; k++)
         tw_tileset_destroy(reference[k]);
@@ -677,17 +654,17 @@ static void test_settings(void)
         struct tw_tilesets_provider *p = NULL;
         const int err = which == 0 ? tw_tilesets_provider_create_city(3, &city, NULL, &p)
                                    : tw_tilesets_provider_create_forest(3, &forest, NULL, &p);
-        CHECK(err == 0 && p, "settings %d: %s", which, tw_error_to_str(err));
+        CHECK_MSG(err == 0 && p, "settings %d: %s", which, tw_error_to_str(err));
         if (err || !p)
             continue;
         const struct tw_tile_provider *tp = tw_tilesets_provider_get(p);
-        CHECK(tp->footprint[0] == 120.0f && tp->bound.max[0] == 120.0f &&
-                  tp->bound.max[2] == 120.0f,
-              "%s: footprint %g, bound x %g", tp->name, (double)tp->footprint[0],
-              (double)tp->bound.max[0]);
+        CHECK_MSG(tp->footprint[0] == 120.0f && tp->bound.max[0] == 120.0f &&
+                      tp->bound.max[2] == 120.0f,
+                  "%s: footprint %g, bound x %g", tp->name, (double)tp->footprint[0],
+                  (double)tp->bound.max[0]);
         if (which == 0)
-            CHECK(tp->bound.max[1] == 40.25f, "city-gen, max_height 40: bound height %g",
-                  (double)tp->bound.max[1]);
+            CHECK_MSG(tp->bound.max[1] == 40.25f, "city-gen, max_height 40: bound height %g",
+                      (double)tp->bound.max[1]);
         uint32_t outside = 0, blocked = 0, made = 0;
         float tallest = 0.0f;
         for (int k = 0; k < 150; k++) {
@@ -705,11 +682,11 @@ static void test_settings(void)
         }
         printf("%s, footprint 120: %u tiles, tallest %.2f m, bound %.2f m\n", tp->name, made,
                (double)tallest, (double)tp->bound.max[1]);
-        CHECK(made == 150 && outside == 0 && blocked == 0,
-              "%s, other settings: %u made, %u outside the bound, %u with blocked borders",
-              tp->name, made, outside, blocked);
-        CHECK(tp->bound.max[1] <= 1.1f * tallest, "%s, other settings: bound %g, tallest %g",
-              tp->name, (double)tp->bound.max[1], (double)tallest);
+        CHECK_MSG(made == 150 && outside == 0 && blocked == 0,
+                  "%s, other settings: %u made, %u outside the bound, %u with blocked borders",
+                  tp->name, made, outside, blocked);
+        CHECK_MSG(tp->bound.max[1] <= 1.1f * tallest, "%s, other settings: bound %g, tallest %g",
+                  tp->name, (double)tp->bound.max[1], (double)tallest);
         tw_tilesets_provider_destroy(p);
     }
 }
@@ -727,10 +704,5 @@ int main(int argc, char **argv)
     test_settings();
     sweep("city-gen", cells);
     sweep("forest-gen", cells);
-    if (failures) {
-        fprintf(stderr, "test-providers: %d checks failed\n", failures);
-        return 1;
-    }
-    printf("test-providers: all checks passed\n");
-    return 0;
+    return check_summary("test-providers");
 }

@@ -4,35 +4,19 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "tileworld/context.h"
-#include "tileworld/runtime.h"
-#include "tileworld/tilesets.h"
 #include "tests/check.h"
+#include "tests/drawn-set.h"
+#include "tests/headless-world.h"
+#include "tests/image-diff.h"
 
 enum { W = 320, H = 180 };
-
-static void log_stderr(void *user, enum tw_log_level level, const char *msg)
-{
-    (void)user;
-    if (level <= TW_LOG_WARN)
-        fprintf(stderr, "log: %s\n", msg);
-}
-
-static const struct tw_log test_log = {log_stderr, NULL};
 
 static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tileset *ts,
                                    int64_t repeat)
 {
-    struct tw_world_settings s = {0};
-    s.tileset = ts;
-    s.selection.seed = 1;
+    struct tw_world_settings s = world_settings(ctx, ts, W, H, 1, 400.0f);
     s.selection.repeat = repeat;
-    s.width = W;
-    s.height = H;
-    s.view_distance = 400.0f;
     s.verify = true;
-    s.get_proc = tw_context_get_proc(ctx);
-    s.log = test_log;
     struct tw_world *w = NULL;
     if (tw_world_create(&s, &w) != TW_OK)
         return NULL;
@@ -55,47 +39,6 @@ static bool is_sky(const uint8_t *p)
     return abs(p[0] - 179) <= 1 && abs(p[1] - 204) <= 1 && abs(p[2] - 235) <= 1;
 }
 
-static uint32_t count_differing(const uint8_t *a, const uint8_t *b)
-{
-    uint32_t n = 0;
-    for (uint32_t k = 0; k < W * H; k++)
-        n += memcmp(a + 3 * k, b + 3 * k, 3) != 0;
-    return n;
-}
-
-static int compare_drawn(const void *a, const void *b)
-{
-    const struct tw_drawn_cluster *x = a, *y = b;
-    if (x->cell.i != y->cell.i) return x->cell.i < y->cell.i ? -1 : 1;
-    if (x->cell.j != y->cell.j) return x->cell.j < y->cell.j ? -1 : 1;
-    return (x->cluster > y->cluster) - (x->cluster < y->cluster);
-}
-
-static struct tw_drawn_cluster *copy_drawn(struct tw_world *w, size_t *n)
-{
-    const struct tw_drawn_cluster *d = tw_world_drawn(w, n);
-    struct tw_drawn_cluster *c = malloc(sizeof(*c) * (*n ? *n : 1));
-    memcpy(c, d, sizeof(*c) * *n);
-    qsort(c, *n, sizeof(*c), compare_drawn);
-    return c;
-}
-
-/* sub is a subset of all (both sorted), and sub has no duplicates. */
-static bool is_subset(const struct tw_drawn_cluster *sub, size_t ns,
-                      const struct tw_drawn_cluster *all, size_t na)
-{
-    size_t k = 0;
-    for (size_t q = 0; q < ns; q++) {
-        if (q > 0 && compare_drawn(&sub[q - 1], &sub[q]) == 0)
-            return false;
-        while (k < na && compare_drawn(&all[k], &sub[q]) < 0)
-            k++;
-        if (k == na || compare_drawn(&all[k], &sub[q]) != 0)
-            return false;
-    }
-    return true;
-}
-
 /* On fixed city views, every occlusion-culling method gives the image of
  * vfc while drawing a subset of vfc's clusters, and misses no visible
  * cluster by the oracle; chc and tilequery+chc draw strictly fewer once warm.
@@ -111,19 +54,12 @@ static void test_methods_match_vfc(struct tw_context *ctx, const struct tw_tiles
     if (!w)
         return;
     tw_world_record_draws(w, true);
-    const struct tw_camera views[] = {
-        {{{0, 0}, {0.0f, 1.7f, 2.0f}}, 10.0f, 3.0f},
-        {{{3, -2}, {0.5f, 1.7f, 40.0f}}, 180.0f, 0.0f},
-        {{{-5, 7}, {30.0f, 1.7f, 0.2f}}, 95.0f, 5.0f},
-        {{{1, 1}, {10.0f, 45.0f, 10.0f}}, 40.0f, -12.0f},
-        {{{2, 2}, {0.1f, 1.7f, 0.1f}}, 225.0f, 1.0f},
-    };
     const enum tw_method methods[] = {TW_METHOD_CHC, TW_METHOD_TILEQUERY, TW_METHOD_TILEQUERY_CHC};
     uint8_t *ref = malloc(W * H * 3), *img = malloc(W * H * 3);
-    for (size_t v = 0; v < sizeof(views) / sizeof(views[0]); v++) {
+    for (size_t v = 0; v < sizeof(city_views) / sizeof(city_views[0]); v++) {
         CHECK(tw_world_set_method(w, TW_METHOD_VFC) == TW_OK);
         struct tw_frame_stats vst;
-        CHECK(render(w, &views[v], ref, &vst) == TW_OK);
+        CHECK(render(w, &city_views[v], ref, &vst) == TW_OK);
         size_t nv;
         struct tw_drawn_cluster *dv = copy_drawn(w, &nv);
         CHECK(nv == vst.clusters);
@@ -131,15 +67,16 @@ static void test_methods_match_vfc(struct tw_context *ctx, const struct tw_tiles
             CHECK(tw_world_set_method(w, methods[m]) == TW_OK);
             for (int f = 0; f < 4; f++) {
                 struct tw_frame_stats st;
-                CHECK(render(w, &views[v], img, &st) == TW_OK);
+                CHECK(render(w, &city_views[v], img, &st) == TW_OK);
                 size_t n;
                 struct tw_drawn_cluster *d = copy_drawn(w, &n);
-                const uint32_t differing = count_differing(ref, img);
+                const uint32_t differing = count_differing(ref, img, W * H);
                 const bool same = differing <= W * H / 10000;
                 CHECK(same);
                 CHECK(st.missed_pixels == 0 && st.missed_clusters == 0);
-                CHECK(is_subset(d, n, dv, nv));
-                if (f >= 2 && methods[m] != TW_METHOD_TILEQUERY && views[v].pos.local[1] < 10.0f)
+                CHECK(!has_duplicate(d, n) && includes(dv, nv, d, n));
+                if (f >= 2 && methods[m] != TW_METHOD_TILEQUERY &&
+                    city_views[v].pos.local[1] < 10.0f)
                     CHECK(n < nv);
                 if (!same || f == 3 || differing)
                     printf("view %zu %-13s frame %d: %zu of vfc's %zu clusters, %u queries, "
@@ -159,15 +96,9 @@ static void test_methods_match_vfc(struct tw_context *ctx, const struct tw_tiles
 int main(void)
 {
     struct tw_context *ctx = NULL;
-    if (tw_context_create_headless(W, H, &test_log, &ctx) != TW_OK) {
-        fprintf(stderr, "cannot create the headless context\n");
-        return 1;
-    }
     struct tw_tileset *ts = NULL;
-    if (tw_tilesets_builtin("city", 1, 0, &test_log, &ts) != TW_OK) {
-        fprintf(stderr, "cannot build the city\n");
+    if (!open_headless(W, H, "city", 1, &ctx, &ts))
         return 1;
-    }
     uint8_t *a = malloc(W * H * 3), *b = malloc(W * H * 3);
 
     /* A known view: on the street at a crossing, looking down +z. */
@@ -245,10 +176,5 @@ int main(void)
     free(b);
     tw_tileset_destroy(ts);
     tw_context_destroy(ctx);
-    if (failures) {
-        fprintf(stderr, "test-runtime: %d checks failed\n", failures);
-        return 1;
-    }
-    printf("test-runtime: all checks passed\n");
-    return 0;
+    return check_summary("test-runtime");
 }

@@ -16,6 +16,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "tests/captured-log.h"
 #include "tests/check.h"
 #include "tileworld/context.h"
 #include "tileworld/runtime.h"
@@ -102,23 +103,9 @@ static struct tw_tile_provider block_provider(struct blocks *b)
 
 /* ---- helpers ------------------------------------------------------------------------------- */
 
-struct capture {
-    char last[512];
-    unsigned errors;
-};
-
-static void capture_log(void *user, enum tw_log_level level, const char *msg)
-{
-    struct capture *c = user;
-    if (level == TW_LOG_ERROR) {
-        snprintf(c->last, sizeof(c->last), "%s", msg);
-        c->errors++;
-    }
-}
-
 static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tile_provider *p,
                                    uint32_t workers, enum tw_stream_policy policy,
-                                   uint64_t budget, struct capture *cap)
+                                   uint64_t budget, struct captured_log *cap)
 {
     struct tw_world_settings s = {0};
     s.provider = p;
@@ -130,7 +117,7 @@ static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tile_
     s.view_distance = 300.0f;
     s.deterministic = true;
     s.get_proc = tw_context_get_proc(ctx);
-    s.log = (struct tw_log){capture_log, cap};
+    s.log = (struct tw_log){capture, cap};
     struct tw_world *w = NULL;
     return tw_world_create(&s, &w) == TW_OK ? w : NULL;
 }
@@ -174,7 +161,7 @@ static void test_workers(struct tw_context *ctx)
     for (int r = 0; r < 2 && rgb; r++) {
         struct blocks b = {.seed = 7, .too_tall_i = INT64_MIN};
         const struct tw_tile_provider p = block_provider(&b);
-        struct capture cap = {0};
+        struct captured_log cap = {0};
         struct tw_world *w = make_world(ctx, &p, workers[r], TW_STREAM_WAIT, 0, &cap);
         CHECK(w != NULL);
         for (uint32_t f = 0; w && f < FRAMES; f++) {
@@ -236,7 +223,7 @@ static void test_budget(struct tw_context *ctx)
     enum { FRAMES = 90 };
     struct blocks b = {.seed = 11, .too_tall_i = INT64_MIN};
     const struct tw_tile_provider p = block_provider(&b);
-    struct capture cap = {0};
+    struct captured_log cap = {0};
     const uint64_t budget = 400u << 10;
     struct tw_world *w = make_world(ctx, &p, 2, TW_STREAM_WAIT, budget, &cap);
     struct ledger l = {0};
@@ -298,7 +285,7 @@ static void test_invalidate(struct tw_context *ctx)
 {
     struct blocks b = {.seed = 3, .too_tall_i = INT64_MIN};
     const struct tw_tile_provider p = block_provider(&b);
-    struct capture cap = {0};
+    struct captured_log cap = {0};
     struct tw_world *w = make_world(ctx, &p, 2, TW_STREAM_WAIT, 0, &cap);
     uint8_t *a = malloc(W * H * 3), *fresh = malloc(W * H * 3);
     CHECK(w && a && fresh);
@@ -343,7 +330,7 @@ static void test_bound(struct tw_context *ctx)
 {
     struct blocks b = {.seed = 5, .too_tall_i = 0};
     const struct tw_tile_provider p = block_provider(&b);
-    struct capture cap = {0};
+    struct captured_log cap = {0};
     struct tw_world *w = make_world(ctx, &p, 1, TW_STREAM_WAIT, 0, &cap);
     CHECK(w != NULL);
     uint32_t refused = 0;
@@ -387,7 +374,7 @@ static void test_impure_selection(struct tw_context *ctx)
     if (!ts)
         return;
     struct flipping fl = {0, ts->prototype_count};
-    struct capture cap = {0};
+    struct captured_log cap = {0};
     struct tw_world_settings s = {0};
     s.tileset = ts;
     s.selection.fn = flip_select;
@@ -396,7 +383,7 @@ static void test_impure_selection(struct tw_context *ctx)
     s.height = H;
     s.verify = true;
     s.get_proc = tw_context_get_proc(ctx);
-    s.log = (struct tw_log){capture_log, &cap};
+    s.log = (struct tw_log){capture, &cap};
     struct tw_world *w = NULL;
     CHECK(tw_world_create(&s, &w) == TW_OK);
     uint64_t missed = 0, fresh = 0;
@@ -431,7 +418,7 @@ static void test_skip(struct tw_context *ctx)
 {
     struct blocks b = {.seed = 9, .too_tall_i = INT64_MIN};
     const struct tw_tile_provider p = block_provider(&b);
-    struct capture cap = {0};
+    struct captured_log cap = {0};
     struct tw_world *w = make_world(ctx, &p, 2, TW_STREAM_SKIP, 0, &cap);
     CHECK(w != NULL);
     uint32_t first_pending = 0, last_pending = 0;
@@ -459,7 +446,7 @@ static void test_many_cells(struct tw_context *ctx)
 {
     struct blocks b = {.seed = 13, .too_tall_i = INT64_MIN};
     const struct tw_tile_provider p = block_provider(&b);
-    struct capture cap = {0};
+    struct captured_log cap = {0};
     struct tw_world *w = make_world(ctx, &p, 2, TW_STREAM_WAIT, 256u << 10, &cap);
     CHECK(w != NULL);
     uint64_t early_peak = 0, late_peak = 0;   /* frames 100-299, 400-599 */
@@ -502,9 +489,5 @@ int main(void)
     test_skip(ctx);
     test_many_cells(ctx);
     tw_context_destroy(ctx);
-    if (failures) {
-        fprintf(stderr, "test-stream: %d checks failed\n", failures);
-        return 1;
-    }
-    return 0;
+    return check_summary("test-stream");
 }

@@ -421,10 +421,5 @@ int main(void)
     test_near_plane_rule();
     test_memory_bounded();
     test_last_cells();
-    if (failures) {
-        fprintf(stderr, "test-tilequery: %d checks failed\n", failures);
-        return 1;
-    }
-    printf("test-tilequery: all checks passed\n");
-    return 0;
+    return check_summary("test-tilequery");
 }

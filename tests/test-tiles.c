@@ -497,10 +497,5 @@ int main(void)
     test_boxes();
     test_selection();
     test_tileset_builder();
-    if (failures) {
-        fprintf(stderr, "test-tiles: %d checks failed\n", failures);
-        return 1;
-    }
-    printf("test-tiles: all checks passed\n");
-    return 0;
+    return check_summary("test-tiles");
 }

@@ -8,32 +8,8 @@
 #include <string.h>
 #include <time.h>
 
-static int failures;
-
-#define CHECK(cond, ...)                                                        \
-    do {                                                                        \
-        if (!(cond)) {                                                          \
-            fprintf(stderr, "%s:%d: check failed: %s: ", __FILE__, __LINE__, #cond); \
-            fprintf(stderr, __VA_ARGS__);                                       \
-            fputc('\n', stderr);                                                \
-            failures++;                                                         \
-        }                                                                       \
-    } while (0)
-
-/* A logger that keeps the last error message. */
-struct captured_log {
-    char last[1024];
-    int errors;
-};
-
-static void capture(void *user, enum tw_log_level level, const char *msg)
-{
-    struct captured_log *c = user;
-    if (level == TW_LOG_ERROR) {
-        c->errors++;
-        snprintf(c->last, sizeof(c->last), "%s", msg);
-    }
-}
+#include "tests/captured-log.h"
+#include "tests/check.h"
 
 static double now_seconds(void)
 {
@@ -93,14 +69,16 @@ static bool tilesets_identical(const struct tw_tileset *a, const struct tw_tiles
     return true;
 }
 
-/* Nothing above the kerb within street_width / 2 - 1 m of a border: a
- * triangle whose horizontal extent reaches into that band must lie below
- * kerb_max. Conservative: the triangle's bounding rectangle is tested. */
-static uint64_t street_band_violations(const struct tw_tileset *ts, float band,
-                                       const char **where)
+/* Counts the triangles of ts, placed by their instances, whose horizontal
+ * extent reaches within band of a border and whose bounds lo, hi bad()
+ * refuses (given limit); *where names the first one's prototype.
+ * Conservative: the triangle's bounding rectangle is tested. */
+static uint64_t band_violations(const struct tw_tileset *ts, float band,
+                                bool (*bad)(const float lo[3], const float hi[3], float limit),
+                                float limit, const char **where)
 {
-    const float w = ts->footprint[0], d = ts->footprint[1], kerb_max = 0.2f;
-    uint64_t bad = 0;
+    const float w = ts->footprint[0], d = ts->footprint[1];
+    uint64_t count = 0;
     for (uint32_t p = 0; p < ts->prototype_count; p++) {
         const struct tw_prototype *proto = &ts->prototypes[p];
         for (uint32_t k = 0; k < proto->instance_count; k++) {
@@ -118,15 +96,30 @@ static uint64_t street_band_violations(const struct tw_tileset *ts, float band,
                 }
                 const bool in_band = lo[0] < band || hi[0] > w - band || lo[2] < band ||
                                      hi[2] > d - band;
-                if (in_band && hi[1] > kerb_max) {
-                    if (!bad)
+                if (in_band && bad(lo, hi, limit)) {
+                    if (!count)
                         *where = proto->name;
-                    bad++;
+                    count++;
                 }
             }
         }
     }
-    return bad;
+    return count;
+}
+
+static bool above(const float lo[3], const float hi[3], float kerb_max)
+{
+    (void)lo;
+    return hi[1] > kerb_max;
+}
+
+/* Nothing above the kerb within street_width / 2 - 1 m of a border: a
+ * triangle whose horizontal extent reaches into that band must lie below
+ * the kerb's 0.2 m. */
+static uint64_t street_band_violations(const struct tw_tileset *ts, float band,
+                                       const char **where)
+{
+    return band_violations(ts, band, above, 0.2f, where);
 }
 
 /* A mesh that tw_tileset_finish() merged from instances. */
@@ -181,40 +174,18 @@ static uint64_t shading_violations(const struct tw_tileset *ts)
 }
 
 
+static bool in_headroom(const float lo[3], const float hi[3], float headroom)
+{
+    return hi[1] > 0.05f && lo[1] < headroom;
+}
+
 /* The forest's walking band: a triangle whose horizontal extent reaches
  * within band of a border must lie on the ground (max y <= ground + 0.05)
- * or overhead (min y >= ground + headroom). Conservative as above. */
+ * or overhead (min y >= ground + headroom). */
 static uint64_t headroom_violations(const struct tw_tileset *ts, float band, float headroom,
                                     const char **where)
 {
-    const float w = ts->footprint[0], d = ts->footprint[1];
-    uint64_t bad = 0;
-    for (uint32_t p = 0; p < ts->prototype_count; p++) {
-        const struct tw_prototype *proto = &ts->prototypes[p];
-        for (uint32_t k = 0; k < proto->instance_count; k++) {
-            const struct tw_instance *in = &proto->instances[k];
-            const struct tw_mesh *m = &ts->meshes[in->mesh];
-            for (uint32_t t = 0; t < m->triangle_count; t++) {
-                float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
-                for (int v = 0; v < 3; v++) {
-                    float q[3];
-                    transform_point(in->transform, m->positions + 3 * m->indices[3 * t + v], q);
-                    for (int a = 0; a < 3; a++) {
-                        lo[a] = fminf(lo[a], q[a]);
-                        hi[a] = fmaxf(hi[a], q[a]);
-                    }
-                }
-                const bool in_band = lo[0] < band || hi[0] > w - band || lo[2] < band ||
-                                     hi[2] > d - band;
-                if (in_band && hi[1] > 0.05f && lo[1] < headroom) {
-                    if (!bad)
-                        *where = proto->name;
-                    bad++;
-                }
-            }
-        }
-    }
-    return bad;
+    return band_violations(ts, band, in_headroom, headroom, where);
 }
 
 /* Checks that hold for every generated tileset: finished, boxes inside the
@@ -222,41 +193,41 @@ static uint64_t headroom_violations(const struct tw_tileset *ts, float band, flo
  * flat shading, every material used, triangle counts in [10k, 100k]. */
 static void check_common(const struct tw_tileset *ts, const char *what)
 {
-    CHECK(ts->finished, "%s: not finished", what);
+    CHECK_MSG(ts->finished, "%s: not finished", what);
     const float w = ts->footprint[0], d = ts->footprint[1], eps = 1e-4f;
     bool *material_used = calloc(ts->material_count, sizeof(bool));
     for (uint32_t p = 0; p < ts->prototype_count; p++) {
         const struct tw_prototype *proto = &ts->prototypes[p];
-        CHECK(proto->triangle_count >= 10000 && proto->triangle_count <= 100000,
-              "%s: %llu triangles", proto->name, (unsigned long long)proto->triangle_count);
-        CHECK(proto->weight > 0.0f, "%s: weight %g", proto->name, (double)proto->weight);
-        CHECK(proto->box.min[0] >= -eps && proto->box.max[0] <= w + eps &&
-              proto->box.min[2] >= -eps && proto->box.max[2] <= d + eps,
-              "%s: box x [%g, %g] z [%g, %g] leaves the footprint", proto->name,
-              (double)proto->box.min[0], (double)proto->box.max[0],
-              (double)proto->box.min[2], (double)proto->box.max[2]);
-        CHECK(proto->box.max[1] > 0.0f && proto->box.min[1] >= -eps, "%s: box y [%g, %g]",
-              proto->name, (double)proto->box.min[1], (double)proto->box.max[1]);
-        CHECK(box_contains(&ts->common_box, &proto->box), "%s: not inside the common box",
-              proto->name);
+        CHECK_MSG(proto->triangle_count >= 10000 && proto->triangle_count <= 100000,
+                  "%s: %llu triangles", proto->name, (unsigned long long)proto->triangle_count);
+        CHECK_MSG(proto->weight > 0.0f, "%s: weight %g", proto->name, (double)proto->weight);
+        CHECK_MSG(proto->box.min[0] >= -eps && proto->box.max[0] <= w + eps &&
+                  proto->box.min[2] >= -eps && proto->box.max[2] <= d + eps,
+                  "%s: box x [%g, %g] z [%g, %g] leaves the footprint", proto->name,
+                  (double)proto->box.min[0], (double)proto->box.max[0],
+                  (double)proto->box.min[2], (double)proto->box.max[2]);
+        CHECK_MSG(proto->box.max[1] > 0.0f && proto->box.min[1] >= -eps, "%s: box y [%g, %g]",
+                  proto->name, (double)proto->box.min[1], (double)proto->box.max[1]);
+        CHECK_MSG(box_contains(&ts->common_box, &proto->box), "%s: not inside the common box",
+                  proto->name);
         uint64_t cluster_triangles = 0;
         for (uint32_t k = 0; k < proto->cluster_count; k++) {
-            CHECK(proto->clusters[k].triangle_count <= ts->max_cluster_triangles,
-                  "%s: cluster of %u triangles", proto->name, proto->clusters[k].triangle_count);
+            CHECK_MSG(proto->clusters[k].triangle_count <= ts->max_cluster_triangles,
+                      "%s: cluster of %u triangles", proto->name, proto->clusters[k].triangle_count);
             cluster_triangles += proto->clusters[k].triangle_count;
         }
-        CHECK(cluster_triangles == proto->triangle_count, "%s: clusters hold %llu triangles",
-              proto->name, (unsigned long long)cluster_triangles);
+        CHECK_MSG(cluster_triangles == proto->triangle_count, "%s: clusters hold %llu triangles",
+                  proto->name, (unsigned long long)cluster_triangles);
         for (uint32_t k = 0; k < proto->instance_count; k++)
             if (material_used && proto->instances[k].material < ts->material_count)
                 material_used[proto->instances[k].material] = true;
     }
     for (uint32_t k = 0; material_used && k < ts->material_count; k++)
-        CHECK(material_used[k], "%s: material %u is never used", what, k);
+        CHECK_MSG(material_used[k], "%s: material %u is never used", what, k);
     free(material_used);
     const uint64_t shading_bad = shading_violations(ts);
-    CHECK(shading_bad == 0, "%s: %llu triangles not flat shaded or wound clockwise", what,
-          (unsigned long long)shading_bad);
+    CHECK_MSG(shading_bad == 0, "%s: %llu triangles not flat shaded or wound clockwise", what,
+              (unsigned long long)shading_bad);
 }
 
 /* The ground and trail instances span the tile; everything else is an
@@ -374,49 +345,132 @@ static float ray_world(const struct tw_tileset *ts, uint64_t seed, const float o
     return INFINITY;
 }
 
+/* The three generators behind one signature (set: the generator's own
+ * settings struct, or NULL), for the checks they share. */
+typedef int generator_fn(uint64_t seed, const void *set, const struct tw_log *log,
+                         struct tw_tileset **out);
+
+static int generate_city(uint64_t seed, const void *set, const struct tw_log *log,
+                         struct tw_tileset **out)
+{
+    return tw_tilesets_city(seed, set, log, out);
+}
+
+static int generate_forest(uint64_t seed, const void *set, const struct tw_log *log,
+                           struct tw_tileset **out)
+{
+    return tw_tilesets_forest(seed, set, log, out);
+}
+
+static int generate_hybrid(uint64_t seed, const void *set, const struct tw_log *log,
+                           struct tw_tileset **out)
+{
+    return tw_tilesets_hybrid(seed, set, log, out);
+}
+
+/* What every generator promises of its seeds: makes ts[0] from seed 1 with
+ * the defaults (settings NULL), timed; ts[1] from seed 1 again with the
+ * default settings spelled out (defaults); ts[2] from seed 2 with
+ * seed2_settings. None logs an error, ts[1] is ts[0] bit for bit, ts[2]
+ * differs, and ts[0] has the default 80 m footprint and prototypes
+ * prototypes. False, with nothing made, if seed 1 fails. */
+static bool generate_seeds(const char *name, generator_fn *generate, const void *defaults,
+                           const void *seed2_settings, uint32_t prototypes,
+                           struct tw_tileset *ts[3])
+{
+    struct captured_log captured = {0};
+    const struct tw_log log = {capture, &captured};
+    ts[0] = ts[1] = ts[2] = NULL;
+    const double t0 = now_seconds();
+    int err = generate(1, NULL, &log, &ts[0]);
+    const double t1 = now_seconds();
+    CHECK_MSG(err == 0 && ts[0], "%s(seed 1) failed: %s", name, tw_error_to_str(err));
+    if (err || !ts[0])
+        return false;
+    const struct tw_tileset *a = ts[0];
+    printf("%s seed 1: generated in %.3f s, %u meshes, %u parts, %.1f MB geometry\n", name,
+           t1 - t0, a->mesh_count, a->part_count, (double)tw_tileset_geometry_bytes(a) / 1e6);
+
+    err = generate(1, defaults, &log, &ts[1]);
+    CHECK_MSG(err == 0 && ts[1], "%s(seed 1) again failed: %s", name, tw_error_to_str(err));
+    err = generate(2, seed2_settings, &log, &ts[2]);
+    CHECK_MSG(err == 0 && ts[2], "%s(seed 2) failed: %s", name, tw_error_to_str(err));
+    CHECK_MSG(captured.errors == 0, "%s: unexpected error message: %s", name, captured.last);
+    if (ts[1])
+        CHECK_MSG(tilesets_identical(a, ts[1]), "%s: the same seed gave different tilesets", name);
+    if (ts[2])
+        CHECK_MSG(!tilesets_identical(a, ts[2]), "%s: seeds 1 and 2 gave identical tilesets", name);
+
+    CHECK_MSG(a->footprint[0] == 80.0f && a->footprint[1] == 80.0f, "%s footprint %g x %g", name,
+              (double)a->footprint[0], (double)a->footprint[1]);
+    CHECK_MSG(a->prototype_count == prototypes, "%s prototype_count = %u", name,
+              a->prototype_count);
+    return true;
+}
+
+static void destroy_seeds(struct tw_tileset *ts[3])
+{
+    for (int k = 0; k < 3; k++)
+        tw_tileset_destroy(ts[k]);
+}
+
+/* generate() refuses set: TW_ERR_INVALID and no tileset. What the message
+ * says is the caller's to check. */
+static void check_refused(const char *what, generator_fn *generate, const void *set,
+                          const struct tw_log *log)
+{
+    struct tw_tileset *ts = NULL;
+    const int err = generate(1, set, log, &ts);
+    CHECK_MSG(err == TW_ERR_INVALID && !ts, "%s: %s", what, tw_error_to_str(err));
+    tw_tileset_destroy(ts);
+}
+
+/* What generate() makes from custom settings set (NULL if it fails, a
+ * failed check). */
+static struct tw_tileset *make_custom(const char *name, generator_fn *generate, uint64_t seed,
+                                      const void *set)
+{
+    struct tw_tileset *ts = NULL;
+    const int err = generate(seed, set, NULL, &ts);
+    CHECK_MSG(err == 0 && ts, "%s, custom settings: %s", name, tw_error_to_str(err));
+    return ts;
+}
+
+/* A tileset made from custom settings has the prototype count, the
+ * footprint and the cluster size they ask for, and its common box stays
+ * within the footprint along x. */
+static void check_custom(const char *name, const struct tw_tileset *ts, uint32_t prototypes,
+                         float footprint, uint32_t max_cluster_triangles)
+{
+    CHECK_MSG(ts->prototype_count == prototypes, "%s: prototype_count = %u", name,
+              ts->prototype_count);
+    CHECK_MSG(ts->footprint[0] == footprint, "%s: footprint %g", name, (double)ts->footprint[0]);
+    CHECK_MSG(ts->max_cluster_triangles == max_cluster_triangles, "%s: max_cluster_triangles = %u",
+              name, ts->max_cluster_triangles);
+    CHECK_MSG(ts->common_box.min[0] >= -1e-4f && ts->common_box.max[0] <= footprint + 1e-4f,
+              "%s: common box x [%g, %g]", name, (double)ts->common_box.min[0],
+              (double)ts->common_box.max[0]);
+}
+
 static void test_city(void)
 {
     struct tw_city_settings set = {0};
     tw_tilesets_city_default_settings(&set);
-    CHECK(set.prototypes == 12 && set.footprint == 80.0f && set.street_width == 14.0f &&
-          set.max_height == 90.0f && set.max_cluster_triangles == 2048,
-          "unexpected defaults");
+    CHECK_MSG(set.prototypes == 12 && set.footprint == 80.0f && set.street_width == 14.0f &&
+              set.max_height == 90.0f && set.max_cluster_triangles == 2048,
+              "unexpected defaults");
 
-    struct captured_log captured = {0};
-    const struct tw_log log = {capture, &captured};
-    struct tw_tileset *a = NULL, *b = NULL, *other = NULL;
-
-    const double t0 = now_seconds();
-    int err = tw_tilesets_city(1, NULL, &log, &a);
-    const double t1 = now_seconds();
-    CHECK(err == 0 && a, "city(seed 1) failed: %s", tw_error_to_str(err));
-    if (err || !a)
+    struct tw_tileset *seeds[3];
+    if (!generate_seeds("city", generate_city, &set, &set, 12, seeds))
         return;
-    printf("city seed 1: generated in %.3f s, %u meshes, %u parts, %.1f MB geometry\n",
-           t1 - t0, a->mesh_count, a->part_count, (double)tw_tileset_geometry_bytes(a) / 1e6);
+    struct tw_tileset *a = seeds[0];
+    CHECK_MSG(a->material_count >= 5, "only %u materials", a->material_count);
+    CHECK_MSG(a->max_cluster_triangles == 2048, "max_cluster_triangles = %u",
+              a->max_cluster_triangles);
+    check_common(a, "city");
 
-    err = tw_tilesets_city(1, &set, &log, &b);
-    CHECK(err == 0 && b, "city(seed 1) again failed: %s", tw_error_to_str(err));
-    err = tw_tilesets_city(2, &set, &log, &other);
-    CHECK(err == 0 && other, "city(seed 2) failed: %s", tw_error_to_str(err));
-    CHECK(captured.errors == 0, "unexpected error message: %s", captured.last);
-    if (b)
-        CHECK(tilesets_identical(a, b), "the same seed gave different tilesets");
-    if (other)
-        CHECK(!tilesets_identical(a, other), "seeds 1 and 2 gave identical tilesets");
-
-    CHECK(a->finished, "tileset not finished");
-    CHECK(a->footprint[0] == 80.0f && a->footprint[1] == 80.0f, "footprint %g x %g",
-          (double)a->footprint[0], (double)a->footprint[1]);
-    CHECK(a->prototype_count == 12, "prototype_count = %u", a->prototype_count);
-    CHECK(a->material_count >= 5, "only %u materials", a->material_count);
-    CHECK(a->max_cluster_triangles == 2048, "max_cluster_triangles = %u",
-          a->max_cluster_triangles);
-
-    const float w = a->footprint[0], d = a->footprint[1], eps = 1e-4f;
     float tallest = 0.0f;
     uint64_t total = 0;
-    bool *material_used = calloc(a->material_count, sizeof(bool));
     printf("  %-18s %9s %9s %9s %8s\n", "prototype", "triangles", "instances", "clusters",
            "height");
     for (uint32_t p = 0; p < a->prototype_count; p++) {
@@ -425,113 +479,68 @@ static void test_city(void)
                (unsigned long long)proto->triangle_count, proto->instance_count,
                proto->cluster_count, (double)proto->box.max[1]);
         total += proto->triangle_count;
-        CHECK(proto->triangle_count >= 10000 && proto->triangle_count <= 100000,
-              "%s: %llu triangles", proto->name, (unsigned long long)proto->triangle_count);
-        CHECK(proto->instance_count >= 8 && proto->instance_count <= 100, "%s: %u instances",
-              proto->name, proto->instance_count);
-        CHECK(proto->weight > 0.0f, "%s: weight %g", proto->name, (double)proto->weight);
-        CHECK(proto->box.min[0] >= -eps && proto->box.max[0] <= w + eps &&
-              proto->box.min[2] >= -eps && proto->box.max[2] <= d + eps,
-              "%s: box x [%g, %g] z [%g, %g] leaves the footprint", proto->name,
-              (double)proto->box.min[0], (double)proto->box.max[0],
-              (double)proto->box.min[2], (double)proto->box.max[2]);
-        CHECK(proto->box.max[1] > 0.0f && proto->box.min[1] >= -eps, "%s: box y [%g, %g]",
-              proto->name, (double)proto->box.min[1], (double)proto->box.max[1]);
-        CHECK(proto->box.max[1] <= set.max_height + 1e-3f, "%s: %g m is above max_height",
-              proto->name, (double)proto->box.max[1]);
-        CHECK(box_contains(&a->common_box, &proto->box), "%s: not inside the common box",
-              proto->name);
-        uint64_t cluster_triangles = 0;
-        for (uint32_t k = 0; k < proto->cluster_count; k++) {
-            CHECK(proto->clusters[k].triangle_count <= a->max_cluster_triangles,
-                  "%s: cluster of %u triangles", proto->name, proto->clusters[k].triangle_count);
-            cluster_triangles += proto->clusters[k].triangle_count;
-        }
-        CHECK(cluster_triangles == proto->triangle_count, "%s: clusters hold %llu triangles",
-              proto->name, (unsigned long long)cluster_triangles);
-        for (uint32_t k = 0; k < proto->instance_count; k++)
-            if (material_used && proto->instances[k].material < a->material_count)
-                material_used[proto->instances[k].material] = true;
+        CHECK_MSG(proto->instance_count >= 8 && proto->instance_count <= 100, "%s: %u instances",
+                  proto->name, proto->instance_count);
+        CHECK_MSG(proto->box.max[1] <= set.max_height + 1e-3f, "%s: %g m is above max_height",
+                  proto->name, (double)proto->box.max[1]);
         if (proto->box.max[1] > tallest)
             tallest = proto->box.max[1];
     }
     printf("  average %.0f triangles per prototype, tallest %.1f m\n",
            (double)total / a->prototype_count, (double)tallest);
-    CHECK(tallest > 40.0f, "no prototype taller than 40 m (tallest %g m)", (double)tallest);
-    for (uint32_t k = 0; material_used && k < a->material_count; k++)
-        CHECK(material_used[k], "material %u is never used", k);
-    free(material_used);
+    CHECK_MSG(tallest > 40.0f, "no prototype taller than 40 m (tallest %g m)", (double)tallest);
 
     const char *where = "";
     const uint64_t band_bad = street_band_violations(a, 0.5f * set.street_width - 1.0f, &where);
-    CHECK(band_bad == 0, "%llu triangles above the kerb in the street band (first in %s)",
-          (unsigned long long)band_bad, where);
-    const uint64_t shading_bad = shading_violations(a);
-    CHECK(shading_bad == 0, "%llu triangles not flat shaded or wound clockwise",
-          (unsigned long long)shading_bad);
+    CHECK_MSG(band_bad == 0, "%llu triangles above the kerb in the street band (first in %s)",
+              (unsigned long long)band_bad, where);
 
     /* The band check itself must be able to fail: a band that reaches the
      * lot line contains building walls. */
-    CHECK(street_band_violations(a, 0.5f * set.street_width + 0.5f, &where) > 0,
-          "band check does not see buildings at the lot line");
+    CHECK_MSG(street_band_violations(a, 0.5f * set.street_width + 0.5f, &where) > 0,
+              "band check does not see buildings at the lot line");
 
-    tw_tileset_destroy(a);
-    tw_tileset_destroy(b);
-    tw_tileset_destroy(other);
+    destroy_seeds(seeds);
 }
 
 static void test_city_settings(void)
 {
     struct captured_log captured = {0};
     const struct tw_log log = {capture, &captured};
-    struct tw_tileset *ts = NULL;
 
     struct tw_city_settings set = {0};
     set.prototypes = 3;
-    int err = tw_tilesets_city(1, &set, &log, &ts);
-    CHECK(err == TW_ERR_INVALID && !ts, "3 prototypes: %s", tw_error_to_str(err));
-    CHECK(captured.errors > 0 && strstr(captured.last, "prototypes"),
-          "no message about prototypes: \"%s\"", captured.last);
+    check_refused("city, 3 prototypes", generate_city, &set, &log);
+    CHECK_MSG(captured.errors > 0 && strstr(captured.last, "prototypes"),
+              "no message about prototypes: \"%s\"", captured.last);
 
     set = (struct tw_city_settings){0};
     set.street_width = 70.0f;
-    err = tw_tilesets_city(1, &set, &log, &ts);
-    CHECK(err == TW_ERR_INVALID && !ts, "street_width 70: %s", tw_error_to_str(err));
+    check_refused("city, street_width 70", generate_city, &set, &log);
 
-    err = tw_tilesets_city(1, NULL, &log, NULL);
-    CHECK(err == TW_ERR_INVALID, "NULL out: %s", tw_error_to_str(err));
+    int err = tw_tilesets_city(1, NULL, &log, NULL);
+    CHECK_MSG(err == TW_ERR_INVALID, "NULL out: %s", tw_error_to_str(err));
 
     /* Other settings are honoured: more prototypes, a wider tile, a lower
      * skyline, a different cluster size. */
-    set = (struct tw_city_settings){0};
-    set.prototypes = 9;
-    set.footprint = 100.0f;
-    set.street_width = 16.0f;
-    set.max_height = 50.0f;
-    set.max_cluster_triangles = 700;
-    err = tw_tilesets_city(7, &set, NULL, &ts);
-    CHECK(err == 0 && ts, "custom settings: %s", tw_error_to_str(err));
+    const struct tw_city_settings custom = {.prototypes = 9, .footprint = 100.0f,
+                                            .street_width = 16.0f, .max_height = 50.0f,
+                                            .max_cluster_triangles = 700};
+    struct tw_tileset *ts = make_custom("city", generate_city, 7, &custom);
     if (ts) {
-        CHECK(ts->prototype_count == 9, "prototype_count = %u", ts->prototype_count);
-        CHECK(ts->footprint[0] == 100.0f, "footprint %g", (double)ts->footprint[0]);
-        CHECK(ts->max_cluster_triangles == 700, "max_cluster_triangles = %u",
-              ts->max_cluster_triangles);
-        CHECK(ts->common_box.max[1] <= 50.0f + 1e-3f, "common box top %g m",
-              (double)ts->common_box.max[1]);
-        CHECK(ts->common_box.min[0] >= -1e-4f && ts->common_box.max[0] <= 100.0f + 1e-4f,
-              "common box x [%g, %g]", (double)ts->common_box.min[0],
-              (double)ts->common_box.max[0]);
+        check_custom("city", ts, 9, 100.0f, 700);
+        CHECK_MSG(ts->common_box.max[1] <= 50.0f + 1e-3f, "common box top %g m",
+                  (double)ts->common_box.max[1]);
         const char *where = "";
         const uint64_t bad = street_band_violations(ts, 7.0f, &where);
-        CHECK(bad == 0, "custom settings: %llu triangles in the street band (first in %s)",
-              (unsigned long long)bad, where);
+        CHECK_MSG(bad == 0, "custom settings: %llu triangles in the street band (first in %s)",
+                  (unsigned long long)bad, where);
         for (uint32_t p = 0; p < ts->prototype_count; p++)
-            CHECK(ts->prototypes[p].triangle_count >= 10000 &&
-                  ts->prototypes[p].triangle_count <= 100000, "%s: %llu triangles",
-                  ts->prototypes[p].name,
-                  (unsigned long long)ts->prototypes[p].triangle_count);
+            CHECK_MSG(ts->prototypes[p].triangle_count >= 10000 &&
+                      ts->prototypes[p].triangle_count <= 100000, "%s: %llu triangles",
+                      ts->prototypes[p].name,
+                      (unsigned long long)ts->prototypes[p].triangle_count);
         tw_tileset_destroy(ts);
-        ts = NULL;
     }
 }
 
@@ -552,36 +561,15 @@ static void test_forest(void)
 {
     struct tw_forest_settings set = {0};
     tw_tilesets_forest_default_settings(&set);
-    CHECK(set.prototypes == 10 && set.footprint == 80.0f && set.density == 1.0f &&
-          set.path_clearance == 1.0f && set.max_cluster_triangles == 2048,
-          "unexpected forest defaults");
+    CHECK_MSG(set.prototypes == 10 && set.footprint == 80.0f && set.density == 1.0f &&
+              set.path_clearance == 1.0f && set.max_cluster_triangles == 2048,
+              "unexpected forest defaults");
 
-    struct captured_log captured = {0};
-    const struct tw_log log = {capture, &captured};
-    struct tw_tileset *a = NULL, *b = NULL, *other = NULL;
-    const double t0 = now_seconds();
-    int err = tw_tilesets_forest(1, NULL, &log, &a);
-    const double t1 = now_seconds();
-    CHECK(err == 0 && a, "forest(seed 1) failed: %s", tw_error_to_str(err));
-    if (err || !a)
+    struct tw_tileset *seeds[3];
+    if (!generate_seeds("forest", generate_forest, &set, NULL, 10, seeds))
         return;
-    printf("forest seed 1: generated in %.3f s, %u meshes, %u parts, %.1f MB geometry\n",
-           t1 - t0, a->mesh_count, a->part_count, (double)tw_tileset_geometry_bytes(a) / 1e6);
+    struct tw_tileset *a = seeds[0];
     print_prototypes(a);
-
-    err = tw_tilesets_forest(1, &set, &log, &b);
-    CHECK(err == 0 && b, "forest(seed 1) again failed: %s", tw_error_to_str(err));
-    err = tw_tilesets_forest(2, NULL, &log, &other);
-    CHECK(err == 0 && other, "forest(seed 2) failed: %s", tw_error_to_str(err));
-    CHECK(captured.errors == 0, "unexpected error message: %s", captured.last);
-    if (b)
-        CHECK(tilesets_identical(a, b), "forest: the same seed gave different tilesets");
-    if (other)
-        CHECK(!tilesets_identical(a, other), "forest: seeds 1 and 2 gave identical tilesets");
-
-    CHECK(a->footprint[0] == 80.0f && a->footprint[1] == 80.0f, "forest footprint %g x %g",
-          (double)a->footprint[0], (double)a->footprint[1]);
-    CHECK(a->prototype_count == 10, "forest prototype_count = %u", a->prototype_count);
     check_common(a, "forest");
 
     /* The stands differ, and each kind the design asks for is there. */
@@ -591,7 +579,7 @@ static void test_forest(void)
         bool found = false;
         for (uint32_t p = 0; p < a->prototype_count; p++)
             found |= strstr(a->prototypes[p].name, kinds[k]) != NULL;
-        CHECK(found, "forest: no %s stand", kinds[k]);
+        CHECK_MSG(found, "forest: no %s stand", kinds[k]);
     }
 
     /* Many weak occluders: hundreds of instances, every standing object
@@ -603,12 +591,12 @@ static void test_forest(void)
     for (uint32_t p = 0; p < a->prototype_count; p++) {
         const struct tw_prototype *proto = &a->prototypes[p];
         instances += proto->instance_count;
-        CHECK(proto->instance_count >= 100 && proto->instance_count <= 450,
-              "%s: %u instances", proto->name, proto->instance_count);
+        CHECK_MSG(proto->instance_count >= 100 && proto->instance_count <= 450,
+                  "%s: %u instances", proto->name, proto->instance_count);
         const uint32_t trees = tall_objects(proto, 3.0f);
         const bool dense = strstr(proto->name, "spruce") || strstr(proto->name, "mixed");
-        CHECK(trees >= (dense ? 150u : 100u), "%s: only %u objects taller than 3 m",
-              proto->name, trees);
+        CHECK_MSG(trees >= (dense ? 150u : 100u), "%s: only %u objects taller than 3 m",
+                  proto->name, trees);
         double volume = 0.0, largest = 0.0;
         uint32_t objects = 0;
         for (uint32_t k = 0; k < proto->instance_count; k++) {
@@ -624,22 +612,22 @@ static void test_forest(void)
                 largest = area;
         }
         const double mean = objects ? volume / objects : 0.0;
-        CHECK(mean < 0.002 * tile_volume, "%s: mean instance box %.0f m^3 is %.2f %% of the tile",
-              proto->name, mean, 100.0 * mean / tile_volume);
-        CHECK(largest < 0.025 * (double)w * d, "%s: a tree covers %.0f m^2 of the tile",
-              proto->name, largest);
+        CHECK_MSG(mean < 0.002 * tile_volume, "%s: mean instance box %.0f m^3 is %.2f %% of the tile",
+                  proto->name, mean, 100.0 * mean / tile_volume);
+        CHECK_MSG(largest < 0.025 * (double)w * d, "%s: a tree covers %.0f m^2 of the tile",
+                  proto->name, largest);
     }
-    CHECK(a->mesh_count * 8 < instances, "forest: %u meshes for %llu instances: not shared",
-          a->mesh_count, (unsigned long long)instances);
+    CHECK_MSG(a->mesh_count * 8 < instances, "forest: %u meshes for %llu instances: not shared",
+              a->mesh_count, (unsigned long long)instances);
 
     /* The walking band: no trunk, bush or low branch within path_clearance
      * of a border; and the check can see trees, with a wider band. */
     const char *where = "";
     uint64_t bad = headroom_violations(a, set.path_clearance, 2.5f, &where);
-    CHECK(bad == 0, "forest: %llu triangles in the walking band (first in %s)",
-          (unsigned long long)bad, where);
-    CHECK(headroom_violations(a, 6.0f, 2.5f, &where) > 0,
-          "forest: band check does not see trees 6 m from the border");
+    CHECK_MSG(bad == 0, "forest: %llu triangles in the walking band (first in %s)",
+              (unsigned long long)bad, where);
+    CHECK_MSG(headroom_violations(a, 6.0f, 2.5f, &where) > 0,
+              "forest: band check does not see trees 6 m from the border");
 
     /* Together they close up: horizontal rays at eye height and above,
      * through a world of this tileset, all but a few meet something within
@@ -659,65 +647,49 @@ static void test_forest(void)
     }
     printf("  horizontal rays at 0.6-14.6 m: %.1f %% stopped within 10 m, %.1f %% pass 3 tiles\n",
            100.0 * near / rays, 100.0 * through / rays);
-    CHECK(through * 50 <= rays, "forest: %u of %u rays pass 3 tiles", through, rays);
-    CHECK(near * 4 <= rays * 3, "forest: %u of %u rays stopped within 10 m: a wall, not trees",
-          near, rays);
+    CHECK_MSG(through * 50 <= rays, "forest: %u of %u rays pass 3 tiles", through, rays);
+    CHECK_MSG(near * 4 <= rays * 3, "forest: %u of %u rays stopped within 10 m: a wall, not trees",
+              near, rays);
 
-    tw_tileset_destroy(a);
-    tw_tileset_destroy(b);
-    tw_tileset_destroy(other);
+    destroy_seeds(seeds);
 }
 
 static void test_forest_settings(void)
 {
     struct captured_log captured = {0};
     const struct tw_log log = {capture, &captured};
-    struct tw_tileset *ts = NULL;
 
     struct tw_forest_settings set = {0};
     set.prototypes = 3;
-    int err = tw_tilesets_forest(1, &set, &log, &ts);
-    CHECK(err == TW_ERR_INVALID && !ts, "forest, 3 prototypes: %s", tw_error_to_str(err));
-    CHECK(captured.errors > 0 && strstr(captured.last, "prototypes") &&
-          strstr(captured.last, "forest"), "no message about prototypes: \"%s\"", captured.last);
+    check_refused("forest, 3 prototypes", generate_forest, &set, &log);
+    CHECK_MSG(captured.errors > 0 && strstr(captured.last, "prototypes") &&
+              strstr(captured.last, "forest"), "no message about prototypes: \"%s\"", captured.last);
     set = (struct tw_forest_settings){0};
     set.density = 5.0f;
-    err = tw_tilesets_forest(1, &set, &log, &ts);
-    CHECK(err == TW_ERR_INVALID && !ts, "forest, density 5: %s", tw_error_to_str(err));
-    CHECK(strstr(captured.last, "density"), "no message about density: \"%s\"", captured.last);
+    check_refused("forest, density 5", generate_forest, &set, &log);
+    CHECK_MSG(strstr(captured.last, "density"), "no message about density: \"%s\"", captured.last);
     set = (struct tw_forest_settings){0};
     set.footprint = NAN;
-    err = tw_tilesets_forest(1, &set, &log, &ts);
-    CHECK(err == TW_ERR_INVALID && !ts, "forest, footprint NaN: %s", tw_error_to_str(err));
-    err = tw_tilesets_forest(1, NULL, &log, NULL);
-    CHECK(err == TW_ERR_INVALID, "forest, NULL out: %s", tw_error_to_str(err));
+    check_refused("forest, footprint NaN", generate_forest, &set, &log);
+    int err = tw_tilesets_forest(1, NULL, &log, NULL);
+    CHECK_MSG(err == TW_ERR_INVALID, "forest, NULL out: %s", tw_error_to_str(err));
 
     /* Other settings are honoured: a wider tile, a wider trail, a thinner
      * forest, more prototypes, smaller clusters. */
-    set = (struct tw_forest_settings){0};
-    set.prototypes = 12;
-    set.footprint = 100.0f;
-    set.path_clearance = 2.5f;
-    set.density = 0.6f;
-    set.max_cluster_triangles = 500;
-    err = tw_tilesets_forest(3, &set, NULL, &ts);
-    CHECK(err == 0 && ts, "forest, custom settings: %s", tw_error_to_str(err));
+    const struct tw_forest_settings custom = {.prototypes = 12, .footprint = 100.0f,
+                                              .path_clearance = 2.5f, .density = 0.6f,
+                                              .max_cluster_triangles = 500};
+    struct tw_tileset *ts = make_custom("forest", generate_forest, 3, &custom);
     if (ts) {
-        CHECK(ts->prototype_count == 12, "prototype_count = %u", ts->prototype_count);
-        CHECK(ts->footprint[0] == 100.0f, "footprint %g", (double)ts->footprint[0]);
-        CHECK(ts->max_cluster_triangles == 500, "max_cluster_triangles = %u",
-              ts->max_cluster_triangles);
-        CHECK(ts->common_box.min[0] >= -1e-4f && ts->common_box.max[0] <= 100.0f + 1e-4f &&
-              ts->common_box.min[2] >= -1e-4f && ts->common_box.max[2] <= 100.0f + 1e-4f,
-              "common box x [%g, %g] z [%g, %g]", (double)ts->common_box.min[0],
-              (double)ts->common_box.max[0], (double)ts->common_box.min[2],
-              (double)ts->common_box.max[2]);
+        check_custom("forest", ts, 12, 100.0f, 500);
+        CHECK_MSG(ts->common_box.min[2] >= -1e-4f && ts->common_box.max[2] <= 100.0f + 1e-4f,
+                  "common box z [%g, %g]", (double)ts->common_box.min[2],
+                  (double)ts->common_box.max[2]);
         const char *where = "";
         const uint64_t bad = headroom_violations(ts, 2.5f, 2.5f, &where);
-        CHECK(bad == 0, "custom settings: %llu triangles in the walking band (first in %s)",
-              (unsigned long long)bad, where);
+        CHECK_MSG(bad == 0, "custom settings: %llu triangles in the walking band (first in %s)",
+                  (unsigned long long)bad, where);
         tw_tileset_destroy(ts);
-        ts = NULL;
     }
 }
 
@@ -725,36 +697,15 @@ static void test_hybrid(void)
 {
     struct tw_hybrid_settings set = {0};
     tw_tilesets_hybrid_default_settings(&set);
-    CHECK(set.prototypes == 12 && set.footprint == 80.0f && set.street_width == 14.0f &&
-          set.max_height == 90.0f && set.green_share == 0.4f &&
-          set.max_cluster_triangles == 2048, "unexpected hybrid defaults");
+    CHECK_MSG(set.prototypes == 12 && set.footprint == 80.0f && set.street_width == 14.0f &&
+              set.max_height == 90.0f && set.green_share == 0.4f &&
+              set.max_cluster_triangles == 2048, "unexpected hybrid defaults");
 
-    struct captured_log captured = {0};
-    const struct tw_log log = {capture, &captured};
-    struct tw_tileset *a = NULL, *b = NULL, *other = NULL;
-    const double t0 = now_seconds();
-    int err = tw_tilesets_hybrid(1, NULL, &log, &a);
-    const double t1 = now_seconds();
-    CHECK(err == 0 && a, "hybrid(seed 1) failed: %s", tw_error_to_str(err));
-    if (err || !a)
+    struct tw_tileset *seeds[3];
+    if (!generate_seeds("hybrid", generate_hybrid, &set, NULL, 12, seeds))
         return;
-    printf("hybrid seed 1: generated in %.3f s, %u meshes, %u parts, %.1f MB geometry\n",
-           t1 - t0, a->mesh_count, a->part_count, (double)tw_tileset_geometry_bytes(a) / 1e6);
+    struct tw_tileset *a = seeds[0];
     print_prototypes(a);
-
-    err = tw_tilesets_hybrid(1, &set, &log, &b);
-    CHECK(err == 0 && b, "hybrid(seed 1) again failed: %s", tw_error_to_str(err));
-    err = tw_tilesets_hybrid(2, NULL, &log, &other);
-    CHECK(err == 0 && other, "hybrid(seed 2) failed: %s", tw_error_to_str(err));
-    CHECK(captured.errors == 0, "unexpected error message: %s", captured.last);
-    if (b)
-        CHECK(tilesets_identical(a, b), "hybrid: the same seed gave different tilesets");
-    if (other)
-        CHECK(!tilesets_identical(a, other), "hybrid: seeds 1 and 2 gave identical tilesets");
-
-    CHECK(a->footprint[0] == 80.0f && a->footprint[1] == 80.0f, "hybrid footprint %g x %g",
-          (double)a->footprint[0], (double)a->footprint[1]);
-    CHECK(a->prototype_count == 12, "hybrid prototype_count = %u", a->prototype_count);
     check_common(a, "hybrid");
 
     uint32_t woods = 0, parks = 0, city = 0;
@@ -762,68 +713,60 @@ static void test_hybrid(void)
     for (uint32_t p = 0; p < a->prototype_count; p++) {
         const struct tw_prototype *proto = &a->prototypes[p];
         tallest = fmaxf(tallest, proto->box.max[1]);
-        CHECK(proto->box.max[1] <= set.max_height + 1e-3f, "%s: %g m is above max_height",
-              proto->name, (double)proto->box.max[1]);
+        CHECK_MSG(proto->box.max[1] <= set.max_height + 1e-3f, "%s: %g m is above max_height",
+                  proto->name, (double)proto->box.max[1]);
         if (strstr(proto->name, "wood")) {
             woods++;
-            CHECK(tall_objects(proto, 3.0f) >= 80, "%s: only %u trees", proto->name,
-                  tall_objects(proto, 3.0f));
+            CHECK_MSG(tall_objects(proto, 3.0f) >= 80, "%s: only %u trees", proto->name,
+                      tall_objects(proto, 3.0f));
         } else if (strstr(proto->name, "park")) {
             parks++;
         } else {
             city++;
         }
     }
-    CHECK(woods >= 2 && parks >= 1 && city >= 4, "hybrid: %u woods, %u parks, %u city blocks",
-          woods, parks, city);
-    CHECK(tallest > 40.0f, "hybrid: no prototype taller than 40 m (tallest %g m)",
-          (double)tallest);
+    CHECK_MSG(woods >= 2 && parks >= 1 && city >= 4, "hybrid: %u woods, %u parks, %u city blocks",
+              woods, parks, city);
+    CHECK_MSG(tallest > 40.0f, "hybrid: no prototype taller than 40 m (tallest %g m)",
+              (double)tallest);
 
     /* Streets along every border, wooded blocks and parks included. */
     const char *where = "";
     const uint64_t band_bad = street_band_violations(a, 0.5f * set.street_width - 1.0f, &where);
-    CHECK(band_bad == 0, "hybrid: %llu triangles above the kerb in the street band (first in %s)",
-          (unsigned long long)band_bad, where);
-    CHECK(street_band_violations(a, 0.5f * set.street_width + 0.5f, &where) > 0,
-          "hybrid: band check does not see the blocks");
+    CHECK_MSG(band_bad == 0, "hybrid: %llu triangles above the kerb in the street band (first in %s)",
+              (unsigned long long)band_bad, where);
+    CHECK_MSG(street_band_violations(a, 0.5f * set.street_width + 0.5f, &where) > 0,
+              "hybrid: band check does not see the blocks");
 
-    tw_tileset_destroy(a);
-    tw_tileset_destroy(b);
-    tw_tileset_destroy(other);
+    destroy_seeds(seeds);
 
     /* Settings: the city's checks apply, and green_share's own. */
-    struct tw_tileset *ts = NULL;
+    struct captured_log captured = {0};
+    const struct tw_log log = {capture, &captured};
     set = (struct tw_hybrid_settings){0};
     set.green_share = 1.5f;
-    captured.errors = 0;
-    err = tw_tilesets_hybrid(1, &set, &log, &ts);
-    CHECK(err == TW_ERR_INVALID && !ts, "hybrid, green_share 1.5: %s", tw_error_to_str(err));
-    CHECK(captured.errors > 0 && strstr(captured.last, "green_share"),
-          "no message about green_share: \"%s\"", captured.last);
+    check_refused("hybrid, green_share 1.5", generate_hybrid, &set, &log);
+    CHECK_MSG(captured.errors > 0 && strstr(captured.last, "green_share"),
+              "no message about green_share: \"%s\"", captured.last);
     set = (struct tw_hybrid_settings){0};
     set.street_width = 70.0f;
-    err = tw_tilesets_hybrid(1, &set, &log, &ts);
-    CHECK(err == TW_ERR_INVALID && !ts, "hybrid, street_width 70: %s", tw_error_to_str(err));
-    CHECK(strstr(captured.last, "hybrid") && strstr(captured.last, "footprint"),
-          "no message naming the hybrid's footprint: \"%s\"", captured.last);
+    check_refused("hybrid, street_width 70", generate_hybrid, &set, &log);
+    CHECK_MSG(strstr(captured.last, "hybrid") && strstr(captured.last, "footprint"),
+              "no message naming the hybrid's footprint: \"%s\"", captured.last);
 
-    set = (struct tw_hybrid_settings){0};
-    set.prototypes = 9;
-    set.footprint = 100.0f;
-    set.street_width = 16.0f;
-    set.green_share = 0.7f;
-    err = tw_tilesets_hybrid(4, &set, NULL, &ts);
-    CHECK(err == 0 && ts, "hybrid, custom settings: %s", tw_error_to_str(err));
+    const struct tw_hybrid_settings custom = {.prototypes = 9, .footprint = 100.0f,
+                                              .street_width = 16.0f, .green_share = 0.7f};
+    struct tw_tileset *ts = make_custom("hybrid", generate_hybrid, 4, &custom);
     if (ts) {
-        CHECK(ts->prototype_count == 9, "prototype_count = %u", ts->prototype_count);
+        CHECK_MSG(ts->prototype_count == 9, "prototype_count = %u", ts->prototype_count);
         const uint64_t bad = street_band_violations(ts, 7.0f, &where);
-        CHECK(bad == 0, "hybrid, custom settings: %llu triangles in the street band (first in %s)",
-              (unsigned long long)bad, where);
+        CHECK_MSG(bad == 0, "hybrid, custom settings: %llu triangles in the street band (first in %s)",
+                  (unsigned long long)bad, where);
         uint32_t green = 0;
         for (uint32_t p = 0; p < ts->prototype_count; p++)
             green += strstr(ts->prototypes[p].name, "wood") ||
                      strstr(ts->prototypes[p].name, "park");
-        CHECK(green == 6, "hybrid, green_share 0.7 of 9: %u green prototypes", green);
+        CHECK_MSG(green == 6, "hybrid, green_share 0.7 of 9: %u green prototypes", green);
         tw_tileset_destroy(ts);
     }
 }
@@ -838,63 +781,63 @@ static void test_builtin(void)
         bool found = false;
         for (const char *const *n = tw_tilesets_builtin_names; *n; n++)
             found |= strcmp(*n, expected[k]) == 0;
-        CHECK(found, "\"%s\" is not among the built-in names", expected[k]);
+        CHECK_MSG(found, "\"%s\" is not among the built-in names", expected[k]);
     }
 
     struct tw_tileset *ts = NULL, *direct = NULL;
     int err = tw_tilesets_builtin("city", 5, 0, &log, &ts);
-    CHECK(err == 0 && ts, "builtin(city): %s", tw_error_to_str(err));
+    CHECK_MSG(err == 0 && ts, "builtin(city): %s", tw_error_to_str(err));
     err = tw_tilesets_city(5, NULL, NULL, &direct);
-    CHECK(err == 0 && direct, "city(5): %s", tw_error_to_str(err));
+    CHECK_MSG(err == 0 && direct, "city(5): %s", tw_error_to_str(err));
     if (ts && direct) {
-        CHECK(ts->max_cluster_triangles == 2048, "default cluster size %u",
-              ts->max_cluster_triangles);
-        CHECK(tilesets_identical(ts, direct), "builtin(city) differs from city()");
+        CHECK_MSG(ts->max_cluster_triangles == 2048, "default cluster size %u",
+                  ts->max_cluster_triangles);
+        CHECK_MSG(tilesets_identical(ts, direct), "builtin(city) differs from city()");
     }
     tw_tileset_destroy(ts);
     tw_tileset_destroy(direct);
 
     ts = NULL;
     err = tw_tilesets_builtin("city", 5, 512, &log, &ts);
-    CHECK(err == 0 && ts && ts->max_cluster_triangles == 512, "builtin(city, 512): %s",
-          tw_error_to_str(err));
+    CHECK_MSG(err == 0 && ts && ts->max_cluster_triangles == 512, "builtin(city, 512): %s",
+              tw_error_to_str(err));
     tw_tileset_destroy(ts);
 
     /* forest and hybrid: the generators with default settings. */
     ts = NULL;
     direct = NULL;
     err = tw_tilesets_builtin("forest", 5, 0, &log, &ts);
-    CHECK(err == 0 && ts, "builtin(forest): %s", tw_error_to_str(err));
+    CHECK_MSG(err == 0 && ts, "builtin(forest): %s", tw_error_to_str(err));
     err = tw_tilesets_forest(5, NULL, NULL, &direct);
     if (ts && direct)
-        CHECK(tilesets_identical(ts, direct), "builtin(forest) differs from forest()");
+        CHECK_MSG(tilesets_identical(ts, direct), "builtin(forest) differs from forest()");
     tw_tileset_destroy(ts);
     tw_tileset_destroy(direct);
     ts = NULL;
     direct = NULL;
     err = tw_tilesets_builtin("hybrid", 5, 1024, &log, &ts);
-    CHECK(err == 0 && ts && ts->max_cluster_triangles == 1024, "builtin(hybrid, 1024): %s",
-          tw_error_to_str(err));
+    CHECK_MSG(err == 0 && ts && ts->max_cluster_triangles == 1024, "builtin(hybrid, 1024): %s",
+              tw_error_to_str(err));
     struct tw_hybrid_settings hybrid = {0};
     hybrid.max_cluster_triangles = 1024;
     err = tw_tilesets_hybrid(5, &hybrid, NULL, &direct);
     if (ts && direct)
-        CHECK(tilesets_identical(ts, direct), "builtin(hybrid) differs from hybrid()");
+        CHECK_MSG(tilesets_identical(ts, direct), "builtin(hybrid) differs from hybrid()");
     tw_tileset_destroy(ts);
     tw_tileset_destroy(direct);
 
     ts = NULL;
     captured.errors = 0;
     err = tw_tilesets_builtin("nope", 5, 0, &log, &ts);
-    CHECK(err == TW_ERR_INVALID, "builtin(nope) returned %d", err);
-    CHECK(ts == NULL, "builtin(nope) produced a tileset");
-    CHECK(captured.errors == 1 && strstr(captured.last, "nope"),
-          "no error naming \"nope\": \"%s\"", captured.last);
+    CHECK_MSG(err == TW_ERR_INVALID, "builtin(nope) returned %d", err);
+    CHECK_MSG(ts == NULL, "builtin(nope) produced a tileset");
+    CHECK_MSG(captured.errors == 1 && strstr(captured.last, "nope"),
+              "no error naming \"nope\": \"%s\"", captured.last);
 
     err = tw_tilesets_builtin("nope", 5, 0, NULL, &ts);
-    CHECK(err == TW_ERR_INVALID, "builtin(nope) without a logger returned %d", err);
+    CHECK_MSG(err == TW_ERR_INVALID, "builtin(nope) without a logger returned %d", err);
     err = tw_tilesets_builtin(NULL, 5, 0, NULL, &ts);
-    CHECK(err == TW_ERR_INVALID, "builtin(NULL) returned %d", err);
+    CHECK_MSG(err == TW_ERR_INVALID, "builtin(NULL) returned %d", err);
 }
 
 /* ---- merging small instances (tw_tileset_finish) ------------------------------------ */
@@ -963,45 +906,45 @@ static uint64_t mesh_bytes(const struct tw_tileset *ts)
 static void test_merge_instances(void)
 {
     struct tw_tileset *ts = merge_tileset(8), *plain = merge_tileset(1);
-    CHECK(ts && plain, "merge tilesets made");
+    CHECK_MSG(ts && plain, "merge tilesets made");
     if (!ts || !plain)
         goto out;
     const struct tw_prototype *p = &ts->prototypes[0], *q = &plain->prototypes[0];
     /* Unmerged: one cluster per quad, four for the strip of 10 (5 + 5, each 2 + 3). */
-    CHECK(q->instance_count == 5 && q->cluster_count == 4 + 4, "plain: %u instances, %u clusters",
-          q->instance_count, q->cluster_count);
-    CHECK(plain->mesh_count == 2, "plain: %u meshes", plain->mesh_count);
+    CHECK_MSG(q->instance_count == 5 && q->cluster_count == 4 + 4, "plain: %u instances, %u clusters",
+              q->instance_count, q->cluster_count);
+    CHECK_MSG(plain->mesh_count == 2, "plain: %u meshes", plain->mesh_count);
     /* Merged: quads 0, 2 and 4 (material 0) into instance 5; the red quad is
      * alone and the strip is not small: both as they were. */
-    CHECK(p->instance_count == 6 && ts->mesh_count == 3, "%u instances, %u meshes",
-          p->instance_count, ts->mesh_count);
+    CHECK_MSG(p->instance_count == 6 && ts->mesh_count == 3, "%u instances, %u meshes",
+              p->instance_count, ts->mesh_count);
     if (p->instance_count != 6 || ts->mesh_count != 3)
         goto out;
     const struct tw_instance *mi = &p->instances[5];
-    CHECK(mi->merged && mi->merged_into == TW_INSTANCE_NONE && mi->material == 0 && mi->mesh == 2,
-          "merged instance: merged %d, mesh %u, material %u", mi->merged, mi->mesh, mi->material);
+    CHECK_MSG(mi->merged && mi->merged_into == TW_INSTANCE_NONE && mi->material == 0 && mi->mesh == 2,
+              "merged instance: merged %d, mesh %u, material %u", mi->merged, mi->mesh, mi->material);
     const uint32_t expect_into[5] = {5, TW_INSTANCE_NONE, 5, TW_INSTANCE_NONE, 5};
     for (uint32_t k = 0; k < 5; k++)
-        CHECK(p->instances[k].merged_into == expect_into[k] && !p->instances[k].merged,
-              "instance %u merged into %u", k, p->instances[k].merged_into);
+        CHECK_MSG(p->instances[k].merged_into == expect_into[k] && !p->instances[k].merged,
+                  "instance %u merged into %u", k, p->instances[k].merged_into);
     static const float identity[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
-    CHECK(memcmp(mi->transform, identity, sizeof(identity)) == 0, "identity placement");
+    CHECK_MSG(memcmp(mi->transform, identity, sizeof(identity)) == 0, "identity placement");
     const struct tw_mesh *mm = &ts->meshes[2];
-    CHECK(mm->vertex_count == 12 && mm->triangle_count == 6, "merged mesh: %u vertices, %u triangles",
-          mm->vertex_count, mm->triangle_count);
+    CHECK_MSG(mm->vertex_count == 12 && mm->triangle_count == 6, "merged mesh: %u vertices, %u triangles",
+              mm->vertex_count, mm->triangle_count);
     /* Clusters: the merged 6 triangles in 2 (<= 4 each), the red quad, the strip's 4. */
-    CHECK(p->cluster_count == 2 + 1 + 4, "%u clusters", p->cluster_count);
+    CHECK_MSG(p->cluster_count == 2 + 1 + 4, "%u clusters", p->cluster_count);
     uint64_t tris = 0;
     for (uint32_t k = 0; k < p->cluster_count; k++) {
         const struct tw_cluster *c = &p->clusters[k];
-        CHECK(c->triangle_count <= 4, "cluster %u: %u triangles", k, c->triangle_count);
-        CHECK(p->instances[c->instance].merged_into == TW_INSTANCE_NONE,
-              "cluster %u drawn by a merged-away instance", k);
+        CHECK_MSG(c->triangle_count <= 4, "cluster %u: %u triangles", k, c->triangle_count);
+        CHECK_MSG(p->instances[c->instance].merged_into == TW_INSTANCE_NONE,
+                  "cluster %u drawn by a merged-away instance", k);
         tris += c->triangle_count;
     }
-    CHECK(tris == p->triangle_count && p->triangle_count == q->triangle_count,
-          "%llu cluster triangles, %llu and %llu in the prototypes", (unsigned long long)tris,
-          (unsigned long long)p->triangle_count, (unsigned long long)q->triangle_count);
+    CHECK_MSG(tris == p->triangle_count && p->triangle_count == q->triangle_count,
+              "%llu cluster triangles, %llu and %llu in the prototypes", (unsigned long long)tris,
+              (unsigned long long)p->triangle_count, (unsigned long long)q->triangle_count);
     /* Every transformed vertex of a merged instance is in the merged mesh
      * (up to float rounding), with its normal transformed the same way. */
     const struct tw_mesh *quad = &ts->meshes[0];
@@ -1021,21 +964,21 @@ static void test_merge_instances(void)
                         fabsf(got[2] - want[2]) < 1e-5f && fabsf(gn[0] - n[0]) < 1e-6f &&
                         fabsf(gn[1] - n[1]) < 1e-6f && fabsf(gn[2] - n[2]) < 1e-6f;
             }
-            CHECK(found, "instance %u vertex %u (%g %g %g) not in the merged mesh", k, v,
-                  (double)want[0], (double)want[1], (double)want[2]);
+            CHECK_MSG(found, "instance %u vertex %u (%g %g %g) not in the merged mesh", k, v,
+                      (double)want[0], (double)want[1], (double)want[2]);
         }
         /* Its box is where its triangles are, inside the prototype's. */
-        CHECK(box_contains(&p->box, &in->box), "instance %u box outside the prototype", k);
+        CHECK_MSG(box_contains(&p->box, &in->box), "instance %u box outside the prototype", k);
     }
     for (int a = 0; a < 3; a++)
-        CHECK(p->box.min[a] == q->box.min[a] && p->box.max[a] == q->box.max[a],
-              "prototype box axis %d: [%g, %g] vs [%g, %g]", a, (double)p->box.min[a],
-              (double)p->box.max[a], (double)q->box.min[a], (double)q->box.max[a]);
+        CHECK_MSG(p->box.min[a] == q->box.min[a] && p->box.max[a] == q->box.max[a],
+                  "prototype box axis %d: [%g, %g] vs [%g, %g]", a, (double)p->box.min[a],
+                  (double)p->box.max[a], (double)q->box.min[a], (double)q->box.max[a]);
     /* The merged mesh costs its bytes. */
-    CHECK(tw_tileset_geometry_bytes(ts) == mesh_bytes(ts) &&
-              tw_tileset_geometry_bytes(ts) == tw_tileset_geometry_bytes(plain) + 12 * 24 + 6 * 12,
-          "geometry bytes %llu, plain %llu", (unsigned long long)tw_tileset_geometry_bytes(ts),
-          (unsigned long long)tw_tileset_geometry_bytes(plain));
+    CHECK_MSG(tw_tileset_geometry_bytes(ts) == mesh_bytes(ts) &&
+                  tw_tileset_geometry_bytes(ts) == tw_tileset_geometry_bytes(plain) + 12 * 24 + 6 * 12,
+              "geometry bytes %llu, plain %llu", (unsigned long long)tw_tileset_geometry_bytes(ts),
+              (unsigned long long)tw_tileset_geometry_bytes(plain));
 out:
     tw_tileset_destroy(ts);
     tw_tileset_destroy(plain);
@@ -1047,9 +990,9 @@ out:
         tw_tileset_add_prototype(whole, "p", 1.0f);
         for (int k = 0; k < 3 && one >= 0 && m >= 0; k++)
             tw_tileset_add_instance(whole, 0, (uint32_t)one, (uint32_t)m, NULL);
-        CHECK(tw_tileset_finish(whole, 0) == TW_OK && whole->prototypes[0].instance_count == 3 &&
-                  whole->prototypes[0].cluster_count == 3,
-              "max_cluster_triangles 0 merges nothing");
+        CHECK_MSG(tw_tileset_finish(whole, 0) == TW_OK && whole->prototypes[0].instance_count == 3 &&
+                      whole->prototypes[0].cluster_count == 3,
+                  "max_cluster_triangles 0 merges nothing");
     }
     tw_tileset_destroy(whole);
 }
@@ -1059,7 +1002,7 @@ out:
 static void test_merge_builtin(void)
 {
     struct tw_tileset *ts = NULL;
-    CHECK(tw_tilesets_builtin("forest", 1, 0, NULL, &ts) == TW_OK, "forest");
+    CHECK_MSG(tw_tilesets_builtin("forest", 1, 0, NULL, &ts) == TW_OK, "forest");
     if (!ts)
         return;
     for (uint32_t p = 0; p < ts->prototype_count; p++) {
@@ -1069,18 +1012,18 @@ static void test_merge_builtin(void)
             merged += proto->instances[k].merged;
             merged_away += proto->instances[k].merged_into != TW_INSTANCE_NONE;
             if (proto->instances[k].merged_into != TW_INSTANCE_NONE)
-                CHECK(ts->meshes[proto->instances[k].mesh].triangle_count <
-                          TW_TILESET_MERGE_TRIANGLES,
-                      "%s: instance %u merged with %u triangles", proto->name, k,
-                      ts->meshes[proto->instances[k].mesh].triangle_count);
+                CHECK_MSG(ts->meshes[proto->instances[k].mesh].triangle_count <
+                              TW_TILESET_MERGE_TRIANGLES,
+                          "%s: instance %u merged with %u triangles", proto->name, k,
+                          ts->meshes[proto->instances[k].mesh].triangle_count);
         }
-        CHECK(merged > 0 && merged_away > 4 * merged, "%s: %u merged meshes of %u instances",
-              proto->name, merged, merged_away);
+        CHECK_MSG(merged > 0 && merged_away > 4 * merged, "%s: %u merged meshes of %u instances",
+                  proto->name, merged, merged_away);
         uint32_t merged_clusters = 0;
         for (uint32_t k = 0; k < proto->cluster_count; k++)
             merged_clusters += proto->instances[proto->clusters[k].instance].merged;
-        CHECK(4 * merged_clusters < merged_away, "%s: %u clusters for %u merged instances",
-              proto->name, merged_clusters, merged_away);
+        CHECK_MSG(4 * merged_clusters < merged_away, "%s: %u clusters for %u merged instances",
+                  proto->name, merged_clusters, merged_away);
     }
     tw_tileset_destroy(ts);
 }
@@ -1095,10 +1038,5 @@ int main(void)
     test_builtin();
     test_merge_instances();
     test_merge_builtin();
-    if (failures) {
-        fprintf(stderr, "test-tilesets: %d check(s) failed\n", failures);
-        return 1;
-    }
-    printf("test-tilesets: all checks passed\n");
-    return 0;
+    return check_summary("test-tilesets");
 }
