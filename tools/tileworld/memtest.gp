@@ -56,6 +56,8 @@ if (!sweep) {
                  with filledcurves lc rgb '#e69f00' title 'GPU: vertex and index buffers', \
              '' using (km(column('distance_m'))):(column('rss_bytes') / MiB) with lines lw 2 \
                  lc rgb '#000000' title 'process RSS', \
+             '' using (km(column('distance_m'))):(column('heap_used_bytes') / MiB) with lines \
+                 lw 1 lc rgb '#777777' title 'malloc heap in use', \
              budget / MiB with lines dt 2 lw 2 lc rgb '#d55e00' \
                  title sprintf('cache budget (%.0f MiB)', budget / MiB)
     } else {
@@ -66,7 +68,9 @@ if (!sweep) {
              '' using (km(column('distance_m'))):(cpu(0)):(column('bytes_total') / MiB) \
                  with filledcurves lc rgb '#e69f00' title 'GPU: vertex and index buffers', \
              '' using (km(column('distance_m'))):(column('rss_bytes') / MiB) with lines lw 2 \
-                 lc rgb '#000000' title 'process RSS (no cache budget)'
+                 lc rgb '#000000' title 'process RSS (no cache budget)', \
+             '' using (km(column('distance_m'))):(column('heap_used_bytes') / MiB) with lines \
+                 lw 1 lc rgb '#777777' title 'malloc heap in use'
     }
 
     # ---- chart-loads.png: loads, evictions, reloads per interval ------------------
