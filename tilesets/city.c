@@ -11,6 +11,7 @@
 #include "tilesets/mesh-builder.h"
 #include "tilesets/procedural.h"
 #include "tilesets/tilesets-private.h"
+#include "tiles/array.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -714,21 +715,17 @@ static int building_meshes(struct city *c, const struct building_spec *sp, uint3
             return TW_OK;
         }
     }
-    if (c->cache_count == c->cache_cap) {
-        const uint32_t cap = c->cache_cap ? 2 * c->cache_cap : 64;
-        struct cached_building *p = realloc(c->cache, sizeof(*p) * cap);
-        if (!p)
-            return TW_ERR_NOMEM;
-        c->cache = p;
-        c->cache_cap = cap;
-    }
+    int err = tw_array_reserve_u32((void **)&c->cache, &c->cache_cap, c->cache_count + 1,
+                                   sizeof(*c->cache), 64);
+    if (err)
+        return err;
     tw_mesh_builder_reset(&c->wall, false);
     tw_mesh_builder_reset(&c->glass, false);
     tw_mesh_builder_reset(&c->roof, false);
     emit_building(&c->wall, &c->glass, &c->roof, sp);
     struct cached_building *entry = &c->cache[c->cache_count];
     entry->spec = *sp;
-    int err = add_mesh_from(c, &c->wall, &entry->mesh[0]);
+    err = add_mesh_from(c, &c->wall, &entry->mesh[0]);
     if (!err)
         err = add_mesh_from(c, &c->glass, &entry->mesh[1]);
     if (!err)
@@ -743,14 +740,10 @@ static int building_meshes(struct city *c, const struct building_spec *sp, uint3
 static int push_lot(struct city *c, const struct building_spec *sp, const float transform[12],
                     uint32_t facade_material)
 {
-    if (c->lot_count == c->lot_cap) {
-        const uint32_t cap = c->lot_cap ? 2 * c->lot_cap : 32;
-        struct lot *p = realloc(c->lots, sizeof(*p) * cap);
-        if (!p)
-            return TW_ERR_NOMEM;
-        c->lots = p;
-        c->lot_cap = cap;
-    }
+    const int err = tw_array_reserve_u32((void **)&c->lots, &c->lot_cap, c->lot_count + 1,
+                                         sizeof(*c->lots), 32);
+    if (err)
+        return err;
     struct lot *l = &c->lots[c->lot_count++];
     l->spec = *sp;
     memcpy(l->transform, transform, sizeof(l->transform));

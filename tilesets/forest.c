@@ -21,6 +21,7 @@
 #include "tilesets/mesh-builder.h"
 #include "tilesets/procedural.h"
 #include "tilesets/tilesets-private.h"
+#include "tiles/array.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -721,14 +722,10 @@ const char *tw_forest_stand_name(enum tw_forest_stand_kind kind)
 
 static int push_placed(struct tw_forest_stands *f, float x, float z, float crown, float base)
 {
-    if (f->placed_count == f->placed_cap) {
-        const uint32_t cap = f->placed_cap ? 2 * f->placed_cap : 256;
-        struct placed *p = realloc(f->placed, sizeof(*p) * cap);
-        if (!p)
-            return TW_ERR_NOMEM;
-        f->placed = p;
-        f->placed_cap = cap;
-    }
+    const int err = tw_array_reserve_u32((void **)&f->placed, &f->placed_cap,
+                                         f->placed_count + 1, sizeof(*f->placed), 256);
+    if (err)
+        return err;
     f->placed[f->placed_count++] = (struct placed){x, z, crown, base};
     return TW_OK;
 }
