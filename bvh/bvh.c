@@ -835,44 +835,9 @@ fail:
 
 /* ---- public builds --------------------------------------------------------- */
 
-int tw_bvh_build(struct tw_bvh_builder *b, const struct tw_prototype *proto,
+/* Both builds: Embree's through b, or the median split when b is NULL. */
+static int build(struct tw_bvh_builder *b, const struct tw_prototype *proto,
                  const struct tw_bvh_settings *settings, struct tw_bvh **out)
-{
-    int ret;
-    struct stage st;
-    struct tw_bvh_settings s;
-    memset(&st, 0, sizeof(st));
-
-    if (!out)
-        return TW_ERR_INVALID;
-    *out = NULL;
-    if (!b || !proto)
-        return TW_ERR_INVALID;
-    const double start = now_ms();
-    ret = check_prototype(proto, &b->log);
-    if (ret < 0)
-        goto out;
-    ret = resolve_settings(settings, proto->name, &b->log, &s);
-    if (ret < 0)
-        goto out;
-    ret = stage_build_embree(b, proto, &st);
-    if (ret < 0)
-        goto out;
-    ret = flatten(&st, proto, &s, &b->log, out);
-    if (ret < 0)
-        goto out;
-    (*out)->build_ms = now_ms() - start;
-
-out:
-    if (ret == TW_ERR_NOMEM)
-        tw_log_printf(&b->log, TW_LOG_ERROR, "bvh: prototype '%.48s': out of memory",
-                      proto->name);
-    stage_finish(&st);
-    return ret;
-}
-
-int tw_bvh_build_median(const struct tw_prototype *proto,
-                        const struct tw_bvh_settings *settings, struct tw_bvh **out)
 {
     int ret;
     struct stage st;
@@ -884,24 +849,44 @@ int tw_bvh_build_median(const struct tw_prototype *proto,
     *out = NULL;
     if (!proto)
         return TW_ERR_INVALID;
+    const struct tw_log *log = b ? &b->log : NULL;
     const double start = now_ms();
-    ret = check_prototype(proto, NULL);
+    ret = check_prototype(proto, log);
     if (ret < 0)
         goto out;
-    ret = resolve_settings(settings, proto->name, NULL, &s);
+    ret = resolve_settings(settings, proto->name, log, &s);
     if (ret < 0)
         goto out;
-    ret = stage_build_median(proto, &st);
+    ret = b ? stage_build_embree(b, proto, &st) : stage_build_median(proto, &st);
     if (ret < 0)
         goto out;
-    ret = flatten(&st, proto, &s, NULL, out);
+    ret = flatten(&st, proto, &s, log, out);
     if (ret < 0)
         goto out;
     (*out)->build_ms = now_ms() - start;
 
 out:
+    if (b && ret == TW_ERR_NOMEM)
+        tw_log_printf(log, TW_LOG_ERROR, "bvh: prototype '%.48s': out of memory", proto->name);
     stage_finish(&st);
     return ret;
+}
+
+int tw_bvh_build(struct tw_bvh_builder *b, const struct tw_prototype *proto,
+                 const struct tw_bvh_settings *settings, struct tw_bvh **out)
+{
+    if (!b) {
+        if (out)
+            *out = NULL;
+        return TW_ERR_INVALID;
+    }
+    return build(b, proto, settings, out);
+}
+
+int tw_bvh_build_median(const struct tw_prototype *proto,
+                        const struct tw_bvh_settings *settings, struct tw_bvh **out)
+{
+    return build(NULL, proto, settings, out);
 }
 
 void tw_bvh_destroy(struct tw_bvh *bvh)

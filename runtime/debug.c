@@ -1,6 +1,7 @@
 /* Debug views of the world (runtime.h "debugging and the viewer"): cells by
  * tile-query state, BVH nodes of what was drawn, query boxes. */
 #include "runtime/world-private.h"
+#include "tiles/array.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -90,14 +91,9 @@ const struct tw_debug_box *tw_world_debug_boxes(const struct tw_world *w, size_t
 
 static struct tw_debug_box *push_debug(struct tw_world *w)
 {
-    if (w->debug.count == w->debug.cap) {
-        size_t cap = w->debug.cap ? 2 * w->debug.cap : 1024;
-        struct tw_debug_box *b = realloc(w->debug.boxes, sizeof(*b) * cap);
-        if (!b)
-            return NULL;
-        w->debug.boxes = b;
-        w->debug.cap = cap;
-    }
+    if (tw_array_reserve((void **)&w->debug.boxes, &w->debug.cap, w->debug.count + 1,
+                         sizeof(*w->debug.boxes), 1024))
+        return NULL;
     struct tw_debug_box *b = &w->debug.boxes[w->debug.count++];
     memset(b, 0, sizeof(*b));
     return b;

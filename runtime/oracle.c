@@ -5,6 +5,7 @@
  * drawing through a backend whose draw renders ids.
  */
 #include "runtime/world-private.h"
+#include "tiles/array.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -50,20 +51,7 @@ void tw_oracle_finish(struct tw_oracle *o)
 
 static int grow(void **array, size_t *cap, size_t need, size_t elem)
 {
-    if (need <= *cap)
-        return TW_OK;
-    size_t n = *cap ? *cap : 4096;
-    while (n < need) {
-        if (n > SIZE_MAX / 2 / elem)
-            return TW_ERR_NOMEM;
-        n *= 2;
-    }
-    void *p = realloc(*array, n * elem);
-    if (!p)
-        return TW_ERR_NOMEM;
-    *array = p;
-    *cap = n;
-    return TW_OK;
+    return tw_array_reserve(array, cap, need, elem, 4096);
 }
 
 struct id_backend {

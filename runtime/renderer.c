@@ -1,5 +1,6 @@
 /* The renderer and the GL query backend (renderer.h). */
 #include "runtime/renderer.h"
+#include "tiles/array.h"
 
 #include <assert.h>
 #include <math.h>
@@ -810,17 +811,10 @@ static void enter_query_mode(struct tw_renderer *r)
 static void record(struct tw_renderer *r, struct tw_cell cell, uint32_t prototype,
                    const uint32_t *clusters, uint32_t count)
 {
-    if (r->drawn_count + count > r->drawn_cap) {
-        size_t cap = r->drawn_cap ? r->drawn_cap : 4096;
-        while (cap < r->drawn_count + count)
-            cap *= 2;
-        struct tw_drawn_cluster *d = realloc(r->drawn, sizeof(*d) * cap);
-        if (!d) {
-            tw_log_printf(&r->log, TW_LOG_ERROR, "out of memory recording draws");
-            return;
-        }
-        r->drawn = d;
-        r->drawn_cap = cap;
+    if (tw_array_reserve((void **)&r->drawn, &r->drawn_cap, r->drawn_count + count,
+                         sizeof(*r->drawn), 4096)) {
+        tw_log_printf(&r->log, TW_LOG_ERROR, "out of memory recording draws");
+        return;
     }
     for (uint32_t k = 0; k < count; k++)
         r->drawn[r->drawn_count++] = (struct tw_drawn_cluster){cell, prototype, clusters[k]};
@@ -968,16 +962,9 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
 static void record_query(struct tw_renderer *r, uint32_t handle, const struct tw_box *boxes,
                          uint32_t count, const float offset[3])
 {
-    if (r->query_box_count + count > r->query_box_cap) {
-        size_t cap = r->query_box_cap ? r->query_box_cap : 1024;
-        while (cap < r->query_box_count + count)
-            cap *= 2;
-        struct tw_renderer_query_box *q = realloc(r->query_boxes, sizeof(*q) * cap);
-        if (!q)
-            return;
-        r->query_boxes = q;
-        r->query_box_cap = cap;
-    }
+    if (tw_array_reserve((void **)&r->query_boxes, &r->query_box_cap, r->query_box_count + count,
+                         sizeof(*r->query_boxes), 1024))
+        return;
     r->query_record[handle - 1] = (uint32_t)r->query_box_count + 1;
     for (uint32_t k = 0; k < count; k++) {
         struct tw_renderer_query_box *q = &r->query_boxes[r->query_box_count++];

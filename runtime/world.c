@@ -5,6 +5,7 @@
  * statistics. The oracle and the debug views have files of their own.
  */
 #include "runtime/world-private.h"
+#include "tiles/array.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -437,14 +438,9 @@ static void collect_counters(const struct tw_world *w, struct tw_frame_stats *st
 
 static void push_event(struct tw_world *w, const struct tw_tile_event *ev)
 {
-    if (w->next_event_count == w->next_event_cap) {
-        const size_t cap = w->next_event_cap ? 2 * w->next_event_cap : 64;
-        struct tw_tile_event *e = realloc(w->next_events, sizeof(*e) * cap);
-        if (!e)
-            return;     /* an event lost to memory: the counters still count it */
-        w->next_events = e;
-        w->next_event_cap = cap;
-    }
+    if (tw_array_reserve((void **)&w->next_events, &w->next_event_cap, w->next_event_count + 1,
+                         sizeof(*w->next_events), 64))
+        return;     /* an event lost to memory: the counters still count it */
     w->next_events[w->next_event_count++] = *ev;
 }
 

@@ -1,5 +1,6 @@
 /* The cell map and the tile cache (tiles.h). */
 #include "tileworld/tiles.h"
+#include "tiles/array.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -291,14 +292,10 @@ int tw_tile_cache_acquire(struct tw_tile_cache *c, struct tw_cell cell, uint32_t
         index = c->free_head;
         c->free_head = c->slots[index].next_free;
     } else {
-        if (c->slot_count == c->slot_cap) {
-            const uint32_t cap = c->slot_cap ? 2 * c->slot_cap : 64;
-            struct slot *s = realloc(c->slots, sizeof(*s) * cap);
-            if (!s)
-                return TW_ERR_NOMEM;
-            c->slots = s;
-            c->slot_cap = cap;
-        }
+        const int err = tw_array_reserve_u32((void **)&c->slots, &c->slot_cap,
+                                             c->slot_count + 1, sizeof(*c->slots), 64);
+        if (err)
+            return err;
         index = c->slot_count++;
         c->slots[index].generation = 0;
     }

@@ -1,5 +1,6 @@
 /* The tileset model: builder, cluster split, boxes (tiles.h). */
 #include "tileworld/tiles.h"
+#include "tiles/array.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -8,20 +9,7 @@
 
 static int grow(void **array, uint32_t *cap, uint32_t need, size_t elem)
 {
-    if (need <= *cap)
-        return TW_OK;
-    uint32_t n = *cap ? *cap : 8;
-    while (n < need) {
-        if (n > UINT32_MAX / 2)
-            return TW_ERR_LIMIT;
-        n *= 2;
-    }
-    void *p = realloc(*array, (size_t)n * elem);
-    if (!p)
-        return TW_ERR_NOMEM;
-    *array = p;
-    *cap = n;
-    return TW_OK;
+    return tw_array_reserve_u32(array, cap, need, elem, 8);
 }
 
 int tw_tileset_create(const char *name, float w, float d, struct tw_tileset **out)

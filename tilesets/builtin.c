@@ -1,4 +1,5 @@
 /* The registry of built-in tilesets (tilesets.h). */
+#include "tilesets/procedural.h"
 #include "tileworld/tilesets.h"
 
 #include <string.h>
@@ -8,10 +9,8 @@ const char *const tw_tilesets_builtin_names[] = {"city", "forest", "hybrid", NUL
 int tw_tilesets_builtin(const char *name, uint64_t seed, uint32_t max_cluster_triangles,
                         const struct tw_log *log, struct tw_tileset **out)
 {
-    if (!out) {
-        tw_log_printf(log, TW_LOG_ERROR, "tilesets: builtin: out is NULL (caller's bug)");
+    if (!tw_procedural_out_given(out, log, "builtin"))
         return TW_ERR_INVALID;
-    }
     *out = NULL;
     if (!name) {
         tw_log_printf(log, TW_LOG_ERROR, "tilesets: builtin: no tileset name given");

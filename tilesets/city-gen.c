@@ -11,6 +11,7 @@
  * Thread safety: generate() reads the provider, which nothing writes after
  * creation, and keeps its generator on the heap of the call. */
 #include "tilesets/mesh-builder.h"
+#include "tilesets/procedural.h"
 #include "tilesets/tilesets-private.h"
 
 #include <stdio.h>
@@ -91,10 +92,8 @@ int tw_tilesets_provider_create_city(uint64_t seed, const struct tw_city_setting
                                      const struct tw_log *log,
                                      struct tw_tilesets_provider **out)
 {
-    if (!out) {
-        tw_log_printf(log, TW_LOG_ERROR, "tilesets: city-gen: out is NULL (caller's bug)");
+    if (!tw_procedural_out_given(out, log, "city-gen"))
         return TW_ERR_INVALID;
-    }
     *out = NULL;
     struct tw_city_settings requested = {0};
     if (settings)
@@ -114,19 +113,10 @@ int tw_tilesets_provider_create_city(uint64_t seed, const struct tw_city_setting
     g->settings = set;
     if (log)
         g->log = *log;
-    struct tw_tile_provider *p = &g->base.provider;
-    p->name = "city-gen";
-    p->footprint[0] = p->footprint[1] = set.footprint;
     /* The streets span the footprint at y = 0; nothing leaves it (lots and
      * everything on them lie inside the block) or goes below the road. */
-    p->bound.min[0] = p->bound.min[1] = p->bound.min[2] = 0.0f;
-    p->bound.max[0] = p->bound.max[2] = set.footprint;
-    p->bound.max[1] = tw_city_blocks_max_top(&set);
-    p->shared = NULL;
-    p->content = NULL;
-    p->generate = city_gen_generate;
-    p->user = g;
-    p->max_cluster_triangles = set.max_cluster_triangles;
+    tw_provider_init(&g->base.provider, "city-gen", set.footprint, tw_city_blocks_max_top(&set),
+                     city_gen_generate, g, set.max_cluster_triangles);
     g->base.destroy = city_gen_destroy;
     *out = &g->base;
     return TW_OK;

@@ -9,7 +9,9 @@
  * instanced rather than duplicated. Each building is three meshes (walls,
  * glass, roof) because a material belongs to an instance. */
 #include "tilesets/mesh-builder.h"
+#include "tilesets/procedural.h"
 #include "tilesets/tilesets-private.h"
+#include "tiles/array.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -167,43 +169,41 @@ static void facade_point(const struct facade *f, float s, float y, float t, floa
     p[1] += y;
 }
 
+/* The quadrilateral of the facade points st[k] = (s, y, t), facing. */
+static void facade_quad(struct tw_mesh_builder *b, const struct facade *f, const float st[4][3],
+                        const float facing[3])
+{
+    float p[4][3];
+    for (int k = 0; k < 4; k++)
+        facade_point(f, st[k][0], st[k][1], st[k][2], p[k]);
+    emit_polygon(b, (const float(*)[3])p, 4, facing);
+}
+
 /* A rectangle parallel to the wall at offset t, facing out (dir > 0) or in. */
 static void facade_face(struct tw_mesh_builder *b, const struct facade *f, float s0, float s1,
                         float y0, float y1, float t, float dir)
 {
-    float p[4][3];
-    facade_point(f, s0, y0, t, p[0]);
-    facade_point(f, s1, y0, t, p[1]);
-    facade_point(f, s1, y1, t, p[2]);
-    facade_point(f, s0, y1, t, p[3]);
+    const float st[4][3] = {{s0, y0, t}, {s1, y0, t}, {s1, y1, t}, {s0, y1, t}};
     const float facing[3] = {dir * f->out[0], dir * f->out[1], dir * f->out[2]};
-    emit_polygon(b, (const float(*)[3])p, 4, facing);
+    facade_quad(b, f, st, facing);
 }
 
 /* A rectangle across the wall at s (a window jamb, the end of a fin). */
 static void facade_jamb(struct tw_mesh_builder *b, const struct facade *f, float s, float y0,
                         float y1, float t0, float t1, float dir)
 {
-    float p[4][3];
-    facade_point(f, s, y0, t0, p[0]);
-    facade_point(f, s, y0, t1, p[1]);
-    facade_point(f, s, y1, t1, p[2]);
-    facade_point(f, s, y1, t0, p[3]);
+    const float st[4][3] = {{s, y0, t0}, {s, y0, t1}, {s, y1, t1}, {s, y1, t0}};
     const float facing[3] = {dir * f->along[0], dir * f->along[1], dir * f->along[2]};
-    emit_polygon(b, (const float(*)[3])p, 4, facing);
+    facade_quad(b, f, st, facing);
 }
 
 /* A horizontal rectangle at height y, facing up (dir > 0) or down. */
 static void facade_flat(struct tw_mesh_builder *b, const struct facade *f, float s0, float s1,
                         float y, float t0, float t1, float dir)
 {
-    float p[4][3];
-    facade_point(f, s0, y, t0, p[0]);
-    facade_point(f, s1, y, t0, p[1]);
-    facade_point(f, s1, y, t1, p[2]);
-    facade_point(f, s0, y, t1, p[3]);
+    const float st[4][3] = {{s0, y, t0}, {s1, y, t0}, {s1, y, t1}, {s0, y, t1}};
     const float facing[3] = {0.0f, dir, 0.0f};
-    emit_polygon(b, (const float(*)[3])p, 4, facing);
+    facade_quad(b, f, st, facing);
 }
 
 /* A horizontal strip along the whole wall between offsets t0 and t1, mitred
@@ -212,13 +212,10 @@ static void facade_flat(struct tw_mesh_builder *b, const struct facade *f, float
 static void facade_mitre(struct tw_mesh_builder *b, const struct facade *f, float y, float t0,
                          float t1, float dir)
 {
-    float p[4][3];
-    facade_point(f, -t0, y, t0, p[0]);
-    facade_point(f, f->len + t0, y, t0, p[1]);
-    facade_point(f, f->len + t1, y, t1, p[2]);
-    facade_point(f, -t1, y, t1, p[3]);
+    const float st[4][3] = {
+        {-t0, y, t0}, {f->len + t0, y, t0}, {f->len + t1, y, t1}, {-t1, y, t1}};
     const float facing[3] = {0.0f, dir, 0.0f};
-    emit_polygon(b, (const float(*)[3])p, 4, facing);
+    facade_quad(b, f, st, facing);
 }
 
 /* A ledge running round the building: protrudes by depth between y0 and y1. */
@@ -718,21 +715,17 @@ static int building_meshes(struct city *c, const struct building_spec *sp, uint3
             return TW_OK;
         }
     }
-    if (c->cache_count == c->cache_cap) {
-        const uint32_t cap = c->cache_cap ? 2 * c->cache_cap : 64;
-        struct cached_building *p = realloc(c->cache, sizeof(*p) * cap);
-        if (!p)
-            return TW_ERR_NOMEM;
-        c->cache = p;
-        c->cache_cap = cap;
-    }
+    int err = tw_array_reserve_u32((void **)&c->cache, &c->cache_cap, c->cache_count + 1,
+                                   sizeof(*c->cache), 64);
+    if (err)
+        return err;
     tw_mesh_builder_reset(&c->wall, false);
     tw_mesh_builder_reset(&c->glass, false);
     tw_mesh_builder_reset(&c->roof, false);
     emit_building(&c->wall, &c->glass, &c->roof, sp);
     struct cached_building *entry = &c->cache[c->cache_count];
     entry->spec = *sp;
-    int err = add_mesh_from(c, &c->wall, &entry->mesh[0]);
+    err = add_mesh_from(c, &c->wall, &entry->mesh[0]);
     if (!err)
         err = add_mesh_from(c, &c->glass, &entry->mesh[1]);
     if (!err)
@@ -747,14 +740,10 @@ static int building_meshes(struct city *c, const struct building_spec *sp, uint3
 static int push_lot(struct city *c, const struct building_spec *sp, const float transform[12],
                     uint32_t facade_material)
 {
-    if (c->lot_count == c->lot_cap) {
-        const uint32_t cap = c->lot_cap ? 2 * c->lot_cap : 32;
-        struct lot *p = realloc(c->lots, sizeof(*p) * cap);
-        if (!p)
-            return TW_ERR_NOMEM;
-        c->lots = p;
-        c->lot_cap = cap;
-    }
+    const int err = tw_array_reserve_u32((void **)&c->lots, &c->lot_cap, c->lot_count + 1,
+                                         sizeof(*c->lots), 32);
+    if (err)
+        return err;
     struct lot *l = &c->lots[c->lot_count++];
     l->spec = *sp;
     memcpy(l->transform, transform, sizeof(l->transform));
@@ -1343,16 +1332,24 @@ static int build_ground_meshes(struct city *c)
     return TW_OK;
 }
 
-static void blob_point(const float a[3], const float b[3], const float c[3], uint32_t i,
-                       uint32_t j, uint32_t n, const float centre[3], const float radius[3],
-                       float out[3])
+/* A canopy blob: an ellipsoid of radius about centre (tw_icosphere_each). */
+struct blob {
+    struct tw_mesh_builder *b;
+    const float *centre, *radius;
+};
+
+static void blob_triangle(void *user, const float v[3][3], const float len[3])
 {
-    float v[3];
-    for (int k = 0; k < 3; k++)
-        v[k] = a[k] + (b[k] - a[k]) * (float)i / (float)n + (c[k] - a[k]) * (float)j / (float)n;
-    const float len = sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    for (int k = 0; k < 3; k++)
-        out[k] = centre[k] + radius[k] * v[k] / len;
+    const struct blob *bl = user;
+    float p[3][3];
+    float facing[3] = {0, 0, 0};
+    for (int k = 0; k < 3; k++) {
+        for (int d = 0; d < 3; d++)
+            p[k][d] = bl->centre[d] + bl->radius[d] * v[k][d] / len[k];
+        for (int d = 0; d < 3; d++)
+            facing[d] += (p[k][d] - bl->centre[d]) / bl->radius[d];
+    }
+    emit_polygon(bl->b, (const float(*)[3])p, 3, facing);
 }
 
 /* An icosahedron with every face split into n x n triangles, pushed onto an
@@ -1360,41 +1357,8 @@ static void blob_point(const float a[3], const float b[3], const float c[3], uin
 static void emit_blob(struct tw_mesh_builder *b, const float centre[3], const float radius[3],
                       uint32_t n)
 {
-#define PHI 1.6180339887f
-    static const float ico[12][3] = {
-        {-1, PHI, 0}, {1, PHI, 0}, {-1, -PHI, 0}, {1, -PHI, 0}, {0, -1, PHI}, {0, 1, PHI},
-        {0, -1, -PHI}, {0, 1, -PHI}, {PHI, 0, -1}, {PHI, 0, 1}, {-PHI, 0, -1}, {-PHI, 0, 1},
-    };
-#undef PHI
-    static const uint8_t faces[20][3] = {
-        {0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-        {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
-        {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1},
-    };
-    for (int f = 0; f < 20; f++) {
-        const float *a = ico[faces[f][0]], *bb = ico[faces[f][1]], *c = ico[faces[f][2]];
-        for (uint32_t i = 0; i < n; i++) {
-            for (uint32_t j = 0; i + j < n; j++) {
-                /* Two triangles per grid cell, one where the cell is cut by
-                 * the face's edge. */
-                const uint32_t corners[2][3][2] = {
-                    {{i, j}, {i + 1, j}, {i, j + 1}},
-                    {{i + 1, j}, {i + 1, j + 1}, {i, j + 1}},
-                };
-                for (int t = 0; t < (i + j + 1 < n ? 2 : 1); t++) {
-                    float p[3][3];
-                    float facing[3] = {0, 0, 0};
-                    for (int k = 0; k < 3; k++) {
-                        blob_point(a, bb, c, corners[t][k][0], corners[t][k][1], n, centre,
-                                   radius, p[k]);
-                        for (int d = 0; d < 3; d++)
-                            facing[d] += (p[k][d] - centre[d]) / radius[d];
-                    }
-                    emit_polygon(b, (const float(*)[3])p, 3, facing);
-                }
-            }
-        }
-    }
+    struct blob bl = {b, centre, radius};
+    tw_icosphere_each(n, blob_triangle, &bl);
 }
 
 static int build_park_meshes(struct city *c)
@@ -1666,12 +1630,8 @@ int tw_city_settings_resolve(const struct tw_city_settings *in, struct tw_city_s
         if (in->max_cluster_triangles)
             out->max_cluster_triangles = in->max_cluster_triangles;
     }
-    if (out->prototypes < 8 || out->prototypes > 256) {
-        tw_log_printf(log, TW_LOG_ERROR,
-                      "tilesets: %s: prototypes = %u, must be in [8, 256] (caller's settings)",
-                      who, (unsigned)out->prototypes);
+    if (!tw_procedural_prototypes_valid(out->prototypes, log, who))
         return TW_ERR_INVALID;
-    }
     if (!isfinite(out->street_width) || !(out->street_width >= 4.0f)) {
         tw_log_printf(log, TW_LOG_ERROR,
                       "tilesets: %s: street_width = %g m, must be at least 4 m (caller's settings)",
@@ -1687,22 +1647,17 @@ int tw_city_settings_resolve(const struct tw_city_settings *in, struct tw_city_s
                       who, (double)out->footprint, (double)out->street_width);
         return TW_ERR_INVALID;
     }
-    if (!isfinite(out->max_height) || !(out->max_height >= 20.0f) || !(out->max_height <= 1000.0f)) {
-        tw_log_printf(log, TW_LOG_ERROR,
-                      "tilesets: %s: max_height = %g m, must be in [20, 1000] (caller's settings)",
-                      who, (double)out->max_height);
+    if (!tw_procedural_in_range(out->max_height, 20.0f, 1000.0f, "max_height", " m", log,
+                                who))
         return TW_ERR_INVALID;
-    }
     return TW_OK;
 }
 
 int tw_tilesets_city(uint64_t seed, const struct tw_city_settings *settings,
                      const struct tw_log *log, struct tw_tileset **out)
 {
-    if (!out) {
-        tw_log_printf(log, TW_LOG_ERROR, "tilesets: city: out is NULL (caller's bug)");
+    if (!tw_procedural_out_given(out, log, "city"))
         return TW_ERR_INVALID;
-    }
     *out = NULL;
     struct tw_city_settings set;
     int err = tw_city_settings_resolve(settings, &set, log, "city");
@@ -1714,9 +1669,9 @@ int tw_tilesets_city(uint64_t seed, const struct tw_city_settings *settings,
     struct tw_tileset *ts = NULL;
     err = tw_tileset_create("city", set.footprint, set.footprint, &ts);
     if (err)
-        goto fail;
+        goto out;
     if ((err = city_begin(&c, ts, &set, true)))
-        goto fail;
+        goto out;
 
     const uint32_t n = set.prototypes;
     for (uint32_t k = 0; k < n; k++) {
@@ -1730,24 +1685,14 @@ int tw_tilesets_city(uint64_t seed, const struct tw_city_settings *settings,
         const int proto = tw_tileset_add_prototype(ts, name, weights[kind]);
         if (proto < 0) {
             err = proto;
-            goto fail;
+            goto out;
         }
         const uint64_t stream = tw_tiles_hash(seed, (int64_t)k, 0x63697479);
         if ((err = city_add_block(&c, (uint32_t)proto, kind, stream, k == 0)))
-            goto fail;
+            goto out;
     }
-    if ((err = tw_tileset_finish(ts, set.max_cluster_triangles)))
-        goto fail;
-
-    *out = ts;
-    ts = NULL;
-    goto out;
-
-fail:
-    tw_log_printf(log, TW_LOG_ERROR, "tilesets: city: generation failed: %s",
-                  tw_error_to_str(err));
-    tw_tileset_destroy(ts);
 out:
+    err = tw_procedural_hand_over(ts, err, set.max_cluster_triangles, log, "city", out);
     city_release(&c);
     return err;
 }

@@ -375,19 +375,27 @@ static int open_beneath(int dir_fd, const char *rel, bool want_dir, enum tw_conf
     return open_beneath_walk(dir_fd, rel, want_dir, out_fd, reason);
 }
 
-int tw_confined_open(int dir_fd, const char *rel, enum tw_confined_mode mode, int *out_fd,
-                     const char **reason)
+/* What both opens check first: *reason cleared (when reason is NULL,
+ * *reason is pointed at a place that nobody reads), out_fd given and
+ * cleared, rel a name they take. */
+static int open_begin(const char *rel, int *out_fd, const char ***reason)
 {
     static const char *unused;
-    if (!reason)
-        reason = &unused;
-    *reason = NULL;
+    if (!*reason)
+        *reason = &unused;
+    **reason = NULL;
     if (!out_fd) {
-        *reason = "cannot be opened (caller's bug)";
+        **reason = "cannot be opened (caller's bug)";
         return TW_ERR_INVALID;
     }
     *out_fd = -1;
-    int err = check_name(rel, reason);
+    return check_name(rel, *reason);
+}
+
+int tw_confined_open(int dir_fd, const char *rel, enum tw_confined_mode mode, int *out_fd,
+                     const char **reason)
+{
+    int err = open_begin(rel, out_fd, &reason);
     if (err)
         return err;
     return open_beneath(dir_fd, rel, false, mode, out_fd, reason);
@@ -396,16 +404,7 @@ int tw_confined_open(int dir_fd, const char *rel, enum tw_confined_mode mode, in
 int tw_confined_open_parent(int dir_fd, const char *rel, enum tw_confined_mode mode,
                             int *out_fd, const char **reason)
 {
-    static const char *unused;
-    if (!reason)
-        reason = &unused;
-    *reason = NULL;
-    if (!out_fd) {
-        *reason = "cannot be opened (caller's bug)";
-        return TW_ERR_INVALID;
-    }
-    *out_fd = -1;
-    int err = check_name(rel, reason);
+    int err = open_begin(rel, out_fd, &reason);
     if (err)
         return err;
     const char *slash = strrchr(rel, '/');

@@ -18,6 +18,7 @@
  * creation, so generate() may run on any number of threads; its generator
  * lives on the heap of the call. */
 #include "tilesets/mesh-builder.h"
+#include "tilesets/procedural.h"
 #include "tilesets/tilesets-private.h"
 
 #include <math.h>
@@ -132,10 +133,8 @@ int tw_tilesets_provider_create_forest(uint64_t seed, const struct tw_forest_set
                                        const struct tw_log *log,
                                        struct tw_tilesets_provider **out)
 {
-    if (!out) {
-        tw_log_printf(log, TW_LOG_ERROR, "tilesets: forest-gen: out is NULL (caller's bug)");
+    if (!tw_procedural_out_given(out, log, "forest-gen"))
         return TW_ERR_INVALID;
-    }
     *out = NULL;
     struct tw_forest_settings requested = {0};
     if (settings)
@@ -180,19 +179,10 @@ int tw_tilesets_provider_create_forest(uint64_t seed, const struct tw_forest_set
         return err;
     }
 
-    struct tw_tile_provider *p = &g->base.provider;
-    p->name = "forest-gen";
-    p->footprint[0] = p->footprint[1] = set.footprint;
     /* The floor spans the footprint at y = 0; a stand keeps every vertex
      * inside its area (the footprint) and on or above its ground (0). */
-    p->bound.min[0] = p->bound.min[1] = p->bound.min[2] = 0.0f;
-    p->bound.max[0] = p->bound.max[2] = set.footprint;
-    p->bound.max[1] = top;
-    p->shared = NULL;
-    p->content = NULL;
-    p->generate = forest_gen_generate;
-    p->user = g;
-    p->max_cluster_triangles = set.max_cluster_triangles;
+    tw_provider_init(&g->base.provider, "forest-gen", set.footprint, top, forest_gen_generate, g,
+                     set.max_cluster_triangles);
     *out = &g->base;
     return TW_OK;
 }

@@ -19,7 +19,9 @@
  * triangle: lowest point, horizontal reach from the axis) against which
  * every candidate placement is tested exactly. */
 #include "tilesets/mesh-builder.h"
+#include "tilesets/procedural.h"
 #include "tilesets/tilesets-private.h"
+#include "tiles/array.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -154,20 +156,29 @@ static float lumps_at(const struct lumps *l, const float d[3])
     return s;
 }
 
-static void blob_point(const float a[3], const float b[3], const float c[3], uint32_t i,
-                       uint32_t j, uint32_t n, const float centre[3], const float radius[3],
-                       const struct lumps *lumps, float floor_y, float out[3])
+/* A blob: a lumpy ellipsoid of radius about centre cut flat at floor_y
+ * (tw_icosphere_each). */
+struct blob {
+    struct tw_mesh_builder *b;
+    const float *centre, *radius;
+    const struct lumps *lumps;      /* NULL: smooth */
+    float floor_y;
+};
+
+static void blob_triangle(void *user, const float v[3][3], const float len[3])
 {
-    float v[3];
-    for (int k = 0; k < 3; k++)
-        v[k] = a[k] + (b[k] - a[k]) * (float)i / (float)n + (c[k] - a[k]) * (float)j / (float)n;
-    const float len = sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    for (int k = 0; k < 3; k++)
-        v[k] /= len;
-    const float s = lumps ? lumps_at(lumps, v) : 1.0f;
-    for (int k = 0; k < 3; k++)
-        out[k] = centre[k] + radius[k] * s * v[k];
-    out[1] = fmaxf(out[1], floor_y);
+    const struct blob *bl = user;
+    float p[3][3];
+    for (int k = 0; k < 3; k++) {
+        float dir[3];
+        for (int d = 0; d < 3; d++)
+            dir[d] = v[k][d] / len[k];
+        const float s = bl->lumps ? lumps_at(bl->lumps, dir) : 1.0f;
+        for (int d = 0; d < 3; d++)
+            p[k][d] = bl->centre[d] + bl->radius[d] * s * dir[d];
+        p[k][1] = fmaxf(p[k][1], bl->floor_y);
+    }
+    emit_outward(bl->b, p[0], p[1], p[2], bl->centre);
 }
 
 /* An icosahedron with every face split into n x n triangles, pushed onto a
@@ -175,35 +186,8 @@ static void blob_point(const float a[3], const float b[3], const float c[3], uin
 static void emit_blob(struct tw_mesh_builder *b, const float centre[3], const float radius[3],
                       uint32_t n, const struct lumps *lumps, float floor_y)
 {
-#define PHI 1.6180339887f
-    static const float ico[12][3] = {
-        {-1, PHI, 0}, {1, PHI, 0}, {-1, -PHI, 0}, {1, -PHI, 0}, {0, -1, PHI}, {0, 1, PHI},
-        {0, -1, -PHI}, {0, 1, -PHI}, {PHI, 0, -1}, {PHI, 0, 1}, {-PHI, 0, -1}, {-PHI, 0, 1},
-    };
-#undef PHI
-    static const uint8_t faces[20][3] = {
-        {0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-        {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
-        {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1},
-    };
-    for (int f = 0; f < 20; f++) {
-        const float *a = ico[faces[f][0]], *bb = ico[faces[f][1]], *c = ico[faces[f][2]];
-        for (uint32_t i = 0; i < n; i++) {
-            for (uint32_t j = 0; i + j < n; j++) {
-                const uint32_t corners[2][3][2] = {
-                    {{i, j}, {i + 1, j}, {i, j + 1}},
-                    {{i + 1, j}, {i + 1, j + 1}, {i, j + 1}},
-                };
-                for (int t = 0; t < (i + j + 1 < n ? 2 : 1); t++) {
-                    float p[3][3];
-                    for (int k = 0; k < 3; k++)
-                        blob_point(a, bb, c, corners[t][k][0], corners[t][k][1], n, centre,
-                                   radius, lumps, floor_y, p[k]);
-                    emit_outward(b, p[0], p[1], p[2], centre);
-                }
-            }
-        }
-    }
+    struct blob bl = {b, centre, radius, lumps, floor_y};
+    tw_icosphere_each(n, blob_triangle, &bl);
 }
 
 /* A fern: fronds arching out from (x, y, z), each a two-sided folded kite. */
@@ -738,14 +722,10 @@ const char *tw_forest_stand_name(enum tw_forest_stand_kind kind)
 
 static int push_placed(struct tw_forest_stands *f, float x, float z, float crown, float base)
 {
-    if (f->placed_count == f->placed_cap) {
-        const uint32_t cap = f->placed_cap ? 2 * f->placed_cap : 256;
-        struct placed *p = realloc(f->placed, sizeof(*p) * cap);
-        if (!p)
-            return TW_ERR_NOMEM;
-        f->placed = p;
-        f->placed_cap = cap;
-    }
+    const int err = tw_array_reserve_u32((void **)&f->placed, &f->placed_cap,
+                                         f->placed_count + 1, sizeof(*f->placed), 256);
+    if (err)
+        return err;
     f->placed[f->placed_count++] = (struct placed){x, z, crown, base};
     return TW_OK;
 }
@@ -1152,32 +1132,12 @@ int tw_forest_settings_resolve(const struct tw_forest_settings *in,
         if (in->max_cluster_triangles)
             out->max_cluster_triangles = in->max_cluster_triangles;
     }
-    if (out->prototypes < 8 || out->prototypes > 256) {
-        tw_log_printf(log, TW_LOG_ERROR,
-                      "tilesets: %s: prototypes = %u, must be in [8, 256] (caller's settings)",
-                      who, (unsigned)out->prototypes);
+    if (!tw_procedural_prototypes_valid(out->prototypes, log, who) ||
+        !tw_procedural_in_range(out->footprint, 40.0f, 1000.0f, "footprint", " m", log, who) ||
+        !tw_procedural_in_range(out->density, 0.25f, 2.0f, "density", "", log, who) ||
+        !tw_procedural_in_range(out->path_clearance, 0.1f, 5.0f, "path_clearance", " m", log,
+                                who))
         return TW_ERR_INVALID;
-    }
-    if (!isfinite(out->footprint) || !(out->footprint >= 40.0f) || !(out->footprint <= 1000.0f)) {
-        tw_log_printf(log, TW_LOG_ERROR,
-                      "tilesets: %s: footprint = %g m, must be in [40, 1000] (caller's settings)",
-                      who, (double)out->footprint);
-        return TW_ERR_INVALID;
-    }
-    if (!isfinite(out->density) || !(out->density >= 0.25f) || !(out->density <= 2.0f)) {
-        tw_log_printf(log, TW_LOG_ERROR,
-                      "tilesets: %s: density = %g, must be in [0.25, 2] (caller's settings)",
-                      who, (double)out->density);
-        return TW_ERR_INVALID;
-    }
-    if (!isfinite(out->path_clearance) || !(out->path_clearance >= 0.1f) ||
-        !(out->path_clearance <= 5.0f)) {
-        tw_log_printf(log, TW_LOG_ERROR,
-                      "tilesets: %s: path_clearance = %g m, must be in [0.1, 5] (caller's "
-                      "settings)",
-                      who, (double)out->path_clearance);
-        return TW_ERR_INVALID;
-    }
     return TW_OK;
 }
 
@@ -1193,10 +1153,8 @@ static const enum tw_forest_stand_kind forest_order[] = {
 int tw_tilesets_forest(uint64_t seed, const struct tw_forest_settings *settings,
                        const struct tw_log *log, struct tw_tileset **out)
 {
-    if (!out) {
-        tw_log_printf(log, TW_LOG_ERROR, "tilesets: forest: out is NULL (caller's bug)");
+    if (!tw_procedural_out_given(out, log, "forest"))
         return TW_ERR_INVALID;
-    }
     *out = NULL;
     struct tw_forest_settings set;
     int err = tw_forest_settings_resolve(settings, &set, log, "forest");
@@ -1208,15 +1166,15 @@ int tw_tilesets_forest(uint64_t seed, const struct tw_forest_settings *settings,
     uint32_t floor_mesh = 0, trail_mesh = 0;
     int trail_material = 0;
     if ((err = tw_tileset_create("forest", set.footprint, set.footprint, &ts)))
-        goto fail;
+        goto out;
     if ((err = tw_forest_stands_create(ts, seed, &set, &stands)))
-        goto fail;
+        goto out;
     if ((trail_material = tw_tileset_add_material(ts, trail_colour)) < 0) {
         err = trail_material;
-        goto fail;
+        goto out;
     }
     if ((err = build_ground(stands, set.path_clearance, &floor_mesh, &trail_mesh)))
-        goto fail;
+        goto out;
 
     const uint32_t order_count = sizeof(forest_order) / sizeof(forest_order[0]);
     for (uint32_t k = 0; k < set.prototypes; k++) {
@@ -1229,7 +1187,7 @@ int tw_tilesets_forest(uint64_t seed, const struct tw_forest_settings *settings,
         const int proto = tw_tileset_add_prototype(ts, name, weight);
         if (proto < 0) {
             err = proto;
-            goto fail;
+            goto out;
         }
         const int floor_index = tw_tileset_add_instance(ts, (uint32_t)proto, floor_mesh,
                                                         stands->mat[MAT_FLOOR], NULL);
@@ -1238,26 +1196,16 @@ int tw_tilesets_forest(uint64_t seed, const struct tw_forest_settings *settings,
                                                           (uint32_t)trail_material, NULL);
         if (trail_index < 0) {
             err = trail_index;
-            goto fail;
+            goto out;
         }
         const struct tw_forest_area area = {
             {0.0f, 0.0f, set.footprint, set.footprint}, 0.0f, set.path_clearance};
         if ((err = tw_forest_stands_add(stands, (uint32_t)proto, kind,
                                         tw_tiles_hash(seed, (int64_t)k, 0x666f72657374), &area)))
-            goto fail;
+            goto out;
     }
-    if ((err = tw_tileset_finish(ts, set.max_cluster_triangles)))
-        goto fail;
-
-    *out = ts;
-    ts = NULL;
-    goto out;
-
-fail:
-    tw_log_printf(log, TW_LOG_ERROR, "tilesets: forest: generation failed: %s",
-                  tw_error_to_str(err));
-    tw_tileset_destroy(ts);
 out:
+    err = tw_procedural_hand_over(ts, err, set.max_cluster_triangles, log, "forest", out);
     tw_forest_stands_destroy(stands);
     return err;
 }

@@ -48,7 +48,7 @@ static bool fail(struct scanner *sc)
     return false;
 }
 
-static int hex_digit(uint8_t c)
+int tw_gltf_hex_digit(int c)
 {
     if (c >= '0' && c <= '9')
         return c - '0';
@@ -65,7 +65,7 @@ static bool read_hex4(struct scanner *sc, uint32_t *v)
         return false;
     *v = 0;
     for (int k = 0; k < 4; k++) {
-        const int h = hex_digit(sc->s[sc->pos + (size_t)k]);
+        const int h = tw_gltf_hex_digit(sc->s[sc->pos + (size_t)k]);
         if (h < 0)
             return false;
         *v = *v << 4 | (uint32_t)h;

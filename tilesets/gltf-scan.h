@@ -76,4 +76,7 @@ int tw_gltf_scan(const uint8_t *text, size_t size, uint32_t max_depth, struct tw
 
 void tw_gltf_scan_finish(struct tw_gltf_scan *s);
 
+/* The value of the hexadecimal digit c (either case), or -1. */
+int tw_gltf_hex_digit(int c);
+
 #endif

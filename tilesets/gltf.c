@@ -157,17 +157,6 @@ static void warn(struct importer *im, const char *fmt, ...)
 
 /* ---- reading files ----------------------------------------------------------- */
 
-static int hex_value(char c)
-{
-    if (c >= '0' && c <= '9')
-        return c - '0';
-    if (c >= 'a' && c <= 'f')
-        return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F')
-        return c - 'A' + 10;
-    return -1;
-}
-
 /* uri with its %XX escapes decoded as RFC 3986 says ('+' is a plus sign;
  * %00 is kept as is), malloc()ed. */
 static char *uri_decode(const char *uri)
@@ -179,8 +168,8 @@ static char *uri_decode(const char *uri)
     size_t o = 0;
     for (size_t k = 0; k < n; k++) {
         int hi, lo;
-        if (uri[k] == '%' && (hi = hex_value(uri[k + 1])) >= 0 &&
-            (lo = hex_value(uri[k + 2])) >= 0 && (hi | lo)) {
+        if (uri[k] == '%' && (hi = tw_gltf_hex_digit(uri[k + 1])) >= 0 &&
+            (lo = tw_gltf_hex_digit(uri[k + 2])) >= 0 && (hi | lo)) {
             out[o++] = (char)(hi << 4 | lo);
             k += 2;
         } else {
@@ -203,7 +192,8 @@ static bool tinygltf_decodes_to(const char *raw, const char *decoded)
         if (c == '+') {
             c = ' ';
         } else if (c == '%' && n > k + 2) {
-            const int hi = hex_value(raw[k + 1]), lo = hex_value(raw[k + 2]);
+            const int hi = tw_gltf_hex_digit(raw[k + 1]);
+            const int lo = tw_gltf_hex_digit(raw[k + 2]);
             c = (char)((hi < 0 ? 0 : hi) << 4 | (lo < 0 ? 0 : lo));
             k += 2;
         }
@@ -2373,17 +2363,28 @@ static void importer_init(struct importer *im, const char *name,
     im->settings = resolve_settings(settings);
 }
 
-int tw_gltf_import_memory(const void *data, size_t size, const char *name, const char *base_dir,
-                          const struct tw_gltf_settings *settings, const struct tw_log *log,
-                          struct tw_gltf_scene **out)
+/* The start of an import from memory or a file: out checked and cleared,
+ * im set up. */
+static int import_begin(struct importer *im, const char *name,
+                        const struct tw_gltf_settings *settings, const struct tw_log *log,
+                        struct tw_gltf_scene **out)
 {
     if (!out) {
         tw_log_printf(log, TW_LOG_ERROR, "gltf: import: out is NULL (caller's bug)");
         return TW_ERR_INVALID;
     }
     *out = NULL;
+    importer_init(im, name, settings, log);
+    return TW_OK;
+}
+
+int tw_gltf_import_memory(const void *data, size_t size, const char *name, const char *base_dir,
+                          const struct tw_gltf_settings *settings, const struct tw_log *log,
+                          struct tw_gltf_scene **out)
+{
     struct importer im;
-    importer_init(&im, name ? name : "(memory)", settings, log);
+    if (import_begin(&im, name ? name : "(memory)", settings, log, out))
+        return TW_ERR_INVALID;
     if (!data && size)
         return report(&im, log, fail(&im, TW_ERR_INVALID, "no data (caller's bug)"));
     if (size > im.settings.max_file_bytes)
@@ -2411,13 +2412,9 @@ int tw_gltf_import_fd(int fd, int dir_fd, const char *name,
                       const struct tw_gltf_settings *settings, const struct tw_log *log,
                       struct tw_gltf_scene **out)
 {
-    if (!out) {
-        tw_log_printf(log, TW_LOG_ERROR, "gltf: import: out is NULL (caller's bug)");
-        return TW_ERR_INVALID;
-    }
-    *out = NULL;
     struct importer im;
-    importer_init(&im, name ? name : "(file)", settings, log);
+    if (import_begin(&im, name ? name : "(file)", settings, log, out))
+        return TW_ERR_INVALID;
     uint8_t *data = NULL;
     size_t size = 0;
     char why[512];

@@ -5,6 +5,7 @@
  * city blocks and the parks, and a wooded block is the city's streets round
  * a stand of the forest's generator that fills the lot area (canopies
  * included), so streets run along every tile border in every prototype. */
+#include "tilesets/procedural.h"
 #include "tilesets/tilesets-private.h"
 
 #include <math.h>
@@ -81,10 +82,8 @@ static enum block block_of(uint32_t k, uint32_t n, uint32_t green)
 int tw_tilesets_hybrid(uint64_t seed, const struct tw_hybrid_settings *settings,
                        const struct tw_log *log, struct tw_tileset **out)
 {
-    if (!out) {
-        tw_log_printf(log, TW_LOG_ERROR, "tilesets: hybrid: out is NULL (caller's bug)");
+    if (!tw_procedural_out_given(out, log, "hybrid"))
         return TW_ERR_INVALID;
-    }
     *out = NULL;
     struct tw_hybrid_settings set;
     struct tw_city_settings city_set;
@@ -104,11 +103,11 @@ int tw_tilesets_hybrid(uint64_t seed, const struct tw_hybrid_settings *settings,
     struct tw_city_blocks *blocks = NULL;
     struct tw_forest_stands *stands = NULL;
     if ((err = tw_tileset_create("hybrid", set.footprint, set.footprint, &ts)))
-        goto fail;
+        goto out;
     if ((err = tw_city_blocks_create(ts, &city_set, &blocks)))
-        goto fail;
+        goto out;
     if ((err = tw_forest_stands_create(ts, seed, &forest_set, &stands)))
-        goto fail;
+        goto out;
 
     uint32_t woods = 0;
     for (uint32_t k = 0; k < n; k++) {
@@ -125,7 +124,7 @@ int tw_tilesets_hybrid(uint64_t seed, const struct tw_hybrid_settings *settings,
         const int proto = tw_tileset_add_prototype(ts, name, weights[b]);
         if (proto < 0) {
             err = proto;
-            goto fail;
+            goto out;
         }
         const uint64_t stream = tw_tiles_hash(seed, (int64_t)k, 0x687962726964);
         if (b == BLOCK_WOOD) {
@@ -143,20 +142,10 @@ int tw_tilesets_hybrid(uint64_t seed, const struct tw_hybrid_settings *settings,
             err = tw_city_blocks_add(blocks, (uint32_t)proto, kind, stream, k == 0);
         }
         if (err)
-            goto fail;
+            goto out;
     }
-    if ((err = tw_tileset_finish(ts, set.max_cluster_triangles)))
-        goto fail;
-
-    *out = ts;
-    ts = NULL;
-    goto out;
-
-fail:
-    tw_log_printf(log, TW_LOG_ERROR, "tilesets: hybrid: generation failed: %s",
-                  tw_error_to_str(err));
-    tw_tileset_destroy(ts);
 out:
+    err = tw_procedural_hand_over(ts, err, set.max_cluster_triangles, log, "hybrid", out);
     tw_forest_stands_destroy(stands);
     tw_city_blocks_destroy(blocks);
     return err;

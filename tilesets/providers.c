@@ -1,6 +1,7 @@
 /* The registry of built-in tile providers (tilesets.h, DESIGN.md §12):
  * names, creation by name, and what every provider shares. The generators
  * are city-gen.c and forest-gen.c. */
+#include "tilesets/procedural.h"
 #include "tilesets/tilesets-private.h"
 
 #include <string.h>
@@ -21,10 +22,8 @@ int tw_tilesets_provider_create(const char *name, uint64_t seed,
                                 uint32_t max_cluster_triangles, const struct tw_log *log,
                                 struct tw_tilesets_provider **out)
 {
-    if (!out) {
-        tw_log_printf(log, TW_LOG_ERROR, "tilesets: provider: out is NULL (caller's bug)");
+    if (!tw_procedural_out_given(out, log, "provider"))
         return TW_ERR_INVALID;
-    }
     *out = NULL;
     if (!name) {
         tw_log_printf(log, TW_LOG_ERROR, "tilesets: provider: no provider name given");
@@ -72,4 +71,20 @@ int tw_provider_check_tile(const struct tw_tile_provider *provider, const struct
     tw_log_printf(log, TW_LOG_ERROR, "tilesets: %s: cell (%lld, %lld): %s (caller's bug)",
                   provider->name, (long long)cell.i, (long long)cell.j, reason);
     return TW_ERR_INVALID;
+}
+
+void tw_provider_init(struct tw_tile_provider *p, const char *name, float footprint, float top,
+                      int (*generate)(void *user, struct tw_cell cell, struct tw_tileset *ts),
+                      void *user, uint32_t max_cluster_triangles)
+{
+    p->name = name;
+    p->footprint[0] = p->footprint[1] = footprint;
+    p->bound.min[0] = p->bound.min[1] = p->bound.min[2] = 0.0f;
+    p->bound.max[0] = p->bound.max[2] = footprint;
+    p->bound.max[1] = top;
+    p->shared = NULL;
+    p->content = NULL;
+    p->generate = generate;
+    p->user = user;
+    p->max_cluster_triangles = max_cluster_triangles;
 }

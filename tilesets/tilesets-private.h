@@ -185,6 +185,14 @@ struct tw_tilesets_provider {
     void (*destroy)(struct tw_tilesets_provider *p);   /* frees p and all it owns */
 };
 
+/* Fills p for a provider of name whose every cell is content of its own
+ * made by generate(user, ...): square tiles of footprint metres, nothing
+ * outside the footprint or below y = 0, nothing above top; clusters of
+ * max_cluster_triangles. */
+void tw_provider_init(struct tw_tile_provider *p, const char *name, float footprint, float top,
+                      int (*generate)(void *user, struct tw_cell cell, struct tw_tileset *ts),
+                      void *user, uint32_t max_cluster_triangles);
+
 /* Checks what generate() is given (a fresh unfinished tileset with the
  * provider's footprint and no prototype yet); logs a caller's bug naming
  * the cell otherwise. */

@@ -1,0 +1,61 @@
+/*
+ * The growth of the library's flat arrays, shared by its modules (tiles,
+ * bvh, tilesets, runtime): an array of *cap elements doubles until it holds
+ * what is asked for. Private to the library: not installed, not public API.
+ */
+#ifndef TW_TILES_ARRAY_H
+#define TW_TILES_ARRAY_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+
+#include "tileworld/tiles.h"
+
+/* Grows *array, of *cap elements of elem bytes, to hold at least need: the
+ * capacity (first when it is 0) doubles until it does; it never shrinks.
+ * TW_ERR_NOMEM when out of memory or when the bytes would not fit a
+ * size_t, TW_ERR_LIMIT when the capacity would pass max elements; *array
+ * and *cap stay as they were on failure. The new elements are not
+ * initialised. */
+static inline int tw_array_reserve_max(void **array, size_t *cap, size_t need, size_t elem,
+                                       size_t first, size_t max)
+{
+    if (need <= *cap)
+        return TW_OK;
+    size_t n = *cap ? *cap : first;
+    while (n < need) {
+        if (n > SIZE_MAX / 2 / elem)
+            return TW_ERR_NOMEM;
+        if (n > max / 2)
+            return TW_ERR_LIMIT;
+        n *= 2;
+    }
+    void *p = realloc(*array, n * elem);
+    if (!p)
+        return TW_ERR_NOMEM;
+    *array = p;
+    *cap = n;
+    return TW_OK;
+}
+
+/* tw_array_reserve_max() with no limit but the size_t. */
+static inline int tw_array_reserve(void **array, size_t *cap, size_t need, size_t elem,
+                                   size_t first)
+{
+    return tw_array_reserve_max(array, cap, need, elem, first, SIZE_MAX);
+}
+
+/* tw_array_reserve_max() of an array counted in uint32_t: at most
+ * UINT32_MAX elements. */
+static inline int tw_array_reserve_u32(void **array, uint32_t *cap, uint32_t need, size_t elem,
+                                       uint32_t first)
+{
+    size_t n = *cap;
+    const int err = tw_array_reserve_max(array, &n, need, elem, first, UINT32_MAX);
+    if (!err)
+        *cap = (uint32_t)n;
+    return err;
+}
+
+#endif
