@@ -190,22 +190,19 @@ int tw_path_builtin_speed(const char *name, uint64_t seed, uint32_t frames, floa
     if (!name || !out || frames == 0 || !(w > 0.0f) || !(d > 0.0f) ||
         !(speed >= 0.0f && speed <= 1000.0f))
         return TW_ERR_INVALID;
+    static const struct {
+        const char *name;
+        int (*gen)(uint64_t, struct tw_camera *, uint32_t, float, float, double);
+    } paths[] = {
+        {"street", path_street},     {"flyover", path_flyover},   {"forest", path_forest},
+        {"teleport", path_teleport}, {"spin", path_spin},         {"straight", path_straight},
+        {"wander", path_wander},
+    };
     int (*gen)(uint64_t, struct tw_camera *, uint32_t, float, float, double) = NULL;
-    if (strcmp(name, "street") == 0)
-        gen = path_street;
-    else if (strcmp(name, "flyover") == 0)
-        gen = path_flyover;
-    else if (strcmp(name, "forest") == 0)
-        gen = path_forest;
-    else if (strcmp(name, "teleport") == 0)
-        gen = path_teleport;
-    else if (strcmp(name, "spin") == 0)
-        gen = path_spin;
-    else if (strcmp(name, "straight") == 0)
-        gen = path_straight;
-    else if (strcmp(name, "wander") == 0)
-        gen = path_wander;
-    else
+    for (size_t k = 0; k < sizeof(paths) / sizeof(paths[0]) && !gen; k++)
+        if (strcmp(name, paths[k].name) == 0)
+            gen = paths[k].gen;
+    if (!gen)
         return TW_ERR_INVALID;
     memset(out, 0, sizeof(*out));
     out->keys = calloc(frames, sizeof(*out->keys));
