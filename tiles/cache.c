@@ -156,16 +156,12 @@ void tw_cell_map_clear(struct tw_cell_map *m)
 
 size_t tw_cell_map_count(const struct tw_cell_map *m)
 {
-    if (!m)
-        return 0;
-    return m->count;
+    return m ? m->count : 0;
 }
 
 size_t tw_cell_map_bytes(const struct tw_cell_map *m)
 {
-    if (!m)
-        return 0;
-    return sizeof(*m) + sizeof(*m->entries) * m->cap;
+    return m ? sizeof(*m) + sizeof(*m->entries) * m->cap : 0;
 }
 
 void tw_cell_map_filter(struct tw_cell_map *m,
@@ -376,9 +372,7 @@ uint32_t tw_tile_cache_evict(struct tw_tile_cache *c, uint64_t frame)
 
 uint32_t tw_tile_cache_count(const struct tw_tile_cache *c)
 {
-    if (!c)
-        return 0;
-    return c->live;
+    return c ? c->live : 0;
 }
 
 uint64_t tw_tile_cache_bytes(const struct tw_tile_cache *c)
