@@ -28,6 +28,7 @@
 #include "tilesets/confined-path.h"
 #include "tests/base64.h"
 #include "tests/check.h"
+#include "tests/watchdog.h"
 
 #if defined(__SANITIZE_ADDRESS__)
 #define UNDER_ASAN 1
@@ -640,15 +641,6 @@ static void expect_manifest(const char *what, const char *text, int err_want, co
     tw_tileset_destroy(ts);
 }
 
-static void on_alarm(int sig)
-{
-    (void)sig;
-    static const char msg[] = "test-hostile: blocked on a FIFO\n";
-    if (write(2, msg, sizeof(msg) - 1) < 0)
-        _exit(1);
-    _exit(1);
-}
-
 static void test_manifests(void)
 {
     char *m = in_tmp("m");
@@ -742,13 +734,12 @@ static void test_manifests(void)
     /* Class 4: a FIFO as the manifest is refused, not waited on. */
     char *fifo = in_tmp("m/fifo.json");
     CHECK_MSG(mkfifo(fifo, 0600) == 0, "mkfifo");
-    signal(SIGALRM, on_alarm);
-    alarm(20);
+    watchdog_arm(20, "test-hostile: blocked on a FIFO\n");
     struct log_capture cap;
     const struct tw_log log = new_log(&cap);
     struct tw_tileset *ts = NULL;
     int err = tw_tilesets_load_manifest(fifo, &log, &ts);
-    alarm(0);
+    watchdog_disarm();
     char *want = format("%s: is not a regular file (a FIFO)", fifo);
     CHECK_MSG(err == TW_ERR_IO && ts == NULL && strcmp(cap.error, want) == 0, "FIFO manifest: %s",
               cap.error);

@@ -13,6 +13,7 @@
 
 #include "tileworld/runtime.h"
 #include "tests/check.h"
+#include "tests/watchdog.h"
 
 static char dir[64];
 
@@ -143,15 +144,6 @@ static void test_good_file(void)
     tw_path_finish(&p);
 }
 
-static void on_alarm(int sig)
-{
-    (void)sig;
-    static const char msg[] = "test-paths: blocked on a special file\n";
-    if (write(2, msg, sizeof(msg) - 1) < 0)
-        _exit(1);
-    _exit(1);
-}
-
 static void test_files(void)
 {
     snprintf(dir, sizeof(dir), "/tmp/tw-test-paths-XXXXXX");
@@ -168,10 +160,9 @@ static void test_files(void)
     char fifo[256];
     snprintf(fifo, sizeof(fifo), "%s", join("fifo.csv"));
     CHECK(mkfifo(fifo, 0600) == 0);
-    signal(SIGALRM, on_alarm);
-    alarm(20);
+    watchdog_arm(20, "test-paths: blocked on a special file\n");
     int rc = tw_path_load_csv(fifo, 0, 80, 80, &p, err, sizeof(err));
-    alarm(0);
+    watchdog_disarm();
     char want[512];
     snprintf(want, sizeof(want), "%s: is not a regular file (a FIFO)", fifo);
     CHECK(rc == TW_ERR_IO && strcmp(err, want) == 0);
