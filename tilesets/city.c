@@ -683,18 +683,11 @@ struct city {
 
 static int add_mesh_from(struct city *c, struct tw_mesh_builder *b, uint32_t *mesh)
 {
-    if (b->err)
-        return b->err;
-    if (b->triangle_count == 0) {
+    if (!b->err && b->triangle_count == 0) {
         *mesh = no_mesh;
         return TW_OK;
     }
-    const int index = tw_tileset_add_mesh(c->ts, b->positions, b->normals, b->vertex_count,
-                                          b->indices, b->triangle_count);
-    if (index < 0)
-        return index;
-    *mesh = (uint32_t)index;
-    return TW_OK;
+    return tw_mesh_builder_add_to(b, c->ts, mesh);
 }
 
 static uint64_t building_triangles(struct city *c, const struct building_spec *sp)
@@ -1111,27 +1104,50 @@ static int build_dense(struct city *c, uint32_t proto, struct tw_rng *r, bool ta
     return err;
 }
 
-static int build_lowrise(struct city *c, uint32_t proto, struct tw_rng *r)
+/* The perimeter of low buildings that low-rise blocks and parks share:
+ * lots from 10 m to depth_max deep (times the lot scale) on the sides of
+ * side_mask, corners up to 3 m deeper, no tall styles. */
+struct low_perimeter {
+    uint32_t side_mask;
+    float depth_max;
+    float lot_min, lot_max;     /* times the lot scale */
+    float gap_chance, row_chance;
+    float side_top, corner_top; /* tallest side and corner buildings, under the cap */
+};
+
+static int layout_low_perimeter(struct city *c, struct tw_rng *r, const struct low_perimeter *lp,
+                                struct block_params *out)
 {
     const float block = c->w - 2.0f * c->half_street;
     struct block_params bp = {0};
-    bp.side_mask = 0xf;
+    bp.side_mask = lp->side_mask;
     const float k = c->lot_scale;
-    bp.depth = quantize(clampf(k * tw_rng_range(r, 10.0f, 14.0f), 6.0f, block * 0.3f), 0.5f);
+    bp.depth = quantize(clampf(k * tw_rng_range(r, 10.0f, lp->depth_max), 6.0f, block * 0.3f), 0.5f);
     for (int i = 0; i < 4; i++)
         bp.corner_size[i] = quantize(bp.depth + k * tw_rng_range(r, 0.0f, 3.0f), 0.5f);
-    bp.lot_min = 8.0f * k;
-    bp.lot_max = 14.0f * k;
-    bp.gap_chance = 0.35f;
-    bp.row_chance = 0.4f;
+    bp.lot_min = lp->lot_min * k;
+    bp.lot_max = lp->lot_max * k;
+    bp.gap_chance = lp->gap_chance;
+    bp.row_chance = lp->row_chance;
     /* Two floors at least: 9.5 m holds a ground floor, one more and the
      * parapet. */
     bp.side_h[0] = 9.5f;
-    bp.side_h[1] = fminf(15.0f, proto_height_cap(c));
+    bp.side_h[1] = fminf(lp->side_top, proto_height_cap(c));
     bp.corner_h[0] = 10.0f;
-    bp.corner_h[1] = fminf(17.0f, proto_height_cap(c));
+    bp.corner_h[1] = fminf(lp->corner_top, proto_height_cap(c));
     bp.tall_style_from = 1e9f;
-    int err = layout_perimeter(c, r, &bp);
+    *out = bp;
+    return layout_perimeter(c, r, out);
+}
+
+static int build_lowrise(struct city *c, uint32_t proto, struct tw_rng *r)
+{
+    static const struct low_perimeter lowrise = {
+        .side_mask = 0xf, .depth_max = 14.0f, .lot_min = 8.0f, .lot_max = 14.0f,
+        .gap_chance = 0.35f, .row_chance = 0.4f, .side_top = 15.0f, .corner_top = 17.0f,
+    };
+    struct block_params bp;
+    int err = layout_low_perimeter(c, r, &lowrise, &bp);
     uint64_t fixed = 0;
     if (!err)
         err = add_streets(c, proto, c->mat_courtyard, &fixed);
@@ -1151,23 +1167,14 @@ static int build_park(struct city *c, uint32_t proto, struct tw_rng *r)
         if (err)
             return err;
     }
-    const float block = c->w - 2.0f * c->half_street;
-    struct block_params bp = {0};
-    bp.side_mask = (1u << 2) | (1u << 3);
+    static const struct low_perimeter park = {
+        .side_mask = (1u << 2) | (1u << 3), .depth_max = 13.0f, .lot_min = 7.0f,
+        .lot_max = 12.0f, .gap_chance = 0.2f, .row_chance = 0.3f, .side_top = 18.0f,
+        .corner_top = 20.0f,
+    };
+    struct block_params bp;
+    int err = layout_low_perimeter(c, r, &park, &bp);
     const float k = c->lot_scale;
-    bp.depth = quantize(clampf(k * tw_rng_range(r, 10.0f, 13.0f), 6.0f, block * 0.3f), 0.5f);
-    for (int i = 0; i < 4; i++)
-        bp.corner_size[i] = quantize(bp.depth + k * tw_rng_range(r, 0.0f, 3.0f), 0.5f);
-    bp.lot_min = 7.0f * k;
-    bp.lot_max = 12.0f * k;
-    bp.gap_chance = 0.2f;
-    bp.row_chance = 0.3f;
-    bp.side_h[0] = 9.5f;
-    bp.side_h[1] = fminf(18.0f, proto_height_cap(c));
-    bp.corner_h[0] = 10.0f;
-    bp.corner_h[1] = fminf(20.0f, proto_height_cap(c));
-    bp.tall_style_from = 1e9f;
-    int err = layout_perimeter(c, r, &bp);
 
     uint64_t fixed = 0;
     if (!err)

@@ -378,17 +378,9 @@ static int placed_mesh(struct tw_forest_stands *f, uint32_t mesh, uint32_t *out)
 
 static int add_mesh(struct tw_forest_stands *f, uint32_t *mesh)
 {
-    struct tw_mesh_builder *b = &f->builder;
-    if (b->err)
-        return b->err;
-    if (b->triangle_count == 0)
+    if (!f->builder.err && f->builder.triangle_count == 0)
         return TW_ERR_INVALID;
-    const int index = tw_tileset_add_mesh(f->ts, b->positions, b->normals, b->vertex_count,
-                                          b->indices, b->triangle_count);
-    if (index < 0)
-        return index;
-    *mesh = (uint32_t)index;
-    return TW_OK;
+    return tw_mesh_builder_add_to(&f->builder, f->ts, mesh);
 }
 
 /* Appends the profile of the builder's triangles to the model's. */
@@ -802,16 +794,24 @@ static uint32_t pick_weighted(struct tw_rng *r, const float *weights, uint32_t n
 
 /* The model of species: sizes in order, the largest with probability big,
  * the others evenly. */
-static uint32_t pick_model(struct tw_rng *r, uint32_t species, float big)
+/* The models of species: count of them from first, sizes in order. */
+static void species_models(uint32_t species, uint32_t *first, uint32_t *count)
 {
-    uint32_t first = 0, count = 0;
+    *first = 0;
+    *count = 0;
     for (uint32_t k = 0; k < MODEL_COUNT; k++) {
         if (model_recipes[k].species != species)
             continue;
-        if (!count)
-            first = k;
-        count++;
+        if (!*count)
+            *first = k;
+        (*count)++;
     }
+}
+
+static uint32_t pick_model(struct tw_rng *r, uint32_t species, float big)
+{
+    uint32_t first, count;
+    species_models(species, &first, &count);
     if (count <= 1 || tw_rng_chance(r, big))
         return first + count - 1;
     return first + tw_rng_below(r, count - 1);
@@ -1315,14 +1315,8 @@ float tw_forest_stands_tree_triangles(const struct tw_forest_stands *f,
     const float big = stand_recipes[kind].big;
     double total = 0.0, weights = 0.0;
     for (uint32_t s = 0; s < SPECIES_COUNT; s++) {
-        uint32_t first = 0, count = 0;
-        for (uint32_t k = 0; k < MODEL_COUNT; k++) {
-            if (model_recipes[k].species != s)
-                continue;
-            if (!count)
-                first = k;
-            count++;
-        }
+        uint32_t first, count;
+        species_models(s, &first, &count);
         /* pick_model(): the largest with probability big, the others
          * evenly. */
         double per_tree = 0.0;

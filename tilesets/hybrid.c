@@ -12,45 +12,44 @@
 #include <stdio.h>
 #include <stdlib.h>
 
+static const float default_green_share = 0.4f;
+
+/* The hybrid's settings that are the city's. */
+static void take_city_settings(struct tw_hybrid_settings *s, const struct tw_city_settings *city)
+{
+    s->prototypes = city->prototypes;
+    s->footprint = city->footprint;
+    s->street_width = city->street_width;
+    s->max_height = city->max_height;
+    s->max_cluster_triangles = city->max_cluster_triangles;
+}
+
 void tw_tilesets_hybrid_default_settings(struct tw_hybrid_settings *s)
 {
     if (!s)
         return;
     struct tw_city_settings city;
     tw_tilesets_city_default_settings(&city);
-    s->prototypes = city.prototypes;
-    s->footprint = city.footprint;
-    s->street_width = city.street_width;
-    s->max_height = city.max_height;
-    s->green_share = 0.4f;
-    s->max_cluster_triangles = city.max_cluster_triangles;
+    take_city_settings(s, &city);
+    s->green_share = default_green_share;
 }
 
+/* The city's fields are the city's settings, resolved (defaults and
+ * checks) by the city; hybrid adds only green_share. */
 static int resolve_settings(const struct tw_hybrid_settings *in, struct tw_hybrid_settings *out,
                             struct tw_city_settings *city, const struct tw_log *log)
 {
-    tw_tilesets_hybrid_default_settings(out);
-    if (in) {
-        if (in->prototypes)
-            out->prototypes = in->prototypes;
-        if (in->footprint != 0.0f)
-            out->footprint = in->footprint;
-        if (in->street_width != 0.0f)
-            out->street_width = in->street_width;
-        if (in->max_height != 0.0f)
-            out->max_height = in->max_height;
-        if (in->green_share != 0.0f)
-            out->green_share = in->green_share;
-        if (in->max_cluster_triangles)
-            out->max_cluster_triangles = in->max_cluster_triangles;
-    }
-    const struct tw_city_settings requested = {
-        out->prototypes, out->footprint, out->street_width, out->max_height,
-        out->max_cluster_triangles,
-    };
+    struct tw_city_settings requested = {0};
+    if (in)
+        requested = (struct tw_city_settings){
+            in->prototypes, in->footprint, in->street_width, in->max_height,
+            in->max_cluster_triangles,
+        };
     const int err = tw_city_settings_resolve(&requested, city, log, "hybrid");
     if (err)
         return err;
+    take_city_settings(out, city);
+    out->green_share = in && in->green_share != 0.0f ? in->green_share : default_green_share;
     if (!isfinite(out->green_share) || !(out->green_share > 0.0f) || !(out->green_share < 1.0f)) {
         tw_log_printf(log, TW_LOG_ERROR,
                       "tilesets: hybrid: green_share = %g, must be in (0, 1) (caller's settings)",

@@ -91,3 +91,16 @@ bool tw_mesh_builder_reserve(struct tw_mesh_builder *b, uint32_t vertices, uint3
     }
     return true;
 }
+
+int tw_mesh_builder_add_to(const struct tw_mesh_builder *b, struct tw_tileset *ts,
+                           uint32_t *mesh)
+{
+    if (b->err)
+        return b->err;
+    const int index = tw_tileset_add_mesh(ts, b->positions, b->normals, b->vertex_count,
+                                          b->indices, b->triangle_count);
+    if (index < 0)
+        return index;
+    *mesh = (uint32_t)index;
+    return TW_OK;
+}

@@ -48,5 +48,9 @@ void tw_mesh_builder_release(struct tw_mesh_builder *b);
 /* Makes room for that many more vertices and triangles; false (and a sticky
  * error) when it cannot. */
 bool tw_mesh_builder_reserve(struct tw_mesh_builder *b, uint32_t vertices, uint32_t triangles);
+/* Adds the builder's triangles to ts as a mesh and sets *mesh to its index;
+ * the builder's sticky error, or tw_tileset_add_mesh()'s, when there is one. */
+int tw_mesh_builder_add_to(const struct tw_mesh_builder *b, struct tw_tileset *ts,
+                           uint32_t *mesh);
 
 #endif
