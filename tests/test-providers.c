@@ -17,6 +17,7 @@
 
 #include "tests/captured-log.h"
 #include "tests/check.h"
+#include "tests/tileset-compare.h"
 
 static const uint64_t seed = 1;
 
@@ -77,20 +78,13 @@ static bool tiles_identical(const struct tw_tileset *a, const struct tw_tileset 
         return false;
     for (uint32_t k = 0; k < a->mesh_count; k++) {
         const struct tw_mesh *x = &a->meshes[k], *y = &b->meshes[k];
-        const size_t vbytes = sizeof(float) * 3 * x->vertex_count;
-        if (x->vertex_count != y->vertex_count || x->triangle_count != y->triangle_count ||
-            x->first_part != y->first_part || x->part_count != y->part_count ||
-            memcmp(&x->box, &y->box, sizeof(x->box)) != 0 ||
-            memcmp(x->positions, y->positions, vbytes) != 0 ||
-            memcmp(x->normals, y->normals, vbytes) != 0 ||
-            memcmp(x->indices, y->indices, sizeof(uint32_t) * 3 * x->triangle_count) != 0)
+        if (!mesh_data_identical(x, y) || x->first_part != y->first_part ||
+            x->part_count != y->part_count || memcmp(&x->box, &y->box, sizeof(x->box)) != 0)
             return false;
     }
     for (uint32_t k = 0; k < a->prototype_count; k++) {
         const struct tw_prototype *x = &a->prototypes[k], *y = &b->prototypes[k];
-        if (strcmp(x->name, y->name) != 0 || x->instance_count != y->instance_count ||
-            x->cluster_count != y->cluster_count || x->triangle_count != y->triangle_count ||
-            memcmp(&x->box, &y->box, sizeof(x->box)) != 0 ||
+        if (!prototype_head_identical(x, y) ||
             memcmp(x->instances, y->instances, sizeof(*x->instances) * x->instance_count) != 0 ||
             memcmp(x->clusters, y->clusters, sizeof(*x->clusters) * x->cluster_count) != 0)
             return false;

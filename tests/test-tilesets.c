@@ -10,6 +10,7 @@
 
 #include "tests/captured-log.h"
 #include "tests/check.h"
+#include "tests/tileset-compare.h"
 
 static double now_seconds(void)
 {
@@ -44,19 +45,12 @@ static bool tilesets_identical(const struct tw_tileset *a, const struct tw_tiles
         if (memcmp(&a->materials[k], &b->materials[k], sizeof(a->materials[k])) != 0)
             return false;
     for (uint32_t k = 0; k < a->mesh_count; k++) {
-        const struct tw_mesh *x = &a->meshes[k], *y = &b->meshes[k];
-        if (x->vertex_count != y->vertex_count || x->triangle_count != y->triangle_count ||
-            memcmp(x->positions, y->positions, sizeof(float) * 3 * x->vertex_count) != 0 ||
-            memcmp(x->normals, y->normals, sizeof(float) * 3 * x->vertex_count) != 0 ||
-            memcmp(x->indices, y->indices, sizeof(uint32_t) * 3 * x->triangle_count) != 0)
+        if (!mesh_data_identical(&a->meshes[k], &b->meshes[k]))
             return false;
     }
     for (uint32_t p = 0; p < a->prototype_count; p++) {
         const struct tw_prototype *x = &a->prototypes[p], *y = &b->prototypes[p];
-        if (strcmp(x->name, y->name) != 0 || x->weight != y->weight ||
-            x->instance_count != y->instance_count || x->cluster_count != y->cluster_count ||
-            x->triangle_count != y->triangle_count ||
-            memcmp(&x->box, &y->box, sizeof(x->box)) != 0)
+        if (!prototype_head_identical(x, y) || x->weight != y->weight)
             return false;
         for (uint32_t k = 0; k < x->instance_count; k++) {
             const struct tw_instance *i = &x->instances[k], *j = &y->instances[k];
