@@ -17,7 +17,7 @@
 
 #include "tests/captured-log.h"
 #include "tests/check.h"
-#include "tests/tileset-compare.h"
+#include "tests/tileset-checks.h"
 
 static const uint64_t seed = 1;
 
@@ -117,12 +117,6 @@ static uint64_t tile_digest(const struct tw_tileset *ts)
     return h;
 }
 
-static void transform_point(const float m[12], const float p[3], float out[3])
-{
-    for (int r = 0; r < 3; r++)
-        out[r] = m[4 * r] * p[0] + m[4 * r + 1] * p[1] + m[4 * r + 2] * p[2] + m[4 * r + 3];
-}
-
 /* Triangles that come within band of a tile border (their bounding
  * rectangle does) and reach into the height slab (lo, hi): what would stand
  * in the way of a camera walking along the border. */
@@ -143,17 +137,8 @@ static uint64_t border_slab_triangles(const struct tw_tileset *ts, float band, f
                 continue;
             const struct tw_mesh *m = &ts->meshes[in->mesh];
             for (uint32_t t = 0; t < m->triangle_count; t++) {
-                float min[3] = {INFINITY, INFINITY, INFINITY};
-                float max[3] = {-INFINITY, -INFINITY, -INFINITY};
-                for (int v = 0; v < 3; v++) {
-                    float q[3];
-                    transform_point(in->transform, m->positions + 3 * (size_t)m->indices[3 * t + v],
-                                    q);
-                    for (int a = 0; a < 3; a++) {
-                        min[a] = fminf(min[a], q[a]);
-                        max[a] = fmaxf(max[a], q[a]);
-                    }
-                }
+                float min[3], max[3];
+                placed_triangle_bounds(in, m, t, min, max);
                 const bool near_border = min[0] < band || max[0] > w - band || min[2] < band ||
                                          max[2] > d - band;
                 if (near_border && max[1] > lo && min[1] < hi)

@@ -10,19 +10,13 @@
 
 #include "tests/captured-log.h"
 #include "tests/check.h"
-#include "tests/tileset-compare.h"
+#include "tests/tileset-checks.h"
 
 static double now_seconds(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static void transform_point(const float m[12], const float p[3], float out[3])
-{
-    for (int r = 0; r < 3; r++)
-        out[r] = m[4 * r] * p[0] + m[4 * r + 1] * p[1] + m[4 * r + 2] * p[2] + m[4 * r + 3];
 }
 
 static bool box_contains(const struct tw_box *outer, const struct tw_box *inner)
@@ -79,15 +73,8 @@ static uint64_t band_violations(const struct tw_tileset *ts, float band,
             const struct tw_instance *in = &proto->instances[k];
             const struct tw_mesh *m = &ts->meshes[in->mesh];
             for (uint32_t t = 0; t < m->triangle_count; t++) {
-                float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
-                for (int v = 0; v < 3; v++) {
-                    float q[3];
-                    transform_point(in->transform, m->positions + 3 * m->indices[3 * t + v], q);
-                    for (int a = 0; a < 3; a++) {
-                        lo[a] = fminf(lo[a], q[a]);
-                        hi[a] = fmaxf(hi[a], q[a]);
-                    }
-                }
+                float lo[3], hi[3];
+                placed_triangle_bounds(in, m, t, lo, hi);
                 const bool in_band = lo[0] < band || hi[0] > w - band || lo[2] < band ||
                                      hi[2] > d - band;
                 if (in_band && bad(lo, hi, limit)) {
