@@ -154,14 +154,34 @@ static int run_frame(struct tw_tilequery *tq, struct fake *fk, uint64_t frame, f
     return tw_tilequery_frame(tq, &v, &be, &common, 10.0f, 10.0f, render, fk, st);
 }
 
+/* A fake backend (no wall until the test sets one) and a tilequery engine
+ * over it; fake_close() frees both, and the fake's tile cache if the test
+ * made one. */
+static struct fake *fake_open(struct tw_tilequery **tq)
+{
+    struct fake *fk = calloc(1, sizeof(*fk));
+    if (!fk) {
+        fprintf(stderr, "test-tilequery: out of memory\n");
+        exit(1);
+    }
+    CHECK(tw_tilequery_create(NULL, tq) == TW_OK);
+    return fk;
+}
+
+static void fake_close(struct fake *fk, struct tw_tilequery *tq)
+{
+    tw_tile_cache_destroy(fk->cache);
+    tw_tilequery_destroy(tq);
+    free(fk);
+}
+
 /* A wall too tall to see over, at the far edge of the camera's row: the row
  * behind it is queried and found hidden; nothing beyond is ever queried,
  * rendered or instantiated. */
 static void test_stops_behind_occluders(void)
 {
-    struct fake *fk = calloc(1, sizeof(*fk));
     struct tw_tilequery *tq = NULL;
-    CHECK(tw_tilequery_create(NULL, &tq) == TW_OK);
+    struct fake *fk = fake_open(&tq);
     CHECK(tw_tile_cache_create(10, &fk->cache) == TW_OK);
     fk->wall_z = 10.0f;
     fk->wall_h = 1000.0f;
@@ -194,9 +214,7 @@ static void test_stops_behind_occluders(void)
         CHECK(fk->rendered[k].j <= 21);
     }
     CHECK(far_row);
-    tw_tile_cache_destroy(fk->cache);
-    tw_tilequery_destroy(tq);
-    free(fk);
+    fake_close(fk, tq);
 }
 
 /* The paper's Figure 7: a low tile (2 m) at j = 1 behind a 10 m wall, a tall
@@ -207,9 +225,8 @@ static void test_stops_behind_occluders(void)
  * (20 m high everywhere) the tall tile is drawn the first frame it shows. */
 static void test_figure7_no_late_tiles(void)
 {
-    struct fake *fk = calloc(1, sizeof(*fk));
     struct tw_tilequery *tq = NULL;
-    CHECK(tw_tilequery_create(NULL, &tq) == TW_OK);
+    struct fake *fk = fake_open(&tq);
     fk->wall_z = 10.0f;
     fk->wall_h = 10.0f;
     fk->delay = 1;
@@ -230,8 +247,7 @@ static void test_figure7_no_late_tiles(void)
             CHECK(was_rendered(fk, (struct tw_cell){0, 2}));
     }
     CHECK(frames_where_it_matters > 10);
-    tw_tilequery_destroy(tq);
-    free(fk);
+    fake_close(fk, tq);
 }
 
 /* Postponed queries: a cell visible last frame whose result is not back is
@@ -240,9 +256,8 @@ static void test_figure7_no_late_tiles(void)
  * drawn), counted as a prediction failure. */
 static void test_postponed(void)
 {
-    struct fake *fk = calloc(1, sizeof(*fk));
     struct tw_tilequery *tq = NULL;
-    CHECK(tw_tilequery_create(NULL, &tq) == TW_OK);
+    struct fake *fk = fake_open(&tq);
     fk->wall_z = 10.0f;
     fk->wall_h = 0.0f;             /* nothing hidden */
     fk->delay = 1;                 /* the first poll says not ready, the second ready */
@@ -277,17 +292,15 @@ static void test_postponed(void)
     fk->delay = -1;
     for (uint64_t f = 5; f <= 8; f++)
         CHECK(run_frame(tq, fk, f, 5.0f, 1.7f, 5.0f, 0.0f, 40.0f, &st) == TW_OK);
-    tw_tilequery_destroy(tq);
-    free(fk);
+    fake_close(fk, tq);
 }
 
 /* The camera's cell, and a neighbour whose common box the eye is within
  * near-plane reach of, are visible without a query. */
 static void test_near_plane_rule(void)
 {
-    struct fake *fk = calloc(1, sizeof(*fk));
     struct tw_tilequery *tq = NULL;
-    CHECK(tw_tilequery_create(NULL, &tq) == TW_OK);
+    struct fake *fk = fake_open(&tq);
     fk->wall_z = 10.0f;
     fk->wall_h = 1000.0f;          /* every query would say hidden */
     struct tw_tilequery_stats st;
@@ -298,17 +311,15 @@ static void test_near_plane_rule(void)
     CHECK(was_rendered(fk, (struct tw_cell){0, 0}));
     CHECK(was_rendered(fk, (struct tw_cell){-1, 0}));
     CHECK(st.tiles_free >= 2);
-    tw_tilequery_destroy(tq);
-    free(fk);
+    fake_close(fk, tq);
 }
 
 /* 20 000 frames straight ahead through rows of walls: the tile cache and the
  * engine keep to what is visible, not to how far the camera went. */
 static void test_memory_bounded(void)
 {
-    struct fake *fk = calloc(1, sizeof(*fk));
     struct tw_tilequery *tq = NULL;
-    CHECK(tw_tilequery_create(NULL, &tq) == TW_OK);
+    struct fake *fk = fake_open(&tq);
     CHECK(tw_tile_cache_create(30, &fk->cache) == TW_OK);
     fk->wall_h = 8.0f;
     uint64_t peak_1000 = 0, peak_all = 0;
@@ -338,9 +349,7 @@ static void test_memory_bounded(void)
     CHECK(engine_all <= engine_1000 + engine_1000 / 10);
     printf("memory: cache peak %llu B after 1000 frames, %llu B after 20000; engine %zu / %zu B\n",
            (unsigned long long)peak_1000, (unsigned long long)peak_all, engine_1000, engine_all);
-    tw_tile_cache_destroy(fk->cache);
-    tw_tilequery_destroy(tq);
-    free(fk);
+    fake_close(fk, tq);
 }
 
 /* tw_tilequery_last_cells() (the viewer's Figure 6 view) reports what the
@@ -371,10 +380,9 @@ static int state_of(const struct cell_log *l, struct tw_cell c)
 
 static void test_last_cells(void)
 {
-    struct fake *fk = calloc(1, sizeof(*fk));
-    struct cell_log *l = calloc(1, sizeof(*l));
     struct tw_tilequery *tq = NULL;
-    CHECK(tw_tilequery_create(NULL, &tq) == TW_OK);
+    struct fake *fk = fake_open(&tq);
+    struct cell_log *l = calloc(1, sizeof(*l));
     fk->wall_z = 10.0f;
     fk->wall_h = 1000.0f;
     struct tw_tilequery_stats st;
@@ -408,9 +416,8 @@ static void test_last_cells(void)
         postponed += l->state[k] == TW_TILEQUERY_CELL_POSTPONED;
     CHECK(postponed == st.postponed);
     CHECK(state_of(l, (struct tw_cell){0, 3}) == TW_TILEQUERY_CELL_POSTPONED);
-    tw_tilequery_destroy(tq);
     free(l);
-    free(fk);
+    fake_close(fk, tq);
 }
 
 int main(void)
