@@ -2,6 +2,7 @@
 #include "tileworld/tiles.h"
 #include "tiles/array.h"
 
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -48,20 +49,25 @@ static bool same_cell(struct tw_cell a, struct tw_cell b)
     return a.i == b.i && a.j == b.j;
 }
 
-uint64_t *tw_cell_map_find(const struct tw_cell_map *m, struct tw_cell cell)
+/* The slot that holds cell, or SIZE_MAX: linear probing from its hash to the
+ * first unused slot (the table is never full). */
+static size_t slot_of(const struct tw_cell_map *m, struct tw_cell cell)
 {
-    if (!m)
-        return NULL;
-    if (m->count == 0)
-        return NULL;
+    if (!m || m->count == 0)
+        return SIZE_MAX;
     const size_t mask = m->cap - 1;
     for (size_t k = cell_hash(cell) & mask;; k = (k + 1) & mask) {
-        struct cell_entry *e = &m->entries[k];
-        if (!e->used)
-            return NULL;
-        if (same_cell(e->cell, cell))
-            return &e->value;
+        if (!m->entries[k].used)
+            return SIZE_MAX;
+        if (same_cell(m->entries[k].cell, cell))
+            return k;
     }
+}
+
+uint64_t *tw_cell_map_find(const struct tw_cell_map *m, struct tw_cell cell)
+{
+    const size_t k = slot_of(m, cell);
+    return k == SIZE_MAX ? NULL : &m->entries[k].value;
 }
 
 static void place(struct cell_entry *entries, size_t cap, struct tw_cell cell, uint64_t value)
@@ -130,19 +136,11 @@ static void remove_at(struct tw_cell_map *m, size_t hole)
 
 bool tw_cell_map_remove(struct tw_cell_map *m, struct tw_cell cell)
 {
-    if (!m)
+    const size_t k = slot_of(m, cell);
+    if (k == SIZE_MAX)
         return false;
-    if (m->count == 0)
-        return false;
-    const size_t mask = m->cap - 1;
-    for (size_t k = cell_hash(cell) & mask;; k = (k + 1) & mask) {
-        if (!m->entries[k].used)
-            return false;
-        if (same_cell(m->entries[k].cell, cell)) {
-            remove_at(m, k);
-            return true;
-        }
-    }
+    remove_at(m, k);
+    return true;
 }
 
 void tw_cell_map_clear(struct tw_cell_map *m)
