@@ -309,6 +309,23 @@ static bool scan_member_value(struct scanner *sc, uint32_t depth, enum context c
     return scan_value(sc, depth, IN_OTHER, -1, in_extension);
 }
 
+/* After a member or an element: skips a ',' (more follow: 1) or the closing
+ * character close (that was the last: 0); anything else fails the scan (-1). */
+static int after_item(struct scanner *sc, char close)
+{
+    skip_space(sc);
+    if (sc->pos < sc->n && sc->s[sc->pos] == ',') {
+        sc->pos++;
+        return 1;
+    }
+    if (sc->pos < sc->n && sc->s[sc->pos] == close) {
+        sc->pos++;
+        return 0;
+    }
+    fail(sc);
+    return -1;
+}
+
 static bool scan_object(struct scanner *sc, uint32_t depth, enum context ctx, bool in_extension)
 {
     sc->out->objects++;
@@ -352,17 +369,10 @@ static bool scan_object(struct scanner *sc, uint32_t depth, enum context ctx, bo
         skip_space(sc);
         if (!scan_member_value(sc, depth, ctx, &key, in_extension, uri))
             break;
-        skip_space(sc);
-        if (sc->pos < sc->n && sc->s[sc->pos] == ',') {
-            sc->pos++;
+        const int more = after_item(sc, '}');
+        if (more > 0)
             continue;
-        }
-        if (sc->pos < sc->n && sc->s[sc->pos] == '}') {
-            sc->pos++;
-            ok = true;
-        } else {
-            fail(sc);
-        }
+        ok = more == 0;
         break;
     }
     free(key.text);
@@ -404,16 +414,10 @@ static bool scan_array(struct scanner *sc, uint32_t depth, enum context ctx, int
         } else if (!scan_value(sc, depth, element, -1, in_extension)) {
             return false;
         }
-        skip_space(sc);
-        if (sc->pos < sc->n && sc->s[sc->pos] == ',') {
-            sc->pos++;
+        const int more = after_item(sc, ']');
+        if (more > 0)
             continue;
-        }
-        if (sc->pos < sc->n && sc->s[sc->pos] == ']') {
-            sc->pos++;
-            return true;
-        }
-        return fail(sc);
+        return more == 0;
     }
 }
 
