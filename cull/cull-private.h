@@ -15,26 +15,17 @@
 #include <string.h>
 
 #include "tileworld/cull.h"
+#include "tiles/array.h"
 
-/* Grows *p to hold at least need elements of size elem (geometrically,
- * never shrinking); the new elements are zeroed. False when out of memory
+/* Grows *p to hold at least need elements of size elem (tiles/array.h's
+ * doubling, from 64); the new elements are zeroed. False when out of memory
  * (*p unchanged). */
 static inline bool tw_cull_reserve(void **p, size_t *cap, size_t need, size_t elem)
 {
-    if (need <= *cap)
-        return true;
-    size_t n = *cap ? *cap : 64;
-    while (n < need) {
-        if (n > SIZE_MAX / 2 / elem)
-            return false;
-        n *= 2;
-    }
-    void *q = realloc(*p, n * elem);
-    if (!q)
+    const size_t old = *cap;
+    if (tw_array_reserve(p, cap, need, elem, 64) != TW_OK)
         return false;
-    memset((char *)q + *cap * elem, 0, (n - *cap) * elem);
-    *p = q;
-    *cap = n;
+    memset((char *)*p + old * elem, 0, (*cap - old) * elem);
     return true;
 }
 

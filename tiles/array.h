@@ -13,7 +13,7 @@
 #include "tileworld/tiles.h"
 
 /* Grows *array, of *cap elements of elem bytes, to hold at least need: the
- * capacity (first when it is 0) doubles until it does; it never shrinks.
+ * capacity (first, at least 1, when it is 0) doubles until it does; it never shrinks.
  * TW_ERR_NOMEM when out of memory or when the bytes would not fit a
  * size_t, TW_ERR_LIMIT when the capacity would pass max elements; *array
  * and *cap stay as they were on failure. The new elements are not
@@ -23,7 +23,7 @@ static inline int tw_array_reserve_max(void **array, size_t *cap, size_t need, s
 {
     if (need <= *cap)
         return TW_OK;
-    size_t n = *cap ? *cap : first;
+    size_t n = *cap ? *cap : (first ? first : 1);
     while (n < need) {
         if (n > SIZE_MAX / 2 / elem)
             return TW_ERR_NOMEM;
