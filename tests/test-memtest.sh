@@ -87,9 +87,12 @@ run "$tmp/none" --budget 0
 grep -A2 '"must_hold": "cache bytes <= the budget' "$tmp/none/summary.json" | grep -q '"held": "not applicable"' &&
     ok || bad "--budget 0: budget check not 'not applicable'"
 # A prototype tileset: no tile is loaded, latency is not applicable.
-run "$tmp/city" --tileset city --budget 64M
+# (--allocator default: the summaries say malloc was left as it is.)
+run "$tmp/city" --tileset city --budget 64M --allocator default
 grep -A2 '"must_hold": "load latency' "$tmp/city/summary.json" | grep -q '"held": "not applicable"' &&
     ok || bad "city: latency check not 'not applicable'"
+grep -q '"allocator": "default"' "$tmp/city/summary.json" && grep -q '| allocator | default' "$tmp/city/summary.md" &&
+    ok || bad "--allocator default not said in the summaries"
 
 # A budget sweep: a folder per value, sweep.csv, the summary of each run.
 "$tw" memtest --distance 0.1 --every 50 --size 96x54 --quiet --sweep budget=8M,48M --out "$tmp/sw" 2>"$tmp/err"

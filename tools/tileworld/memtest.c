@@ -41,6 +41,23 @@ static const char program[] = "tileworld";
 /* Check 2: RSS flat in distance. */
 #define RSS_GROWTH_BOUND 1.05
 
+/* --allocator, and what came of it. */
+enum allocator {
+    ALLOCATOR_TUNED,                /* the default: see tune_allocator() */
+    ALLOCATOR_DEFAULT,              /* --allocator default: malloc left as it is */
+    ALLOCATOR_NOT_TUNABLE,          /* tuned was asked for, and malloc did not take it */
+};
+
+static const char *allocator_name(enum allocator a, bool long_form)
+{
+    switch (a) {
+    case ALLOCATOR_DEFAULT: return long_form ? "default (glibc's own settings)" : "default";
+    case ALLOCATOR_NOT_TUNABLE: return long_form ? "not tunable (not glibc's malloc)" : "not tunable";
+    case ALLOCATOR_TUNED: break;
+    }
+    return long_form ? "tuned (mmap threshold 32 KiB, 2 arenas)" : "tuned";
+}
+
 struct options {
     struct tw_cli cli;
     double distance_m;
@@ -49,8 +66,7 @@ struct options {
     uint64_t sweep[MAX_SWEEP];
     char sweep_text[MAX_SWEEP][32];
     uint32_t sweep_count;
-    bool allocator_default;         /* --allocator default: glibc's malloc left as it is */
-    bool allocator_untuned;         /* tuned was asked for, and malloc did not take it */
+    enum allocator allocator;
 };
 
 static void usage(FILE *f)
@@ -147,7 +163,7 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
     case OPT_ALLOCATOR:
         if (strcmp(v, "tuned") != 0 && strcmp(v, "default") != 0)
             tw_cli_fail(program, name, "'%s' is not tuned or default", v);
-        o->allocator_default = strcmp(v, "default") == 0;
+        o->allocator = strcmp(v, "default") == 0 ? ALLOCATOR_DEFAULT : ALLOCATOR_TUNED;
         break;
     default: tw_cli_fail(program, name, "unknown option '%s' (see tileworld memtest --help)", name);
     }
@@ -718,9 +734,7 @@ static json_object *result_json(const struct options *o, const struct tw_cli_wor
     json_object_object_add(root, "size", json_object_new_string(size));
     json_object_object_add(root, "seed", u64(o->cli.world.selection.seed));
     json_object_object_add(root, "allocator",
-                           json_object_new_string(o->allocator_default   ? "default"
-                                                  : o->allocator_untuned ? "not tunable"
-                                                                         : "tuned"));
+                           json_object_new_string(allocator_name(o->allocator, false)));
     json_object_object_add(root, "heap_used_bytes", u64(r->heap_used));
     json_object_object_add(root, "heap_free_bytes", u64(r->heap_free));
     json_object_object_add(root, "peak_heap_free_bytes", u64(r->heap_free_peak));
@@ -831,10 +845,7 @@ static int write_run_summary(const struct options *o, const struct tw_cli_world 
     tw_outfile_printf(&f, "| the view's need, peak | %.1f MiB |\n", r->peak_needed / MIB);
     tw_outfile_printf(&f, "| RSS, start / peak / final | %.1f / %.1f / %.1f MiB |\n",
                       r->rss_start / MIB, r->peak_rss / MIB, r->final_rss / MIB);
-    tw_outfile_printf(&f, "| allocator | %s |\n",
-                      o->allocator_default   ? "default (glibc's own settings)"
-                      : o->allocator_untuned ? "not tunable (not glibc's malloc)"
-                                             : "tuned (mmap threshold 32 KiB, 2 arenas)");
+    tw_outfile_printf(&f, "| allocator | %s |\n", allocator_name(o->allocator, true));
     tw_outfile_printf(&f, "| heap in use / held free by the allocator, final (peak free) | %.1f / "
                       "%.1f (%.1f) MiB |\n", r->heap_used / MIB, r->heap_free / MIB,
                       r->heap_free_peak / MIB);
@@ -1026,8 +1037,8 @@ int tw_memtest_main(int argc, char **argv)
 
     /* Said in summary.json and summary.md ("not tunable"), not on stderr: a
      * sanitizer's malloc refuses it, and usage errors stay one line. */
-    if (!o.allocator_default && !tune_allocator())
-        o.allocator_untuned = true;
+    if (o.allocator == ALLOCATOR_TUNED && !tune_allocator())
+        o.allocator = ALLOCATOR_NOT_TUNABLE;
 
     const struct tw_log log = {tw_cli_log, &o.cli};
     struct tw_cli_world shown;
