@@ -214,9 +214,10 @@ static void run_frames(const struct tw_tileset *ts, struct tw_bvh *const *bvhs, 
          * tiles spent 19 s of CPU on one input under the sanitizers (a 25 s
          * libFuzzer timeout on a loaded machine); the frames after the first,
          * temporal coherence, are exercised by every smaller input. */
-        if (reach > 4096 && frame > 0)
+        const bool heavy = reach > 4096.0;
+        if (heavy && frame > 0)
             break;
-        for (int again = 0; again < (reach > 4096 ? 1 : 2); again++) {
+        for (int again = 0; again < (heavy ? 1 : 2); again++) {
             struct tw_view v;
             tw_cull_view_setup(&v, cell, eye, yaw, pitch, 60.0f, 16.0f / 9.0f, 0.2f,
                                view_distance + 1000.0f);
