@@ -686,6 +686,12 @@ void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame)
         memmove(s->to_upload, s->to_upload + done,
                 sizeof(*s->to_upload) * (s->to_upload_count - done));
     s->to_upload_count -= done;
+    for (uint32_t k = 0; k < s->to_upload_count; k++) {
+        const struct job_result *r = &s->entries[s->to_upload[k]].result;
+        if (r->ts && r->bvh)
+            s->stats.bytes_loading += tw_tileset_bytes(r->ts) + r->bvh->bytes;
+    }
+    s->stats.tiles_loading = s->to_upload_count;
 
     /* Requests nobody wanted lately: cancelled if no worker took them yet. */
     pthread_mutex_lock(&s->lock);
@@ -835,12 +841,27 @@ int tw_stream_get(struct tw_stream *s, struct tw_cell cell, float distance, unsi
     return TW_OK;
 }
 
+/* Would one more tile on its way overfill the budget? The tiles on their
+ * way are counted at the mean size of those held. Under a budget smaller
+ * than what the camera wants (what it draws, plus what it will want soon),
+ * a tile made ahead of need evicts one that is needed a few frames later,
+ * which is then made again: prefetching stops before that. */
+static bool budget_full(const struct tw_stream *s)
+{
+    if (!s->set.budget || s->ready == 0)
+        return false;
+    const uint64_t held = s->bytes_cpu + s->bytes_gpu;
+    const uint64_t mean = held / s->ready;
+    return held + mean * ((uint64_t)s->loading + 1) > s->set.budget;
+}
+
 void tw_stream_prefetch(struct tw_stream *s, struct tw_cell cell, float distance)
 {
     uint32_t k;
     struct entry *e = find(s, cell, &k);
     if (!e) {
-        request(s, cell, distance, &k);
+        if (!budget_full(s))
+            request(s, cell, distance, &k);
         return;
     }
     e->wanted_frame = s->frame;
@@ -907,18 +928,29 @@ void tw_stream_bytes(struct tw_stream *s, uint64_t *cpu, uint64_t *gpu)
     *gpu = s->bytes_gpu;
 }
 
+static bool evict_before(const struct entry *a, const struct entry *b)
+{
+    if (a->wanted_frame != b->wanted_frame)
+        return a->wanted_frame < b->wanted_frame;
+    return a->drawn_frame < b->drawn_frame;
+}
+
 uint64_t tw_stream_trim(struct tw_stream *s, uint64_t excess, uint64_t frame,
                         tw_stream_evicted_fn evicted, void *user)
 {
     uint64_t freed = 0;
     while (freed < excess) {
-        /* The least recently drawn ready tile not drawn this frame. */
+        /* The least recently wanted ready tile not drawn this frame, of
+         * those the least recently drawn. Wanted, not drawn: a tile
+         * prefetched ahead of the camera has not been drawn yet, and
+         * evicting it first would throw away the load it just made, to be
+         * requested again the next frame. */
         uint32_t best = UINT32_MAX;
         for (uint32_t k = 0; k < s->entry_count; k++) {
             const struct entry *e = &s->entries[k];
             if (e->rstate != R_READY || e->drawn_frame >= frame)
                 continue;
-            if (best == UINT32_MAX || e->drawn_frame < s->entries[best].drawn_frame)
+            if (best == UINT32_MAX || evict_before(e, &s->entries[best]))
                 best = k;
         }
         if (best == UINT32_MAX)

@@ -24,6 +24,9 @@ struct tw_stream_settings {
     double upload_ms;                /* per frame, likewise */
     uint32_t cancel_after;           /* a request unwanted for this many frames is dropped */
     uint32_t evict_after;            /* a tile unwanted for this many frames is evicted */
+    uint64_t budget;                 /* the cache's budget (0: none): prefetches stop
+                                        when the tiles held and on their way would
+                                        fill it */
     uint32_t key_base;               /* instance keys of own tiles start here (above the
                                         shared prototypes' indices) */
     const struct tw_log *log;        /* borrowed; called on the render thread only */
@@ -39,6 +42,8 @@ struct tw_stream_stats {
     double ms_upload;                /* on the render thread, uploading */
     double ms_wait;                  /* on the render thread, blocked on or making tiles */
     uint64_t bytes_used;             /* of the ready tiles this frame used (CPU + GPU) */
+    uint64_t bytes_loading;          /* CPU bytes of tiles made and waiting for their upload */
+    uint32_t tiles_loading;          /* and their number */
 };
 
 /* Totals since the stream was created, and latencies. */

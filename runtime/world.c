@@ -295,6 +295,7 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
             .upload_bytes = w->s.upload_budget_bytes,
             .upload_ms = w->s.upload_budget_ms,
             .evict_after = w->s.evict_after_frames,
+            .budget = w->s.cache_budget_bytes,
             .key_base = w->shared_count,
             .log = &w->s.log,
         };
@@ -602,6 +603,8 @@ static void keep_budget(struct tw_world *w, const struct method_state *ms,
         st->loads_done = ss->loads_done;
         st->evictions = ss->evictions;
         st->ms_upload = ss->ms_upload;
+        st->bytes_loading = ss->bytes_loading;
+        st->tiles_loading = ss->tiles_loading;
     }
     st->evictions += instances;
 }

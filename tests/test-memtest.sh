@@ -36,7 +36,7 @@ expect_usage_error --allocator jemalloc "${quick[@]}"
 expect_usage_error --bogus "${quick[@]}"
 if "$tw" memtest --help | grep -q '^usage: tileworld memtest'; then ok; else bad "memtest --help"; fi
 
-header='distance_m,frame,bytes_state,bytes_geometry,bytes_gpu,bytes_total,bytes_needed,budget,tiles_cached,tiles_ready,loads_requested,loads_done,evictions,reloads,latency_median,latency_p99,holes,rss_bytes,ms_frame,cpu_ms,ms_frame_max,heap_used_bytes,heap_free_bytes'
+header='distance_m,frame,bytes_state,bytes_geometry,bytes_gpu,bytes_total,bytes_needed,budget,tiles_cached,tiles_ready,loads_requested,loads_done,evictions,reloads,latency_median,latency_p99,holes,rss_bytes,ms_frame,cpu_ms,ms_frame_max,heap_used_bytes,heap_free_bytes,bytes_loading,tiles_loading'
 # run DIR ARGS...: a short memtest, exit 0 or 3 (a check's verdict is the
 # slow test's business, not this one's).
 run() {
@@ -64,7 +64,7 @@ tail -1 "$tmp/m/memory.csv" | awk -F, '$1 >= 200 && $1 < 210 { ok = 1 } END { ex
     bad "memory.csv: the walk did not end at 200 m: $(tail -1 "$tmp/m/memory.csv")"
 for key in '"checks"' '"all_held"' '"budget_bytes": 33554432' '"peak_cache_bytes"' '"reloads"' \
            '"latency_p99_frames"' '"rss_bytes_by_km"' '"loads_done"' '"workers": 2' \
-           '"allocator": "' '"heap_free_bytes"'; do
+           '"allocator": "' '"heap_free_bytes"' '"allocator_trims"'; do
     grep -q "$key" "$tmp/m/summary.json" && ok || bad "summary.json lacks $key"
 done
 [ "$(grep -c '"must_hold"' "$tmp/m/summary.json")" -eq 4 ] && ok || bad "summary.json: not four checks"
@@ -81,6 +81,17 @@ grep -A2 '"must_hold": "RSS flat' "$tmp/m/summary.json" | grep -q '"held": "not 
 if command -v gnuplot >/dev/null; then
     [ -s "$tmp/m/chart-memory.png" ] && [ -s "$tmp/m/chart-loads.png" ] && ok || bad "charts missing: $(cat "$tmp/m/gnuplot.log")"
 fi
+
+# A budget above what the view needs (up to ~68 MiB here, ~47 on most
+# frames) but below what the walk wants (~100 MiB with every prefetch):
+# tiles made ahead of need must not evict tiles needed a few frames later.
+# Before prefetching stopped at a full cache, 300 of these 352 loads were
+# reloads; now a handful at most.
+run "$tmp/churn" --budget 48M
+loads=$(sed -n 's/^ *"loads_done": \([0-9]*\),$/\1/p' "$tmp/churn/summary.json")
+reloads=$(sed -n 's/^ *"reloads": \([0-9]*\),$/\1/p' "$tmp/churn/summary.json")
+[ -n "$loads" ] && [ -n "$reloads" ] && [ "$loads" -gt 0 ] && [ $((4 * reloads)) -le "$loads" ] && ok ||
+    bad "48M: ${reloads:-?} of ${loads:-?} loads are reloads"
 
 # No budget: check 1 is not applicable, never "yes".
 run "$tmp/none" --budget 0

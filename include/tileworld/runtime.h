@@ -211,6 +211,9 @@ struct tw_frame_stats {
     bool over_budget;        /* bytes_cpu + bytes_gpu > cache_budget_bytes after trimming:
                                 what the frame needed exceeds the budget */
     double ms_upload;        /* render-thread time uploading finished tiles */
+    uint64_t bytes_loading;  /* not in bytes_cpu: generated tiles waiting for their upload
+                                (the per-frame upload budget), what their CPU copies cost */
+    uint32_t tiles_loading;  /* their number */
     /* The HZB methods' depth pyramid (0 for the others). */
     uint32_t hzb_boxes;      /* boxes tested against it: common boxes and BVH nodes */
     double ms_hzb_build;     /* building it from the depth read back (in ms_cull) */

@@ -37,7 +37,8 @@ static const char *const csv_header =
     "tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,"
     "missed_clusters,overdraw_triangles,cpu_ms,depth_errors,tiles_pending,loads_requested,"
     "loads_done,evictions,bytes_cpu,bytes_gpu,bytes_state,bytes_needed,over_budget,ms_upload,"
-    "blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read\n";
+    "blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read,bytes_loading,"
+    "tiles_loading\n";
 
 /* A row of frames.csv as the row of a gnuplot data file: blank-separated,
  * without the method (its file says it). */
@@ -111,7 +112,7 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st, char *er
     snprintf(row, sizeof(row),
              "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu,%.3f,%llu,"
              "%u,%u,%u,%u,%llu,%llu,%llu,%llu,%d,%.3f,"
-             "%u,%u,%u,%.3f,%.3f\n",
+             "%u,%u,%u,%.3f,%.3f,%llu,%u\n",
              (unsigned long long)st->frame, tw_method_name(st->method), st->ms_frame, st->ms_cull,
              st->ms_wait, (unsigned long long)st->triangles, st->clusters, st->draws, st->queries,
              st->tiles_queried, st->tiles_visible, st->tiles_new, st->tiles_cached,
@@ -123,7 +124,7 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st, char *er
              (unsigned long long)st->bytes_gpu, (unsigned long long)st->bytes_state,
              (unsigned long long)st->bytes_needed, st->over_budget ? 1 : 0, st->ms_upload,
              st->blocking_reads, st->queries_skipped, st->hzb_boxes, st->ms_hzb_build,
-             st->ms_hzb_read);
+             st->ms_hzb_read, (unsigned long long)st->bytes_loading, st->tiles_loading);
     if (!tw_outfile_printf(&r->frames_csv, "%s", row))
         return tw_outfile_report(&r->frames_csv, err, err_size);
     if (r->chart_data) {
