@@ -1246,6 +1246,37 @@ static void test_baked_colours(void)
 
 /* ---- the shipped manifests -------------------------------------------------------- */
 
+/* The triangles of ts's clusters whose corners are exactly collinear (or
+ * coincident): none should be left to draw. Modelled T-junction fillers are
+ * such triangles, and on kenney-city one of them once gave the near plane's
+ * depth to a pixel of a cluster 67 m away. */
+static uint64_t collinear_triangles(const struct tw_tileset *ts)
+{
+    uint64_t found = 0;
+    for (uint32_t p = 0; p < ts->prototype_count; p++) {
+        const struct tw_prototype *proto = &ts->prototypes[p];
+        for (uint32_t c = 0; c < proto->cluster_count; c++) {
+            const struct tw_mesh_part *part = &ts->parts[proto->clusters[c].part];
+            const struct tw_mesh *m = &ts->meshes[part->mesh];
+            for (uint32_t t = part->first_triangle;
+                 t < part->first_triangle + part->triangle_count; t++) {
+                const float *v[3];
+                for (int k = 0; k < 3; k++)
+                    v[k] = m->positions + 3 * (size_t)m->indices[3 * (size_t)t + k];
+                double e1[3], e2[3];
+                for (int k = 0; k < 3; k++) {
+                    e1[k] = (double)v[1][k] - v[0][k];
+                    e2[k] = (double)v[2][k] - v[0][k];
+                }
+                found += e1[1] * e2[2] - e1[2] * e2[1] == 0.0 &&
+                         e1[2] * e2[0] - e1[0] * e2[2] == 0.0 &&
+                         e1[0] * e2[1] - e1[1] * e2[0] == 0.0;
+            }
+        }
+    }
+    return found;
+}
+
 static void test_shipped(const char *relative, uint32_t min_prototypes)
 {
     char *path = join(source_root, relative);
@@ -1270,6 +1301,9 @@ static void test_shipped(const char *relative, uint32_t min_prototypes)
                           p->box.max[2] < ts->footprint[1] + 0.5f,
                       "%s: %s spills out of its tile", relative, p->name);
         }
+        const uint64_t collinear = collinear_triangles(ts);
+        CHECK_MSG(collinear == 0, "%s: %llu triangles with collinear corners are drawn", relative,
+                  (unsigned long long)collinear);
     }
     tw_tileset_destroy(ts);
     free(path);
