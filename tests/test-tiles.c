@@ -413,6 +413,97 @@ static void test_escape(void)
     CHECK(!strchr(last, '\n') && !strchr(last, '\x1b'));
 }
 
+/* Whether a mesh holds triangle (a, b, c), its corners in that order. */
+static bool has_triangle(const struct tw_mesh *m, uint32_t a, uint32_t b, uint32_t c)
+{
+    for (uint32_t t = 0; t < m->triangle_count; t++) {
+        const uint32_t *i = m->indices + 3 * (size_t)t;
+        if (i[0] == a && i[1] == b && i[2] == c)
+            return true;
+    }
+    return false;
+}
+
+/* Finishing drops the triangles that cover nothing (collinear or coincident
+ * corners, or a height within float rounding of the longest edge), which a
+ * rasteriser may still give a stray fragment at any depth (the near plane,
+ * on kenney-city); a thin triangle that does have an area stays. */
+static void test_triangles_without_area(void)
+{
+    const float pos[] = {
+        0, 0, 0,   1, 0, 0,   0, 1, 0,   1, 1, 0,   /* 0-3: a unit quad */
+        2, 0, 0,   3, 0, 0,                         /* 4-5: on the line of 1 */
+        0, 0, 0,                                    /* 6: where 0 is */
+        0.5f, 5e-8f, 0,                             /* 7: 5e-8 above the edge 0-1 */
+        0.5f, 1e-6f, 0,                             /* 8: 1e-6 above it */
+        31.5f, 9.25f, 10.5f, 31.5f, 9.25f, 18.3010883f, 31.5f, 9.25f, 11.6989126f,
+    };                                              /* 9-11: kenney-city's filler */
+    const uint32_t idx[] = {0, 1, 2, 1, 3, 2, 1, 4, 5, 0, 6, 2, 0, 1, 7,
+                            0, 1, 8, 9, 10, 11, 2, 2, 2};
+    enum { VERTICES = 12, TRIANGLES = 8, KEPT = 3 };
+    const float grey[4] = {0.5f, 0.5f, 0.5f, 1};
+    const float moved[12] = {1, 0, 0, 5, 0, 1, 0, 0, 0, 0, 1, 5};
+    /* Unsplit and unmerged (0), then merged (64): instances of one material
+     * under 64 triangles are baked into one mesh. */
+    for (uint32_t max_tris = 0; max_tris <= 64; max_tris += 64) {
+        struct tw_tileset *ts = NULL;
+        CHECK(tw_tileset_create("t", 10.0f, 10.0f, &ts) == TW_OK);
+        if (!ts)
+            return;
+        CHECK(tw_tileset_add_mesh(ts, pos, NULL, VERTICES, idx, TRIANGLES) == 0);
+        CHECK(tw_tileset_add_material(ts, grey) == 0);
+        CHECK(tw_tileset_add_prototype(ts, "p", 1.0f) == 0);
+        CHECK(tw_tileset_add_instance(ts, 0, 0, 0, NULL) == 0);
+        CHECK(tw_tileset_add_instance(ts, 0, 0, 0, moved) == 1);
+        CHECK(tw_tileset_finish(ts, max_tris) == TW_OK);
+        const struct tw_mesh *m = &ts->meshes[0];
+        CHECK_MSG(m->triangle_count == KEPT, "%u triangles kept", m->triangle_count);
+        CHECK(has_triangle(m, 0, 1, 2) && has_triangle(m, 1, 3, 2) && has_triangle(m, 0, 1, 8));
+        const struct tw_prototype *p = &ts->prototypes[0];
+        CHECK_MSG(p->triangle_count == 2 * KEPT, "prototype: %llu triangles",
+                  (unsigned long long)p->triangle_count);
+        uint64_t in_clusters = 0;
+        for (uint32_t c = 0; c < p->cluster_count; c++)
+            in_clusters += p->clusters[c].triangle_count;
+        CHECK(in_clusters == 2 * KEPT);
+        if (max_tris > 0) {
+            CHECK_MSG(ts->mesh_count == 2 && ts->meshes[1].triangle_count == 2 * KEPT,
+                      "%u meshes, the merged one of %u triangles", ts->mesh_count,
+                      ts->mesh_count > 1 ? ts->meshes[1].triangle_count : 0);
+        }
+        tw_tileset_destroy(ts);
+    }
+
+    /* A mesh with no triangle left has no cluster and an empty box; a
+     * prototype with nothing else is as empty as one with no instance. */
+    const uint32_t fillers[] = {1, 4, 5, 9, 10, 11};
+    for (int alone = 0; alone < 2; alone++) {
+        struct tw_tileset *ts = NULL;
+        CHECK(tw_tileset_create("t", 10.0f, 10.0f, &ts) == TW_OK);
+        if (!ts)
+            return;
+        CHECK(tw_tileset_add_mesh(ts, pos, NULL, VERTICES, fillers, 2) == 0);
+        CHECK(tw_tileset_add_mesh(ts, pos, NULL, VERTICES, idx, 2) == 1);
+        CHECK(tw_tileset_add_material(ts, grey) == 0);
+        CHECK(tw_tileset_add_prototype(ts, "p", 1.0f) == 0);
+        CHECK(tw_tileset_add_instance(ts, 0, 0, 0, NULL) == 0);
+        if (!alone)
+            CHECK(tw_tileset_add_instance(ts, 0, 1, 0, moved) == 1);
+        const int err = tw_tileset_finish(ts, 64);
+        if (alone) {
+            CHECK_MSG(err == TW_ERR_INVALID, "only triangles without area: %d", err);
+        } else {
+            CHECK(err == TW_OK);
+            const struct tw_prototype *p = &ts->prototypes[0];
+            CHECK(ts->meshes[0].triangle_count == 0 && ts->meshes[0].part_count == 0);
+            CHECK(p->cluster_count == 1 && p->clusters[0].instance == 1);
+            CHECK(p->triangle_count == 2 && tw_box_is_empty(&p->instances[0].box));
+            CHECK(p->box.min[0] == 5.0f && p->box.max[0] == 6.0f);
+        }
+        tw_tileset_destroy(ts);
+    }
+}
+
 /* Classes 1 and 3: the builder refuses out-of-range content, the cell math
  * never converts an out-of-range value to an integer. */
 static void test_limits(void)
@@ -497,5 +588,6 @@ int main(void)
     test_boxes();
     test_selection();
     test_tileset_builder();
+    test_triangles_without_area();
     return check_summary("test-tiles");
 }

@@ -2,6 +2,7 @@
 #include "tileworld/tiles.h"
 #include "tiles/array.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -249,6 +250,8 @@ static int split_mesh(struct tw_tileset *ts, uint32_t mesh_index, uint32_t max_t
     const uint32_t nt = m->triangle_count;
     m->first_part = ts->part_count;
     m->part_count = 0;
+    if (nt == 0)    /* every triangle without area: nothing to draw */
+        return TW_OK;
 
     struct keyed_triangle *order = malloc(sizeof(*order) * nt);
     uint32_t *new_indices = malloc(sizeof(uint32_t) * 3 * (size_t)nt);
@@ -323,6 +326,53 @@ out:
     free(order);
     free(new_indices);
     return err;
+}
+
+/* ---- finishing: triangles without area ------------------------------------------- */
+
+/* Whether triangle (a, b, c) has no area that float positions can hold: its
+ * height over its longest edge is within float rounding (FLT_EPSILON) of
+ * that edge's length, collinear and coincident corners included. It covers
+ * no surface, yet a rasteriser that rounds its projected corners can give it
+ * fragments at a depth extrapolated from a plane through three almost
+ * collinear points: anywhere, the near plane included (kenney-city had one
+ * there, in front of everything, that the oracle then counted as visible). */
+static bool has_no_area(const float *a, const float *b, const float *c)
+{
+    double e[3][3];
+    for (int k = 0; k < 3; k++) {
+        e[0][k] = (double)b[k] - a[k];
+        e[1][k] = (double)c[k] - a[k];
+        e[2][k] = (double)c[k] - b[k];
+    }
+    const double n[3] = {e[0][1] * e[1][2] - e[0][2] * e[1][1],
+                         e[0][2] * e[1][0] - e[0][0] * e[1][2],
+                         e[0][0] * e[1][1] - e[0][1] * e[1][0]};
+    double longest = 0.0;   /* squared */
+    for (int k = 0; k < 3; k++) {
+        const double l = e[k][0] * e[k][0] + e[k][1] * e[k][1] + e[k][2] * e[k][2];
+        if (l > longest)
+            longest = l;
+    }
+    /* |n| is the height times the longest edge: height <= eps * longest. */
+    const double eps = FLT_EPSILON;
+    return n[0] * n[0] + n[1] * n[1] + n[2] * n[2] <= eps * eps * longest * longest;
+}
+
+/* Drops m's triangles without area (has_no_area), the others kept in order.
+ * Modelling tools leave them at T-junctions: a kenney piece holds up to 34. */
+static void drop_triangles_without_area(struct tw_mesh *m)
+{
+    uint32_t kept = 0;
+    for (uint32_t t = 0; t < m->triangle_count; t++) {
+        const uint32_t *i = m->indices + 3 * (size_t)t;
+        if (has_no_area(m->positions + 3 * (size_t)i[0], m->positions + 3 * (size_t)i[1],
+                        m->positions + 3 * (size_t)i[2]))
+            continue;
+        memmove(m->indices + 3 * (size_t)kept, i, sizeof(uint32_t) * 3);
+        kept++;
+    }
+    m->triangle_count = kept;
 }
 
 /* ---- finishing: merging small instances ------------------------------------------ */
@@ -418,7 +468,8 @@ static int merge_small_instances(struct tw_tileset *ts, uint32_t p, uint32_t bel
     uint32_t count = 0;
     for (uint32_t k = 0; k < n; k++) {
         const struct tw_instance *in = &ts->prototypes[p].instances[k];
-        if (ts->meshes[in->mesh].triangle_count < below)
+        const uint32_t triangles = ts->meshes[in->mesh].triangle_count;
+        if (triangles > 0 && triangles < below)
             list[count++] = (struct small_instance){in->material, k};
     }
     qsort(list, count, sizeof(*list), compare_small);
@@ -444,6 +495,10 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
             return TW_ERR_INVALID;
 
     int err = TW_OK;
+    /* Before merging: baked into tile-local space and rounded, a collinear
+     * triangle may no longer look collinear. */
+    for (uint32_t k = 0; k < ts->mesh_count; k++)
+        drop_triangles_without_area(&ts->meshes[k]);
     /* Without a cluster size the caller wants whole meshes: nothing merged. */
     const uint32_t below = ts->merge_triangles ? ts->merge_triangles : TW_TILESET_MERGE_TRIANGLES;
     uint64_t budget = TW_TILESET_MERGE_BYTES;
@@ -497,6 +552,8 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
             proto->triangle_count += m->triangle_count;
             tw_box_add_box(&proto->box, &in->box);
         }
+        if (proto->cluster_count == 0)   /* no triangle with area: as empty as no instance */
+            return TW_ERR_INVALID;
         tw_box_add_box(&ts->common_box, &proto->box);
     }
     /* Content that overhangs its cell by many footprints costs every frame

@@ -277,6 +277,7 @@ static int check_keys(struct loader *ld, const struct json_object *obj, const ch
 
 static int get_number(struct loader *ld, const struct json_object *o, double *out)
 {
+    *out = 0.0;     /* set on every path: optimising GCC cannot tell fail() from success */
     if (!json_object_is_type(o, json_type_double) && !json_object_is_type(o, json_type_int))
         return fail(ld, TW_ERR_FORMAT, "must be a number, not %s", json_type_phrase(o));
     *out = json_object_get_double(o);

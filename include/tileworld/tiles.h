@@ -183,8 +183,9 @@ struct tw_material {
 };
 
 /* A shared triangle mesh, in mesh-local coordinates. After
- * tw_tileset_finish() its triangles are reordered so that each of its parts
- * is a contiguous index range. */
+ * tw_tileset_finish() its triangles without area are gone (triangle_count
+ * may then be 0) and the others are reordered so that each of its parts is a
+ * contiguous index range. */
 struct tw_mesh {
     float *positions;     /* xyz per vertex, vertex_count * 3 */
     float *normals;       /* xyz per vertex, vertex_count * 3 */
@@ -296,22 +297,26 @@ int tw_tileset_add_instance(struct tw_tileset *ts, uint32_t proto,
                             uint32_t mesh, uint32_t material,
                             const float transform[12]);
 
-/* Freezes the tileset. First, with max_cluster_triangles > 0, the small
- * instances of each prototype (mesh of fewer than merge_triangles
- * triangles) are merged per material: when two or more share a material,
- * their vertices are transformed into tile-local space (normals by the
- * transform's linear part, as the renderer's shader does) into one new
- * mesh, placed by a new identity instance; the small instances stay in the
- * list, marked merged_into, and get no clusters (a draw call then carries
- * many instances instead of a few triangles); baking copies what instancing
- * shares, so the merged meshes of a tileset hold TW_TILESET_MERGE_BYTES at
- * most (groups beyond stay instanced). Then it splits every mesh
- * into parts of at most max_cluster_triangles triangles (0: never split) by
- * recursive median splits along the longest axis, computes every box, the
- * clusters of every prototype and the common box. Fails on a tileset with
- * no prototype or with an empty prototype (TW_ERR_INVALID), and on one
- * whose common box spans more than TW_TILES_MAX_SPAN footprints along x or
- * z (TW_ERR_LIMIT). */
+/* Freezes the tileset. First it drops every triangle without area (its
+ * height over its longest edge within FLT_EPSILON of that edge: collinear
+ * or coincident corners), which covers nothing but which a rasteriser may
+ * still give stray fragments at any depth. Then, with
+ * max_cluster_triangles > 0, the small instances of each prototype (mesh
+ * of fewer than merge_triangles triangles) are merged per material: when
+ * two or more share a material, their vertices are transformed into
+ * tile-local space (normals by the transform's linear part, as the
+ * renderer's shader does) into one new mesh, placed by a new identity
+ * instance; the small instances stay in the list, marked merged_into, and
+ * get no clusters (a draw call then carries many instances instead of a few
+ * triangles); baking copies what instancing shares, so the merged meshes of
+ * a tileset hold TW_TILESET_MERGE_BYTES at most (groups beyond stay
+ * instanced). Then it splits every mesh into parts of at most
+ * max_cluster_triangles triangles (0: never split) by recursive median
+ * splits along the longest axis, computes every box, the clusters of every
+ * prototype and the common box. Fails on a tileset with no prototype, or
+ * with an empty prototype: one with no instance or with no triangle that
+ * has an area (TW_ERR_INVALID); and on one whose common box spans more than
+ * TW_TILES_MAX_SPAN footprints along x or z (TW_ERR_LIMIT). */
 #define TW_TILESET_MERGE_TRIANGLES 64u
 #define TW_TILESET_MERGE_BYTES (16ull << 20)
 int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles);
