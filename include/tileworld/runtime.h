@@ -174,7 +174,8 @@ struct tw_frame_stats {
     enum tw_method method;
     double ms_frame;         /* wall time of the frame (see tw_world_frame, tw_world_finish) */
     double ms_cull;          /* CPU time of culling, outside draws and waits */
-    double ms_wait;          /* time blocked on query results */
+    double ms_wait;          /* time blocked on the GPU: query results, and flushes
+                                that wait for the rasteriser to take the work */
     uint64_t triangles;
     uint32_t clusters;
     uint32_t draws;
