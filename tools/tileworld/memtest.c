@@ -55,7 +55,7 @@ static const char *allocator_name(enum allocator a, bool long_form)
     case ALLOCATOR_NOT_TUNABLE: return long_form ? "not tunable (not glibc's malloc)" : "not tunable";
     case ALLOCATOR_TUNED: break;
     }
-    return long_form ? "tuned (mmap threshold 16 KiB, 2 arenas, freed pages returned after evictions)"
+    return long_form ? "tuned (mmap threshold 8 KiB, 2 arenas, freed pages returned after evictions)"
                      : "tuned";
 }
 
@@ -88,7 +88,7 @@ static void usage(FILE *f)
           "writes DIR/sweep.csv and chart-sweep-budget.png. Exit status 3 when a check does\n"
           "not hold: cache bytes within the budget (except where the view alone needs more),\n"
           "RSS flat in distance, no leak, load latency bounded. --allocator tuned (the\n"
-          "default) fixes glibc's mmap threshold at 16 KiB and its arenas at 2, and returns\n"
+          "default) fixes glibc's mmap threshold at 8 KiB and its arenas at 2, and returns\n"
           "freed pages to the system after evictions (malloc_trim), as a\n"
           "long-running host should; default leaves malloc as it is (freed tile memory then\n"
           "stays with the allocator: memory.csv's heap_free_bytes).\n",
@@ -295,15 +295,16 @@ static struct heap_figures heap_figures(void)
  * heap, and the holes they leave are kept by the allocator rather than returned:
  * over a few kilometres of tile churn RSS grows by 15-20 % while the bytes in use
  * stay flat. A fixed threshold sends large blocks to mmap, whose free returns the
- * pages; two arenas bound the heaps the workers' allocations spread over. 16 KiB
+ * pages; two arenas bound the heaps the workers' allocations spread over. 8 KiB
  * rather than glibc's initial 128 KiB: over 10 km of city-gen at 48M (96x54) the
- * heap ended holding 6.9 MiB free at 16 KiB, 10.8 at 32 KiB, 6.5 at 8 KiB; what
- * the heap keeps is then small arrays, whose whole pages release_freed_memory()
- * returns. Set before any thread exists. false where the C library is not glibc. */
+ * heap ended holding 6.5, 5.9 and 6.5 MiB free at 8 KiB, 6.9, 15.0 and 6.6 at
+ * 16 KiB, 10.8, 20.8 and 11.2 at 32 KiB (three runs each); what the heap keeps
+ * is then small arrays, whose whole pages release_freed_memory() returns. Set
+ * before any thread exists. false where the C library is not glibc. */
 static bool tune_allocator(void)
 {
 #if defined(__GLIBC__)
-    return mallopt(M_MMAP_THRESHOLD, 16 * 1024) == 1 && mallopt(M_ARENA_MAX, 2) == 1;
+    return mallopt(M_MMAP_THRESHOLD, 8 * 1024) == 1 && mallopt(M_ARENA_MAX, 2) == 1;
 #else
     return false;
 #endif
