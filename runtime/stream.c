@@ -28,6 +28,7 @@ enum job_state { J_NONE = 0, J_QUEUED, J_RUNNING, J_DONE };
 struct job_result {
     struct tw_tileset *ts;
     struct tw_bvh *bvh;
+    uint64_t bytes_cpu;          /* what ts and bvh cost (0 on failure) */
     int err;
     char message[256];
 };
@@ -190,6 +191,7 @@ static void run_job(const struct tw_stream *s, struct worker *wk, struct tw_cell
                                                                   : tw_error_to_str(err));
         goto out;
     }
+    r->bytes_cpu = tw_tileset_bytes(r->ts) + r->bvh->bytes;
     return;
 out:
     tw_bvh_destroy(r->bvh);
@@ -204,6 +206,7 @@ static void free_result(struct job_result *r)
     tw_tileset_destroy(r->ts);
     r->bvh = NULL;
     r->ts = NULL;
+    r->bytes_cpu = 0;
 }
 
 /* ---- the job heap (lock held) ------------------------------------------------------- */
@@ -456,7 +459,7 @@ static int make_ready(struct tw_stream *s, uint32_t k)
     }
     e->ts = r.ts;
     e->bvh = r.bvh;
-    e->bytes_cpu = tw_tileset_bytes(r.ts) + r.bvh->bytes;
+    e->bytes_cpu = r.bytes_cpu;
     e->rstate = R_READY;
     s->bytes_cpu += e->bytes_cpu;
     s->bytes_gpu += e->bytes_gpu;
@@ -686,11 +689,8 @@ void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame)
         memmove(s->to_upload, s->to_upload + done,
                 sizeof(*s->to_upload) * (s->to_upload_count - done));
     s->to_upload_count -= done;
-    for (uint32_t k = 0; k < s->to_upload_count; k++) {
-        const struct job_result *r = &s->entries[s->to_upload[k]].result;
-        if (r->ts && r->bvh)
-            s->stats.bytes_loading += tw_tileset_bytes(r->ts) + r->bvh->bytes;
-    }
+    for (uint32_t k = 0; k < s->to_upload_count; k++)
+        s->stats.bytes_loading += s->entries[s->to_upload[k]].result.bytes_cpu;
     s->stats.tiles_loading = s->to_upload_count;
 
     /* Requests nobody wanted lately: cancelled if no worker took them yet. */
