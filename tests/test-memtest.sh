@@ -82,8 +82,9 @@ if command -v gnuplot >/dev/null; then
     [ -s "$tmp/m/chart-memory.png" ] && [ -s "$tmp/m/chart-loads.png" ] && ok || bad "charts missing: $(cat "$tmp/m/gnuplot.log")"
 fi
 
-# A budget above what the view needs (up to ~68 MiB here, ~47 on most
-# frames) but below what the walk wants (~100 MiB with every prefetch):
+# A budget above what most frames of this walk draw (the cache holds ~47 MiB
+# at 48M; the view's peak need over 3 km of it is 67 MiB) but below what the
+# walk wants (~104 MiB without a budget, every prefetch kept):
 # tiles made ahead of need must not evict tiles needed a few frames later.
 # Before prefetching stopped at a full cache, 300 of these 352 loads were
 # reloads; now a handful at most.

@@ -314,8 +314,9 @@ static bool tune_allocator(void)
  * returns every whole free page of every arena to the system, not only the
  * top of the heap. The pages stay mapped (heap_free_bytes does not change)
  * but leave the RSS: without it the tiles' small arrays, freed in a
- * different order than they were allocated, leave holes the heap keeps,
- * and RSS climbs by 10 % over 3 km while the bytes in use stay flat. */
+ * different order than they were allocated, leave holes the heap keeps:
+ * over 3 km of city-gen at 48M (96x54) RSS climbed by 8.6 % while the bytes
+ * in use stayed flat, and by 4.0 % with it. */
 static void release_freed_memory(void)
 {
 #if defined(__GLIBC__)
