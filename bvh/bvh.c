@@ -893,10 +893,49 @@ void tw_bvh_destroy(struct tw_bvh *bvh)
 {
     if (!bvh)
         return;
+    if (bvh->packed) {
+        free(bvh);
+        return;
+    }
     free(bvh->nodes);
     free(bvh->cluster_order);
     free(bvh->tight_boxes);
     free(bvh);
+}
+
+static size_t round16(size_t n)
+{
+    return (n + 15u) & ~(size_t)15u;
+}
+
+int tw_bvh_pack(struct tw_bvh **bvh)
+{
+    if (!bvh || !*bvh)
+        return TW_ERR_INVALID;
+    const struct tw_bvh *b = *bvh;
+    const size_t head = round16(sizeof(*b));
+    const size_t nodes = round16(sizeof(*b->nodes) * b->node_count);
+    const size_t order = round16(sizeof(*b->cluster_order) * b->cluster_count);
+    const size_t boxes = sizeof(*b->tight_boxes) * b->tight_box_count;
+    unsigned char *block = malloc(head + nodes + order + boxes);
+    if (!block)
+        return TW_ERR_NOMEM;
+    struct tw_bvh *out = (struct tw_bvh *)block;
+    *out = *b;
+    out->nodes = (struct tw_bvh_node *)(block + head);
+    out->cluster_order = (uint32_t *)(block + head + nodes);
+    out->tight_boxes = (struct tw_box *)(block + head + nodes + order);
+    if (b->node_count)
+        memcpy(out->nodes, b->nodes, sizeof(*b->nodes) * b->node_count);
+    if (b->cluster_count)
+        memcpy(out->cluster_order, b->cluster_order, sizeof(*b->cluster_order) * b->cluster_count);
+    if (b->tight_box_count)
+        memcpy(out->tight_boxes, b->tight_boxes, boxes);
+    out->packed = true;
+    out->bytes = head + nodes + order + boxes;
+    tw_bvh_destroy(*bvh);
+    *bvh = out;
+    return TW_OK;
 }
 
 /* ---- queries ---------------------------------------------------------------- */

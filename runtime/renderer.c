@@ -300,8 +300,11 @@ static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts, st
                       ts->name, (unsigned long long)vertices);
         return TW_ERR_LIMIT;
     }
-    b->base_vertex = calloc(ts->mesh_count ? ts->mesh_count : 1, sizeof(uint32_t));
-    b->first_index = calloc(ts->mesh_count ? ts->mesh_count : 1, sizeof(uint32_t));
+    /* One allocation for both (a tile's few long-lived small arrays would
+     * otherwise leave holes in the heap when it goes). */
+    b->base_vertex = calloc(2 * (size_t)(ts->mesh_count ? ts->mesh_count : 1), sizeof(uint32_t));
+    b->first_index = b->base_vertex ? b->base_vertex + (ts->mesh_count ? ts->mesh_count : 1)
+                                    : NULL;
     float *interleaved = malloc(sizeof(float) * 6 * (vertices ? vertices : 1));
     uint32_t *index_data = malloc(sizeof(uint32_t) * (indices ? indices : 1));
     int err = TW_OK;
@@ -357,8 +360,7 @@ static void free_buffers(struct tw_renderer *r, struct gpu_buffers *b)
             r->bound_vao = 0;
         gl->DeleteVertexArrays(1, &b->vao);
     }
-    free(b->base_vertex);
-    free(b->first_index);
+    free(b->base_vertex); /* first_index is in the same block */
     memset(b, 0, sizeof(*b));
 }
 

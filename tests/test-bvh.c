@@ -151,9 +151,12 @@ static void check_bvh(const struct tw_bvh *bvh, const struct tw_prototype *proto
         return;
 
     CHECK_MSG(bvh->depth <= s.max_depth, "%s: depth %u > %u", what, bvh->depth, s.max_depth);
-    const uint64_t bytes = sizeof(*bvh) + (uint64_t)bvh->node_count * sizeof(*bvh->nodes) +
-                           (uint64_t)bvh->cluster_count * sizeof(uint32_t) +
+    /* A packed tree's pieces start at multiples of 16 bytes in its block. */
+#define PIECE(n) (bvh->packed ? ((uint64_t)(n) + 15u) / 16u * 16u : (uint64_t)(n))
+    const uint64_t bytes = PIECE(sizeof(*bvh)) + PIECE(bvh->node_count * sizeof(*bvh->nodes)) +
+                           PIECE(bvh->cluster_count * sizeof(uint32_t)) +
                            (uint64_t)bvh->tight_box_count * sizeof(struct tw_box);
+#undef PIECE
     CHECK_MSG(bvh->bytes == bytes, "%s: bytes %llu, expected %llu", what,
               (unsigned long long)bvh->bytes, (unsigned long long)bytes);
     CHECK_MSG(bvh->build_ms >= 0.0, "%s: negative build time", what);
@@ -463,6 +466,22 @@ static void test_prototype(struct tw_bvh_builder *b, const struct tw_prototype *
                   memcmp(again->cluster_order, sah->cluster_order,
                          sah->cluster_count * sizeof(uint32_t)) == 0,
                   "'%s': two builds differ", proto->name);
+    }
+    /* Packed into one block, the tree is the same (check_bvh checks its
+     * bytes, the block's). */
+    if (again && tw_bvh_pack(&again) == TW_OK) {
+        check_bvh(again, proto, NULL, "packed");
+        CHECK_MSG(again->node_count == sah->node_count && again->depth == sah->depth &&
+                  again->leaf_count == sah->leaf_count &&
+                  memcmp(again->nodes, sah->nodes, sah->node_count * sizeof(*sah->nodes)) == 0 &&
+                  memcmp(again->cluster_order, sah->cluster_order,
+                         sah->cluster_count * sizeof(uint32_t)) == 0 &&
+                  again->tight_box_count == sah->tight_box_count &&
+                  memcmp(again->tight_boxes, sah->tight_boxes,
+                         sah->tight_box_count * sizeof(*sah->tight_boxes)) == 0,
+                  "'%s': the packed tree differs", proto->name);
+    } else {
+        CHECK_MSG(0, "'%s': cannot pack", proto->name);
     }
     tw_bvh_destroy(again);
 

@@ -504,6 +504,85 @@ static void test_triangles_without_area(void)
     }
 }
 
+/* A tileset of two prototypes over three meshes, the small ones merged. */
+static struct tw_tileset *sample_tileset(void)
+{
+    const float pos[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0, 0, 0, 1, 1, 0, 1};
+    const uint32_t idx[] = {0, 1, 2, 1, 3, 2, 0, 4, 1, 1, 4, 5};
+    const float grey[4] = {0.5f, 0.5f, 0.5f, 1}, red[4] = {1, 0, 0, 1};
+    struct tw_tileset *ts = NULL;
+    if (tw_tileset_create("sample", 10.0f, 10.0f, &ts) != TW_OK)
+        return NULL;
+    int ok = tw_tileset_add_mesh(ts, pos, NULL, 6, idx, 4) == 0 &&
+             tw_tileset_add_mesh(ts, pos, NULL, 4, idx, 2) == 1 &&
+             tw_tileset_add_mesh(ts, pos, NULL, 6, idx + 6, 2) == 2 &&
+             tw_tileset_add_material(ts, grey) == 0 && tw_tileset_add_material(ts, red) == 1 &&
+             tw_tileset_add_prototype(ts, "a", 1.0f) == 0 &&
+             tw_tileset_add_prototype(ts, "b", 2.0f) == 1;
+    for (uint32_t k = 0; ok && k < 12; k++) {
+        const float at[12] = {1, 0, 0, (float)(k % 4) * 2, 0, 1, 0, 0, 0, 0, 1, (float)(k / 4) * 2};
+        ok = tw_tileset_add_instance(ts, k % 2, k % 3, k % 2, at) >= 0;
+    }
+    if (!ok || tw_tileset_finish(ts, 3) != TW_OK) {
+        tw_tileset_destroy(ts);
+        return NULL;
+    }
+    return ts;
+}
+
+/* tw_tileset_pack(): the same tileset in one block, bytes the block's. */
+static void test_pack(void)
+{
+    struct tw_tileset *a = sample_tileset(), *b = sample_tileset();
+    CHECK(a && b);
+    if (!a || !b)
+        goto out;
+    struct tw_tileset *old = b;
+    const uint64_t unpacked = tw_tileset_bytes(b);
+    CHECK(tw_tileset_pack(&b) == TW_OK && b != old);
+    CHECK_MSG(tw_tileset_bytes(b) <= unpacked + 16 * 64 && tw_tileset_bytes(b) > 0,
+              "packed %llu bytes, unpacked %llu", (unsigned long long)tw_tileset_bytes(b),
+              (unsigned long long)unpacked);
+    CHECK(b->finished && strcmp(b->name, "sample") == 0 && b->mesh_count == a->mesh_count &&
+          b->part_count == a->part_count && b->material_count == a->material_count &&
+          b->prototype_count == a->prototype_count && a->mesh_count > 3);
+    CHECK(memcmp(b->materials, a->materials, sizeof(*a->materials) * a->material_count) == 0);
+    CHECK(memcmp(b->parts, a->parts, sizeof(*a->parts) * a->part_count) == 0);
+    for (uint32_t k = 0; k < a->mesh_count && k < b->mesh_count; k++) {
+        const struct tw_mesh *ma = &a->meshes[k], *mb = &b->meshes[k];
+        CHECK_MSG(mb->vertex_count == ma->vertex_count &&
+                  mb->triangle_count == ma->triangle_count &&
+                  memcmp(mb->positions, ma->positions, 12 * (size_t)ma->vertex_count) == 0 &&
+                  memcmp(mb->normals, ma->normals, 12 * (size_t)ma->vertex_count) == 0 &&
+                  memcmp(mb->indices, ma->indices, 12 * (size_t)ma->triangle_count) == 0,
+                  "mesh %u differs", k);
+        /* Every array lies inside the block. */
+        const char *lo = (const char *)b, *hi = lo + tw_tileset_bytes(b);
+        CHECK((const char *)mb->positions > lo && (const char *)mb->indices < hi);
+    }
+    for (uint32_t p = 0; p < a->prototype_count && p < b->prototype_count; p++) {
+        const struct tw_prototype *pa = &a->prototypes[p], *pb = &b->prototypes[p];
+        CHECK_MSG(pb->instance_count == pa->instance_count &&
+                  pb->cluster_count == pa->cluster_count &&
+                  pb->triangle_count == pa->triangle_count &&
+                  memcmp(pb->instances, pa->instances,
+                         sizeof(*pa->instances) * pa->instance_count) == 0 &&
+                  memcmp(pb->clusters, pa->clusters, sizeof(*pa->clusters) * pa->cluster_count) == 0,
+                  "prototype %u differs", p);
+    }
+    /* A packed tileset packs again; an unfinished one does not. */
+    CHECK(tw_tileset_pack(&b) == TW_OK && b->mesh_count == a->mesh_count);
+    struct tw_tileset *raw = NULL;
+    CHECK(tw_tileset_create("raw", 1.0f, 1.0f, &raw) == TW_OK);
+    struct tw_tileset *before = raw;
+    CHECK(tw_tileset_pack(&raw) == TW_ERR_INVALID && raw == before);
+    CHECK(tw_tileset_pack(NULL) == TW_ERR_INVALID);
+    tw_tileset_destroy(raw);
+out:
+    tw_tileset_destroy(a);
+    tw_tileset_destroy(b);
+}
+
 /* Classes 1 and 3: the builder refuses out-of-range content, the cell math
  * never converts an out-of-range value to an integer. */
 static void test_limits(void)
@@ -589,5 +668,6 @@ int main(void)
     test_selection();
     test_tileset_builder();
     test_triangles_without_area();
+    test_pack();
     return check_summary("test-tiles");
 }

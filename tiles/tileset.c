@@ -33,6 +33,10 @@ void tw_tileset_destroy(struct tw_tileset *ts)
 {
     if (!ts)
         return;
+    if (ts->packed_bytes) {
+        free(ts); /* one block (tw_tileset_pack) */
+        return;
+    }
     for (uint32_t k = 0; k < ts->mesh_count; k++) {
         free(ts->meshes[k].positions);
         free(ts->meshes[k].normals);
@@ -568,6 +572,88 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
     return TW_OK;
 }
 
+/* Hands out the pieces of one block, each aligned to 16 bytes: a sizing pass
+ * with base NULL, then a copying pass. */
+struct pack_cursor {
+    unsigned char *base;
+    size_t used;
+};
+
+static void *pack_take(struct pack_cursor *c, const void *from, size_t bytes)
+{
+    const size_t at = c->used;
+    c->used += (bytes + 15u) & ~(size_t)15u;
+    if (!c->base)
+        return NULL;
+    if (bytes)
+        memcpy(c->base + at, from, bytes);
+    return c->base + at; /* an empty array still gets a valid pointer */
+}
+
+/* Lays ts out at c (sizing only when c->base is NULL); returns the new struct. */
+static struct tw_tileset *pack_into(const struct tw_tileset *ts, struct pack_cursor *c)
+{
+    struct tw_tileset *out = pack_take(c, ts, sizeof(*ts));
+    struct tw_material *materials =
+        pack_take(c, ts->materials, sizeof(*ts->materials) * ts->material_count);
+    struct tw_mesh *meshes = pack_take(c, ts->meshes, sizeof(*ts->meshes) * ts->mesh_count);
+    struct tw_mesh_part *parts = pack_take(c, ts->parts, sizeof(*ts->parts) * ts->part_count);
+    struct tw_prototype *protos =
+        pack_take(c, ts->prototypes, sizeof(*ts->prototypes) * ts->prototype_count);
+    for (uint32_t k = 0; k < ts->mesh_count; k++) {
+        const struct tw_mesh *m = &ts->meshes[k];
+        float *pos = pack_take(c, m->positions, sizeof(float) * 3 * (size_t)m->vertex_count);
+        float *nor = pack_take(c, m->normals, sizeof(float) * 3 * (size_t)m->vertex_count);
+        uint32_t *idx =
+            pack_take(c, m->indices, sizeof(uint32_t) * 3 * (size_t)m->triangle_count);
+        if (meshes) {
+            meshes[k].positions = pos;
+            meshes[k].normals = nor;
+            meshes[k].indices = idx;
+        }
+    }
+    for (uint32_t p = 0; p < ts->prototype_count; p++) {
+        const struct tw_prototype *pr = &ts->prototypes[p];
+        struct tw_instance *inst =
+            pack_take(c, pr->instances, sizeof(*pr->instances) * pr->instance_count);
+        struct tw_cluster *cl =
+            pack_take(c, pr->clusters, sizeof(*pr->clusters) * pr->cluster_count);
+        if (protos) {
+            protos[p].instances = inst;
+            protos[p].instance_cap = pr->instance_count;
+            protos[p].clusters = cl;
+        }
+    }
+    if (out) {
+        out->materials = materials;
+        out->material_cap = ts->material_count;
+        out->meshes = meshes;
+        out->mesh_cap = ts->mesh_count;
+        out->parts = parts;
+        out->part_cap = ts->part_count;
+        out->prototypes = protos;
+        out->prototype_cap = ts->prototype_count;
+        out->packed_bytes = c->used;
+    }
+    return out;
+}
+
+int tw_tileset_pack(struct tw_tileset **ts)
+{
+    if (!ts || !*ts || !(*ts)->finished)
+        return TW_ERR_INVALID;
+    struct pack_cursor c = { NULL, 0 };
+    pack_into(*ts, &c);
+    c.base = malloc(c.used);
+    if (!c.base)
+        return TW_ERR_NOMEM;
+    c.used = 0;
+    struct tw_tileset *out = pack_into(*ts, &c);
+    tw_tileset_destroy(*ts);
+    *ts = out;
+    return TW_OK;
+}
+
 uint64_t tw_tileset_geometry_bytes(const struct tw_tileset *ts)
 {
     uint64_t bytes = 0;
@@ -581,6 +667,8 @@ uint64_t tw_tileset_bytes(const struct tw_tileset *ts)
 {
     if (!ts)
         return 0;
+    if (ts->packed_bytes)
+        return ts->packed_bytes;
     uint64_t bytes = sizeof(*ts) + (uint64_t)sizeof(*ts->materials) * ts->material_cap +
                      (uint64_t)sizeof(*ts->meshes) * ts->mesh_cap +
                      (uint64_t)sizeof(*ts->parts) * ts->part_cap +

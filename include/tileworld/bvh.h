@@ -51,6 +51,7 @@ struct tw_bvh {
     uint32_t depth;                /* deepest node's depth */
     double build_ms;
     uint64_t bytes;                /* heap bytes of this structure */
+    bool packed;                   /* private: one block (tw_bvh_pack) */
 };
 
 /* A builder owns an Embree device; Embree's errors go to the logger. One
@@ -78,6 +79,12 @@ int tw_bvh_build_median(const struct tw_prototype *proto,
                         struct tw_bvh **out);
 
 void tw_bvh_destroy(struct tw_bvh *bvh);
+
+/* Moves a BVH, its struct and its arrays, into one allocation and replaces
+ * *bvh with it (the old pointer is freed), so that a long-lived tree leaves
+ * no small holes in the heap when it is freed (tw_tileset_pack()). bytes is
+ * then the block's size. On TW_ERR_NOMEM *bvh is unchanged and still valid. */
+int tw_bvh_pack(struct tw_bvh **bvh);
 
 /* SAH cost of the tree: sum over interior nodes of area(node)/area(root) *
  * C_trav + sum over leaves of area(leaf)/area(root) * triangles(leaf) *

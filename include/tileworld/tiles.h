@@ -264,6 +264,7 @@ struct tw_tileset {
     bool finished;
 
     uint32_t material_cap, mesh_cap, prototype_cap, part_cap; /* private */
+    uint64_t packed_bytes;        /* private: the size of the block tw_tileset_pack() made */
 };
 
 /* Creates an empty tileset with footprint w x d metres (both > 0 and finite).
@@ -320,6 +321,17 @@ int tw_tileset_add_instance(struct tw_tileset *ts, uint32_t proto,
 #define TW_TILESET_MERGE_TRIANGLES 64u
 #define TW_TILESET_MERGE_BYTES (16ull << 20)
 int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles);
+
+/* Moves a finished tileset, its struct and every array it owns, into one
+ * allocation, and replaces *ts with it (the old pointer is freed; pointers
+ * into the old arrays are invalid). A tileset that lives long among
+ * short-lived allocations (a streamed tile) otherwise leaves its dozens of
+ * small arrays scattered over the heap, and the holes between them, when it
+ * is freed, are pages the allocator cannot return; one block is returned
+ * whole. tw_tileset_destroy() frees it as before; tw_tileset_bytes() is then
+ * the block's size. TW_ERR_INVALID on an unfinished tileset; on
+ * TW_ERR_NOMEM *ts is unchanged and still valid. */
+int tw_tileset_pack(struct tw_tileset **ts);
 
 /* Sum of all mesh data bytes, merged meshes included (what a renderer
  * uploads once). */
