@@ -2,10 +2,10 @@
 # tileworld memtest (issue 14), slow suite: 10 km of city-gen at a tiny size
 # under a small budget (48M: more than most frames draw, less than the walk
 # would prefetch); exit status 0 (every check held) and every check in
-# summary.json with its verdict. Measured at the 8 KiB mmap threshold: RSS
-# +2.4 to +5.0 % in six runs (last 10 % against the first; one of them over
-# the 5 % bound, see the README's known limits), about 504 loads of which
-# about 58 reloads, latency p99 2 frames.
+# summary.json with its verdict. Measured with tiles packed (one block each
+# for a tile's tileset and BVH): RSS +1.1, -0.5, +1.2 and +0.2 % in four
+# runs (last 10 % against the first; the bound is 5 %), about 500 loads of
+# which 49-55 reloads, latency p99 2-3 frames.
 set -u
 tw=${1:?usage: test-memtest-slow.sh PATH/TO/tileworld}
 . "$(dirname "$0")/test-lib.sh"

@@ -298,9 +298,11 @@ static struct heap_figures heap_figures(void)
  * pages; two arenas bound the heaps the workers' allocations spread over. 8 KiB
  * rather than glibc's initial 128 KiB: over 10 km of city-gen at 48M (96x54) the
  * heap ended holding 6.5, 5.9 and 6.5 MiB free at 8 KiB, 6.9, 15.0 and 6.6 at
- * 16 KiB, 10.8, 20.8 and 11.2 at 32 KiB (three runs each); what the heap keeps
- * is then small arrays, whose whole pages release_freed_memory() returns. Set
- * before any thread exists. false where the C library is not glibc. */
+ * 16 KiB, 10.8, 20.8 and 11.2 at 32 KiB (three runs each, before the stream
+ * packed each tile into one block; since, 0.5-1.1 MiB at 8 KiB in four runs,
+ * and still 30.8 MiB with glibc's defaults); what the heap keeps is then small
+ * arrays, whose whole pages release_freed_memory() returns. Set before any
+ * thread exists. false where the C library is not glibc. */
 static bool tune_allocator(void)
 {
 #if defined(__GLIBC__)
