@@ -59,13 +59,8 @@ struct deferred_vquery {
     uint32_t handle;
 };
 
-struct tw_chc {
-    struct tw_chc_settings settings;
-    uint64_t rng;
-    struct tw_chc_stats stats;
-    struct tw_cost_model costs;
-    bool model;             /* decide with costs (DESIGN §14) */
-
+/* The queues and scratch arrays of one traversal. */
+struct queues {
     struct tw_distance_entry *heap;
     size_t heap_count, heap_cap;
     struct iqueue_item *iqueue;
@@ -85,8 +80,6 @@ struct tw_chc {
     uint32_t stamp;
     struct tw_box *boxes;
     size_t box_cap;
-    struct deferred_vquery *deferred;
-    size_t deferred_count, deferred_cap;
 };
 
 /* One traversal of one tile. */
@@ -101,6 +94,31 @@ struct pass {
     uint64_t frame;
     uint32_t iqueue_seq;
 };
+
+/* A pass suspended where it would have blocked (tw_chc_traverse_async). */
+#define TW_CHC_MAX_SUSPENDED 4
+struct suspended {
+    struct pass pass;
+    struct tw_chc_tile tile;    /* pass.tile points here */
+    struct queues q;
+    uint64_t started;
+    bool active;
+};
+
+struct tw_chc {
+    struct tw_chc_settings settings;
+    uint64_t rng;
+    struct tw_chc_stats stats;
+    struct tw_cost_model costs;
+    bool model;             /* decide with costs (DESIGN §14) */
+
+    struct queues q;            /* the running traversal's */
+    struct deferred_vquery *deferred;
+    size_t deferred_count, deferred_cap;
+    struct suspended slots[TW_CHC_MAX_SUSPENDED];
+    uint64_t passes_started;
+};
+
 
 void tw_chc_default_settings(struct tw_chc_settings *s)
 {
@@ -149,19 +167,35 @@ int tw_chc_create(const struct tw_chc_settings *settings, struct tw_chc **out)
     return TW_OK;
 }
 
+static void free_queues(struct queues *q)
+{
+    free(q->heap);
+    free(q->iqueue);
+    free(q->vqueue);
+    free(q->iqueries);
+    free(q->query_nodes);
+    free(q->vqueries);
+    free(q->render);
+    free(q->cluster_stamp);
+    free(q->boxes);
+}
+
+static size_t queues_bytes(const struct queues *q)
+{
+    return q->heap_cap * sizeof(*q->heap) + q->iqueue_cap * sizeof(*q->iqueue) +
+           q->vqueue_cap * sizeof(*q->vqueue) + q->iq_cap * sizeof(*q->iqueries) +
+           q->query_node_cap * sizeof(*q->query_nodes) + q->vq_cap * sizeof(*q->vqueries) +
+           q->render_cap * sizeof(*q->render) + q->stamp_cap * sizeof(*q->cluster_stamp) +
+           q->box_cap * sizeof(*q->boxes);
+}
+
 void tw_chc_destroy(struct tw_chc *chc)
 {
     if (!chc)
         return;
-    free(chc->heap);
-    free(chc->iqueue);
-    free(chc->vqueue);
-    free(chc->iqueries);
-    free(chc->query_nodes);
-    free(chc->vqueries);
-    free(chc->render);
-    free(chc->cluster_stamp);
-    free(chc->boxes);
+    free_queues(&chc->q);
+    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
+        free_queues(&chc->slots[k].q);
     free(chc->deferred);
     free(chc);
 }
@@ -188,13 +222,11 @@ size_t tw_chc_bytes(const struct tw_chc *chc)
 {
     if (!chc)
         return 0;
-    return sizeof(*chc) + chc->heap_cap * sizeof(*chc->heap) +
-           chc->iqueue_cap * sizeof(*chc->iqueue) + chc->vqueue_cap * sizeof(*chc->vqueue) +
-           chc->iq_cap * sizeof(*chc->iqueries) +
-           chc->query_node_cap * sizeof(*chc->query_nodes) +
-           chc->vq_cap * sizeof(*chc->vqueries) + chc->render_cap * sizeof(*chc->render) +
-           chc->stamp_cap * sizeof(*chc->cluster_stamp) + chc->box_cap * sizeof(*chc->boxes) +
-           chc->deferred_cap * sizeof(*chc->deferred);
+    size_t bytes = sizeof(*chc) + queues_bytes(&chc->q) +
+                   chc->deferred_cap * sizeof(*chc->deferred);
+    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
+        bytes += queues_bytes(&chc->slots[k].q);
+    return bytes;
 }
 
 /* ---- small helpers ------------------------------------------------------------ */
@@ -287,13 +319,13 @@ static void apply_vquery(struct tw_chc *chc, struct tw_chc_node_state *state,
 
 static void heap_push(struct tw_chc *chc, float distance, uint32_t node)
 {
-    assert(chc->heap_count < chc->heap_cap);
-    tw_distance_push(chc->heap, &chc->heap_count, distance, node);
+    assert(chc->q.heap_count < chc->q.heap_cap);
+    tw_distance_push(chc->q.heap, &chc->q.heap_count, distance, node);
 }
 
 static uint32_t heap_pop(struct tw_chc *chc)
 {
-    return tw_distance_pop(chc->heap, &chc->heap_count);
+    return tw_distance_pop(chc->q.heap, &chc->q.heap_count);
 }
 
 /* Queues node for traversal unless it is outside the frustum or beyond the
@@ -326,11 +358,11 @@ static void draw_leaf(struct pass *p, uint32_t node)
     const struct tw_bvh_node *n = &p->nodes[node];
     for (uint32_t k = 0; k < n->cluster_count; k++) {
         const uint32_t c = p->bvh->cluster_order[n->first_cluster + k];
-        assert(c < chc->stamp_cap);
-        if (c >= chc->stamp_cap || chc->cluster_stamp[c] == chc->stamp)
+        assert(c < chc->q.stamp_cap);
+        if (c >= chc->q.stamp_cap || chc->q.cluster_stamp[c] == chc->q.stamp)
             continue;
-        chc->cluster_stamp[c] = chc->stamp;
-        chc->render[chc->render_count++] = c;
+        chc->q.cluster_stamp[c] = chc->q.stamp;
+        chc->q.render[chc->q.render_count++] = c;
         chc->stats.clusters_drawn++;
     }
 }
@@ -338,11 +370,11 @@ static void draw_leaf(struct pass *p, uint32_t node)
 static void flush_render(struct pass *p)
 {
     struct tw_chc *chc = p->chc;
-    if (chc->render_count == 0)
+    if (chc->q.render_count == 0)
         return;
-    p->be->draw(p->be->ctx, p->tile->cell, p->tile->content, p->tile->offset, chc->render,
-                (uint32_t)chc->render_count);
-    chc->render_count = 0;
+    p->be->draw(p->be->ctx, p->tile->cell, p->tile->content, p->tile->offset, chc->q.render,
+                (uint32_t)chc->q.render_count);
+    chc->q.render_count = 0;
 }
 
 /* ---- issuing queries ------------------------------------------------------------ */
@@ -373,19 +405,19 @@ static uint32_t issue_nodes(struct pass *p, const uint32_t *list, uint32_t count
     /* Room for one box per node is reserved before the traversal; if tight
      * lists do not fit and cannot grow, node boxes still give a correct query. */
     const bool tight =
-        tw_cull_reserve((void **)&chc->boxes, &chc->box_cap, need, sizeof(*chc->boxes));
+        tw_cull_reserve((void **)&chc->q.boxes, &chc->q.box_cap, need, sizeof(*chc->q.boxes));
     size_t nb = 0;
     for (uint32_t k = 0; k < count; k++) {
         uint32_t tc = 1;
         const struct tw_box *tb = tight ? tight_boxes(p, list[k], &tc) : NULL;
         if (tb) {
-            memcpy(&chc->boxes[nb], tb, tc * sizeof(*tb));
+            memcpy(&chc->q.boxes[nb], tb, tc * sizeof(*tb));
             nb += tc;
         } else {
-            chc->boxes[nb++] = p->nodes[list[k]].box;
+            chc->q.boxes[nb++] = p->nodes[list[k]].box;
         }
     }
-    const uint32_t handle = p->be->issue(p->be->ctx, chc->boxes, (uint32_t)nb, p->tile->offset);
+    const uint32_t handle = p->be->issue(p->be->ctx, chc->q.boxes, (uint32_t)nb, p->tile->offset);
     assert(handle != 0);
     for (uint32_t k = 0; k < count; k++)
         p->state[list[k]].pending_query = handle;
@@ -399,9 +431,9 @@ static uint32_t issue_nodes(struct pass *p, const uint32_t *list, uint32_t count
 static void issue_iquery(struct pass *p, size_t first, uint32_t count)
 {
     struct tw_chc *chc = p->chc;
-    const uint32_t handle = issue_nodes(p, &chc->query_nodes[first], count);
-    assert(chc->iq_head + chc->iq_count < chc->iq_cap);
-    chc->iqueries[chc->iq_head + chc->iq_count++] = (struct iquery){handle, count, first};
+    const uint32_t handle = issue_nodes(p, &chc->q.query_nodes[first], count);
+    assert(chc->q.iq_head + chc->q.iq_count < chc->q.iq_cap);
+    chc->q.iqueries[chc->q.iq_head + chc->q.iq_count++] = (struct iquery){handle, count, first};
 }
 
 static bool iqueue_before(const struct iqueue_item *a, const struct iqueue_item *b)
@@ -484,21 +516,21 @@ static size_t group_end(const struct tw_chc *chc, const struct iqueue_item *item
 static void issue_iqueue(struct pass *p)
 {
     struct tw_chc *chc = p->chc;
-    const size_t n = chc->iqueue_count;
+    const size_t n = chc->q.iqueue_count;
     if (n == 0)
         return;
     flush_render(p);
-    sort_iqueue(chc->iqueue, n);
+    sort_iqueue(chc->q.iqueue, n);
     for (size_t i = 0; i < n;) {
-        const size_t j = group_end(chc, chc->iqueue, i, n);
-        const size_t first = chc->query_node_count;
-        assert(first + (j - i) <= chc->query_node_cap);
+        const size_t j = group_end(chc, chc->q.iqueue, i, n);
+        const size_t first = chc->q.query_node_count;
+        assert(first + (j - i) <= chc->q.query_node_cap);
         for (size_t k = i; k < j; k++)
-            chc->query_nodes[chc->query_node_count++] = chc->iqueue[k].node;
+            chc->q.query_nodes[chc->q.query_node_count++] = chc->q.iqueue[k].node;
         issue_iquery(p, first, (uint32_t)(j - i));
         i = j;
     }
-    chc->iqueue_count = 0;
+    chc->q.iqueue_count = 0;
     p->be->flush(p->be->ctx);
 }
 
@@ -507,8 +539,8 @@ static void issue_vquery(struct pass *p, uint32_t node)
     struct tw_chc *chc = p->chc;
     flush_render(p);
     const uint32_t handle = issue_nodes(p, &node, 1);
-    assert(chc->vq_head + chc->vq_count < chc->vq_cap);
-    chc->vqueries[chc->vq_head + chc->vq_count++] = (struct vquery){handle, node};
+    assert(chc->q.vq_head + chc->q.vq_count < chc->q.vq_cap);
+    chc->q.vqueries[chc->q.vq_head + chc->q.vq_count++] = (struct vquery){handle, node};
 }
 
 /* ---- reading results ------------------------------------------------------------ */
@@ -521,9 +553,9 @@ static void handle_iquery(struct pass *p, const struct iquery *q, uint32_t sampl
         /* A failed multiquery: some of its nodes are visible, find out which. */
         flush_render(p);
         for (uint32_t k = 0; k < q->count; k++) {
-            const size_t first = chc->query_node_count;
-            assert(first < chc->query_node_cap);
-            chc->query_nodes[chc->query_node_count++] = chc->query_nodes[q->first + k];
+            const size_t first = chc->q.query_node_count;
+            assert(first < chc->q.query_node_cap);
+            chc->q.query_nodes[chc->q.query_node_count++] = chc->q.query_nodes[q->first + k];
             issue_iquery(p, first, 1);
             chc->stats.requeries++;
         }
@@ -531,7 +563,7 @@ static void handle_iquery(struct pass *p, const struct iquery *q, uint32_t sampl
         return;
     }
     for (uint32_t k = 0; k < q->count; k++) {
-        const uint32_t node = chc->query_nodes[q->first + k];
+        const uint32_t node = chc->q.query_nodes[q->first + k];
         struct tw_chc_node_state *s = &p->state[node];
         if (s->pending_query == q->handle)
             s->pending_query = 0;
@@ -555,8 +587,8 @@ static void handle_iquery(struct pass *p, const struct iquery *q, uint32_t sampl
 static void read_vquery(struct pass *p)
 {
     struct tw_chc *chc = p->chc;
-    const struct vquery q = chc->vqueries[chc->vq_head++];
-    chc->vq_count--;
+    const struct vquery q = chc->q.vqueries[chc->q.vq_head++];
+    chc->q.vq_count--;
     const uint32_t samples = p->be->wait(p->be->ctx, q.handle);
     struct tw_chc_node_state *s = &p->state[q.node];
     if (s->pending_query != q.handle)
@@ -569,7 +601,7 @@ static void read_vquery(struct pass *p)
 static void poll_vqueries(struct pass *p)
 {
     struct tw_chc *chc = p->chc;
-    while (chc->vq_count > 0 && p->be->ready(p->be->ctx, chc->vqueries[chc->vq_head].handle))
+    while (chc->q.vq_count > 0 && p->be->ready(p->be->ctx, chc->q.vqueries[chc->q.vq_head].handle))
         read_vquery(p);
 }
 
@@ -618,7 +650,7 @@ static void process_node(struct pass *p, uint32_t node)
             const uint32_t up = n->parent != TW_BVH_NONE ? n->parent : node;
             const float n_av = (float)(chc->settings.assumed_visible + 1);
             if (!chc->model || n_av * draw_cost(c, &p->nodes[up]) > c->query + group - c->query_box) {
-                chc->vqueue[chc->vqueue_head + chc->vqueue_count++] = node;
+                chc->q.vqueue[chc->q.vqueue_head + chc->q.vqueue_count++] = node;
                 return;
             }
             chc->stats.queries_skipped++;
@@ -639,9 +671,9 @@ static void process_node(struct pass *p, uint32_t node)
             push_children(p, node);
         return;
     }
-    chc->iqueue[chc->iqueue_count++] =
+    chc->q.iqueue[chc->q.iqueue_count++] =
         (struct iqueue_item){node, s->invisible_frames, p->iqueue_seq++, group, alone};
-    if (chc->iqueue_count >= chc->settings.batch_size)
+    if (chc->q.iqueue_count >= chc->settings.batch_size)
         issue_iqueue(p);
 }
 
@@ -655,31 +687,29 @@ static bool reserve_pass(struct tw_chc *chc, const struct tw_chc_tile *tile)
     if (tile->proto && tile->proto->cluster_count > clusters)
         clusters = tile->proto->cluster_count;
     const bool ok =
-        tw_cull_reserve((void **)&chc->heap, &chc->heap_cap, nodes, sizeof(*chc->heap)) &&
-        tw_cull_reserve((void **)&chc->iqueue, &chc->iqueue_cap, nodes, sizeof(*chc->iqueue)) &&
-        tw_cull_reserve((void **)&chc->vqueue, &chc->vqueue_cap, nodes, sizeof(*chc->vqueue)) &&
-        tw_cull_reserve((void **)&chc->iqueries, &chc->iq_cap, 2 * nodes, sizeof(*chc->iqueries)) &&
-        tw_cull_reserve((void **)&chc->query_nodes, &chc->query_node_cap, 2 * nodes,
-                sizeof(*chc->query_nodes)) &&
-        tw_cull_reserve((void **)&chc->vqueries, &chc->vq_cap, nodes, sizeof(*chc->vqueries)) &&
-        tw_cull_reserve((void **)&chc->render, &chc->render_cap, clusters, sizeof(*chc->render)) &&
-        tw_cull_reserve((void **)&chc->cluster_stamp, &chc->stamp_cap, clusters,
-                sizeof(*chc->cluster_stamp)) &&
-        tw_cull_reserve((void **)&chc->boxes, &chc->box_cap, nodes, sizeof(*chc->boxes)) &&
-        tw_cull_reserve((void **)&chc->deferred, &chc->deferred_cap, chc->deferred_count + nodes,
-                sizeof(*chc->deferred));
+        tw_cull_reserve((void **)&chc->q.heap, &chc->q.heap_cap, nodes, sizeof(*chc->q.heap)) &&
+        tw_cull_reserve((void **)&chc->q.iqueue, &chc->q.iqueue_cap, nodes, sizeof(*chc->q.iqueue)) &&
+        tw_cull_reserve((void **)&chc->q.vqueue, &chc->q.vqueue_cap, nodes, sizeof(*chc->q.vqueue)) &&
+        tw_cull_reserve((void **)&chc->q.iqueries, &chc->q.iq_cap, 2 * nodes, sizeof(*chc->q.iqueries)) &&
+        tw_cull_reserve((void **)&chc->q.query_nodes, &chc->q.query_node_cap, 2 * nodes,
+                sizeof(*chc->q.query_nodes)) &&
+        tw_cull_reserve((void **)&chc->q.vqueries, &chc->q.vq_cap, nodes, sizeof(*chc->q.vqueries)) &&
+        tw_cull_reserve((void **)&chc->q.render, &chc->q.render_cap, clusters, sizeof(*chc->q.render)) &&
+        tw_cull_reserve((void **)&chc->q.cluster_stamp, &chc->q.stamp_cap, clusters,
+                sizeof(*chc->q.cluster_stamp)) &&
+        tw_cull_reserve((void **)&chc->q.boxes, &chc->q.box_cap, nodes, sizeof(*chc->q.boxes));
     if (!ok)
         return false;
-    chc->heap_count = 0;
-    chc->iqueue_count = 0;
-    chc->vqueue_head = chc->vqueue_count = 0;
-    chc->iq_head = chc->iq_count = 0;
-    chc->query_node_count = 0;
-    chc->vq_head = chc->vq_count = 0;
-    chc->render_count = 0;
-    if (++chc->stamp == 0) {
-        memset(chc->cluster_stamp, 0, chc->stamp_cap * sizeof(*chc->cluster_stamp));
-        chc->stamp = 1;
+    chc->q.heap_count = 0;
+    chc->q.iqueue_count = 0;
+    chc->q.vqueue_head = chc->q.vqueue_count = 0;
+    chc->q.iq_head = chc->q.iq_count = 0;
+    chc->q.query_node_count = 0;
+    chc->q.vq_head = chc->q.vq_count = 0;
+    chc->q.render_count = 0;
+    if (++chc->q.stamp == 0) {
+        memset(chc->q.cluster_stamp, 0, chc->q.stamp_cap * sizeof(*chc->q.cluster_stamp));
+        chc->q.stamp = 1;
     }
     return true;
 }
@@ -701,73 +731,191 @@ static void draw_everything(const struct pass *p)
     }
 }
 
-void tw_chc_traverse(struct tw_chc *chc, const struct tw_view *v,
-                     const struct tw_query_backend *be, const struct tw_chc_tile *tile)
+/* Runs a pass until it is done (true) or, with may_suspend, until it would
+ * block on an I-query with nothing else left to do (false: the caller
+ * resumes it later, after giving the GPU other tiles' work). */
+static bool run_pass(struct pass *p, bool may_suspend)
 {
-    if (!chc || !v || !be || !tile || !tile->bvh || !tile->state || tile->bvh->node_count == 0)
-        return;
-    struct pass p = {
-        .chc = chc, .v = v, .be = be, .tile = tile, .bvh = tile->bvh,
-        .nodes = tile->bvh->nodes, .state = tile->state, .frame = v->frame,
-    };
-    if (!reserve_pass(chc, tile)) {
-        draw_everything(&p);
-        return;
-    }
-
-    push_node(&p, 0);
-    while (chc->heap_count > 0 || chc->iqueue_count > 0 || chc->iq_count > 0) {
+    struct tw_chc *chc = p->chc;
+    const struct tw_query_backend *be = p->be;
+    while (chc->q.heap_count > 0 || chc->q.iqueue_count > 0 || chc->q.iq_count > 0) {
         /* Read the I-queries whose results are in; block only when there is
          * nothing left to traverse, and spend that time on V-queries first. */
-        while (chc->iq_count > 0) {
-            const struct iquery q = chc->iqueries[chc->iq_head];
+        while (chc->q.iq_count > 0) {
+            const struct iquery q = chc->q.iqueries[chc->q.iq_head];
             if (!be->ready(be->ctx, q.handle)) {
-                if (chc->heap_count > 0)
+                if (chc->q.heap_count > 0)
                     break;
-                if (chc->iqueue_count > 0) {
-                    issue_iqueue(&p);
+                if (chc->q.iqueue_count > 0) {
+                    issue_iqueue(p);
                     continue;
                 }
-                if (chc->vqueue_count > 0) {
-                    chc->vqueue_count--;
-                    issue_vquery(&p, chc->vqueue[chc->vqueue_head++]);
+                if (chc->q.vqueue_count > 0) {
+                    chc->q.vqueue_count--;
+                    issue_vquery(p, chc->q.vqueue[chc->q.vqueue_head++]);
                     be->flush(be->ctx);
                     continue;
                 }
                 /* Give the GPU what was traversed before blocking on it. */
-                flush_render(&p);
+                flush_render(p);
                 be->flush(be->ctx);
+                if (may_suspend)
+                    return false;
                 chc->stats.waits++;
             }
-            chc->iq_head++;
-            chc->iq_count--;
-            handle_iquery(&p, &q, be->wait(be->ctx, q.handle));
+            chc->q.iq_head++;
+            chc->q.iq_count--;
+            handle_iquery(p, &q, be->wait(be->ctx, q.handle));
         }
-        poll_vqueries(&p);
+        poll_vqueries(p);
 
-        if (chc->heap_count > 0)
-            process_node(&p, heap_pop(chc));
-        if (chc->heap_count == 0 && chc->iqueue_count > 0)
-            issue_iqueue(&p);
+        if (chc->q.heap_count > 0)
+            process_node(p, heap_pop(chc));
+        if (chc->q.heap_count == 0 && chc->q.iqueue_count > 0)
+            issue_iqueue(p);
     }
+    return true;
+}
 
-    flush_render(&p);
-    if (chc->vqueue_count > 0) {
-        while (chc->vqueue_count > 0) {
-            chc->vqueue_count--;
-            issue_vquery(&p, chc->vqueue[chc->vqueue_head++]);
+/* A done pass: its render queue drawn, its V-queries issued; those still in
+ * flight are read by the next frame's tw_chc_begin_frame() (or now, if there
+ * is no memory to keep them). */
+static void end_pass(struct pass *p)
+{
+    struct tw_chc *chc = p->chc;
+    const struct tw_query_backend *be = p->be;
+    flush_render(p);
+    if (chc->q.vqueue_count > 0) {
+        while (chc->q.vqueue_count > 0) {
+            chc->q.vqueue_count--;
+            issue_vquery(p, chc->q.vqueue[chc->q.vqueue_head++]);
         }
         be->flush(be->ctx);
     }
-    poll_vqueries(&p);
-    /* The rest is read by the next frame's tw_chc_begin_frame(). */
-    for (size_t k = 0; k < chc->vq_count; k++) {
-        const struct vquery *q = &chc->vqueries[chc->vq_head + k];
-        assert(chc->deferred_count < chc->deferred_cap);
-        chc->deferred[chc->deferred_count++] =
-            (struct deferred_vquery){tile->tag, p.frame, q->node, q->handle};
+    poll_vqueries(p);
+    if (!tw_cull_reserve((void **)&chc->deferred, &chc->deferred_cap,
+                         chc->deferred_count + chc->q.vq_count, sizeof(*chc->deferred))) {
+        while (chc->q.vq_count > 0)
+            read_vquery(p);
     }
-    chc->vq_head = chc->vq_count = 0;
+    for (size_t k = 0; k < chc->q.vq_count; k++) {
+        const struct vquery *q = &chc->q.vqueries[chc->q.vq_head + k];
+        chc->deferred[chc->deferred_count++] =
+            (struct deferred_vquery){p->tile->tag, p->frame, q->node, q->handle};
+    }
+    chc->q.vq_head = chc->q.vq_count = 0;
+}
+
+/* Starts a pass over tile in chc->q; false when out of memory (then the tile
+ * was drawn whole, and there is nothing to run). */
+static bool start_pass(struct pass *p, struct tw_chc *chc, const struct tw_view *v,
+                       const struct tw_query_backend *be, const struct tw_chc_tile *tile)
+{
+    *p = (struct pass){
+        .chc = chc, .v = v, .be = be, .tile = tile, .bvh = tile->bvh,
+        .nodes = tile->bvh->nodes, .state = tile->state, .frame = v->frame,
+    };
+    if (!reserve_pass(chc, tile)) {
+        draw_everything(p);
+        return false;
+    }
+    push_node(p, 0);
+    return true;
+}
+
+static bool usable(const struct tw_chc *chc, const struct tw_view *v,
+                   const struct tw_query_backend *be, const struct tw_chc_tile *tile)
+{
+    return chc && v && be && tile && tile->bvh && tile->state && tile->bvh->node_count > 0;
+}
+
+/* Makes slot k the running pass (its queues in chc->q) or puts it back. */
+static void swap_queues(struct tw_chc *chc, uint32_t k)
+{
+    const struct queues t = chc->q;
+    chc->q = chc->slots[k].q;
+    chc->slots[k].q = t;
+}
+
+/* Resumes suspended pass k; block: runs it to its end. Frees the slot when
+ * the pass is done. */
+static void resume(struct tw_chc *chc, uint32_t k, bool block)
+{
+    struct suspended *sl = &chc->slots[k];
+    swap_queues(chc, k);
+    if (run_pass(&sl->pass, !block)) {
+        end_pass(&sl->pass);
+        sl->active = false;
+    }
+    swap_queues(chc, k);
+}
+
+void tw_chc_traverse(struct tw_chc *chc, const struct tw_view *v,
+                     const struct tw_query_backend *be, const struct tw_chc_tile *tile)
+{
+    if (!usable(chc, v, be, tile))
+        return;
+    struct pass p;
+    if (!start_pass(&p, chc, v, be, tile))
+        return;
+    run_pass(&p, false);
+    end_pass(&p);
+}
+
+void tw_chc_traverse_async(struct tw_chc *chc, const struct tw_view *v,
+                           const struct tw_query_backend *be, const struct tw_chc_tile *tile)
+{
+    if (!usable(chc, v, be, tile))
+        return;
+    /* Give the suspended passes what has come back; the oldest is finished
+     * when every slot is taken. */
+    uint32_t free_slot = TW_CHC_MAX_SUSPENDED, oldest = TW_CHC_MAX_SUSPENDED;
+    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++) {
+        if (chc->slots[k].active)
+            resume(chc, k, false);
+        if (!chc->slots[k].active) {
+            if (free_slot == TW_CHC_MAX_SUSPENDED)
+                free_slot = k;
+        } else if (oldest == TW_CHC_MAX_SUSPENDED ||
+                   chc->slots[k].started < chc->slots[oldest].started) {
+            oldest = k;
+        }
+    }
+    if (free_slot == TW_CHC_MAX_SUSPENDED) {
+        resume(chc, oldest, true);
+        free_slot = oldest;
+    }
+    struct suspended *sl = &chc->slots[free_slot];
+    sl->tile = *tile;
+    swap_queues(chc, free_slot);
+    if (start_pass(&sl->pass, chc, v, be, &sl->tile)) {
+        if (run_pass(&sl->pass, true)) {
+            end_pass(&sl->pass);
+        } else {
+            sl->active = true;
+            sl->started = ++chc->passes_started;
+            chc->stats.suspended++;
+        }
+    }
+    swap_queues(chc, free_slot);
+}
+
+void tw_chc_finish(struct tw_chc *chc)
+{
+    if (!chc)
+        return;
+    /* Oldest first: the nearer tiles' passes, started first. */
+    for (;;) {
+        uint32_t oldest = TW_CHC_MAX_SUSPENDED;
+        for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
+            if (chc->slots[k].active &&
+                (oldest == TW_CHC_MAX_SUSPENDED ||
+                 chc->slots[k].started < chc->slots[oldest].started))
+                oldest = k;
+        if (oldest == TW_CHC_MAX_SUSPENDED)
+            return;
+        resume(chc, oldest, true);
+    }
 }
 
 void tw_chc_begin_frame(struct tw_chc *chc, const struct tw_view *v,

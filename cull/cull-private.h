@@ -25,7 +25,8 @@ static inline bool tw_cull_reserve(void **p, size_t *cap, size_t need, size_t el
     const size_t old = *cap;
     if (tw_array_reserve(p, cap, need, elem, 64) != TW_OK)
         return false;
-    memset((char *)*p + old * elem, 0, (*cap - old) * elem);
+    if (*cap > old)
+        memset((char *)*p + old * elem, 0, (*cap - old) * elem);
     return true;
 }
 

@@ -275,9 +275,11 @@ static void *instance_state(struct frame *fr, struct tw_cell cell, const struct 
     return state;
 }
 
-/* The local method of chc and tilequery+chc. Returns whether anything was drawn. */
+/* The local method of chc and tilequery+chc. Returns whether anything was
+ * drawn; with async, the pass may be suspended where it would block
+ * (tw_chc_traverse_async), and what it draws later is not counted. */
 static bool draw_tile_chc(struct frame *fr, struct tw_cell cell, const struct tw_cull_tile *tile,
-                          const float offset[3])
+                          const float offset[3], bool async)
 {
     struct tw_tile_handle h;
     struct tw_chc_node_state *state =
@@ -294,7 +296,10 @@ static bool draw_tile_chc(struct frame *fr, struct tw_cell cell, const struct tw
     };
     memcpy(t.offset, offset, sizeof(t.offset));
     const uint32_t before = tw_chc_stats(fr->d->chc)->clusters_drawn;
-    tw_chc_traverse(fr->d->chc, fr->v, fr->be, &t);
+    if (async)
+        tw_chc_traverse_async(fr->d->chc, fr->v, fr->be, &t);
+    else
+        tw_chc_traverse(fr->d->chc, fr->v, fr->be, &t);
     return tw_chc_stats(fr->d->chc)->clusters_drawn > before;
 }
 
@@ -346,7 +351,9 @@ static void render_visible(void *user, struct tw_cell cell, const float offset[3
     if (!get_tile(fr, cell, tw_cull_box_distance(fr->v, &fr->g->common_box, offset), &tile))
         return;
     if (fr->d->chc) {
-        draw_tile_chc(fr, cell, &tile, offset);
+        /* The tile query already found the cell visible: while a tile's
+         * pass waits, the next tiles' work goes to the GPU. */
+        draw_tile_chc(fr, cell, &tile, offset, true);
     } else {
         /* tilequery keeps an instance per visible tile, as the system does. */
         struct tw_tile_handle h;
@@ -361,6 +368,7 @@ static int frame_tilequery(struct frame *fr)
     const struct tw_cull_grid *g = fr->g;
     int err = tw_tilequery_frame(fr->d->tq, fr->v, fr->be, &g->common_box, g->footprint[0],
                                  g->footprint[1], render_visible, fr, &tq);
+    tw_chc_finish(fr->d->chc);
     fr->st->tiles_queried = tq.tiles_queried;
     fr->st->predict_fail = tq.predict_fail;
     fr->st->tiles_visible = tq.tiles_visible;
@@ -383,7 +391,7 @@ static int frame_cells(struct frame *fr, struct tw_cull_cells *cells)
         }
         float offset[3];
         tw_tiles_cell_offset(cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], offset);
-        const bool drawn = fr->d->chc ? draw_tile_chc(fr, cell, &tile, offset)
+        const bool drawn = fr->d->chc ? draw_tile_chc(fr, cell, &tile, offset, false)
                                       : draw_tile_vfc(fr, cell, &tile, offset);
         fr->st->tiles_visible += drawn;
     }

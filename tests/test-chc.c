@@ -87,7 +87,7 @@ static void *xgrow(void *p, size_t *cap, size_t need, size_t elem)
 /* ---- the fake backend ---------------------------------------------------------- */
 
 #define FAKE_NEVER UINT32_MAX
-#define MAX_POINTS 256
+#define MAX_POINTS 512
 
 enum ev_type { EV_ISSUE, EV_READY, EV_WAIT, EV_DRAW, EV_FLUSH };
 
@@ -377,6 +377,7 @@ static void box_name(const struct tree *t, const struct tw_box *b, char *out, si
 
 /* ---- a world: engine, fake, one or two tiles ---------------------------------------- */
 
+#define MAX_TILES 6
 #define TAG_A 0x1234
 #define TAG_B 0x5678
 
@@ -385,13 +386,14 @@ struct world {
     struct fake fake;
     struct tw_query_backend be;
     struct tree *tree;
-    struct tw_chc_node_state state[2][MAX_NODES];
-    struct tw_chc_tile tile[2];
+    struct tw_chc_node_state state[MAX_TILES][MAX_NODES];
+    struct tw_chc_tile tile[MAX_TILES];   /* tile t at cell (0, t) */
     uint32_t tile_count;
     float eye[3];
     float yaw;
     uint64_t frame;
     bool resolve_nothing;
+    bool async;                           /* tw_chc_traverse_async, then tw_chc_finish */
 };
 
 static struct tw_chc_node_state *resolve(void *user, uint64_t tag, const struct tw_bvh **bvh)
@@ -455,13 +457,18 @@ static void world_view(const struct world *w, struct tw_view *v, uint64_t frame)
 /* Every cluster of a tile drawn at most once between log index mark and now. */
 static void check_no_double_draw(const struct world *w, size_t mark, int line)
 {
-    static unsigned char seen[2][MAX_NODES];
+    static unsigned char seen[MAX_TILES][MAX_NODES];
     memset(seen, 0, sizeof(seen));
     for (size_t e = mark; e < w->fake.event_count; e++) {
         const struct event *ev = &w->fake.events[e];
         if (ev->type != EV_DRAW)
             continue;
-        const uint32_t t = ev->cell.j != 0;
+        const uint32_t t = (uint32_t)ev->cell.j;
+        if (ev->cell.j < 0 || t >= MAX_TILES) {
+            fail(line, "a draw in cell (%lld, %lld), no tile's", (long long)ev->cell.i,
+                 (long long)ev->cell.j);
+            continue;
+        }
         for (size_t k = 0; k < ev->count; k++) {
             const uint32_t c = w->fake.clusters[ev->first + k];
             if (c >= MAX_NODES) {
@@ -487,8 +494,14 @@ static size_t run_frame_at(struct world *w, uint64_t frame, size_t *begin_mark, 
         *begin_mark = b;
     tw_chc_begin_frame(w->chc, &v, &w->be, resolve, w);
     const size_t mark = w->fake.event_count;
-    for (uint32_t t = 0; t < w->tile_count; t++)
-        tw_chc_traverse(w->chc, &v, &w->be, &w->tile[t]);
+    for (uint32_t t = 0; t < w->tile_count; t++) {
+        if (w->async)
+            tw_chc_traverse_async(w->chc, &v, &w->be, &w->tile[t]);
+        else
+            tw_chc_traverse(w->chc, &v, &w->be, &w->tile[t]);
+    }
+    if (w->async)
+        tw_chc_finish(w->chc);
     check_no_double_draw(w, mark, line);
     if (w->fake.errors) {
         fail(line, "the fake backend saw %d protocol errors", w->fake.errors);
@@ -563,7 +576,7 @@ static void drawn_since(const struct world *w, size_t mark, uint32_t t, bool *dr
     memset(drawn, 0, MAX_NODES * sizeof(*drawn));
     for (size_t e = mark; e < w->fake.event_count; e++) {
         const struct event *ev = &w->fake.events[e];
-        if (ev->type != EV_DRAW || (ev->cell.j != 0) != (t != 0))
+        if (ev->type != EV_DRAW || ev->cell.j != (int64_t)t)
             continue;
         for (size_t k = 0; k < ev->count; k++)
             if (w->fake.clusters[ev->first + k] < MAX_NODES)
@@ -1189,7 +1202,14 @@ struct random_run {
     uint64_t hash;
     size_t events;
     size_t bytes_warm, bytes_end;
+    uint32_t suspended;     /* passes suspended over the run (async) */
+    uint32_t waits;
 };
+
+/* The tiles random_run() walks (2 to MAX_TILES) and whether it traverses
+ * them with tw_chc_traverse_async(). */
+static uint32_t random_tiles = 2;
+static bool random_async;
 
 /* Two tiles sharing one random BVH, random visibility changing every frame, a
  * jittering camera. Checks every frame: each leaf that the fake sees (a point
@@ -1203,21 +1223,25 @@ static struct random_run random_run(uint64_t seed, const struct tw_chc_settings 
     const uint32_t leaves = 24 + (uint32_t)(rng_next(&rng) % 40);
     struct world *w = world_create(random_tree(&rng, leaves), settings, ready_after);
     struct tree *t = w->tree;
-    w->tile_count = 2;
-    w->tile[1] = w->tile[0];
-    w->tile[1].cell = (struct tw_cell){0, 1};
-    w->tile[1].state = w->state[1];
-    w->tile[1].offset[2] = 75.0f;
-    w->tile[1].tag = TAG_B;
+    w->tile_count = random_tiles;
+    w->async = random_async;
+    for (uint32_t k = 1; k < w->tile_count; k++) {
+        w->tile[k] = w->tile[0];
+        w->tile[k].cell = (struct tw_cell){0, k};
+        w->tile[k].state = w->state[k];
+        w->tile[k].offset[2] = 75.0f * (float)k;
+        w->tile[k].tag = TAG_B + k - 1;
+    }
     tw_chc_state_init(w->state[0], &t->bvh, 1);
-    /* Tile B: zeroed state, as the cache hands it out. */
+    /* Tiles B...: zeroed state, as the cache hands it out. */
 
-    bool visible_leaf[2][MAX_NODES] = {{false}};
+    static bool visible_leaf[MAX_TILES][MAX_NODES];
+    memset(visible_leaf, 0, sizeof(visible_leaf));
     struct random_run out = {0};
     for (uint32_t f = 1; f <= frames; f++) {
         /* Visibility changes: each leaf flips with probability 1/5. */
         w->fake.point_count = 0;
-        for (uint32_t tile = 0; tile < 2; tile++)
+        for (uint32_t tile = 0; tile < w->tile_count; tile++)
             for (uint32_t k = 0; k < leaves; k++) {
                 if (rng_next(&rng) % 5 == 0)
                     visible_leaf[tile][k] = !visible_leaf[tile][k];
@@ -1234,6 +1258,8 @@ static struct random_run random_run(uint64_t seed, const struct tw_chc_settings 
 
         size_t begin_mark;
         const size_t mark = run_frame_at(w, f, &begin_mark, __LINE__);
+        out.suspended += tw_chc_stats(w->chc)->suspended;
+        out.waits += tw_chc_stats(w->chc)->waits;
         if (w->fake.query_count > 0 && fake_in_flight(&w->fake) > 0) {
             /* Only queries issued in this frame's traversal may be in flight. */
             for (size_t e = 0; e < begin_mark; e++)
@@ -1245,7 +1271,7 @@ static struct random_run random_run(uint64_t seed, const struct tw_chc_settings 
 
         struct tw_view v;
         world_view(w, &v, f);
-        for (uint32_t tile = 0; tile < 2; tile++) {
+        for (uint32_t tile = 0; tile < w->tile_count; tile++) {
             bool drawn[MAX_NODES];
             drawn_since(w, mark, tile, drawn);
             for (uint32_t k = 0; k < leaves; k++) {
@@ -1267,7 +1293,7 @@ static struct random_run random_run(uint64_t seed, const struct tw_chc_settings 
             }
         }
         size_t pending = 0;
-        for (uint32_t tile = 0; tile < 2; tile++)
+        for (uint32_t tile = 0; tile < w->tile_count; tile++)
             for (uint32_t n = 0; n < t->bvh.node_count; n++)
                 pending += w->state[tile][n].pending_query != 0;
         if (pending != fake_in_flight(&w->fake))
@@ -1303,6 +1329,42 @@ static void test_random_worlds(void)
                 fail(__LINE__, "seed %llu: engine grew from %zu to %zu bytes once warm",
                      (unsigned long long)seed, r.bytes_warm, r.bytes_end);
         }
+}
+
+/* The random worlds over six tiles, traversed with tw_chc_traverse_async():
+ * the same invariants hold (every visible leaf drawn, nothing drawn twice,
+ * nothing left in flight but deferred V-queries) while passes are suspended,
+ * and more than four at a time (the oldest then finished first). Where
+ * results come late, passes are suspended and fewer waits block. */
+static void test_async_worlds(void)
+{
+    test_name = "async_worlds";
+    random_tiles = MAX_TILES;
+    static const uint32_t ready_modes[4] = {0, 1, 3, FAKE_NEVER};
+    for (uint64_t seed = 1; seed <= 8; seed++)
+        for (int m = 0; m < 4; m++) {
+            struct tw_chc_settings s = {.seed = seed};
+            if (seed % 3 == 1)
+                s.batch_size = 3;
+            if (seed % 4 == 2)
+                s.no_multiqueries = true;
+            random_async = false;
+            const struct random_run sync = random_run(seed * 313, &s, ready_modes[m], 30);
+            random_async = true;
+            const struct random_run async = random_run(seed * 313, &s, ready_modes[m], 30);
+            if (ready_modes[m] == 0 && async.suspended != 0)
+                fail(__LINE__, "seed %llu: %u passes suspended though every result was ready",
+                     (unsigned long long)seed, async.suspended);
+            /* (Results that never come make every wait block, either way.) */
+            if (ready_modes[m] != 0 &&
+                (async.suspended == 0 ||
+                 (ready_modes[m] != FAKE_NEVER && async.waits >= sync.waits)))
+                fail(__LINE__, "seed %llu, results after %u polls: %u suspended, %u waits "
+                     "(traversed one by one: %u)", (unsigned long long)seed, ready_modes[m],
+                     async.suspended, async.waits, sync.waits);
+        }
+    random_async = false;
+    random_tiles = 2;
 }
 
 /* Same inputs, same log; another PRNG seed, another re-query schedule. */
@@ -1509,6 +1571,7 @@ int main(void)
     test_threshold();
     test_tight_boxes();
     test_random_worlds();
+    test_async_worlds();
     test_determinism();
     test_cost_skip_hidden();
     test_cost_skip_requery();

@@ -247,6 +247,7 @@ struct tw_chc_stats {
                                    previously hidden node drawn without a query (cheaper
                                    than a query weighted by the chance that it is hidden),
                                    or a visible leaf's re-query that could not pay */
+    uint32_t suspended;         /* passes suspended rather than blocked (tw_chc_traverse_async) */
 };
 
 /* One tile to traverse. */
@@ -288,6 +289,22 @@ void tw_chc_begin_frame(struct tw_chc *chc, const struct tw_view *v,
 void tw_chc_traverse(struct tw_chc *chc, const struct tw_view *v,
                      const struct tw_query_backend *be,
                      const struct tw_chc_tile *tile);
+
+/* The same, except that where the pass would block on an I-query with
+ * nothing left to traverse it is suspended instead (up to four at a time,
+ * the oldest finished when a fifth would start), so that the GPU gets the
+ * next tiles' work rather than waiting: a frame's blocking reads are then
+ * those of its last tiles. A suspended pass is resumed by later calls and
+ * finished by tw_chc_finish(), which the caller must call before the frame
+ * ends and before tile, its BVH or its state may change or go. Tiles then
+ * draw out of front-to-back order where a pass waits; conservative all the
+ * same (a query counts what is drawn before it, and more drawn can only
+ * hide more). */
+void tw_chc_traverse_async(struct tw_chc *chc, const struct tw_view *v,
+                           const struct tw_query_backend *be,
+                           const struct tw_chc_tile *tile);
+/* Runs every suspended pass to its end, oldest first. */
+void tw_chc_finish(struct tw_chc *chc);
 
 /* This frame's counters (reset by tw_chc_begin_frame). */
 const struct tw_chc_stats *tw_chc_stats(const struct tw_chc *chc);
