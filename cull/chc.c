@@ -924,6 +924,8 @@ void tw_chc_begin_frame(struct tw_chc *chc, const struct tw_view *v,
 {
     if (!chc)
         return;
+    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
+        assert(!chc->slots[k].active && "tw_chc_finish() was not called at the end of a frame");
     memset(&chc->stats, 0, sizeof(chc->stats));
     if (!be) {
         chc->deferred_count = 0;
