@@ -1309,20 +1309,30 @@ static struct random_run random_run(uint64_t seed, const struct tw_chc_settings 
     return out;
 }
 
+/* The results come back after 0, 1 or 3 polls, or only when waited for. */
+static const uint32_t ready_modes[4] = {0, 1, 3, FAKE_NEVER};
+
+/* Settings that vary with the seed: batch size, multiqueries, tight boxes,
+ * assumed-visible frames. */
+static struct tw_chc_settings random_settings(uint64_t seed)
+{
+    struct tw_chc_settings s = {.seed = seed};
+    if (seed % 3 == 1)
+        s.batch_size = 3;
+    if (seed % 4 == 2)
+        s.no_multiqueries = true;
+    if (seed % 5 == 3)
+        s.no_tight_boxes = true;
+    s.assumed_visible = (uint32_t)(seed % 6);
+    return s;
+}
+
 static void test_random_worlds(void)
 {
     test_name = "random_worlds";
-    static const uint32_t ready_modes[4] = {0, 1, 3, FAKE_NEVER};
     for (uint64_t seed = 1; seed <= 12; seed++)
         for (int m = 0; m < 4; m++) {
-            struct tw_chc_settings s = {.seed = seed};
-            if (seed % 3 == 1)
-                s.batch_size = 3;
-            if (seed % 4 == 2)
-                s.no_multiqueries = true;
-            if (seed % 5 == 3)
-                s.no_tight_boxes = true;
-            s.assumed_visible = (uint32_t)(seed % 6);
+            const struct tw_chc_settings s = random_settings(seed);
             const struct random_run r = random_run(seed * 977, &s, ready_modes[m], 40);
             /* Warm: no growth after the first frames. */
             if (r.bytes_warm != r.bytes_end)
@@ -1340,14 +1350,9 @@ static void test_async_worlds(void)
 {
     test_name = "async_worlds";
     random_tiles = MAX_TILES;
-    static const uint32_t ready_modes[4] = {0, 1, 3, FAKE_NEVER};
     for (uint64_t seed = 1; seed <= 8; seed++)
         for (int m = 0; m < 4; m++) {
-            struct tw_chc_settings s = {.seed = seed};
-            if (seed % 3 == 1)
-                s.batch_size = 3;
-            if (seed % 4 == 2)
-                s.no_multiqueries = true;
+            const struct tw_chc_settings s = random_settings(seed);
             random_async = false;
             const struct random_run sync = random_run(seed * 313, &s, ready_modes[m], 30);
             random_async = true;
