@@ -117,6 +117,9 @@ struct tw_chc {
     size_t deferred_count, deferred_cap;
     struct suspended slots[TW_CHC_MAX_SUSPENDED];
     uint64_t passes_started;
+    /* V-query answers, and of them hidden ones, decayed by VQ_DECAY per
+     * answer: the chance that a visible leaf's re-query finds it hidden. */
+    double vq_answers, vq_hidden;
 };
 
 
@@ -294,6 +297,19 @@ static void pull_up(struct tw_chc_node_state *state, const struct tw_bvh_node *n
     }
 }
 
+/* About the last thousand V-query answers count. */
+#define VQ_DECAY 0.999
+/* One re-query in this many that the model would skip is issued anyway, so
+ * that the rate above keeps being measured. */
+#define VQ_EXPLORE 16u
+
+/* The chance that a re-query finds a visible leaf hidden: the measured rate,
+ * from a prior of one hidden answer in two. */
+static float vquery_hidden_rate(const struct tw_chc *chc)
+{
+    return (float)((chc->vq_hidden + 1.0) / (chc->vq_answers + 2.0));
+}
+
 /* The result of a V-query (a leaf drawn because it was visible before),
  * applied as the result of frame. */
 static void apply_vquery(struct tw_chc *chc, struct tw_chc_node_state *state,
@@ -301,6 +317,8 @@ static void apply_vquery(struct tw_chc *chc, struct tw_chc_node_state *state,
                          uint64_t frame)
 {
     struct tw_chc_node_state *s = &state[node];
+    chc->vq_answers = chc->vq_answers * VQ_DECAY + 1.0;
+    chc->vq_hidden = chc->vq_hidden * VQ_DECAY + (visible ? 0.0 : 1.0);
     if (!visible) {
         s->invisible_frames = 1;
         return;
@@ -644,12 +662,16 @@ static void process_node(struct pass *p, uint32_t node)
         draw_leaf(p, node);
         if (s->pending_query == 0 && s->next_query_frame <= p->frame) {
             /* A re-query can pay only if what a hidden answer may save
-             * over the next n_av frames exceeds it: a hidden leaf lets its
-             * parent be found hidden too and culled whole, so the saving
-             * is counted at the parent. */
+             * over the next n_av frames, weighted by the measured chance of
+             * that answer, exceeds it: a hidden leaf lets its parent be
+             * found hidden too and culled whole, so the saving is counted
+             * at the parent. */
             const uint32_t up = n->parent != TW_BVH_NONE ? n->parent : node;
             const float n_av = (float)(chc->settings.assumed_visible + 1);
-            if (!chc->model || n_av * draw_cost(c, &p->nodes[up]) > c->query + group - c->query_box) {
+            if (!chc->model ||
+                vquery_hidden_rate(chc) * n_av * draw_cost(c, &p->nodes[up]) >
+                    c->query + group - c->query_box ||
+                next_random(chc) % VQ_EXPLORE == 0) {
                 chc->q.vqueue[chc->q.vqueue_head + chc->q.vqueue_count++] = node;
                 return;
             }

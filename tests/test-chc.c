@@ -1468,6 +1468,47 @@ static void test_cost_skip_requery(void)
     }
 }
 
+/* A visible leaf's re-query is weighed by the measured chance that it finds
+ * the leaf hidden: with every leaf always visible, re-queries that paid at
+ * the prior (one in two) stop paying once answers come back visible, and
+ * only the exploring few are issued; with cheap queries none is skipped. */
+static void test_cost_requery_rate(void)
+{
+    test_name = "cost_requery_rate";
+    /* A hidden answer saves at most 9 frames x 2 draws of the parent: 18 p
+     * against a query of 4, worth it while p > 0.22. */
+    static const struct tw_cost_model middling = {
+        .query = 4.0f, .draw = 1.0f, .pixels_per_sr = 1e5f, .screen_pixels = 1e5f,
+    };
+    for (int m = 0; m < 2; m++) {
+        world_costs = m ? &cheap_queries : &middling;
+        struct world *w = world_create(column_tree(4), NULL, 0);
+        world_costs = NULL;
+        tw_chc_state_init(w->state[0], &w->tree->bvh, 2);
+        for (uint32_t k = 0; k < 4; k++)
+            point_in_leaf(w, k);
+        uint32_t early = 0, late = 0, late_skipped = 0, skipped = 0;
+        for (uint64_t f = 2; f <= 80; f++) {
+            run_frame(w, f);
+            const struct tw_chc_stats *st = tw_chc_stats(w->chc);
+            skipped += st->queries_skipped;
+            if (f <= 12)
+                early += st->queries;
+            if (f > 40) {
+                late += st->queries;
+                late_skipped += st->queries_skipped;
+            }
+        }
+        if (m) {
+            CHECK_U(skipped, 0);
+        } else {
+            CHECK(early >= 4);
+            CHECK(late_skipped > 2 * late);
+        }
+        world_destroy(w);
+    }
+}
+
 /* A large leaf is queried even when queries are expensive: its triangles
  * cost more than the query. */
 static void test_cost_large_leaf(void)
@@ -1580,6 +1621,7 @@ int main(void)
     test_determinism();
     test_cost_skip_hidden();
     test_cost_skip_requery();
+    test_cost_requery_rate();
     test_cost_large_leaf();
     test_cost_grouping();
     test_cost_random_worlds();

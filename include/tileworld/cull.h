@@ -320,8 +320,11 @@ const struct tw_chc_stats *tw_chc_stats(const struct tw_chc *chc);
  *     be culled whole by one query;
  *   - a visible leaf due for a re-query is re-queried only when that can
  *     pay: when n_av + 1 frames of drawing its parent's subtree (which a
- *     hidden answer may let be culled whole) cost more than the query;
- *     else it stays visible, due again in n_av frames;
+ *     hidden answer may let be culled whole), weighted by the measured
+ *     chance that a re-query finds its leaf hidden (over about the last
+ *     thousand answers, from a prior of one half), cost more than the
+ *     query; else it stays visible, due again in n_av frames, except one
+ *     in sixteen, issued all the same so that the chance stays measured;
  *   - multiquery groups grow while the cost they save, in milliseconds,
  *     does not fall behind what they cost.
  * Both decisions only ever draw more: never one that hides a node. */
