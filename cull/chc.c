@@ -16,6 +16,11 @@
  *   iqueries  issued I-queries (single or multi), read in issue order;
  *   vqueries  issued V-queries, read when ready or deferred to the next frame;
  *   render    clusters to draw, flushed before every query batch.
+ *
+ * Each traversal has its own set (struct queues): the running one's in
+ * tw_chc.q, and up to TW_CHC_MAX_SUSPENDED more with the passes that
+ * tw_chc_traverse_async() suspended where they would have blocked; resuming
+ * one swaps its set in.
  */
 #include "tileworld/cull.h"
 #include "cull/cull-private.h"
