@@ -11,6 +11,7 @@
  * leaf array becomes tw_bvh.cluster_order as is.
  */
 #include "tileworld/bvh.h"
+#include "tiles/array.h"
 
 #include <assert.h>
 #include <math.h>
@@ -903,36 +904,36 @@ void tw_bvh_destroy(struct tw_bvh *bvh)
     free(bvh);
 }
 
-static size_t round16(size_t n)
+/* Lays b out at c (sizing only when c->base is NULL); returns the new struct. */
+static struct tw_bvh *pack_into(const struct tw_bvh *b, struct tw_pack_cursor *c)
 {
-    return (n + 15u) & ~(size_t)15u;
+    struct tw_bvh *out = tw_pack_take(c, b, sizeof(*b));
+    struct tw_bvh_node *nodes = tw_pack_take(c, b->nodes, sizeof(*b->nodes) * b->node_count);
+    uint32_t *order =
+        tw_pack_take(c, b->cluster_order, sizeof(*b->cluster_order) * b->cluster_count);
+    struct tw_box *boxes =
+        tw_pack_take(c, b->tight_boxes, sizeof(*b->tight_boxes) * b->tight_box_count);
+    if (out) {
+        out->nodes = nodes;
+        out->cluster_order = order;
+        out->tight_boxes = boxes;
+        out->packed = true;
+        out->bytes = c->used;
+    }
+    return out;
 }
 
 int tw_bvh_pack(struct tw_bvh **bvh)
 {
     if (!bvh || !*bvh)
         return TW_ERR_INVALID;
-    const struct tw_bvh *b = *bvh;
-    const size_t head = round16(sizeof(*b));
-    const size_t nodes = round16(sizeof(*b->nodes) * b->node_count);
-    const size_t order = round16(sizeof(*b->cluster_order) * b->cluster_count);
-    const size_t boxes = sizeof(*b->tight_boxes) * b->tight_box_count;
-    unsigned char *block = malloc(head + nodes + order + boxes);
-    if (!block)
+    struct tw_pack_cursor c = {NULL, 0};
+    pack_into(*bvh, &c);
+    c.base = malloc(c.used);
+    if (!c.base)
         return TW_ERR_NOMEM;
-    struct tw_bvh *out = (struct tw_bvh *)block;
-    *out = *b;
-    out->nodes = (struct tw_bvh_node *)(block + head);
-    out->cluster_order = (uint32_t *)(block + head + nodes);
-    out->tight_boxes = (struct tw_box *)(block + head + nodes + order);
-    if (b->node_count)
-        memcpy(out->nodes, b->nodes, sizeof(*b->nodes) * b->node_count);
-    if (b->cluster_count)
-        memcpy(out->cluster_order, b->cluster_order, sizeof(*b->cluster_order) * b->cluster_count);
-    if (b->tight_box_count)
-        memcpy(out->tight_boxes, b->tight_boxes, boxes);
-    out->packed = true;
-    out->bytes = head + nodes + order + boxes;
+    c.used = 0;
+    struct tw_bvh *out = pack_into(*bvh, &c);
     tw_bvh_destroy(*bvh);
     *bvh = out;
     return TW_OK;

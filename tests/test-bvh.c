@@ -155,7 +155,7 @@ static void check_bvh(const struct tw_bvh *bvh, const struct tw_prototype *proto
 #define PIECE(n) (bvh->packed ? ((uint64_t)(n) + 15u) / 16u * 16u : (uint64_t)(n))
     const uint64_t bytes = PIECE(sizeof(*bvh)) + PIECE(bvh->node_count * sizeof(*bvh->nodes)) +
                            PIECE(bvh->cluster_count * sizeof(uint32_t)) +
-                           (uint64_t)bvh->tight_box_count * sizeof(struct tw_box);
+                           PIECE(bvh->tight_box_count * sizeof(struct tw_box));
 #undef PIECE
     CHECK_MSG(bvh->bytes == bytes, "%s: bytes %llu, expected %llu", what,
               (unsigned long long)bvh->bytes, (unsigned long long)bytes);

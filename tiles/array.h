@@ -1,7 +1,7 @@
 /*
- * The growth of the library's flat arrays, shared by its modules (tiles,
- * bvh, tilesets, runtime): an array of *cap elements doubles until it holds
- * what is asked for. Private to the library: not installed, not public API.
+ * The growth of the library's flat arrays, and the layout of a packed block,
+ * shared by its modules (tiles, bvh, tilesets, runtime): an array of *cap
+ * elements doubles until it holds what is asked for. Private to the library: not installed, not public API.
  */
 #ifndef TW_TILES_ARRAY_H
 #define TW_TILES_ARRAY_H
@@ -9,6 +9,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "tileworld/tiles.h"
 
@@ -56,6 +57,29 @@ static inline int tw_array_reserve_u32(void **array, uint32_t *cap, uint32_t nee
     if (!err)
         *cap = (uint32_t)n;
     return err;
+}
+
+/* One block laid out in pieces, each starting at a multiple of 16 bytes:
+ * a sizing pass with base NULL (tw_pack_take() returns NULL and only counts
+ * used), then, with base a block of that size, a copying pass that takes the
+ * same pieces in the same order. What tw_tileset_pack() and tw_bvh_pack()
+ * lay a long-lived structure out with. */
+struct tw_pack_cursor {
+    unsigned char *base;
+    size_t used;
+};
+
+/* The next piece, bytes long, copied from from (which may be NULL when bytes
+ * is 0: an empty piece still gets a valid pointer in the copying pass). */
+static inline void *tw_pack_take(struct tw_pack_cursor *c, const void *from, size_t bytes)
+{
+    const size_t at = c->used;
+    c->used += (bytes + 15u) & ~(size_t)15u;
+    if (!c->base)
+        return NULL;
+    if (bytes)
+        memcpy(c->base + at, from, bytes);
+    return c->base + at;
 }
 
 #endif

@@ -572,40 +572,22 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
     return TW_OK;
 }
 
-/* Hands out the pieces of one block, each aligned to 16 bytes: a sizing pass
- * with base NULL, then a copying pass. */
-struct pack_cursor {
-    unsigned char *base;
-    size_t used;
-};
-
-static void *pack_take(struct pack_cursor *c, const void *from, size_t bytes)
-{
-    const size_t at = c->used;
-    c->used += (bytes + 15u) & ~(size_t)15u;
-    if (!c->base)
-        return NULL;
-    if (bytes)
-        memcpy(c->base + at, from, bytes);
-    return c->base + at; /* an empty array still gets a valid pointer */
-}
-
 /* Lays ts out at c (sizing only when c->base is NULL); returns the new struct. */
-static struct tw_tileset *pack_into(const struct tw_tileset *ts, struct pack_cursor *c)
+static struct tw_tileset *pack_into(const struct tw_tileset *ts, struct tw_pack_cursor *c)
 {
-    struct tw_tileset *out = pack_take(c, ts, sizeof(*ts));
+    struct tw_tileset *out = tw_pack_take(c, ts, sizeof(*ts));
     struct tw_material *materials =
-        pack_take(c, ts->materials, sizeof(*ts->materials) * ts->material_count);
-    struct tw_mesh *meshes = pack_take(c, ts->meshes, sizeof(*ts->meshes) * ts->mesh_count);
-    struct tw_mesh_part *parts = pack_take(c, ts->parts, sizeof(*ts->parts) * ts->part_count);
+        tw_pack_take(c, ts->materials, sizeof(*ts->materials) * ts->material_count);
+    struct tw_mesh *meshes = tw_pack_take(c, ts->meshes, sizeof(*ts->meshes) * ts->mesh_count);
+    struct tw_mesh_part *parts = tw_pack_take(c, ts->parts, sizeof(*ts->parts) * ts->part_count);
     struct tw_prototype *protos =
-        pack_take(c, ts->prototypes, sizeof(*ts->prototypes) * ts->prototype_count);
+        tw_pack_take(c, ts->prototypes, sizeof(*ts->prototypes) * ts->prototype_count);
     for (uint32_t k = 0; k < ts->mesh_count; k++) {
         const struct tw_mesh *m = &ts->meshes[k];
-        float *pos = pack_take(c, m->positions, sizeof(float) * 3 * (size_t)m->vertex_count);
-        float *nor = pack_take(c, m->normals, sizeof(float) * 3 * (size_t)m->vertex_count);
+        float *pos = tw_pack_take(c, m->positions, sizeof(float) * 3 * (size_t)m->vertex_count);
+        float *nor = tw_pack_take(c, m->normals, sizeof(float) * 3 * (size_t)m->vertex_count);
         uint32_t *idx =
-            pack_take(c, m->indices, sizeof(uint32_t) * 3 * (size_t)m->triangle_count);
+            tw_pack_take(c, m->indices, sizeof(uint32_t) * 3 * (size_t)m->triangle_count);
         if (meshes) {
             meshes[k].positions = pos;
             meshes[k].normals = nor;
@@ -615,9 +597,9 @@ static struct tw_tileset *pack_into(const struct tw_tileset *ts, struct pack_cur
     for (uint32_t p = 0; p < ts->prototype_count; p++) {
         const struct tw_prototype *pr = &ts->prototypes[p];
         struct tw_instance *inst =
-            pack_take(c, pr->instances, sizeof(*pr->instances) * pr->instance_count);
+            tw_pack_take(c, pr->instances, sizeof(*pr->instances) * pr->instance_count);
         struct tw_cluster *cl =
-            pack_take(c, pr->clusters, sizeof(*pr->clusters) * pr->cluster_count);
+            tw_pack_take(c, pr->clusters, sizeof(*pr->clusters) * pr->cluster_count);
         if (protos) {
             protos[p].instances = inst;
             protos[p].instance_cap = pr->instance_count;
@@ -642,7 +624,7 @@ int tw_tileset_pack(struct tw_tileset **ts)
 {
     if (!ts || !*ts || !(*ts)->finished)
         return TW_ERR_INVALID;
-    struct pack_cursor c = { NULL, 0 };
+    struct tw_pack_cursor c = { NULL, 0 };
     pack_into(*ts, &c);
     c.base = malloc(c.used);
     if (!c.base)
