@@ -18,7 +18,7 @@
  *   render    clusters to draw, flushed before every query batch.
  *
  * Each traversal has its own set (struct queues): the running one's in
- * tw_chc.q, and up to TW_CHC_MAX_SUSPENDED more with the passes that
+ * tw_chc.q, and up to MAX_SUSPENDED more with the passes that
  * tw_chc_traverse_async() suspended where they would have blocked; resuming
  * one swaps its set in.
  */
@@ -101,7 +101,7 @@ struct pass {
 };
 
 /* A pass suspended where it would have blocked (tw_chc_traverse_async). */
-#define TW_CHC_MAX_SUSPENDED 4
+#define MAX_SUSPENDED 4
 struct suspended {
     struct pass pass;
     struct tw_chc_tile tile;    /* pass.tile points here */
@@ -120,11 +120,12 @@ struct tw_chc {
     struct queues q;            /* the running traversal's */
     struct deferred_vquery *deferred;
     size_t deferred_count, deferred_cap;
-    struct suspended slots[TW_CHC_MAX_SUSPENDED];
+    struct suspended slots[MAX_SUSPENDED];
     uint64_t passes_started;
     /* V-query answers, and of them hidden ones, decayed by VQ_DECAY per
      * answer: the chance that a visible leaf's re-query finds it hidden. */
     double vq_answers, vq_hidden;
+    bool unflushed;             /* drawn or issued since the last flush */
 };
 
 
@@ -202,7 +203,7 @@ void tw_chc_destroy(struct tw_chc *chc)
     if (!chc)
         return;
     free_queues(&chc->q);
-    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
+    for (uint32_t k = 0; k < MAX_SUSPENDED; k++)
         free_queues(&chc->slots[k].q);
     free(chc->deferred);
     free(chc);
@@ -232,7 +233,7 @@ size_t tw_chc_bytes(const struct tw_chc *chc)
         return 0;
     size_t bytes = sizeof(*chc) + queues_bytes(&chc->q) +
                    chc->deferred_cap * sizeof(*chc->deferred);
-    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
+    for (uint32_t k = 0; k < MAX_SUSPENDED; k++)
         bytes += queues_bytes(&chc->slots[k].q);
     return bytes;
 }
@@ -398,6 +399,17 @@ static void flush_render(struct pass *p)
     p->be->draw(p->be->ctx, p->tile->cell, p->tile->content, p->tile->offset, chc->q.render,
                 (uint32_t)chc->q.render_count);
     chc->q.render_count = 0;
+    chc->unflushed = true;
+}
+
+/* Sends what was drawn and issued to the GPU, if anything was since the
+ * last time. */
+static void flush_gpu(struct pass *p)
+{
+    if (!p->chc->unflushed)
+        return;
+    p->be->flush(p->be->ctx);
+    p->chc->unflushed = false;
 }
 
 /* ---- issuing queries ------------------------------------------------------------ */
@@ -441,6 +453,7 @@ static uint32_t issue_nodes(struct pass *p, const uint32_t *list, uint32_t count
         }
     }
     const uint32_t handle = p->be->issue(p->be->ctx, chc->q.boxes, (uint32_t)nb, p->tile->offset);
+    chc->unflushed = true;
     assert(handle != 0);
     for (uint32_t k = 0; k < count; k++)
         p->state[list[k]].pending_query = handle;
@@ -554,7 +567,7 @@ static void issue_iqueue(struct pass *p)
         i = j;
     }
     chc->q.iqueue_count = 0;
-    p->be->flush(p->be->ctx);
+    flush_gpu(p);
 }
 
 static void issue_vquery(struct pass *p, uint32_t node)
@@ -582,7 +595,7 @@ static void handle_iquery(struct pass *p, const struct iquery *q, uint32_t sampl
             issue_iquery(p, first, 1);
             chc->stats.requeries++;
         }
-        p->be->flush(p->be->ctx);
+        flush_gpu(p);
         return;
     }
     for (uint32_t k = 0; k < q->count; k++) {
@@ -755,6 +768,7 @@ static void draw_everything(const struct pass *p)
         p->be->draw(p->be->ctx, p->tile->cell, p->tile->content, p->tile->offset,
                     &p->bvh->cluster_order[n->first_cluster], n->cluster_count);
         p->chc->stats.clusters_drawn += n->cluster_count;
+        p->chc->unflushed = true;
     }
 }
 
@@ -780,12 +794,13 @@ static bool run_pass(struct pass *p, bool may_suspend)
                 if (chc->q.vqueue_count > 0) {
                     chc->q.vqueue_count--;
                     issue_vquery(p, chc->q.vqueue[chc->q.vqueue_head++]);
-                    be->flush(be->ctx);
+                    flush_gpu(p);
                     continue;
                 }
-                /* Give the GPU what was traversed before blocking on it. */
+                /* Give the GPU what was traversed before blocking on it,
+                 * or before leaving it to the next tile. */
                 flush_render(p);
-                be->flush(be->ctx);
+                flush_gpu(p);
                 if (may_suspend)
                     return false;
                 chc->stats.waits++;
@@ -810,14 +825,13 @@ static bool run_pass(struct pass *p, bool may_suspend)
 static void end_pass(struct pass *p)
 {
     struct tw_chc *chc = p->chc;
-    const struct tw_query_backend *be = p->be;
     flush_render(p);
     if (chc->q.vqueue_count > 0) {
         while (chc->q.vqueue_count > 0) {
             chc->q.vqueue_count--;
             issue_vquery(p, chc->q.vqueue[chc->q.vqueue_head++]);
         }
-        be->flush(be->ctx);
+        flush_gpu(p);
     }
     poll_vqueries(p);
     if (!tw_cull_reserve((void **)&chc->deferred, &chc->deferred_cap,
@@ -877,6 +891,18 @@ static void resume(struct tw_chc *chc, uint32_t k, bool block)
     swap_queues(chc, k);
 }
 
+/* The suspended pass started first (the nearest tile's), or MAX_SUSPENDED
+ * when none is. */
+static uint32_t oldest_suspended(const struct tw_chc *chc)
+{
+    uint32_t oldest = MAX_SUSPENDED;
+    for (uint32_t k = 0; k < MAX_SUSPENDED; k++)
+        if (chc->slots[k].active &&
+            (oldest == MAX_SUSPENDED || chc->slots[k].started < chc->slots[oldest].started))
+            oldest = k;
+    return oldest;
+}
+
 void tw_chc_traverse(struct tw_chc *chc, const struct tw_view *v,
                      const struct tw_query_backend *be, const struct tw_chc_tile *tile)
 {
@@ -896,21 +922,16 @@ void tw_chc_traverse_async(struct tw_chc *chc, const struct tw_view *v,
         return;
     /* Give the suspended passes what has come back; the oldest is finished
      * when every slot is taken. */
-    uint32_t free_slot = TW_CHC_MAX_SUSPENDED, oldest = TW_CHC_MAX_SUSPENDED;
-    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++) {
+    uint32_t free_slot = MAX_SUSPENDED;
+    for (uint32_t k = 0; k < MAX_SUSPENDED; k++) {
         if (chc->slots[k].active)
             resume(chc, k, false);
-        if (!chc->slots[k].active) {
-            if (free_slot == TW_CHC_MAX_SUSPENDED)
-                free_slot = k;
-        } else if (oldest == TW_CHC_MAX_SUSPENDED ||
-                   chc->slots[k].started < chc->slots[oldest].started) {
-            oldest = k;
-        }
+        if (!chc->slots[k].active && free_slot == MAX_SUSPENDED)
+            free_slot = k;
     }
-    if (free_slot == TW_CHC_MAX_SUSPENDED) {
-        resume(chc, oldest, true);
-        free_slot = oldest;
+    if (free_slot == MAX_SUSPENDED) {
+        free_slot = oldest_suspended(chc);
+        resume(chc, free_slot, true);
     }
     struct suspended *sl = &chc->slots[free_slot];
     sl->tile = *tile;
@@ -932,17 +953,8 @@ void tw_chc_finish(struct tw_chc *chc)
     if (!chc)
         return;
     /* Oldest first: the nearer tiles' passes, started first. */
-    for (;;) {
-        uint32_t oldest = TW_CHC_MAX_SUSPENDED;
-        for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
-            if (chc->slots[k].active &&
-                (oldest == TW_CHC_MAX_SUSPENDED ||
-                 chc->slots[k].started < chc->slots[oldest].started))
-                oldest = k;
-        if (oldest == TW_CHC_MAX_SUSPENDED)
-            return;
-        resume(chc, oldest, true);
-    }
+    for (uint32_t k = oldest_suspended(chc); k < MAX_SUSPENDED; k = oldest_suspended(chc))
+        resume(chc, k, true);
 }
 
 void tw_chc_begin_frame(struct tw_chc *chc, const struct tw_view *v,
@@ -951,7 +963,7 @@ void tw_chc_begin_frame(struct tw_chc *chc, const struct tw_view *v,
 {
     if (!chc)
         return;
-    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
+    for (uint32_t k = 0; k < MAX_SUSPENDED; k++)
         assert(!chc->slots[k].active && "tw_chc_finish() was not called at the end of a frame");
     memset(&chc->stats, 0, sizeof(chc->stats));
     if (!be) {

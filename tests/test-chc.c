@@ -1204,7 +1204,24 @@ struct random_run {
     size_t bytes_warm, bytes_end;
     uint32_t suspended;     /* passes suspended over the run (async) */
     uint32_t waits;
+    uint32_t idle_flushes;  /* flushes with nothing issued or drawn since the last */
 };
+
+static uint32_t idle_flushes(const struct fake *f)
+{
+    uint32_t n = 0;
+    bool since = true;
+    for (size_t e = 0; e < f->event_count; e++) {
+        const enum ev_type t = f->events[e].type;
+        if (t == EV_FLUSH) {
+            n += !since;
+            since = false;
+        } else if (t == EV_ISSUE || t == EV_DRAW) {
+            since = true;
+        }
+    }
+    return n;
+}
 
 /* The tiles random_run() walks (2 to MAX_TILES) and whether it traverses
  * them with tw_chc_traverse_async(). */
@@ -1304,6 +1321,7 @@ static struct random_run random_run(uint64_t seed, const struct tw_chc_settings 
     }
     out.bytes_end = tw_chc_bytes(w->chc);
     out.hash = log_hash(&w->fake);
+    out.idle_flushes = idle_flushes(&w->fake);
     out.events = w->fake.event_count;
     world_destroy(w);
     return out;
@@ -1367,6 +1385,12 @@ static void test_async_worlds(void)
                 fail(__LINE__, "seed %llu, results after %u polls: %u suspended, %u waits "
                      "(traversed one by one: %u)", (unsigned long long)seed, ready_modes[m],
                      async.suspended, async.waits, sync.waits);
+            /* Nothing drawn or issued since the last flush: no flush (a
+             * resumed pass whose results are not in yet has nothing new). */
+            if (async.idle_flushes != 0 || sync.idle_flushes != 0)
+                fail(__LINE__, "seed %llu, results after %u polls: %u idle flushes "
+                     "(one by one: %u)", (unsigned long long)seed, ready_modes[m],
+                     async.idle_flushes, sync.idle_flushes);
         }
     random_async = false;
     random_tiles = 2;

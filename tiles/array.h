@@ -1,7 +1,8 @@
 /*
  * The growth of the library's flat arrays, and the layout of a packed block,
  * shared by its modules (tiles, bvh, tilesets, runtime): an array of *cap
- * elements doubles until it holds what is asked for. Private to the library: not installed, not public API.
+ * elements doubles until it holds what is asked for. Private to the library:
+ * not installed, not public API.
  */
 #ifndef TW_TILES_ARRAY_H
 #define TW_TILES_ARRAY_H
