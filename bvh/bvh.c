@@ -905,8 +905,9 @@ void tw_bvh_destroy(struct tw_bvh *bvh)
 }
 
 /* Lays b out at c (sizing only when c->base is NULL); returns the new struct. */
-static struct tw_bvh *pack_into(const struct tw_bvh *b, struct tw_pack_cursor *c)
+static void *pack_into(const void *from, struct tw_pack_cursor *c)
 {
+    const struct tw_bvh *b = from;
     struct tw_bvh *out = tw_pack_take(c, b, sizeof(*b));
     struct tw_bvh_node *nodes = tw_pack_take(c, b->nodes, sizeof(*b->nodes) * b->node_count);
     uint32_t *order =
@@ -927,13 +928,9 @@ int tw_bvh_pack(struct tw_bvh **bvh)
 {
     if (!bvh || !*bvh)
         return TW_ERR_INVALID;
-    struct tw_pack_cursor c = {NULL, 0};
-    pack_into(*bvh, &c);
-    c.base = malloc(c.used);
-    if (!c.base)
+    struct tw_bvh *out = tw_pack_block(*bvh, pack_into);
+    if (!out)
         return TW_ERR_NOMEM;
-    c.used = 0;
-    struct tw_bvh *out = pack_into(*bvh, &c);
     tw_bvh_destroy(*bvh);
     *bvh = out;
     return TW_OK;

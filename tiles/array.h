@@ -83,4 +83,20 @@ static inline void *tw_pack_take(struct tw_pack_cursor *c, const void *from, siz
     return c->base + at;
 }
 
+/* Lays from out in one new block: layout(from, c) takes the pieces (and
+ * returns the new structure when c->base is set), run once to size the
+ * block and once to fill it. Returns the new structure, or NULL when out of
+ * memory (from untouched). */
+typedef void *(*tw_pack_layout_fn)(const void *from, struct tw_pack_cursor *c);
+static inline void *tw_pack_block(const void *from, tw_pack_layout_fn layout)
+{
+    struct tw_pack_cursor c = {NULL, 0};
+    layout(from, &c);
+    c.base = malloc(c.used);
+    if (!c.base)
+        return NULL;
+    c.used = 0;
+    return layout(from, &c);
+}
+
 #endif

@@ -573,8 +573,9 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
 }
 
 /* Lays ts out at c (sizing only when c->base is NULL); returns the new struct. */
-static struct tw_tileset *pack_into(const struct tw_tileset *ts, struct tw_pack_cursor *c)
+static void *pack_into(const void *from, struct tw_pack_cursor *c)
 {
+    const struct tw_tileset *ts = from;
     struct tw_tileset *out = tw_pack_take(c, ts, sizeof(*ts));
     struct tw_material *materials =
         tw_pack_take(c, ts->materials, sizeof(*ts->materials) * ts->material_count);
@@ -624,13 +625,9 @@ int tw_tileset_pack(struct tw_tileset **ts)
 {
     if (!ts || !*ts || !(*ts)->finished)
         return TW_ERR_INVALID;
-    struct tw_pack_cursor c = { NULL, 0 };
-    pack_into(*ts, &c);
-    c.base = malloc(c.used);
-    if (!c.base)
+    struct tw_tileset *out = tw_pack_block(*ts, pack_into);
+    if (!out)
         return TW_ERR_NOMEM;
-    c.used = 0;
-    struct tw_tileset *out = pack_into(*ts, &c);
     tw_tileset_destroy(*ts);
     *ts = out;
     return TW_OK;
