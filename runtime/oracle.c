@@ -29,6 +29,8 @@ int tw_oracle_init(struct tw_world *w)
         return TW_ERR_NOMEM;
     int err = tw_cell_map_create(&o->tiles);
     if (!err)
+        err = tw_cell_map_create(&o->ranks);
+    if (!err)
         err = tw_cull_driver_create(&vfc, &o->vfc);
     return err;
 }
@@ -46,6 +48,7 @@ void tw_oracle_finish(struct tw_oracle *o)
     free(o->depth);
     free(o->missed_per_id);
     tw_cell_map_destroy(o->tiles);
+    tw_cell_map_destroy(o->ranks);
     memset(o, 0, sizeof(*o));
 }
 
@@ -99,8 +102,9 @@ static void id_flush(void *ctx)
 {
 }
 
-/* A visible cluster and its distance from the eye, for the sort. */
+/* A cluster of a set, its tile's rank and its distance from the eye, for the sort. */
 struct oracle_order {
+    uint32_t rank;
     float distance;
     struct tw_drawn_cluster cluster;
 };
@@ -108,44 +112,51 @@ struct oracle_order {
 static int compare_order(const void *a, const void *b)
 {
     const struct oracle_order *x = a, *y = b;
+    if (x->rank != y->rank)
+        return x->rank < y->rank ? -1 : 1;
+    if (x->cluster.prototype != y->cluster.prototype)
+        return x->cluster.prototype < y->cluster.prototype ? -1 : 1;
     if (x->distance != y->distance)
         return x->distance < y->distance ? -1 : 1;
     return (x->cluster.cluster > y->cluster.cluster) - (x->cluster.cluster < y->cluster.cluster);
 }
 
-/* Sorts each tile's run of o->visible front to back (distance from the eye
- * to the nearest point of the cluster's box): the oracle then draws as a
- * front-to-back renderer would, and overdraw does not flatter the methods. */
-static void sort_visible(struct tw_oracle *o, const struct tw_world *w, const struct tw_view *v)
+int tw_oracle_order(struct tw_world *w, const struct tw_view *v, struct tw_drawn_cluster *set,
+                    size_t count)
 {
-    /* Each tile's content through the renderer: a shared prototype or a
-     * generated tile's own. */
-    const float *footprint = w->grid.footprint;
-    size_t k = 0;
-    while (k < o->visible_count) {
-        const struct tw_drawn_cluster *first = &o->visible[k];
-        size_t end = k + 1;
-        while (end < o->visible_count && o->visible[end].cell.i == first->cell.i &&
-               o->visible[end].cell.j == first->cell.j &&
-               o->visible[end].prototype == first->prototype)
-            end++;
-        float offset[3];
-        tw_tiles_cell_offset(first->cell, v->cell, footprint[0], footprint[1], offset);
-        const struct tw_prototype *proto = tw_renderer_content(w->renderer, first->prototype, NULL);
-        if (!proto) { /* not live: cannot happen within a frame; left as drawn */
-            k = end;
-            continue;
+    struct tw_oracle *o = &w->oracle;
+    int err = grow((void **)&o->order, &o->order_cap, count, sizeof(*o->order));
+    if (err)
+        return err;
+    tw_cell_map_clear(o->ranks);
+    uint32_t tiles = 0;
+    for (size_t k = 0; k < count; k++) {
+        struct oracle_order *e = &o->order[k];
+        e->cluster = set[k];
+        const uint64_t *rank = tw_cell_map_find(o->ranks, set[k].cell);
+        if (rank) {
+            e->rank = (uint32_t)*rank;
+        } else {
+            e->rank = tiles++;
+            err = tw_cell_map_set(o->ranks, set[k].cell, e->rank);
+            if (err)
+                return err;
         }
-        for (size_t c = k; c < end; c++) {
-            o->order[c - k].cluster = o->visible[c];
-            o->order[c - k].distance =
-                tw_cull_box_distance(v, &proto->clusters[o->visible[c].cluster].box, offset);
+        /* Each tile's content through the renderer: a shared prototype or a
+         * generated tile's own (always live within the frame that drew it). */
+        const struct tw_prototype *proto = tw_renderer_content(w->renderer, set[k].prototype, NULL);
+        e->distance = 0.0f;
+        if (proto && set[k].cluster < proto->cluster_count) {
+            float offset[3];
+            tw_tiles_cell_offset(set[k].cell, v->cell, w->grid.footprint[0], w->grid.footprint[1],
+                                 offset);
+            e->distance = tw_cull_box_distance(v, &proto->clusters[set[k].cluster].box, offset);
         }
-        qsort(o->order, end - k, sizeof(*o->order), compare_order);
-        for (size_t c = k; c < end; c++)
-            o->visible[c] = o->order[c - k].cluster;
-        k = end;
     }
+    qsort(o->order, count, sizeof(*o->order), compare_order);
+    for (size_t k = 0; k < count; k++)
+        set[k] = o->order[k].cluster;
+    return TW_OK;
 }
 
 int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
@@ -182,15 +193,12 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
     /* The oracle method's set: the clusters with visible pixels, tile by tile. */
     o->visible_count = 0;
     err = grow((void **)&o->visible, &o->visible_cap, o->count, sizeof(*o->visible));
-    if (!err)
-        err = grow((void **)&o->order, &o->order_cap, o->count, sizeof(*o->order));
     if (err)
         return err;
     for (size_t k = 0; k < o->count; k++)
         if (o->pixels[k] > 0)
             o->visible[o->visible_count++] = o->entries[k];
-    sort_visible(o, w, v);
-    return TW_OK;
+    return tw_oracle_order(w, v, o->visible, o->visible_count);
 }
 
 /* Eye distance (metres along the view axis) of window depth d. */

@@ -22,8 +22,9 @@ struct tw_oracle {
                                           (front to back by cell), each tile's clusters
                                           front to back */
     size_t visible_count, visible_cap;
-    struct oracle_order *order;     /* scratch of that sort */
+    struct oracle_order *order;     /* scratch of tw_oracle_order() */
     size_t order_cap;
+    struct tw_cell_map *ranks;      /* of that sort: cell -> its tile's rank in the set */
     uint32_t *pixels;               /* visible pixels per id */
     uint8_t *drawn;                 /* per id: drawn by the method */
     size_t per_id_cap;
@@ -78,6 +79,8 @@ struct tw_world {
     enum tw_method method;
     struct method_state methods[TW_METHOD_COUNT];
     struct tw_cull_driver *fixed_set;  /* tw_world_frame_fixed */
+    struct tw_drawn_cluster *fixed_order;  /* its set, in the oracle's order */
+    size_t fixed_order_cap;
     bool record_draws;
     struct tw_oracle oracle;
 
@@ -102,6 +105,11 @@ int tw_oracle_init(struct tw_world *w);
 void tw_oracle_finish(struct tw_oracle *o);
 /* The ID pass of view v: which clusters have visible pixels, how many. Untimed. */
 int tw_oracle_pass(struct tw_world *w, const struct tw_view *v);
+/* Orders a set of clusters as the oracle draws its own: tiles in the order
+ * they first appear, each tile's clusters front to back from v (distance
+ * to the nearest point of the cluster's box), ties by cluster index. */
+int tw_oracle_order(struct tw_world *w, const struct tw_view *v, struct tw_drawn_cluster *set,
+                    size_t count);
 /* Compares what the last frame drew with the last ID pass. */
 void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st);
 

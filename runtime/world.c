@@ -337,6 +337,7 @@ void tw_world_destroy(struct tw_world *w)
     for (int m = 0; m < TW_METHOD_COUNT; m++)
         tw_cull_driver_destroy(w->methods[m].driver);
     tw_cull_driver_destroy(w->fixed_set);
+    free(w->fixed_order);
     tw_oracle_finish(&w->oracle);
     tw_debug_finish(w);
     tw_cull_cells_finish(&w->cells);
@@ -807,13 +808,22 @@ static int frame_fixed(struct tw_world *w, const struct tw_camera *cam,
     v.frame = st.frame;
     w->last_view = v;
     w->has_view = true;
+    /* Drawn as the oracle draws its set: tile by tile, front to back. */
+    err = tw_array_reserve((void **)&w->fixed_order, &w->fixed_order_cap, count,
+                           sizeof(*w->fixed_order), 256);
+    if (!err && count) {
+        memcpy(w->fixed_order, clusters, sizeof(*clusters) * count);
+        err = tw_oracle_order(w, &v, w->fixed_order, count);
+    }
+    if (err)
+        return err;
     tw_renderer_record_draws(w->renderer, false);
     tw_renderer_record_queries(w->renderer, false);
-    const double t0 = tw_renderer_now_ms();
+    const double t0 = tw_renderer_now_ms(), cpu0 = tw_renderer_cpu_ms();
     tw_renderer_begin_frame(w->renderer, &v);
     const struct tw_query_backend be = tw_renderer_backend(w->renderer);
     struct tw_cull_frame_stats cs = {0};
-    tw_cull_driver_give(w->fixed_set, clusters, count);
+    tw_cull_driver_give(w->fixed_set, w->fixed_order, count);
     err = tw_cull_driver_frame(w->fixed_set, &v, &w->grid, &be, &w->cells, &cs);
     tw_cull_driver_give(w->fixed_set, NULL, 0);
     tw_renderer_end_frame(w->renderer);
@@ -822,6 +832,7 @@ static int frame_fixed(struct tw_world *w, const struct tw_camera *cam,
     collect_counters(w, &st);
     st.tiles_visible = cs.tiles_visible;
     st.ms_frame = tw_renderer_now_ms() - t0;
+    st.cpu_ms = tw_renderer_cpu_ms() - cpu0;
     st.ms_wait = 0.0;
     st.queries = 0;
     if (out)
