@@ -159,7 +159,7 @@ if "$tw" walk --path "$tmp/good.csv" --size 96x54 --png-every 0 --quiet --out "$
 if "$tw" walk --tileset city --path street --frames 5 --method vfc --size 160x90 --png-every 2 \
       --quiet --out "$tmp/walk" 2>"$tmp/err"; then
     [ "$(wc -l <"$tmp/walk/frames.csv")" -eq 6 ] && ok || bad "frames.csv row count"
-    head -1 "$tmp/walk/frames.csv" | grep -q '^frame,method,ms_frame,ms_cull,ms_wait,triangles,clusters,draws,queries,tiles_queried,tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,missed_clusters,overdraw_triangles,cpu_ms,depth_errors,tiles_pending,loads_requested,loads_done,evictions,bytes_cpu,bytes_gpu,bytes_state,bytes_needed,over_budget,ms_upload,blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read,bytes_loading,tiles_loading$' \
+    head -1 "$tmp/walk/frames.csv" | grep -q '^frame,method,ms_frame,ms_cull,ms_wait,triangles,clusters,draws,queries,tiles_queried,tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,missed_clusters,overdraw_triangles,cpu_ms,depth_errors,tiles_pending,loads_requested,loads_done,evictions,bytes_cpu,bytes_gpu,bytes_state,bytes_needed,over_budget,ms_upload,blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read,bytes_loading,tiles_loading,set_cpu_ms,set_ms,set_triangles,set_draws$' \
         && ok || bad "frames.csv header"
     for key in '"methods"' '"vfc"' '"mean_ms"' '"median_ms"' '"p95_ms"' '"p99_ms"' '"mean_triangles"' \
                '"mean_queries"' '"missed_pixels_total"' '"frames_with_missed_pixels"' \
@@ -201,6 +201,32 @@ if "$tw" bench --methods vfc,chc --frames 3 --size 96x54 --verify --verify-toler
 else
     bad "bench with the accuracy options: $(cat "$tmp/err")"
 fi
+
+# --split draws each frame's set again: the same triangles, counted apart,
+# and each method's CPU time parted in summary.md and summary.json.
+expect_usage_error walk --split "${small[@]}"
+expect_usage_error bench --split --scenario spin "${small[@]}"
+expect_usage_error bench --split --sweep n_av=1,2 "${small[@]}"
+if "$tw" bench --methods chc,tilequery+chc,oracle --frames 3 --size 96x54 --split --png-every 0 \
+      --quiet --out "$tmp/split" 2>"$tmp/err"; then
+    rows=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; next }
+        { n++; if ($c["set_triangles"] == $c["triangles"] && $c["set_triangles"] > 0 &&
+                   $c["set_draws"] <= $c["draws"] && $c["set_cpu_ms"] > 0) same++ }
+        END { print same + 0 "/" n + 0 }' "$tmp/split/frames.csv")
+    [ "$rows" = 9/9 ] && ok || bad "--split: $rows rows redrew the frame's triangles in no more draws"
+    for m in chc tilequery+chc oracle; do
+        grep -Fq "| $m | " <(sed -n '/Where the CPU time goes/,$p' "$tmp/split/summary.md") && ok ||
+            bad "summary.md: no --split row for $m"
+    done
+    [ "$(grep -c '"mean_finding_cpu_ms"' "$tmp/split/summary.json")" -eq 3 ] && ok ||
+        bad "summary.json: no set figures per method"
+else
+    bad "bench --split: $(cat "$tmp/err")"
+fi
+"$tw" bench --methods chc --frames 2 --size 96x54 --png-every 0 --quiet --out "$tmp/nosplit" 2>"$tmp/err" &&
+    ! grep -q 'Where the CPU time goes' "$tmp/nosplit/summary.md" &&
+    [ "$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "set_triangles") k = i; next } { s += $k } END { print s + 0 }' "$tmp/nosplit/frames.csv")" = 0 ] &&
+    ok || bad "a bench without --split reports a split"
 
 # --scenario honours --frames and --size; a check that does not hold is exit
 # status 3: with every query box shrunk, the missed-pixel checks fail.

@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <json-c/json.h>
@@ -52,11 +53,56 @@ static int draw_charts(const struct tw_run *run, const struct tw_chart_sweep *sw
     return rc < 0 ? rc : TW_OK;
 }
 
+/* A copy of a frame's set (--split): the world's own lives until its next frame. */
+struct split_set {
+    struct tw_drawn_cluster *clusters;
+    size_t cap;
+};
+
+static double clock_ms(clockid_t id)
+{
+    struct timespec t;
+    clock_gettime(id, &t);
+    return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
+}
+
+/* --split: draws the set the last frame drew again from its camera, with no
+ * culling, and finishes it; its CPU and wall time as the frame's are
+ * counted (tw_world_frame_fixed, then the finish; not fed to the
+ * calibration, which refines from real frames only). */
+static int redraw_set(struct tw_world *world, const struct tw_camera *cam, struct split_set *s,
+                      struct tw_report_set *out)
+{
+    size_t n = 0;
+    const struct tw_drawn_cluster *drawn = tw_world_drawn(world, &n);
+    if (n > s->cap) {
+        struct tw_drawn_cluster *c = realloc(s->clusters, sizeof(*c) * n);
+        if (!c)
+            return TW_ERR_NOMEM;
+        s->clusters = c;
+        s->cap = n;
+    }
+    if (n)
+        memcpy(s->clusters, drawn, sizeof(*drawn) * n);
+    struct tw_frame_stats st;
+    int rc = tw_world_frame_fixed(world, cam, s->clusters, n, &st);
+    if (rc)
+        return rc;
+    const double t0 = clock_ms(CLOCK_MONOTONIC), cpu0 = clock_ms(CLOCK_PROCESS_CPUTIME_ID);
+    rc = tw_world_finish(world, NULL);
+    out->ms = st.ms_frame + clock_ms(CLOCK_MONOTONIC) - t0;
+    out->cpu_ms = st.cpu_ms + clock_ms(CLOCK_PROCESS_CPUTIME_ID) - cpu0;
+    out->triangles = st.triangles;
+    out->draws = st.draws;
+    return rc;
+}
+
 int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t err_size)
 {
     struct tw_world *world = NULL;
     uint8_t *rgb = NULL;
     struct tw_report report = {0};
+    struct split_set split = {0};
     int rc = TW_OK;
     struct tw_world_settings ws = run->world;
     ws.tileset = run->tileset;
@@ -69,6 +115,10 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
         snprintf(err, err_size, "cannot create the world: %s", tw_error_to_str(rc));
         goto out;
     }
+    /* --split redraws what each frame drew: record it (it costs the frame
+     * a little, as under --verify). */
+    if (run->split)
+        tw_world_record_draws(world, true);
     rgb = malloc((size_t)ws.width * ws.height * 3);
     if (!rgb) {
         rc = TW_ERR_NOMEM;
@@ -110,9 +160,6 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
                 goto out;
             }
             total_ms += st.ms_frame;
-            rc = tw_report_add(&report, &st, err, err_size);
-            if (rc)
-                goto out;
             if (run->on_frame)
                 run->on_frame(run->on_frame_user, f, world, &st);
             if (run->png_every > 0 && f % run->png_every == 0) {
@@ -131,6 +178,18 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
                 if (rc)
                     goto out;
             }
+            struct tw_report_set set;
+            if (run->split) {
+                rc = redraw_set(world, &run->path->keys[f], &split, &set);
+                if (rc) {
+                    snprintf(err, err_size, "frame %u with %s: drawing its set again failed: %s",
+                             f + 1, tw_method_name(run->methods[m]), tw_error_to_str(rc));
+                    goto out;
+                }
+            }
+            rc = tw_report_add(&report, &st, run->split ? &set : NULL, err, err_size);
+            if (rc)
+                goto out;
         }
         progress(run, f + 1, run->path->count, total_ms / ((f + 1) * (double)run->method_count));
     }
@@ -139,6 +198,7 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
         rc = draw_charts(run, NULL, err, err_size);
 out:
     tw_report_abort(&report);
+    free(split.clusters);
     free(rgb);
     tw_world_destroy(world);
     return rc;

@@ -33,6 +33,7 @@ struct tw_run {
     uint32_t png_every;
     uint32_t scenario_frames;           /* tw_run_scenarios: frames of each scenario (0: its own) */
     bool bench;                         /* summary.md, PNG names with the method, charts */
+    bool split;                         /* --split: each frame's set drawn again (report.h) */
     bool defer_charts;                  /* a bench whose caller draws the charts (a sweep) */
     bool quiet;
     tw_run_frame_fn on_frame;

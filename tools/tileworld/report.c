@@ -38,7 +38,7 @@ static const char *const csv_header =
     "missed_clusters,overdraw_triangles,cpu_ms,depth_errors,tiles_pending,loads_requested,"
     "loads_done,evictions,bytes_cpu,bytes_gpu,bytes_state,bytes_needed,over_budget,ms_upload,"
     "blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read,bytes_loading,"
-    "tiles_loading\n";
+    "tiles_loading,set_cpu_ms,set_ms,set_triangles,set_draws\n";
 
 /* A row of frames.csv as the row of a gnuplot data file: blank-separated,
  * without the method (its file says it). */
@@ -105,14 +105,16 @@ static struct tw_outfile *chart_frames(struct tw_report *r, enum tw_method m, ch
     return o;
 }
 
-int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st, char *err,
-                  size_t err_size)
+int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
+                  const struct tw_report_set *set, char *err, size_t err_size)
 {
+    static const struct tw_report_set none = {0};
+    const struct tw_report_set *sv = set ? set : &none;
     char row[1024];
     snprintf(row, sizeof(row),
              "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu,%.3f,%llu,"
              "%u,%u,%u,%u,%llu,%llu,%llu,%llu,%d,%.3f,"
-             "%u,%u,%u,%.3f,%.3f,%llu,%u\n",
+             "%u,%u,%u,%.3f,%.3f,%llu,%u,%.3f,%.3f,%llu,%u\n",
              (unsigned long long)st->frame, tw_method_name(st->method), st->ms_frame, st->ms_cull,
              st->ms_wait, (unsigned long long)st->triangles, st->clusters, st->draws, st->queries,
              st->tiles_queried, st->tiles_visible, st->tiles_new, st->tiles_cached,
@@ -124,7 +126,8 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st, char *er
              (unsigned long long)st->bytes_gpu, (unsigned long long)st->bytes_state,
              (unsigned long long)st->bytes_needed, st->over_budget ? 1 : 0, st->ms_upload,
              st->blocking_reads, st->queries_skipped, st->hzb_boxes, st->ms_hzb_build,
-             st->ms_hzb_read, (unsigned long long)st->bytes_loading, st->tiles_loading);
+             st->ms_hzb_read, (unsigned long long)st->bytes_loading, st->tiles_loading,
+             sv->cpu_ms, sv->ms, (unsigned long long)sv->triangles, sv->draws);
     if (!tw_outfile_printf(&r->frames_csv, "%s", row))
         return tw_outfile_report(&r->frames_csv, err, err_size);
     if (r->chart_data) {
@@ -172,6 +175,14 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st, char *er
     m->overdraw_triangles += (double)st->overdraw_triangles;
     if (st->ms_frame > m->ms_max)
         m->ms_max = st->ms_frame;
+    if (set) {
+        m->set_frames++;
+        m->set_cpu_ms += set->cpu_ms;
+        m->set_ms += set->ms;
+        m->set_triangles += (double)set->triangles;
+        m->set_draws += set->draws;
+        m->split_cpu_ms += st->cpu_ms;
+    }
     return TW_OK;
 }
 
@@ -258,6 +269,37 @@ static json_object *number_g(double v)
     return json_object_new_double_s(v, text);
 }
 
+/* --split: each method's CPU time parted into drawing its set and finding
+ * it, against the oracle's frame (which draws the visible set). */
+static void write_split(struct tw_outfile *f, const struct tw_report *r, const struct row *rows,
+                        int nrows, const struct row *oracle)
+{
+    bool any = false;
+    for (int k = 0; k < nrows; k++)
+        any |= r->methods[rows[k].method].set_frames > 0;
+    if (!any)
+        return;
+    tw_outfile_printf(f, "\n## Where the CPU time goes (--split)\n\n"
+                         "Each frame's set of clusters drawn again from its camera with no "
+                         "culling, as the oracle draws its own (tile by tile, front to back), "
+                         "and finished: what drawing that set costs. The rest of the frame's "
+                         "CPU time is what finding it cost (queries, waits, traversal).\n\n"
+                         "| method | CPU ms | drawing its set, CPU ms | finding it, CPU ms | "
+                         "set / oracle's frame | triangles of the set | draws of the set |\n"
+                         "|---|---|---|---|---|---|---|\n");
+    for (int k = 0; k < nrows; k++) {
+        const struct tw_method_summary *m = &r->methods[rows[k].method];
+        if (m->set_frames == 0)
+            continue;
+        const double n = m->set_frames, set = m->set_cpu_ms / n;
+        char so[32];
+        ratio(so, sizeof(so), set, oracle ? oracle->cpu_mean : 0.0);
+        tw_outfile_printf(f, "| %s | %.2f | %.2f | %.2f | %s | %.0f | %.0f |\n", rows[k].name,
+                          m->split_cpu_ms / n, set, (m->split_cpu_ms - m->set_cpu_ms) / n, so,
+                          m->set_triangles / n, m->set_draws / n);
+    }
+}
+
 int tw_report_close(struct tw_report *r, bool markdown,
                     struct tw_method_figures figures[TW_METHOD_COUNT], char *err, size_t err_size)
 {
@@ -319,6 +361,19 @@ int tw_report_close(struct tw_report *r, bool markdown,
                                json_object_new_int64((int64_t)m->depth_errors_total));
         json_object_object_add(o, "frames_with_depth_errors",
                                json_object_new_int64(m->frames_with_depth_errors));
+        if (m->set_frames > 0) {
+            /* --split: the frames' sets drawn again with no culling. */
+            const double n = m->set_frames;
+            json_object *set = json_object_new_object();
+            json_object_object_add(set, "frames", json_object_new_int64(m->set_frames));
+            json_object_object_add(set, "mean_cpu_ms", number(m->set_cpu_ms / n, 3));
+            json_object_object_add(set, "mean_ms", number(m->set_ms / n, 3));
+            json_object_object_add(set, "mean_triangles", number(m->set_triangles / n, 1));
+            json_object_object_add(set, "mean_draws", number(m->set_draws / n, 1));
+            json_object_object_add(set, "mean_finding_cpu_ms",
+                                   number((m->split_cpu_ms - m->set_cpu_ms) / n, 3));
+            json_object_object_add(o, "set", set);
+        }
         json_object_object_add(methods, row->name, o);
         if (figures) {
             struct tw_method_figures *fg = &figures[k];
@@ -406,6 +461,7 @@ int tw_report_close(struct tw_report *r, bool markdown,
                                   (unsigned long long)m->missed_pixels_total,
                                   (unsigned long long)m->depth_errors_total, rv, cv, tv, ro, co);
             }
+            write_split(&f, r, rows, nrows, oracle);
             if (about->verified)
                 tw_outfile_printf(&f, "\nAccuracy measured by the oracle (--verify) on every frame, "
                                       "depth tolerance %g (relative eye distance).\n",

@@ -15,6 +15,15 @@
 /* The folder of the chart data, inside a run's folder. */
 #define TW_REPORT_CHART_DATA "chart-data"
 
+/* bench --split: a frame's set of clusters drawn again from its camera
+ * with no culling (tw_world_frame_fixed, then finished), timed like the
+ * frame: what drawing the set cost, apart from what finding it cost. */
+struct tw_report_set {
+    double cpu_ms, ms;
+    uint64_t triangles;
+    uint32_t draws;
+};
+
 /* Per-method accumulation of frame statistics. */
 struct tw_method_summary {
     bool used;
@@ -35,6 +44,9 @@ struct tw_method_summary {
     double ms_wait;
     double overdraw_triangles;
     double ms_max;
+    uint32_t set_frames;      /* frames with a set drawn again (--split) */
+    double set_cpu_ms, set_ms, set_triangles, set_draws;   /* their sums */
+    double split_cpu_ms;      /* the sum of those frames' own cpu_ms */
 };
 
 /* One method's figures over a run. */
@@ -85,10 +97,11 @@ struct tw_report {
  * err: TW_ERR_INVALID when the folder cannot be made, else TW_ERR_IO. */
 int tw_report_open(struct tw_report *r, const char *dir, bool chart_data, char *err,
                    size_t err_size);
-/* Appends one row and accumulates it; on a failed write returns TW_ERR_IO
+/* Appends one row and accumulates it, with its set drawn again (--split;
+ * NULL: not measured, its columns 0); on a failed write returns TW_ERR_IO
  * with "FILE: cannot write: reason" in err. */
-int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st, char *err,
-                  size_t err_size);
+int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
+                  const struct tw_report_set *set, char *err, size_t err_size);
 /* Completes frames.csv (and the chart data), then writes summary.json (and
  * summary.md when markdown is true) and frees everything. figures (may be
  * NULL) receives each method's figures, indexed by method. */

@@ -36,6 +36,7 @@ struct options {
     const char *sweep;
     const char *scenario;
     bool calibrate;             /* info --calibrate */
+    bool split;                 /* bench --split */
 };
 
 static const uint32_t default_frames = 300;
@@ -51,7 +52,7 @@ static void usage(FILE *f)
           "                        [--mutate-query-shrink F] [--workers N] [--policy wait|skip]\n"
           "                        [--budget BYTES] [--upload-budget BYTES]\n"
           "       tileworld bench  [same options] [--methods M1,M2,...] [--sweep PARAM=v1,v2,...]\n"
-          "                        [--scenario NAME|all]\n"
+          "                        [--scenario NAME|all] [--split]\n"
           "       tileworld info   [--tileset NAME|FILE.json] [--seed N] [--cluster-triangles N]\n"
           "                        [--calibrate [--size WxH]]\n"
           "       tileworld import FILE.gltf|FILE.glb\n"
@@ -83,6 +84,11 @@ static void usage(FILE *f)
           "                      one, 0 < X < 1 (default 0.00001)\n"
           "--deterministic       no query result is ready before it is waited on: counts do not\n"
           "                      depend on GPU timing (slower; not for timings)\n"
+          "--split               bench: after every frame, its set of clusters drawn again from\n"
+          "                      its camera with no culling, timed apart: frames.csv's set_*\n"
+          "                      columns and summary.md's split of each method's CPU time into\n"
+          "                      drawing what it drew and finding it (not with --sweep or\n"
+          "                      --scenario)\n"
           "--mutate-query-shrink F  testing only: every query box shrunk by F of its size,\n"
           "                      0 <= F < 1, a broken culler that --verify must catch\n",
           f);
@@ -105,6 +111,7 @@ enum {
     OPT_VERIFY_TOLERANCE,
     OPT_MUTATE_QUERY_SHRINK,
     OPT_CALIBRATE,
+    OPT_SPLIT,
 };
 
 static const struct option options_table[] = {
@@ -125,6 +132,7 @@ static const struct option options_table[] = {
     {"verify-tolerance", required_argument, NULL, OPT_VERIFY_TOLERANCE},
     {"mutate-query-shrink", required_argument, NULL, OPT_MUTATE_QUERY_SHRINK},
     {"calibrate", no_argument, NULL, OPT_CALIBRATE},
+    {"split", no_argument, NULL, OPT_SPLIT},
     {NULL, 0, NULL, 0},
 };
 
@@ -202,6 +210,7 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
             tw_cli_fail(program, name, "'%s' is not above 0 and below 1", v);
         break;
     case OPT_CALIBRATE: o->calibrate = true; break;
+    case OPT_SPLIT: o->split = true; break;
     case OPT_MUTATE_QUERY_SHRINK:
         ws->mutate_query_shrink = tw_cli_float(program, name, v, 0.0f, 1.0f);
         if (ws->mutate_query_shrink >= 1.0f)
@@ -284,6 +293,7 @@ static int run(const struct options *o, bool bench)
     r.png_every = o->png_every;
     r.scenario_frames = o->cli.frames;
     r.bench = bench;
+    r.split = o->split;
     r.quiet = o->cli.quiet;
     r.world = o->cli.world;
     r.world.log = log;
@@ -528,7 +538,12 @@ int main(int argc, char **argv)
             tw_cli_fail(program, "--sweep", "--sweep belongs to bench");
         if (o.scenario)
             tw_cli_fail(program, "--scenario", "--scenario belongs to bench");
+        if (o.split)
+            tw_cli_fail(program, "--split", "--split belongs to bench");
     }
+    if (o.split && (o.sweep || o.scenario))
+        tw_cli_fail(program, "--split", "--split parts a bench run's CPU time; it takes no %s",
+                    o.sweep ? "--sweep" : "--scenario");
     if (tw_tilesets_is_provider(o.cli.tileset)) {
         if (o.scenario)
             tw_cli_fail(program, "--scenario", "scenarios need a prototype tileset (they place the "
