@@ -125,6 +125,8 @@ int tw_oracle_order(struct tw_world *w, const struct tw_view *v, struct tw_drawn
                     size_t count)
 {
     struct tw_oracle *o = &w->oracle;
+    if (count == 0)
+        return TW_OK;
     int err = grow((void **)&o->order, &o->order_cap, count, sizeof(*o->order));
     if (err)
         return err;
