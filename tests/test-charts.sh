@@ -71,6 +71,7 @@ expect_chart "$run/chart-frame-time.png" 1000x600
 expect_chart "$run/chart-triangles.png" 1000x600
 expect_chart "$run/chart-speed-accuracy.png" 1200x600
 [ ! -e "$run/chart-sweep.png" ] && ok || bad "chart-sweep.png drawn without a sweep"
+[ ! -e "$run/chart-split.png" ] && ok || bad "chart-split.png drawn without --split"
 [ -f "$run/charts.gp" ] && ok || bad "$run/charts.gp was not written"
 [ -f "$run/gnuplot.log" ] && ok || bad "$run/gnuplot.log was not written"
 [ -z "$(cd "$run" && ls -A | grep '\.tmp$')" ] && ok || bad "temporaries left in $run"
@@ -106,6 +107,18 @@ rm -f "$run/chart-triangles.png"
 (cd "$run" && gnuplot charts.gp) 2>"$tmp/err" && [ ! -s "$tmp/err" ] && ok ||
     bad "gnuplot charts.gp: $(cat "$tmp/err")"
 expect_chart "$run/chart-triangles.png" 1000x600
+
+# ---- --split adds its chart -----------------------------------------------------
+split="$tmp/split"
+if "$tw" bench --frames 3 "${small[@]}" --split --out "$split" 2>"$tmp/err"; then
+    expect_chart "$split/chart-split.png" 1000x600
+    grep -q '^split = 1' "$split/chart-data/run.gp" && ok || bad "run.gp: split"
+    head -2 "$split/chart-data/frames-chc.dat" | tail -1 | grep -q ' set_cpu_ms set_ms set_triangles set_draws$' &&
+        ok || bad "frames-chc.dat: no set_* columns"
+else
+    bad "bench --split: $(head -c 400 "$tmp/err")"
+fi
+grep -q '^split = 0' "$run/chart-data/run.gp" && ok || bad "run.gp: split without --split"
 
 # ---- a sweep adds its chart ------------------------------------------------------
 sweep="$tmp/sweep"

@@ -226,6 +226,8 @@ static int write_run(const struct tw_chart_run *run, const uint32_t *order, char
     }
     tw_outfile_printf(&o, "'\n# 1: chart-data/pareto*.dat hold the sweep's speed against "
                           "accuracy (--verify)\npareto = %d\n", pareto_drawn(run));
+    tw_outfile_printf(&o, "# 1: bench --split filled frames-*.dat's set_* columns\nsplit = %d\n",
+                      run->split ? 1 : 0);
     return tw_outfile_commit(&o, err, err_size);
 }
 

@@ -9,13 +9,14 @@
 # name ('ms_frame', column('triangles')):
 #   run.gp             what the run was: run_title, methods, frames_per_method,
 #                      verified, sweep_param, sweep_values, sweep_unaffected,
-#                      pareto
+#                      pareto, split
 #   frames-METHOD.dat  one row per frame of METHOD: the columns of frames.csv
 #                      but method (frame, ms_frame, ms_cull, ms_wait, triangles,
 #                      clusters, draws, queries, tiles_*, cache_bytes,
 #                      predict_fail, missed_pixels, missed_clusters,
 #                      overdraw_triangles, cpu_ms, depth_errors, and what
-#                      frames.csv gains)
+#                      frames.csv gains: set_cpu_ms and the other set_*
+#                      columns of bench --split, 0 without it)
 #   methods.dat        one row per method, in the order of `methods`: method,
 #                      frames, mean_ms, median_ms, p95_ms, p99_ms, max_ms,
 #                      mean_triangles, mean_queries, mean_overdraw_triangles,
@@ -413,4 +414,48 @@ if (pareto) {
         unset label
     }
     unset multiplot
+}
+
+# ---- chart-split.png: with --split, each method's CPU time parted -------------------
+# The frame's CPU time is the outlined bar; inside it, the part its set costs
+# when drawn again with no culling, and above that what finding the set
+# cost. A set that cost more than its frame (noise, or a frame that drew in
+# a cheaper order) stands out above the outline.
+if (split) {
+    reset
+    array cpu_all[n]
+    array cpu_set[n]
+    oracle_cpu = -1
+    do for [i = 1:n] {
+        stats frames_file(i) using 'cpu_ms' nooutput
+        cpu_all[i] = STATS_mean
+        stats frames_file(i) using 'set_cpu_ms' nooutput
+        cpu_set[i] = STATS_mean
+        if (method(i) eq 'oracle') { oracle_cpu = cpu_all[i] }
+    }
+    set terminal @png_term size 1000,600
+    set output out('chart-split.png')
+    set title heading('CPU time per frame: drawing what each method drew, and finding it') font ',13'
+    set boxwidth 0.6
+    set xrange [0.4:n + 0.6]
+    set yrange [0:*]
+    set xtics nomirror ()
+    do for [i = 1:n] { set xtics add (method(i) i) }
+    set ylabel 'mean CPU time per frame (ms)'
+    set grid ytics lc rgb '#d8d8d8'
+    set border 3
+    set ytics nomirror
+    set key top right Left reverse samplen 2 box lc rgb '#bbbbbb' opaque
+    if (oracle_cpu > 0) {
+        set arrow 1 from graph 0, first oracle_cpu to graph 1, first oracle_cpu nohead dt 2 lc rgb '#000000' front
+        set label 1 "the oracle's frame" at graph 0.005, first oracle_cpu left offset 0,-0.8 font ',9' front
+    }
+    plot cpu_all using 1:2 with boxes fill solid 0.9 noborder lc rgb '#f2b56b' \
+             title 'finding it: queries, waits, traversal', \
+         cpu_set using 1:2 with boxes fill solid 0.9 noborder lc rgb '#4f81b3' \
+             title 'drawing its set (drawn again with no culling)', \
+         cpu_all using 1:2 with boxes lc rgb '#333333' lw 1.5 fill empty \
+             title 'the frame', \
+         cpu_all using 1:(max(cpu_all[column(1)], cpu_set[column(1)])):(sprintf('%.1f of which %.1f drawing', \
+             cpu_all[column(1)], cpu_set[column(1)])) with labels offset 0,0.8 font ',9' notitle
 }

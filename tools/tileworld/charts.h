@@ -49,6 +49,7 @@ struct tw_chart_run {
     const char *tileset, *path;
     uint32_t width, height;
     bool verified;                              /* --verify: accuracy was measured */
+    bool split;                                 /* --split: frames-*.dat's set_* columns */
     const enum tw_method *methods;              /* in the order of the run */
     uint32_t method_count;
     const struct tw_method_figures *figures;    /* TW_METHOD_COUNT, by method */
