@@ -283,7 +283,10 @@ static void write_split(struct tw_outfile *f, const struct tw_report *r, const s
                          "Each frame's set of clusters drawn again from its camera with no "
                          "culling, as the oracle draws its own (tile by tile, front to back), "
                          "and finished: what drawing that set costs. The rest of the frame's "
-                         "CPU time is what finding it cost (queries, waits, traversal).\n\n"
+                         "CPU time is what finding it cost (queries, waits, traversal). A "
+                         "method that issues no query finds its set for next to nothing: what "
+                         "it reads there (a few per cent either way) is noise and the order "
+                         "the set is drawn in, and bounds what these figures can tell.\n\n"
                          "| method | CPU ms | drawing its set, CPU ms | finding it, CPU ms | "
                          "set / oracle's frame | triangles of the set | draws of the set |\n"
                          "|---|---|---|---|---|---|---|\n");
