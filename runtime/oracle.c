@@ -102,10 +102,12 @@ static void id_flush(void *ctx)
 {
 }
 
-/* A cluster of a set, its tile's rank and its distance from the eye, for the sort. */
+/* A cluster of a set, its tile's rank, its distance from the eye (or 0)
+ * and what breaks ties (its cluster index, or its place in the set). */
 struct oracle_order {
     uint32_t rank;
     float distance;
+    uint32_t tie;
     struct tw_drawn_cluster cluster;
 };
 
@@ -118,11 +120,11 @@ static int compare_order(const void *a, const void *b)
         return x->cluster.prototype < y->cluster.prototype ? -1 : 1;
     if (x->distance != y->distance)
         return x->distance < y->distance ? -1 : 1;
-    return (x->cluster.cluster > y->cluster.cluster) - (x->cluster.cluster < y->cluster.cluster);
+    return (x->tie > y->tie) - (x->tie < y->tie);
 }
 
 int tw_oracle_order(struct tw_world *w, const struct tw_view *v, struct tw_drawn_cluster *set,
-                    size_t count)
+                    size_t count, bool front_to_back)
 {
     struct tw_oracle *o = &w->oracle;
     if (count == 0)
@@ -144,10 +146,13 @@ int tw_oracle_order(struct tw_world *w, const struct tw_view *v, struct tw_drawn
             if (err)
                 return err;
         }
+        e->distance = 0.0f;
+        e->tie = front_to_back ? set[k].cluster : (uint32_t)k;
+        if (!front_to_back)
+            continue;
         /* Each tile's content through the renderer: a shared prototype or a
          * generated tile's own (always live within the frame that drew it). */
         const struct tw_prototype *proto = tw_renderer_content(w->renderer, set[k].prototype, NULL);
-        e->distance = 0.0f;
         if (proto && set[k].cluster < proto->cluster_count) {
             float offset[3];
             tw_tiles_cell_offset(set[k].cell, v->cell, w->grid.footprint[0], w->grid.footprint[1],
@@ -200,7 +205,7 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
     for (size_t k = 0; k < o->count; k++)
         if (o->pixels[k] > 0)
             o->visible[o->visible_count++] = o->entries[k];
-    return tw_oracle_order(w, v, o->visible, o->visible_count);
+    return tw_oracle_order(w, v, o->visible, o->visible_count, true);
 }
 
 /* Eye distance (metres along the view axis) of window depth d. */

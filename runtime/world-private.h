@@ -105,11 +105,12 @@ int tw_oracle_init(struct tw_world *w);
 void tw_oracle_finish(struct tw_oracle *o);
 /* The ID pass of view v: which clusters have visible pixels, how many. Untimed. */
 int tw_oracle_pass(struct tw_world *w, const struct tw_view *v);
-/* Orders a set of clusters as the oracle draws its own: tiles in the order
- * they first appear, each tile's clusters front to back from v (distance
- * to the nearest point of the cluster's box), ties by cluster index. */
+/* Orders a set of clusters tile by tile, tiles in the order they first
+ * appear; within a tile, front_to_back: by distance from v (to the nearest
+ * point of the cluster's box), ties by cluster index, as the oracle draws
+ * its set; else in the set's own order. */
 int tw_oracle_order(struct tw_world *w, const struct tw_view *v, struct tw_drawn_cluster *set,
-                    size_t count);
+                    size_t count, bool front_to_back);
 /* Compares what the last frame drew with the last ID pass. */
 void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st);
 

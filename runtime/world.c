@@ -808,12 +808,13 @@ static int frame_fixed(struct tw_world *w, const struct tw_camera *cam,
     v.frame = st.frame;
     w->last_view = v;
     w->has_view = true;
-    /* Drawn as the oracle draws its set: tile by tile, front to back. */
+    /* Drawn tile by tile (one run of draws each, as the oracle draws its
+     * set), each tile's clusters in the order given. */
     err = tw_array_reserve((void **)&w->fixed_order, &w->fixed_order_cap, count,
                            sizeof(*w->fixed_order), 256);
     if (!err && count) {
         memcpy(w->fixed_order, clusters, sizeof(*clusters) * count);
-        err = tw_oracle_order(w, &v, w->fixed_order, count);
+        err = tw_oracle_order(w, &v, w->fixed_order, count, false);
     }
     if (err)
         return err;

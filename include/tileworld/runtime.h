@@ -413,9 +413,9 @@ int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, si
 /* Renders one frame from cam that draws exactly clusters, with no culling
  * and no queries (a frozen culled set, looked at from elsewhere; or a
  * method's set drawn again, to tell what drawing it cost from what finding
- * it did: tileworld bench --split). The set is drawn as the oracle draws
- * its own: tile by tile in the order tiles first appear in it, each tile's
- * clusters front to back. Fills the drawing fields of *stats (may be NULL),
+ * it did: tileworld bench --split). The set is drawn tile by tile, as the
+ * oracle draws its own: tiles in the order they first appear in it, each
+ * tile's clusters in their order in it. Fills the drawing fields of *stats (may be NULL),
  * ms_frame and cpu_ms as tw_world_frame() does (tw_world_finish() adds the
  * GPU's end); leaves every method's temporal state alone. clusters is only
  * read during the call. */

@@ -281,8 +281,9 @@ static void write_split(struct tw_outfile *f, const struct tw_report *r, const s
         return;
     tw_outfile_printf(f, "\n## Where the CPU time goes (--split)\n\n"
                          "Each frame's set of clusters drawn again from its camera with no "
-                         "culling, as the oracle draws its own (tile by tile, front to back), "
-                         "and finished: what drawing that set costs. The rest of the frame's "
+                         "culling, tile by tile as the oracle draws its own (each tile's "
+                         "clusters in the frame's order), and finished: what drawing that set "
+                         "costs. The rest of the frame's "
                          "CPU time is what finding it cost (queries, waits, traversal). A "
                          "method that issues no query finds its set for next to nothing: what "
                          "it reads there (a few per cent either way) is noise and the order "
