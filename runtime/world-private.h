@@ -79,8 +79,9 @@ struct tw_world {
     enum tw_method method;
     struct method_state methods[TW_METHOD_COUNT];
     struct tw_cull_driver *fixed_set;  /* tw_world_frame_fixed */
-    struct tw_drawn_cluster *fixed_order;  /* its set, in the oracle's order */
+    struct tw_drawn_cluster *fixed_order;  /* its set, grouped tile by tile */
     size_t fixed_order_cap;
+    bool last_fixed;                   /* the last frame was tw_world_frame_fixed's */
     bool record_draws;
     struct tw_oracle oracle;
 
