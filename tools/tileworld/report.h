@@ -44,9 +44,8 @@ struct tw_method_summary {
     double ms_wait;
     double overdraw_triangles;
     double ms_max;
-    uint32_t set_frames;      /* frames with a set drawn again (--split) */
+    uint32_t set_frames;      /* frames with a set drawn again (--split: every frame) */
     double set_cpu_ms, set_ms, set_triangles, set_draws;   /* their sums */
-    double split_cpu_ms;      /* the sum of those frames' own cpu_ms */
 };
 
 /* One method's figures over a run. */
@@ -97,8 +96,9 @@ struct tw_report {
  * err: TW_ERR_INVALID when the folder cannot be made, else TW_ERR_IO. */
 int tw_report_open(struct tw_report *r, const char *dir, bool chart_data, char *err,
                    size_t err_size);
-/* Appends one row and accumulates it, with its set drawn again (--split;
- * NULL: not measured, its columns 0); on a failed write returns TW_ERR_IO
+/* Appends one row and accumulates it, with its set drawn again (--split,
+ * given for every frame of a run or none; NULL: not measured, its columns
+ * 0); on a failed write returns TW_ERR_IO
  * with "FILE: cannot write: reason" in err. */
 int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
                   const struct tw_report_set *set, char *err, size_t err_size);
