@@ -128,7 +128,6 @@ struct tw_chc {
     bool unflushed;             /* drawn or issued since the last flush */
 };
 
-
 void tw_chc_default_settings(struct tw_chc_settings *s)
 {
     if (!s)
