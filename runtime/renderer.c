@@ -131,11 +131,13 @@ static const char *const scene_vs =
     "#version 330 core\n"
     "layout(location = 0) in vec3 a_pos;\n"
     "layout(location = 1) in vec3 a_normal;\n"
+    "layout(location = 2) in vec4 a_color;\n"
     "uniform mat4 u_view_proj;\n"
     "uniform vec4 u_model[3];\n"
     "uniform vec3 u_offset;\n"
     "out vec3 v_normal;\n"
     "out vec3 v_pos;\n"
+    "out vec3 v_color;\n"
     "invariant gl_Position;\n"
     "void main() {\n"
     "    vec4 p = vec4(a_pos, 1.0);\n"
@@ -143,6 +145,7 @@ static const char *const scene_vs =
     "    v_normal = vec3(dot(u_model[0].xyz, a_normal), dot(u_model[1].xyz, a_normal),\n"
     "                    dot(u_model[2].xyz, a_normal));\n"
     "    v_pos = w;\n"
+    "    v_color = a_color.rgb;\n"
     "    gl_Position = u_view_proj * vec4(w, 1.0);\n"
     "}\n";
 
@@ -150,6 +153,7 @@ static const char *const scene_fs =
     "#version 330 core\n"
     "in vec3 v_normal;\n"
     "in vec3 v_pos;\n"
+    "in vec3 v_color;\n"
     "uniform vec4 u_color;\n"
     "uniform vec3 u_eye;\n"
     "uniform vec2 u_fog;\n"
@@ -158,7 +162,7 @@ static const char *const scene_fs =
     "    vec3 n = normalize(v_normal);\n"
     "    vec3 sun = normalize(vec3(0.45, 0.8, 0.3));\n"
     "    float light = 0.38 + 0.62 * max(dot(n, sun), 0.0) + 0.08 * max(-n.x, 0.0);\n"
-    "    vec3 c = u_color.rgb * light;\n"
+    "    vec3 c = u_color.rgb * v_color * light;\n"
     "    float f = clamp((distance(v_pos, u_eye) - u_fog.x) / u_fog.y, 0.0, 0.85);\n"
     "    o_color = vec4(mix(c, vec3(0.70, 0.80, 0.92), f), 1.0);\n"
     "}\n";
@@ -287,6 +291,10 @@ static GLuint link_program(struct tw_renderer *r, const char *vs_src, const char
 }
 
 /* Copies ts's meshes into b's GL buffers. */
+/* Bytes of one vertex in a vertex buffer (tw_tileset_geometry_bytes() counts
+ * the same). */
+#define VERTEX_BYTES 28
+
 static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts, struct gpu_buffers *b)
 {
     const struct tw_gl *gl = &r->gl;
@@ -305,7 +313,8 @@ static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts, st
     b->base_vertex = calloc(2 * (size_t)(ts->mesh_count ? ts->mesh_count : 1), sizeof(uint32_t));
     b->first_index = b->base_vertex ? b->base_vertex + (ts->mesh_count ? ts->mesh_count : 1)
                                     : NULL;
-    float *interleaved = malloc(sizeof(float) * 6 * (vertices ? vertices : 1));
+    /* A vertex: position and normal (floats), then its colour (RGBA8). */
+    float *interleaved = malloc((size_t)VERTEX_BYTES * (vertices ? vertices : 1));
     uint32_t *index_data = malloc(sizeof(uint32_t) * (indices ? indices : 1));
     int err = TW_OK;
     if (!b->base_vertex || !b->first_index || !interleaved || !index_data) {
@@ -317,9 +326,12 @@ static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts, st
         const struct tw_mesh *m = &ts->meshes[k];
         b->base_vertex[k] = vbase;
         b->first_index[k] = ibase;
+        static const uint8_t white[4] = {255, 255, 255, 255};
         for (uint32_t v = 0; v < m->vertex_count; v++) {
-            memcpy(interleaved + 6 * (size_t)(vbase + v), m->positions + 3 * (size_t)v, 12);
-            memcpy(interleaved + 6 * (size_t)(vbase + v) + 3, m->normals + 3 * (size_t)v, 12);
+            float *to = interleaved + 7 * (size_t)(vbase + v);
+            memcpy(to, m->positions + 3 * (size_t)v, 12);
+            memcpy(to + 3, m->normals + 3 * (size_t)v, 12);
+            memcpy(to + 6, m->colors ? m->colors + 4 * (size_t)v : white, 4);
         }
         memcpy(index_data + ibase, m->indices, sizeof(uint32_t) * 3 * (size_t)m->triangle_count);
         vbase += m->vertex_count;
@@ -329,19 +341,21 @@ static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts, st
     gl->BindVertexArray(b->vao);
     gl->GenBuffers(1, &b->vbo);
     gl->BindBuffer(GL_ARRAY_BUFFER, b->vbo);
-    gl->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(sizeof(float) * 6 * vertices), interleaved,
+    gl->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(VERTEX_BYTES * vertices), interleaved,
                    GL_STATIC_DRAW);
     gl->GenBuffers(1, &b->ibo);
     gl->BindBuffer(GL_ELEMENT_ARRAY_BUFFER, b->ibo);
     gl->BufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(sizeof(uint32_t) * indices), index_data,
                    GL_STATIC_DRAW);
     gl->EnableVertexAttribArray(0);
-    gl->VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 24, (const void *)0);
+    gl->VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, VERTEX_BYTES, (const void *)0);
     gl->EnableVertexAttribArray(1);
-    gl->VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 24, (const void *)12);
+    gl->VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, VERTEX_BYTES, (const void *)12);
+    gl->EnableVertexAttribArray(2);
+    gl->VertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, VERTEX_BYTES, (const void *)24);
     gl->BindVertexArray(0);
     r->bound_vao = 0;
-    b->bytes = sizeof(float) * 6 * vertices + sizeof(uint32_t) * indices;
+    b->bytes = (uint64_t)VERTEX_BYTES * vertices + sizeof(uint32_t) * indices;
 out:
     free(interleaved);
     free(index_data);

@@ -443,8 +443,8 @@ static void test_triangles_without_area(void)
     enum { VERTICES = 12, TRIANGLES = 8, KEPT = 3 };
     const float grey[4] = {0.5f, 0.5f, 0.5f, 1};
     const float moved[12] = {1, 0, 0, 5, 0, 1, 0, 0, 0, 0, 1, 5};
-    /* Unsplit and unmerged (0), then merged (64): instances of one material
-     * under 64 triangles are baked into one mesh. */
+    /* Unsplit and unmerged (0), then merged (64): instances under 64
+     * triangles are baked into one mesh. */
     for (uint32_t max_tris = 0; max_tris <= 64; max_tris += 64) {
         struct tw_tileset *ts = NULL;
         CHECK(tw_tileset_create("t", 10.0f, 10.0f, &ts) == TW_OK);
@@ -548,18 +548,23 @@ static void test_pack(void)
           b->prototype_count == a->prototype_count && a->mesh_count > 3);
     CHECK(memcmp(b->materials, a->materials, sizeof(*a->materials) * a->material_count) == 0);
     CHECK(memcmp(b->parts, a->parts, sizeof(*a->parts) * a->part_count) == 0);
+    uint32_t colored = 0;
     for (uint32_t k = 0; k < a->mesh_count && k < b->mesh_count; k++) {
         const struct tw_mesh *ma = &a->meshes[k], *mb = &b->meshes[k];
         CHECK_MSG(mb->vertex_count == ma->vertex_count &&
                   mb->triangle_count == ma->triangle_count &&
                   memcmp(mb->positions, ma->positions, 12 * (size_t)ma->vertex_count) == 0 &&
                   memcmp(mb->normals, ma->normals, 12 * (size_t)ma->vertex_count) == 0 &&
-                  memcmp(mb->indices, ma->indices, 12 * (size_t)ma->triangle_count) == 0,
+                  memcmp(mb->indices, ma->indices, 12 * (size_t)ma->triangle_count) == 0 &&
+                  !ma->colors == !mb->colors &&
+                  (!ma->colors || memcmp(mb->colors, ma->colors, 4 * (size_t)ma->vertex_count) == 0),
                   "mesh %u differs", k);
+        colored += ma->colors != NULL;
         /* Every array lies inside the block. */
         const char *lo = (const char *)b, *hi = lo + tw_tileset_bytes(b);
         CHECK((const char *)mb->positions > lo && (const char *)mb->indices < hi);
     }
+    CHECK_MSG(colored == 2, "%u merged meshes with colours", colored);
     for (uint32_t p = 0; p < a->prototype_count && p < b->prototype_count; p++) {
         const struct tw_prototype *pa = &a->prototypes[p], *pb = &b->prototypes[p];
         CHECK_MSG(pb->instance_count == pa->instance_count &&

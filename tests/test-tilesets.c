@@ -878,12 +878,13 @@ static uint64_t mesh_bytes(const struct tw_tileset *ts)
 {
     uint64_t bytes = 0;
     for (uint32_t k = 0; k < ts->mesh_count; k++)
-        bytes += 24ull * ts->meshes[k].vertex_count + 12ull * ts->meshes[k].triangle_count;
+        bytes += 28ull * ts->meshes[k].vertex_count + 12ull * ts->meshes[k].triangle_count;
     return bytes;
 }
 
-/* Small instances of one material are baked into one tile-local mesh, drawn
- * in clusters of at most max_cluster_triangles; the rest is as before. */
+/* Small instances, whatever their materials, are baked into one tile-local
+ * mesh whose vertices carry their materials' colours, drawn in clusters of
+ * at most max_cluster_triangles; the rest is as before. */
 static void test_merge_instances(void)
 {
     struct tw_tileset *ts = merge_tileset(8), *plain = merge_tileset(1);
@@ -895,26 +896,38 @@ static void test_merge_instances(void)
     CHECK_MSG(q->instance_count == 5 && q->cluster_count == 4 + 4, "plain: %u instances, %u clusters",
               q->instance_count, q->cluster_count);
     CHECK_MSG(plain->mesh_count == 2, "plain: %u meshes", plain->mesh_count);
-    /* Merged: quads 0, 2 and 4 (material 0) into instance 5; the red quad is
-     * alone and the strip is not small: both as they were. */
+    /* Merged: the four quads (grey and red) into instance 5; the strip is not
+     * small: as it was. */
     CHECK_MSG(p->instance_count == 6 && ts->mesh_count == 3, "%u instances, %u meshes",
               p->instance_count, ts->mesh_count);
     if (p->instance_count != 6 || ts->mesh_count != 3)
         goto out;
     const struct tw_instance *mi = &p->instances[5];
-    CHECK_MSG(mi->merged && mi->merged_into == TW_INSTANCE_NONE && mi->material == 0 && mi->mesh == 2,
-              "merged instance: merged %d, mesh %u, material %u", mi->merged, mi->mesh, mi->material);
-    const uint32_t expect_into[5] = {5, TW_INSTANCE_NONE, 5, TW_INSTANCE_NONE, 5};
+    /* Its material is a white one, added after grey and red. */
+    CHECK_MSG(mi->merged && mi->merged_into == TW_INSTANCE_NONE && mi->material == 2 &&
+                  ts->material_count == 3 && mi->mesh == 2,
+              "merged instance: merged %d, mesh %u, material %u of %u", mi->merged, mi->mesh,
+              mi->material, ts->material_count);
+    if (mi->material < ts->material_count)
+        for (int c = 0; c < 4; c++)
+            CHECK_MSG(ts->materials[mi->material].base_color[c] == 1.0f, "merged material %d: %g", c,
+                      (double)ts->materials[mi->material].base_color[c]);
+    CHECK_MSG(plain->material_count == 2 && !plain->meshes[0].colors && !plain->meshes[1].colors,
+              "plain: %u materials, colours on a mesh", plain->material_count);
+    const uint32_t expect_into[5] = {5, 5, 5, TW_INSTANCE_NONE, 5};
     for (uint32_t k = 0; k < 5; k++)
         CHECK_MSG(p->instances[k].merged_into == expect_into[k] && !p->instances[k].merged,
                   "instance %u merged into %u", k, p->instances[k].merged_into);
     static const float identity[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
     CHECK_MSG(memcmp(mi->transform, identity, sizeof(identity)) == 0, "identity placement");
     const struct tw_mesh *mm = &ts->meshes[2];
-    CHECK_MSG(mm->vertex_count == 12 && mm->triangle_count == 6, "merged mesh: %u vertices, %u triangles",
-              mm->vertex_count, mm->triangle_count);
-    /* Clusters: the merged 6 triangles in 2 (<= 4 each), the red quad, the strip's 4. */
-    CHECK_MSG(p->cluster_count == 2 + 1 + 4, "%u clusters", p->cluster_count);
+    CHECK_MSG(mm->vertex_count == 16 && mm->triangle_count == 8 && mm->colors,
+              "merged mesh: %u vertices, %u triangles, colours %p", mm->vertex_count,
+              mm->triangle_count, (const void *)mm->colors);
+    if (mm->vertex_count != 16 || !mm->colors)
+        goto out;
+    /* Clusters: the merged 8 triangles in 2 (<= 4 each), the strip's 4. */
+    CHECK_MSG(p->cluster_count == 2 + 4, "%u clusters", p->cluster_count);
     uint64_t tris = 0;
     for (uint32_t k = 0; k < p->cluster_count; k++) {
         const struct tw_cluster *c = &p->clusters[k];
@@ -927,10 +940,14 @@ static void test_merge_instances(void)
               "%llu cluster triangles, %llu and %llu in the prototypes", (unsigned long long)tris,
               (unsigned long long)p->triangle_count, (unsigned long long)q->triangle_count);
     /* Every transformed vertex of a merged instance is in the merged mesh
-     * (up to float rounding), with its normal transformed the same way. */
+     * (up to float rounding), with its normal transformed the same way and
+     * its instance's colour. */
     const struct tw_mesh *quad = &ts->meshes[0];
-    for (uint32_t k = 0; k < 5; k += 2) {
+    for (uint32_t k = 0; k < 5; k++) {
+        if (k == 3)
+            continue;   /* the strip */
         const struct tw_instance *in = &p->instances[k];
+        const uint8_t want_rgba[2][4] = {{128, 128, 128, 255}, {255, 0, 0, 255}};
         for (uint32_t v = 0; v < quad->vertex_count; v++) {
             float want[3], n[3];
             transform_point(in->transform, quad->positions + 3 * v, want);
@@ -943,7 +960,8 @@ static void test_merge_instances(void)
                 const float *got = mm->positions + 3 * u, *gn = mm->normals + 3 * u;
                 found = fabsf(got[0] - want[0]) < 1e-5f && fabsf(got[1] - want[1]) < 1e-5f &&
                         fabsf(got[2] - want[2]) < 1e-5f && fabsf(gn[0] - n[0]) < 1e-6f &&
-                        fabsf(gn[1] - n[1]) < 1e-6f && fabsf(gn[2] - n[2]) < 1e-6f;
+                        fabsf(gn[1] - n[1]) < 1e-6f && fabsf(gn[2] - n[2]) < 1e-6f &&
+                        memcmp(mm->colors + 4 * u, want_rgba[in->material], 4) == 0;
             }
             CHECK_MSG(found, "instance %u vertex %u (%g %g %g) not in the merged mesh", k, v,
                       (double)want[0], (double)want[1], (double)want[2]);
@@ -957,7 +975,7 @@ static void test_merge_instances(void)
                   (double)p->box.max[a], (double)q->box.min[a], (double)q->box.max[a]);
     /* The merged mesh costs its bytes. */
     CHECK_MSG(tw_tileset_geometry_bytes(ts) == mesh_bytes(ts) &&
-                  tw_tileset_geometry_bytes(ts) == tw_tileset_geometry_bytes(plain) + 12 * 24 + 6 * 12,
+                  tw_tileset_geometry_bytes(ts) == tw_tileset_geometry_bytes(plain) + 16 * 28 + 8 * 12,
               "geometry bytes %llu, plain %llu", (unsigned long long)tw_tileset_geometry_bytes(ts),
               (unsigned long long)tw_tileset_geometry_bytes(plain));
 out:

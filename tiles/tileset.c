@@ -41,6 +41,7 @@ void tw_tileset_destroy(struct tw_tileset *ts)
         free(ts->meshes[k].positions);
         free(ts->meshes[k].normals);
         free(ts->meshes[k].indices);
+        free(ts->meshes[k].colors);
     }
     for (uint32_t k = 0; k < ts->prototype_count; k++) {
         free(ts->prototypes[k].instances);
@@ -381,50 +382,58 @@ static void drop_triangles_without_area(struct tw_mesh *m)
 
 /* ---- finishing: merging small instances ------------------------------------------ */
 
-struct small_instance {
-    uint32_t material;
-    uint32_t instance;
-};
-
-static int compare_small(const void *a, const void *b)
+/* The index of an opaque white material, added if there is none. */
+static int white_material(struct tw_tileset *ts)
 {
-    const struct small_instance *x = a, *y = b;
-    if (x->material != y->material)
-        return x->material < y->material ? -1 : 1;
-    return (x->instance > y->instance) - (x->instance < y->instance);
+    for (uint32_t k = 0; k < ts->material_count; k++) {
+        const float *c = ts->materials[k].base_color;
+        if (c[0] == 1.0f && c[1] == 1.0f && c[2] == 1.0f && c[3] == 1.0f)
+            return (int)k;
+    }
+    return tw_tileset_add_material(ts, (const float[4]){1.0f, 1.0f, 1.0f, 1.0f});
 }
 
-/* Bakes instances list[0..count) of prototype p (one material) into one
- * tile-local mesh placed by a new identity instance, and marks them merged
- * into it. A group whose merged mesh would be invalid (too large, or
- * transformed positions that overflow) stays as it is. */
-static int merge_group(struct tw_tileset *ts, uint32_t p, const struct small_instance *list,
-                       uint32_t count, uint64_t *budget)
+static uint8_t unorm8(float x)
+{
+    return (uint8_t)lrintf(fminf(fmaxf(x, 0.0f), 1.0f) * 255.0f);
+}
+
+/* The bytes that baking instance in of prototype p copies. */
+static uint64_t baked_bytes(const struct tw_tileset *ts, const struct tw_instance *in)
+{
+    const struct tw_mesh *m = &ts->meshes[in->mesh];
+    return 28ull * m->vertex_count + 12ull * m->triangle_count;
+}
+
+/* Bakes instances list[0..count) of prototype p into one tile-local mesh,
+ * its vertices coloured by their instance's material, placed by a new
+ * identity instance of a white material, and marks them merged into it.
+ * Transformed positions that overflow leave the instances as they are. */
+static int merge_group(struct tw_tileset *ts, uint32_t p, const uint32_t *list, uint32_t count)
 {
     uint64_t vertices = 0, triangles = 0;
     for (uint32_t k = 0; k < count; k++) {
-        const struct tw_mesh *m = &ts->meshes[ts->prototypes[p].instances[list[k].instance].mesh];
+        const struct tw_mesh *m = &ts->meshes[ts->prototypes[p].instances[list[k]].mesh];
         vertices += m->vertex_count;
         triangles += m->triangle_count;
     }
-    /* Baking copies what instancing shares: within the tileset's budget. */
-    const uint64_t bytes = 24 * vertices + 12 * triangles;
-    if (bytes > *budget)
+    if (vertices > UINT32_MAX || triangles > UINT32_MAX / 3)
         return TW_OK;
-    *budget -= bytes;
     float *pos = malloc(sizeof(float) * 3 * (size_t)vertices);
     float *nrm = malloc(sizeof(float) * 3 * (size_t)vertices);
+    uint8_t *rgba = malloc(4 * (size_t)vertices);
     uint32_t *idx = malloc(sizeof(uint32_t) * 3 * (size_t)triangles);
     int err = TW_OK;
-    if (!pos || !nrm || !idx) {
+    if (!pos || !nrm || !rgba || !idx) {
         err = TW_ERR_NOMEM;
         goto out;
     }
     uint32_t vbase = 0, tbase = 0;
     for (uint32_t k = 0; k < count; k++) {
-        const struct tw_instance *in = &ts->prototypes[p].instances[list[k].instance];
+        const struct tw_instance *in = &ts->prototypes[p].instances[list[k]];
         const struct tw_mesh *m = &ts->meshes[in->mesh];
         const float *x = in->transform;
+        const float *color = ts->materials[in->material].base_color;
         for (uint32_t v = 0; v < m->vertex_count; v++) {
             const float *a = m->positions + 3 * (size_t)v, *n = m->normals + 3 * (size_t)v;
             float *q = pos + 3 * (size_t)(vbase + v), *r = nrm + 3 * (size_t)(vbase + v);
@@ -433,59 +442,66 @@ static int merge_group(struct tw_tileset *ts, uint32_t p, const struct small_ins
                 q[row] = t[0] * a[0] + t[1] * a[1] + t[2] * a[2] + t[3];
                 r[row] = t[0] * n[0] + t[1] * n[1] + t[2] * n[2];
             }
+            for (int c = 0; c < 4; c++)
+                rgba[4 * (size_t)(vbase + v) + c] = unorm8(color[c]);
         }
         for (uint32_t i = 0; i < 3 * m->triangle_count; i++)
             idx[3 * (size_t)tbase + i] = m->indices[i] + vbase;
         vbase += m->vertex_count;
         tbase += m->triangle_count;
     }
+    const int white = white_material(ts);
+    if (white < 0) {
+        err = white;
+        goto out;
+    }
     const int mesh = tw_tileset_add_mesh(ts, pos, nrm, vbase, idx, tbase);
-    if (mesh == TW_ERR_INVALID)
-        goto out;   /* not finite once transformed: leave the group alone */
+    if (mesh == TW_ERR_INVALID || mesh == TW_ERR_LIMIT)
+        goto out;   /* not finite, or out of reach, once transformed: left alone */
     if (mesh < 0) {
         err = mesh;
         goto out;
     }
-    const int merged = tw_tileset_add_instance(ts, p, (uint32_t)mesh, list[0].material, NULL);
+    ts->meshes[mesh].colors = rgba;
+    rgba = NULL;
+    const int merged = tw_tileset_add_instance(ts, p, (uint32_t)mesh, (uint32_t)white, NULL);
     if (merged < 0) {
         err = merged;
         goto out;
     }
     ts->prototypes[p].instances[merged].merged = true;
     for (uint32_t k = 0; k < count; k++)
-        ts->prototypes[p].instances[list[k].instance].merged_into = (uint32_t)merged;
+        ts->prototypes[p].instances[list[k]].merged_into = (uint32_t)merged;
 out:
     free(pos);
     free(nrm);
+    free(rgba);
     free(idx);
     return err;
 }
 
-/* Merges prototype p's small instances, material by material. */
+/* Merges prototype p's small instances, in their order, as far as the
+ * tileset's budget for baked copies goes. */
 static int merge_small_instances(struct tw_tileset *ts, uint32_t p, uint32_t below,
                                  uint64_t *budget)
 {
     const uint32_t n = ts->prototypes[p].instance_count;
-    struct small_instance *list = malloc(sizeof(*list) * (n ? n : 1));
+    uint32_t *list = malloc(sizeof(*list) * (n ? n : 1));
     if (!list)
         return TW_ERR_NOMEM;
     uint32_t count = 0;
     for (uint32_t k = 0; k < n; k++) {
         const struct tw_instance *in = &ts->prototypes[p].instances[k];
         const uint32_t triangles = ts->meshes[in->mesh].triangle_count;
-        if (triangles > 0 && triangles < below)
-            list[count++] = (struct small_instance){in->material, k};
+        if (triangles == 0 || triangles >= below)
+            continue;
+        const uint64_t bytes = baked_bytes(ts, in);
+        if (bytes > *budget)
+            break;
+        *budget -= bytes;
+        list[count++] = k;
     }
-    qsort(list, count, sizeof(*list), compare_small);
-    int err = TW_OK;
-    for (uint32_t k = 0; k < count && !err;) {
-        uint32_t end = k + 1;
-        while (end < count && list[end].material == list[k].material)
-            end++;
-        if (end - k >= 2)
-            err = merge_group(ts, p, &list[k], end - k, budget);
-        k = end;
-    }
+    const int err = count >= 2 ? merge_group(ts, p, list, count) : TW_OK;
     free(list);
     return err;
 }
@@ -589,10 +605,12 @@ static void *pack_into(const void *from, struct tw_pack_cursor *c)
         float *nor = tw_pack_take(c, m->normals, sizeof(float) * 3 * (size_t)m->vertex_count);
         uint32_t *idx =
             tw_pack_take(c, m->indices, sizeof(uint32_t) * 3 * (size_t)m->triangle_count);
+        uint8_t *rgba = m->colors ? tw_pack_take(c, m->colors, 4 * (size_t)m->vertex_count) : NULL;
         if (meshes) {
             meshes[k].positions = pos;
             meshes[k].normals = nor;
             meshes[k].indices = idx;
+            meshes[k].colors = rgba;
         }
     }
     for (uint32_t p = 0; p < ts->prototype_count; p++) {
@@ -637,7 +655,7 @@ uint64_t tw_tileset_geometry_bytes(const struct tw_tileset *ts)
 {
     uint64_t bytes = 0;
     for (uint32_t k = 0; k < ts->mesh_count; k++)
-        bytes += (uint64_t)ts->meshes[k].vertex_count * 24u +
+        bytes += (uint64_t)ts->meshes[k].vertex_count * 28u +
                  (uint64_t)ts->meshes[k].triangle_count * 12u;
     return bytes;
 }
@@ -653,7 +671,8 @@ uint64_t tw_tileset_bytes(const struct tw_tileset *ts)
                      (uint64_t)sizeof(*ts->parts) * ts->part_cap +
                      (uint64_t)sizeof(*ts->prototypes) * ts->prototype_cap;
     for (uint32_t k = 0; k < ts->mesh_count; k++)
-        bytes += (uint64_t)ts->meshes[k].vertex_count * 6u * sizeof(float) +
+        bytes += (uint64_t)ts->meshes[k].vertex_count * (6u * sizeof(float) +
+                                                         (ts->meshes[k].colors ? 4u : 0u)) +
                  (uint64_t)ts->meshes[k].triangle_count * 3u * sizeof(uint32_t);
     for (uint32_t p = 0; p < ts->prototype_count; p++)
         bytes += (uint64_t)sizeof(struct tw_instance) * ts->prototypes[p].instance_cap +

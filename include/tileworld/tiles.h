@@ -190,6 +190,9 @@ struct tw_mesh {
     float *positions;     /* xyz per vertex, vertex_count * 3 */
     float *normals;       /* xyz per vertex, vertex_count * 3 */
     uint32_t *indices;    /* three per triangle, triangle_count * 3 */
+    uint8_t *colors;      /* RGBA per vertex, vertex_count * 4, or NULL (white): set by
+                             tw_tileset_finish() on a merged mesh, whose instances' materials
+                             it holds; drawn multiplied by the instance's material */
     uint32_t vertex_count;
     uint32_t triangle_count;
     uint32_t first_part;  /* index into tw_tileset.parts */
@@ -303,15 +306,18 @@ int tw_tileset_add_instance(struct tw_tileset *ts, uint32_t proto,
  * or coincident corners), which covers nothing but which a rasteriser may
  * still give stray fragments at any depth. Then, with
  * max_cluster_triangles > 0, the small instances of each prototype (mesh
- * of fewer than merge_triangles triangles) are merged per material: when
- * two or more share a material, their vertices are transformed into
- * tile-local space (normals by the transform's linear part, as the
- * renderer's shader does) into one new mesh, placed by a new identity
- * instance; the small instances stay in the list, marked merged_into, and
- * get no clusters (a draw call then carries many instances instead of a few
- * triangles); baking copies what instancing shares, so the merged meshes of
- * a tileset hold TW_TILESET_MERGE_BYTES at most (groups beyond stay
- * instanced). Then it splits every mesh into parts of at most
+ * of fewer than merge_triangles triangles) are merged, whatever their
+ * materials: when there are two or more, their vertices are transformed
+ * into tile-local space (normals by the transform's linear part, as the
+ * renderer's shader does) into one new mesh whose vertices carry their
+ * instance's material as a colour, placed by a new identity instance of a
+ * white material (added if the tileset has none); the small instances stay
+ * in the list, marked merged_into, and get no clusters (a draw call then
+ * carries many instances instead of a few triangles, and the merged mesh's
+ * clusters are split by place, not by material); baking copies what
+ * instancing shares, so the merged meshes of a tileset hold
+ * TW_TILESET_MERGE_BYTES at most (instances beyond stay instanced). Then it
+ * splits every mesh into parts of at most
  * max_cluster_triangles triangles (0: never split) by recursive median
  * splits along the longest axis, computes every box, the clusters of every
  * prototype and the common box. Fails on a tileset with no prototype, or
@@ -333,8 +339,9 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles);
  * TW_ERR_NOMEM *ts is unchanged and still valid. */
 int tw_tileset_pack(struct tw_tileset **ts);
 
-/* Sum of all mesh data bytes, merged meshes included (what a renderer
- * uploads once). */
+/* Sum of all mesh data bytes, merged meshes included, at 28 bytes a vertex
+ * (position, normal, RGBA colour) and 12 a triangle: what the renderer
+ * uploads once. */
 uint64_t tw_tileset_geometry_bytes(const struct tw_tileset *ts);
 
 /* ---- selection ------------------------------------------------------------ */
