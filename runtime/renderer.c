@@ -939,8 +939,9 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
     if (r->recording)
         record(r, cell, content, clusters, count);
     /* One multi-draw per instance (one transform, one material: a merged
-     * instance is all of a material's small objects), instances in the
-     * order of their first cluster, clusters in the order given. */
+     * instance is all of the prototype's small objects, their colours in its
+     * vertices), instances in the order of their first cluster, clusters in
+     * the order given. */
     if (!multi_draw_room(r, count, proto->instance_count)) {
         for (uint32_t k = 0; k < count; k++)
             draw_run(r, ts, b, proto, &clusters[k], 1, false);

@@ -93,6 +93,52 @@ static void test_methods_match_vfc(struct tw_context *ctx, const struct tw_tiles
     tw_world_destroy(w);
 }
 
+/* Small objects of two materials are merged into one mesh (tiles.h), and
+ * the merged mesh shows each in its own colour: a red and a green wall
+ * (double-sided, four triangles each) two metres ahead of the camera. */
+static void test_merged_colors(struct tw_context *ctx)
+{
+    struct tw_tileset *ts = NULL;
+    CHECK(tw_tileset_create("walls", 10.0f, 10.0f, &ts) == TW_OK);
+    if (!ts)
+        return;
+    const float pos[] = {0, 0, 0, 3, 0, 0, 0, 3, 0, 3, 3, 0};
+    const uint32_t idx[] = {0, 1, 2, 1, 3, 2, 0, 2, 1, 1, 2, 3};
+    const float red[4] = {1, 0, 0, 1}, green[4] = {0, 1, 0, 1};
+    const float left[12] = {1, 0, 0, 1.5f, 0, 1, 0, 0, 0, 0, 1, 4};
+    const float right[12] = {1, 0, 0, 5.5f, 0, 1, 0, 0, 0, 0, 1, 4};
+    CHECK(tw_tileset_add_mesh(ts, pos, NULL, 4, idx, 4) == 0);
+    CHECK(tw_tileset_add_material(ts, red) == 0 && tw_tileset_add_material(ts, green) == 1);
+    CHECK(tw_tileset_add_prototype(ts, "walls", 1.0f) == 0);
+    CHECK(tw_tileset_add_instance(ts, 0, 0, 0, left) == 0);
+    CHECK(tw_tileset_add_instance(ts, 0, 0, 1, right) == 1);
+    CHECK(tw_tileset_finish(ts, 2048) == TW_OK);
+    const struct tw_prototype *p = &ts->prototypes[0];
+    CHECK_MSG(p->instance_count == 3 && p->instances[2].merged && p->cluster_count == 1 &&
+                  ts->meshes[p->instances[2].mesh].colors,
+              "%u instances, %u clusters: the walls not merged", p->instance_count, p->cluster_count);
+    struct tw_world_settings s = world_settings(ctx, ts, W, H, 1, 400.0f);
+    s.method = TW_METHOD_VFC;
+    struct tw_world *w = NULL;
+    CHECK(tw_world_create(&s, &w) == TW_OK);
+    uint8_t *rgb = malloc(W * H * 3);
+    if (w && rgb) {
+        const struct tw_camera cam = {{{0, 0}, {5.0f, 1.5f, 2.0f}}, 0.0f, 0.0f};
+        CHECK(render(w, &cam, rgb, NULL) == TW_OK);
+        uint32_t reds = 0, greens = 0;
+        for (uint32_t k = 0; k < W * H; k++) {
+            const uint8_t *q = rgb + 3 * k;
+            reds += q[0] > 2 * q[1] && q[0] > 2 * q[2];
+            greens += q[1] > 2 * q[0] && q[1] > 2 * q[2];
+        }
+        CHECK_MSG(reds > W * H / 20 && greens > W * H / 20, "%u red and %u green pixels of %u",
+                  reds, greens, W * H);
+    }
+    free(rgb);
+    tw_world_destroy(w);
+    tw_tileset_destroy(ts);
+}
+
 int main(void)
 {
     struct tw_context *ctx = NULL;
@@ -172,6 +218,7 @@ int main(void)
         tw_world_destroy(w);
     }
     test_methods_match_vfc(ctx, ts);
+    test_merged_colors(ctx);
     free(a);
     free(b);
     tw_tileset_destroy(ts);
