@@ -450,16 +450,16 @@ static int merge_group(struct tw_tileset *ts, uint32_t p, const uint32_t *list, 
         vbase += m->vertex_count;
         tbase += m->triangle_count;
     }
-    const int white = white_material(ts);
-    if (white < 0) {
-        err = white;
-        goto out;
-    }
     const int mesh = tw_tileset_add_mesh(ts, pos, nrm, vbase, idx, tbase);
     if (mesh == TW_ERR_INVALID || mesh == TW_ERR_LIMIT)
         goto out;   /* not finite, or out of reach, once transformed: left alone */
     if (mesh < 0) {
         err = mesh;
+        goto out;
+    }
+    const int white = white_material(ts);
+    if (white < 0) {
+        err = white;
         goto out;
     }
     ts->meshes[mesh].colors = rgba;
