@@ -882,6 +882,52 @@ static uint64_t mesh_bytes(const struct tw_tileset *ts)
     return bytes;
 }
 
+/* Baked copies stop at TW_TILESET_MERGE_BYTES: 4 000 instances of a mesh of
+ * 63 triangles (189 vertices, 6 048 baked bytes each) bake as many as fit,
+ * the rest stay instanced, and a later prototype finds the budget spent. */
+static void test_merge_budget(void)
+{
+    enum { TRIS = 63, VERTS = 3 * TRIS, COUNT = 4000 };
+    static float pos[3 * VERTS];
+    static uint32_t idx[3 * TRIS];
+    for (uint32_t t = 0; t < TRIS; t++) {
+        const float x = (float)(t % 8) * 0.1f, y = (float)(t / 8) * 0.1f;
+        const float tri[9] = {x, y, 0, x + 0.05f, y, 0, x, y + 0.05f, 0};
+        memcpy(pos + 9 * t, tri, sizeof(tri));
+        for (int v = 0; v < 3; v++)
+            idx[3 * t + v] = 3 * t + (uint32_t)v;
+    }
+    struct tw_tileset *ts = NULL;
+    CHECK(tw_tileset_create("budget", 40, 40, &ts) == TW_OK);
+    if (!ts)
+        return;
+    bool ok = tw_tileset_add_mesh(ts, pos, NULL, VERTS, idx, TRIS) == 0 &&
+              tw_tileset_add_material(ts, (const float[4]){0.2f, 0.4f, 0.6f, 1}) == 0 &&
+              tw_tileset_add_prototype(ts, "many", 1.0f) == 0 &&
+              tw_tileset_add_prototype(ts, "later", 1.0f) == 1;
+    for (uint32_t k = 0; ok && k < COUNT + 2; k++) {
+        const float at[12] = {1, 0, 0, (float)(k % 64) * 0.6f, 0, 1, 0, 0,
+                              0, 0, 1, (float)(k / 64 % 64) * 0.6f};
+        ok = tw_tileset_add_instance(ts, k < COUNT ? 0 : 1, 0, 0, at) >= 0;
+    }
+    CHECK(ok && tw_tileset_finish(ts, 2048) == TW_OK);
+    const uint64_t each = 28ull * VERTS + 12ull * TRIS;
+    const uint32_t fit = (uint32_t)(TW_TILESET_MERGE_BYTES / each);
+    uint32_t merged_into[2] = {0, 0}, merged[2] = {0, 0};
+    for (uint32_t p = 0; ok && p < 2; p++)
+        for (uint32_t k = 0; k < ts->prototypes[p].instance_count; k++) {
+            merged_into[p] += ts->prototypes[p].instances[k].merged_into != TW_INSTANCE_NONE;
+            merged[p] += ts->prototypes[p].instances[k].merged;
+        }
+    CHECK_MSG(fit < COUNT && merged_into[0] == fit && merged[0] == 1 && merged_into[1] == 0 &&
+                  merged[1] == 0,
+              "%u of %u baked (%u fit), later prototype %u baked", merged_into[0], COUNT, fit,
+              merged_into[1]);
+    CHECK_MSG(ok && tw_tileset_geometry_bytes(ts) - each <= TW_TILESET_MERGE_BYTES,
+              "geometry %llu bytes", (unsigned long long)tw_tileset_geometry_bytes(ts));
+    tw_tileset_destroy(ts);
+}
+
 /* Small instances, whatever their materials, are baked into one tile-local
  * mesh whose vertices carry their materials' colours, drawn in clusters of
  * at most max_cluster_triangles; the rest is as before. */
@@ -1036,6 +1082,7 @@ int main(void)
     test_hybrid();
     test_builtin();
     test_merge_instances();
+    test_merge_budget();
     test_merge_builtin();
     return check_summary("test-tilesets");
 }

@@ -398,7 +398,7 @@ static uint8_t unorm8(float x)
     return (uint8_t)lrintf(fminf(fmaxf(x, 0.0f), 1.0f) * 255.0f);
 }
 
-/* The bytes that baking instance in of prototype p copies. */
+/* The bytes that baking instance in copies. */
 static uint64_t baked_bytes(const struct tw_tileset *ts, const struct tw_instance *in)
 {
     const struct tw_mesh *m = &ts->meshes[in->mesh];
@@ -490,18 +490,23 @@ static int merge_small_instances(struct tw_tileset *ts, uint32_t p, uint32_t bel
     if (!list)
         return TW_ERR_NOMEM;
     uint32_t count = 0;
+    uint64_t bytes = 0;
     for (uint32_t k = 0; k < n; k++) {
         const struct tw_instance *in = &ts->prototypes[p].instances[k];
         const uint32_t triangles = ts->meshes[in->mesh].triangle_count;
         if (triangles == 0 || triangles >= below)
             continue;
-        const uint64_t bytes = baked_bytes(ts, in);
-        if (bytes > *budget)
+        const uint64_t more = baked_bytes(ts, in);
+        if (bytes + more > *budget)
             break;
-        *budget -= bytes;
+        bytes += more;
         list[count++] = k;
     }
-    const int err = count >= 2 ? merge_group(ts, p, list, count) : TW_OK;
+    int err = TW_OK;
+    if (count >= 2) {
+        err = merge_group(ts, p, list, count);
+        *budget -= bytes;
+    }
     free(list);
     return err;
 }
