@@ -291,9 +291,24 @@ static GLuint link_program(struct tw_renderer *r, const char *vs_src, const char
 }
 
 /* Copies ts's meshes into b's GL buffers. */
-/* Bytes of one vertex in a vertex buffer (tw_tileset_geometry_bytes() counts
- * the same). */
-#define VERTEX_BYTES 28
+/* Bytes of one vertex in a vertex buffer: its position (three floats), its
+ * normal (GL_INT_2_10_10_10_REV) and its colour (RGBA8).
+ * tw_tileset_geometry_bytes() counts the same. */
+#define VERTEX_BYTES 20
+
+/* n scaled to unit length, as signed normalised 10-bit x, y, z (x in the
+ * low bits); a zero vector stays zero. The shader normalises after the
+ * instance's transform, so only the direction matters. */
+static uint32_t pack_normal(const float n[3])
+{
+    const float len = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    uint32_t word = 0;
+    for (int k = 0; k < 3; k++) {
+        const float x = len > 0.0f ? fminf(fmaxf(n[k] / len, -1.0f), 1.0f) : 0.0f;
+        word |= ((uint32_t)(int32_t)lrintf(x * 511.0f) & 0x3ffu) << (10 * k);
+    }
+    return word;
+}
 
 static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts, struct gpu_buffers *b)
 {
@@ -313,8 +328,7 @@ static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts, st
     b->base_vertex = calloc(2 * (size_t)(ts->mesh_count ? ts->mesh_count : 1), sizeof(uint32_t));
     b->first_index = b->base_vertex ? b->base_vertex + (ts->mesh_count ? ts->mesh_count : 1)
                                     : NULL;
-    /* A vertex: position and normal (floats), then its colour (RGBA8). */
-    float *interleaved = malloc((size_t)VERTEX_BYTES * (vertices ? vertices : 1));
+    uint8_t *interleaved = malloc((size_t)VERTEX_BYTES * (vertices ? vertices : 1));
     uint32_t *index_data = malloc(sizeof(uint32_t) * (indices ? indices : 1));
     int err = TW_OK;
     if (!b->base_vertex || !b->first_index || !interleaved || !index_data) {
@@ -328,10 +342,11 @@ static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts, st
         b->first_index[k] = ibase;
         static const uint8_t white[4] = {255, 255, 255, 255};
         for (uint32_t v = 0; v < m->vertex_count; v++) {
-            float *to = interleaved + 7 * (size_t)(vbase + v);
+            uint8_t *to = interleaved + (size_t)VERTEX_BYTES * (vbase + v);
+            const uint32_t normal = pack_normal(m->normals + 3 * (size_t)v);
             memcpy(to, m->positions + 3 * (size_t)v, 12);
-            memcpy(to + 3, m->normals + 3 * (size_t)v, 12);
-            memcpy(to + 6, m->colors ? m->colors + 4 * (size_t)v : white, 4);
+            memcpy(to + 12, &normal, 4);
+            memcpy(to + 16, m->colors ? m->colors + 4 * (size_t)v : white, 4);
         }
         memcpy(index_data + ibase, m->indices, sizeof(uint32_t) * 3 * (size_t)m->triangle_count);
         vbase += m->vertex_count;
@@ -350,9 +365,9 @@ static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts, st
     gl->EnableVertexAttribArray(0);
     gl->VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, VERTEX_BYTES, (const void *)0);
     gl->EnableVertexAttribArray(1);
-    gl->VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, VERTEX_BYTES, (const void *)12);
+    gl->VertexAttribPointer(1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, VERTEX_BYTES, (const void *)12);
     gl->EnableVertexAttribArray(2);
-    gl->VertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, VERTEX_BYTES, (const void *)24);
+    gl->VertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, VERTEX_BYTES, (const void *)16);
     gl->BindVertexArray(0);
     r->bound_vao = 0;
     b->bytes = (uint64_t)VERTEX_BYTES * vertices + sizeof(uint32_t) * indices;

@@ -878,7 +878,7 @@ static uint64_t mesh_bytes(const struct tw_tileset *ts)
 {
     uint64_t bytes = 0;
     for (uint32_t k = 0; k < ts->mesh_count; k++)
-        bytes += 28ull * ts->meshes[k].vertex_count + 12ull * ts->meshes[k].triangle_count;
+        bytes += 20ull * ts->meshes[k].vertex_count + 12ull * ts->meshes[k].triangle_count;
     return bytes;
 }
 
@@ -1021,7 +1021,7 @@ static void test_merge_instances(void)
                   (double)p->box.max[a], (double)q->box.min[a], (double)q->box.max[a]);
     /* The merged mesh costs its bytes. */
     CHECK_MSG(tw_tileset_geometry_bytes(ts) == mesh_bytes(ts) &&
-                  tw_tileset_geometry_bytes(ts) == tw_tileset_geometry_bytes(plain) + 16 * 28 + 8 * 12,
+                  tw_tileset_geometry_bytes(ts) == tw_tileset_geometry_bytes(plain) + 16 * 20 + 8 * 12,
               "geometry bytes %llu, plain %llu", (unsigned long long)tw_tileset_geometry_bytes(ts),
               (unsigned long long)tw_tileset_geometry_bytes(plain));
 out:
