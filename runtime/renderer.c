@@ -290,7 +290,6 @@ static GLuint link_program(struct tw_renderer *r, const char *vs_src, const char
     return p;
 }
 
-/* Copies ts's meshes into b's GL buffers. */
 /* Bytes of one vertex in a vertex buffer: its position (three floats), its
  * normal (GL_INT_2_10_10_10_REV) and its colour (RGBA8).
  * tw_tileset_geometry_bytes() counts the same. */
@@ -310,6 +309,7 @@ static uint32_t pack_normal(const float n[3])
     return word;
 }
 
+/* Copies ts's meshes into b's GL buffers. */
 static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts, struct gpu_buffers *b)
 {
     const struct tw_gl *gl = &r->gl;
