@@ -291,9 +291,10 @@ static GLuint link_program(struct tw_renderer *r, const char *vs_src, const char
 }
 
 /* Bytes of one vertex in a vertex buffer: its position (three floats), its
- * normal (GL_INT_2_10_10_10_REV) and its colour (RGBA8).
- * tw_tileset_geometry_bytes() counts the same. */
-#define VERTEX_BYTES 20
+ * normal (GL_INT_2_10_10_10_REV) and its colour (RGBA8), as
+ * tw_tileset_geometry_bytes() counts them. */
+#define VERTEX_BYTES TW_TILESET_GPU_VERTEX_BYTES
+_Static_assert(TW_TILESET_GPU_VERTEX_BYTES == 12 + 4 + 4, "the vertex layout of upload_buffers");
 
 /* n scaled to unit length, as signed normalised 10-bit x, y, z (x in the
  * low bits); a zero vector stays zero. The shader normalises after the

@@ -660,7 +660,7 @@ uint64_t tw_tileset_geometry_bytes(const struct tw_tileset *ts)
 {
     uint64_t bytes = 0;
     for (uint32_t k = 0; k < ts->mesh_count; k++)
-        bytes += (uint64_t)ts->meshes[k].vertex_count * 20u +
+        bytes += (uint64_t)ts->meshes[k].vertex_count * TW_TILESET_GPU_VERTEX_BYTES +
                  (uint64_t)ts->meshes[k].triangle_count * 12u;
     return bytes;
 }

@@ -339,9 +339,13 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles);
  * TW_ERR_NOMEM *ts is unchanged and still valid. */
 int tw_tileset_pack(struct tw_tileset **ts);
 
-/* Sum of all mesh data bytes, merged meshes included, at 20 bytes a vertex
- * (position in floats, normal in 10-bit integers, RGBA colour in bytes) and
- * 12 a triangle: what the renderer uploads once. */
+/* Bytes of a vertex in the renderer's buffers: its position in floats (12),
+ * its normal in 10-bit integers (4), its RGBA colour in bytes (4). */
+#define TW_TILESET_GPU_VERTEX_BYTES 20u
+
+/* Sum of all mesh data bytes, merged meshes included, at
+ * TW_TILESET_GPU_VERTEX_BYTES a vertex and 12 a triangle: what the renderer
+ * uploads once. */
 uint64_t tw_tileset_geometry_bytes(const struct tw_tileset *ts);
 
 /* ---- selection ------------------------------------------------------------ */
