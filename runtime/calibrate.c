@@ -99,12 +99,35 @@ static double time_draws(struct tw_renderer *r, const struct tw_query_backend *b
  * draw (ms) and triangle (ms). */
 enum { FIG_QUERY, FIG_BOX, FIG_PIXEL, FIG_DRAW, FIG_TRIANGLE, FIGURES };
 
-static void measure_round(struct tw_renderer *r, const struct tw_query_backend *pbe,
-                          const struct tw_tileset *ts, uint32_t first_content, double f,
-                          const struct tw_calibration *base, double fig[FIGURES])
+/* A cluster that the draw figures are timed on. */
+struct probe {
+    uint32_t prototype, cluster, triangles;
+};
+
+/* The smallest cluster of the tileset and the largest of at most
+ * DRAW_MAX_TRIANGLES; false if the tileset has no cluster. */
+static bool find_probes(const struct tw_tileset *ts, struct probe *lo, struct probe *hi)
 {
-    const struct tw_query_backend be = *pbe;
-    const struct tw_calibration *out = base;
+    *lo = (struct probe){0, 0, UINT32_MAX};
+    *hi = (struct probe){0, 0, 0};
+    for (uint32_t p = 0; ts && p < ts->prototype_count; p++)
+        for (uint32_t c = 0; c < ts->prototypes[p].cluster_count; c++) {
+            const uint32_t t = ts->prototypes[p].clusters[c].triangle_count;
+            if (t < lo->triangles)
+                *lo = (struct probe){p, c, t};
+            if (t > hi->triangles && t <= DRAW_MAX_TRIANGLES)
+                *hi = (struct probe){p, c, t};
+        }
+    return lo->triangles != UINT32_MAX;
+}
+
+/* One round: lo and hi are the probes when has_probes, nominal holds the
+ * figures that a tileset without clusters keeps. */
+static void measure_round(struct tw_renderer *r, const struct tw_query_backend *be,
+                          const struct tw_tileset *ts, uint32_t first_content, double f,
+                          bool has_probes, const struct probe *lo, const struct probe *hi,
+                          const struct tw_calibration *nominal, double fig[FIGURES])
+{
     /* Queries: one small box, one large box, eight small boxes side by side. */
     double small_px, large_px;
     const struct tw_box small = axis_cube(100.0f, 1.0f, f, &small_px);
@@ -118,48 +141,34 @@ static void measure_round(struct tw_renderer *r, const struct tw_query_backend *
     /* The fixed cost is a round trip: a traversal waits for most of its
      * answers (the frames' blocking reads); boxes and pixels are what a
      * query adds to a batch. */
-    const double q_trip = time_queries(r, &be, &small, 1, true);
-    const double q_small = time_queries(r, &be, &small, 1, false);
-    const double q_large = time_queries(r, &be, &large, 1, false);
-    const double q_eight = time_queries(r, &be, eight, 8, false);
+    const double q_trip = time_queries(r, be, &small, 1, true);
+    const double q_small = time_queries(r, be, &small, 1, false);
+    const double q_large = time_queries(r, be, &large, 1, false);
+    const double q_eight = time_queries(r, be, eight, 8, false);
     double pixel = large_px > small_px ? (q_large - q_small) / (large_px - small_px) : 0.0;
     if (!(pixel > 0.0))
         pixel = 0.0;
-    double query = (q_trip > q_small ? q_trip : q_small) - pixel * small_px;
+    const double query = (q_trip > q_small ? q_trip : q_small) - pixel * small_px;
     double box = (q_eight - q_small - pixel * 7.0 * small_px) / 7.0;
     if (!(box > 0.0))
         box = 0.0;
 
-    /* Draws: the smallest cluster and the largest of at most 512 triangles. */
-    uint32_t lo_p = 0, lo_c = 0, hi_p = 0, hi_c = 0, lo_t = UINT32_MAX, hi_t = 0;
-    for (uint32_t p = 0; ts && p < ts->prototype_count; p++)
-        for (uint32_t c = 0; c < ts->prototypes[p].cluster_count; c++) {
-            const uint32_t t = ts->prototypes[p].clusters[c].triangle_count;
-            if (t < lo_t) {
-                lo_t = t;
-                lo_p = p;
-                lo_c = c;
-            }
-            if (t > hi_t && t <= DRAW_MAX_TRIANGLES) {
-                hi_t = t;
-                hi_p = p;
-                hi_c = c;
-            }
-        }
-    double draw = out->draw_ms, triangle = out->triangle_ns * 1e-6;
-    if (lo_t != UINT32_MAX) {
-        const double d_lo = time_draws(r, &be, ts, first_content, lo_p, lo_c);
-        if (hi_t > lo_t) {
-            const double d_hi = time_draws(r, &be, ts, first_content, hi_p, hi_c);
-            triangle = (d_hi - d_lo) / (double)(hi_t - lo_t);
+    /* Draws: the two probes; the difference prices a triangle. */
+    double draw = nominal->draw_ms, triangle = nominal->triangle_ns * 1e-6;
+    if (has_probes) {
+        const double d_lo = time_draws(r, be, ts, first_content, lo->prototype, lo->cluster);
+        if (hi->triangles > lo->triangles) {
+            const double d_hi =
+                time_draws(r, be, ts, first_content, hi->prototype, hi->cluster);
+            triangle = (d_hi - d_lo) / (double)(hi->triangles - lo->triangles);
         } else {
             /* One size of cluster: split its cost as the nominal figures do. */
-            const double nominal = out->draw_ms + out->triangle_ns * 1e-6 * lo_t;
-            triangle = d_lo * (out->triangle_ns * 1e-6) / nominal;
+            const double whole = nominal->draw_ms + triangle * lo->triangles;
+            triangle = d_lo * triangle / whole;
         }
         if (!(triangle > 0.0))
             triangle = 0.0;
-        draw = d_lo - triangle * lo_t;
+        draw = d_lo - triangle * lo->triangles;
     }
     fig[FIG_QUERY] = query;
     fig[FIG_BOX] = box;
@@ -193,9 +202,11 @@ int tw_calibrate_measure(struct tw_renderer *r, const struct tw_tileset *ts,
     /* Each figure is the median of ROUNDS rounds: one round's query/triangle
      * balance was seen to range over 823-1293 triangles a query from one
      * world to the next, and it decides what CHC++ queries all run long. */
+    struct probe lo, hi;
+    const bool has_probes = find_probes(ts, &lo, &hi);
     double rounds[FIGURES][ROUNDS], fig[FIGURES];
     for (int k = 0; k < ROUNDS; k++) {
-        measure_round(r, &be, ts, first_content, f, out, fig);
+        measure_round(r, &be, ts, first_content, f, has_probes, &lo, &hi, out, fig);
         for (int i = 0; i < FIGURES; i++)
             rounds[i][k] = fig[i];
     }
