@@ -773,6 +773,7 @@ static int flatten(struct stage *st, const struct tw_prototype *proto,
                 triangles += cl->triangle_count;
             }
             n->triangle_count = (uint32_t)triangles;
+            n->cluster_total = n->cluster_count;
             bvh->leaf_count++;
         } else {
             const struct tw_bvh_node *l = &bvh->nodes[n->child[0]];
@@ -780,6 +781,7 @@ static int flatten(struct stage *st, const struct tw_prototype *proto,
             tw_box_add_box(&n->box, &l->box);
             tw_box_add_box(&n->box, &r->box);
             n->triangle_count = l->triangle_count + r->triangle_count;
+            n->cluster_total = l->cluster_total + r->cluster_total;
         }
         if (n->depth > bvh->depth)
             bvh->depth = n->depth;
@@ -1037,13 +1039,16 @@ int tw_bvh_validate(const struct tw_bvh *bvh, const struct tw_prototype *proto,
             if (triangles != n->triangle_count)
                 FAIL("leaf %u counts %u triangles, its clusters %llu", i, n->triangle_count,
                      (unsigned long long)triangles);
+            if (n->cluster_total != n->cluster_count)
+                FAIL("leaf %u counts %u clusters in all, %u of its own", i, n->cluster_total,
+                     n->cluster_count);
             leaves++;
             continue;
         }
 
         if (n->cluster_count != 0)
             FAIL("interior node %u has clusters", i);
-        uint64_t triangles = 0;
+        uint64_t triangles = 0, clusters = 0;
         for (int k = 0; k < 2; k++) {
             const uint32_t c = n->child[k];
             if (c >= bvh->node_count || c == 0 || c == i)
@@ -1060,10 +1065,14 @@ int tw_bvh_validate(const struct tw_bvh *bvh, const struct tw_prototype *proto,
             if (!box_contains(&n->box, &child->box))
                 FAIL("node %u's box does not hold child %u's", i, c);
             triangles += child->triangle_count;
+            clusters += child->cluster_total;
         }
         if (triangles != n->triangle_count)
             FAIL("node %u counts %u triangles, its children %llu", i, n->triangle_count,
                  (unsigned long long)triangles);
+        if (clusters != n->cluster_total)
+            FAIL("node %u counts %u clusters in all, its children %llu", i, n->cluster_total,
+                 (unsigned long long)clusters);
     }
     /* Depth rises by one along every child link and only the root has
      * depth 0, so every node's parent chain ends at the root: with one

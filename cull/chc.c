@@ -42,6 +42,8 @@ struct iqueue_item {
     uint32_t seq;
     float group_cost;   /* what the node adds to a multiquery's cost (its boxes, pixels) */
     float alone_cost;   /* a query of its own */
+    float saving;       /* what a hidden answer saves: drawing it whole, times the
+                           chance that it stays hidden */
 };
 
 /* An issued I-query: count nodes starting at query_nodes[first]. */
@@ -85,6 +87,8 @@ struct queues {
     uint32_t stamp;
     struct tw_box *boxes;
     size_t box_cap;
+    uint32_t *group_len;        /* issue_iqueue: the sizes of the groups it queries */
+    size_t group_cap;
 };
 
 /* One traversal of one tile. */
@@ -110,6 +114,12 @@ struct suspended {
     bool active;
 };
 
+/* The buckets of invisible_frames the chance of staying hidden is measured
+ * in (the last: that many frames or more), and the decay per answer: about
+ * the last thousand answers of a bucket count. */
+#define KEEP_BUCKETS 6u
+#define KEEP_DECAY 0.999
+
 struct tw_chc {
     struct tw_chc_settings settings;
     uint64_t rng;
@@ -125,6 +135,11 @@ struct tw_chc {
     /* V-query answers, and of them hidden ones, decayed by VQ_DECAY per
      * answer: the chance that a visible leaf's re-query finds it hidden. */
     double vq_answers, vq_hidden;
+    /* I-query answers by the nodes' invisible_frames (the last bucket: that
+     * many or more), and of them hidden ones, decayed by VQ_DECAY per
+     * answer: the measured chance that a node stays hidden, which the cost
+     * model uses instead of the paper's p(i). */
+    double iq_answers[KEEP_BUCKETS], iq_hidden[KEEP_BUCKETS];
     bool unflushed;             /* drawn or issued since the last flush */
 };
 
@@ -186,6 +201,7 @@ static void free_queues(struct queues *q)
     free(q->render);
     free(q->cluster_stamp);
     free(q->boxes);
+    free(q->group_len);
 }
 
 static size_t queues_bytes(const struct queues *q)
@@ -194,7 +210,7 @@ static size_t queues_bytes(const struct queues *q)
            q->vqueue_cap * sizeof(*q->vqueue) + q->iq_cap * sizeof(*q->iqueries) +
            q->query_node_cap * sizeof(*q->query_nodes) + q->vq_cap * sizeof(*q->vqueries) +
            q->render_cap * sizeof(*q->render) + q->stamp_cap * sizeof(*q->cluster_stamp) +
-           q->box_cap * sizeof(*q->boxes);
+           q->box_cap * sizeof(*q->boxes) + q->group_cap * sizeof(*q->group_len);
 }
 
 void tw_chc_destroy(struct tw_chc *chc)
@@ -256,6 +272,34 @@ static double keep_probability(uint32_t invisible_frames)
     return 0.99 - 0.7 * exp(-(double)invisible_frames);
 }
 
+/* The answers the paper's p(i) weighs as, before the measured ones. */
+#define KEEP_PRIOR 20.0
+
+static uint32_t keep_bucket(uint32_t invisible_frames)
+{
+    return invisible_frames < KEEP_BUCKETS - 1 ? invisible_frames : KEEP_BUCKETS - 1;
+}
+
+/* The chance that a node hidden for invisible_frames frames is hidden again:
+ * with the cost model, as measured on this traversal's answers (from p(i),
+ * as strong as KEEP_PRIOR answers); without, the paper's p(i). */
+static double keep_chance(const struct tw_chc *chc, uint32_t invisible_frames)
+{
+    const double prior = keep_probability(invisible_frames);
+    if (!chc->model)
+        return prior;
+    const uint32_t b = keep_bucket(invisible_frames);
+    return (chc->iq_hidden[b] + KEEP_PRIOR * prior) / (chc->iq_answers[b] + KEEP_PRIOR);
+}
+
+/* One I-query answer about a node hidden for invisible_frames frames. */
+static void count_keep(struct tw_chc *chc, uint32_t invisible_frames, bool hidden)
+{
+    const uint32_t b = keep_bucket(invisible_frames);
+    chc->iq_answers[b] = chc->iq_answers[b] * KEEP_DECAY + 1.0;
+    chc->iq_hidden[b] = chc->iq_hidden[b] * KEEP_DECAY + (hidden ? 1.0 : 0.0);
+}
+
 static bool is_leaf(const struct tw_bvh_node *n)
 {
     return n->child[0] == TW_BVH_NONE;
@@ -263,23 +307,23 @@ static bool is_leaf(const struct tw_bvh_node *n)
 
 /* ---- the cost model (DESIGN §14) ---------------------------------------------------- */
 
-/* About how many pixels the query of box b covers: a convex body's mean
- * projected area is a quarter of its surface, at the distance of the
- * nearest point (an overestimate, the safe side for a cost). */
-static float box_pixels(const struct tw_cost_model *c, const struct tw_box *b, float distance)
+/* The pixels of the screen rectangle of node's box: what its query, or
+ * drawing it, can touch at most. */
+static float box_pixels(const struct pass *p, uint32_t node)
 {
-    const float d = distance > 0.5f ? distance : 0.5f;
-    const float px = 0.25f * tw_box_surface_area(b) * c->pixels_per_sr / (d * d);
-    return px < c->screen_pixels ? px : c->screen_pixels;
+    return p->chc->costs.screen_pixels *
+           tw_cull_box_screen_fraction(p->v, &p->nodes[node].box, p->tile->offset);
 }
 
-/* Drawing a leaf's clusters, pixels left out (a hidden node's pixels are
- * depth-tested whether it is drawn or queried). An interior node costs at
- * least its triangles and two draws. */
-static float draw_cost(const struct tw_cost_model *c, const struct tw_bvh_node *n)
+/* Drawing a node whole when it turns out hidden, its box covering pixels: a
+ * draw per cluster of its leaves, its triangles, and those pixels,
+ * depth-tested (the calibration's figures are those of a hidden cluster: a
+ * visible one costs the same queried or not). A node found cheaper to draw
+ * than to query has children cheaper still: it is drawn whole. */
+static float draw_cost(const struct tw_cost_model *c, const struct tw_bvh_node *n, float pixels)
 {
-    const uint32_t draws = n->child[0] == TW_BVH_NONE ? n->cluster_count : 2;
-    return (float)draws * c->draw + (float)n->triangle_count * c->triangle;
+    return (float)n->cluster_total * c->draw + (float)n->triangle_count * c->triangle +
+           pixels * c->draw_pixel;
 }
 
 /* Visible last frame. visible_frame == frame counts too (already visible this
@@ -547,25 +591,101 @@ static size_t group_end(const struct tw_chc *chc, const struct iqueue_item *item
     return j;
 }
 
-/* Issues the I-queue as multiqueries. */
+/* A node that the model finds cheaper to draw than to ask about: drawn (or
+ * opened) as if visible, never taken as hidden. Nothing was learnt, so
+ * nothing is pulled up: its parent may still be found hidden, and queried,
+ * whole. */
+static void skip_query(struct pass *p, uint32_t node)
+{
+    p->chc->stats.queries_skipped++;
+    if (is_leaf(&p->nodes[node]))
+        draw_leaf(p, node);
+    else
+        push_children(p, node);
+}
+
+/* What querying group items[i, j) costs (DESIGN §14): the query of all
+ * its boxes and, with the chance that the group comes back visible, its
+ * nodes' own queries again; a lone node's answer is final. *saving: what
+ * its hidden answers save. */
+static double group_cost(const struct tw_chc *chc, const struct iqueue_item *items, size_t i,
+                         size_t j, double *saving)
+{
+    *saving = 0.0;
+    for (size_t k = i; k < j; k++)
+        *saving += items[k].saving;
+    if (j - i == 1)
+        return items[i].alone_cost;
+    double keep = 1.0, boxes = 0.0, alone = 0.0;
+    for (size_t k = i; k < j; k++) {
+        keep *= keep_chance(chc, items[k].invisible_frames);
+        boxes += items[k].group_cost;
+        alone += items[k].alone_cost;
+    }
+    return chc->costs.query + boxes + (1.0 - keep) * alone;
+}
+
+/* Issues the I-queue as multiqueries. With the cost model, a node whose
+ * saving is below what it adds to any group (its boxes, and its own query
+ * again if the group comes back visible) is drawn instead, and so is a
+ * group that does not pay, and the whole batch if what it saves does not
+ * pay for sending it and waiting (query_flush): the fixed costs are
+ * shared, so the choice is made here and not node by node. What is drawn
+ * goes to the GPU before the queries, as an occluder. */
 static void issue_iqueue(struct pass *p)
 {
     struct tw_chc *chc = p->chc;
-    const size_t n = chc->q.iqueue_count;
+    struct iqueue_item *items = chc->q.iqueue;
+    size_t n = chc->q.iqueue_count;
     if (n == 0)
         return;
-    flush_render(p);
-    sort_iqueue(chc->q.iqueue, n);
+    chc->q.iqueue_count = 0;
+    if (chc->model) {
+        size_t kept = 0;
+        for (size_t k = 0; k < n; k++) {
+            const double own_again = (1.0 - keep_chance(chc, items[k].invisible_frames)) *
+                                     items[k].alone_cost;
+            if (items[k].saving < items[k].group_cost + own_again)
+                skip_query(p, items[k].node);
+            else
+                items[kept++] = items[k];
+        }
+        n = kept;
+    }
+    sort_iqueue(items, n);
+    size_t groups = 0, queried = 0;
+    double batch_saving = 0.0, batch_cost = chc->costs.query_flush;
     for (size_t i = 0; i < n;) {
-        const size_t j = group_end(chc, chc->q.iqueue, i, n);
-        const size_t first = chc->q.query_node_count;
-        assert(first + (j - i) <= chc->q.query_node_cap);
-        for (size_t k = i; k < j; k++)
-            chc->q.query_nodes[chc->q.query_node_count++] = chc->q.iqueue[k].node;
-        issue_iquery(p, first, (uint32_t)(j - i));
+        const size_t j = group_end(chc, items, i, n);
+        double saving = 0.0;
+        const double cost = chc->model ? group_cost(chc, items, i, j, &saving) : 0.0;
+        if (saving < cost) {
+            for (size_t k = i; k < j; k++)
+                skip_query(p, items[k].node);
+        } else {
+            for (size_t k = i; k < j; k++)
+                items[queried++] = items[k];
+            chc->q.group_len[groups++] = (uint32_t)(j - i);
+            batch_saving += saving;
+            batch_cost += cost;
+        }
         i = j;
     }
-    chc->q.iqueue_count = 0;
+    if (chc->model && groups > 0 && batch_saving < batch_cost) {
+        for (size_t k = 0; k < queried; k++)
+            skip_query(p, items[k].node);
+        groups = 0;
+    }
+    flush_render(p);
+    if (groups == 0)
+        return;
+    for (size_t g = 0, i = 0; g < groups; i += chc->q.group_len[g++]) {
+        const size_t first = chc->q.query_node_count;
+        assert(first + chc->q.group_len[g] <= chc->q.query_node_cap);
+        for (size_t k = i; k < i + chc->q.group_len[g]; k++)
+            chc->q.query_nodes[chc->q.query_node_count++] = items[k].node;
+        issue_iquery(p, first, chc->q.group_len[g]);
+    }
     flush_gpu(p);
 }
 
@@ -602,6 +722,7 @@ static void handle_iquery(struct pass *p, const struct iquery *q, uint32_t sampl
         struct tw_chc_node_state *s = &p->state[node];
         if (s->pending_query == q->handle)
             s->pending_query = 0;
+        count_keep(chc, s->invisible_frames, !visible);
         if (!visible) {
             if (s->invisible_frames < UINT32_MAX)
                 s->invisible_frames++;
@@ -661,14 +782,14 @@ static void process_node(struct pass *p, uint32_t node)
         return;
     }
     const struct tw_cost_model *c = &chc->costs;
-    float alone = 1.0f, group = 0.0f;
+    float alone = 1.0f, group = 0.0f, pixels = 0.0f;
     if (chc->model) {
         /* What a query of this node would cost: its fixed part, its boxes
          * beyond the first and the pixels they cover. */
         uint32_t boxes = 1;
         tight_boxes(p, node, &boxes);
-        const float d = tw_cull_box_distance(p->v, &n->box, p->tile->offset);
-        group = (float)boxes * c->query_box + box_pixels(c, &n->box, d) * c->query_pixel;
+        pixels = box_pixels(p, node);
+        group = (float)boxes * c->query_box + pixels * c->query_pixel;
         alone = c->query + group - c->query_box;
     }
     if (was_visible(s, p->frame)) {
@@ -686,7 +807,8 @@ static void process_node(struct pass *p, uint32_t node)
             const uint32_t up = n->parent != TW_BVH_NONE ? n->parent : node;
             const float n_av = (float)(chc->settings.assumed_visible + 1);
             if (!chc->model ||
-                vquery_hidden_rate(chc) * n_av * draw_cost(c, &p->nodes[up]) >
+                vquery_hidden_rate(chc) * n_av *
+                        draw_cost(c, &p->nodes[up], box_pixels(p, up)) >
                     c->query + group - c->query_box ||
                 next_random(chc) % VQ_EXPLORE == 0) {
                 chc->q.vqueue[chc->q.vqueue_head + chc->q.vqueue_count++] = node;
@@ -698,20 +820,11 @@ static void process_node(struct pass *p, uint32_t node)
         pull_up(p->state, p->nodes, node, p->frame);
         return;
     }
-    if (chc->model && (float)keep_probability(s->invisible_frames) * draw_cost(c, n) <
-                          c->query + group - c->query_box) {
-        /* Cheaper to draw than to ask: drawn (or opened) as if visible,
-         * never taken as hidden. Nothing was learnt, so nothing is pulled
-         * up: its parent may still be found hidden, and queried, whole. */
-        chc->stats.queries_skipped++;
-        if (leaf)
-            draw_leaf(p, node);
-        else
-            push_children(p, node);
-        return;
-    }
+    /* Whether it pays to ask is decided with its batch (issue_iqueue). */
+    const float saving =
+        chc->model ? (float)keep_chance(chc, s->invisible_frames) * draw_cost(c, n, pixels) : 0.0f;
     chc->q.iqueue[chc->q.iqueue_count++] =
-        (struct iqueue_item){node, s->invisible_frames, p->iqueue_seq++, group, alone};
+        (struct iqueue_item){node, s->invisible_frames, p->iqueue_seq++, group, alone, saving};
     if (chc->q.iqueue_count >= chc->settings.batch_size)
         issue_iqueue(p);
 }
@@ -736,7 +849,9 @@ static bool reserve_pass(struct tw_chc *chc, const struct tw_chc_tile *tile)
         tw_cull_reserve((void **)&chc->q.render, &chc->q.render_cap, clusters, sizeof(*chc->q.render)) &&
         tw_cull_reserve((void **)&chc->q.cluster_stamp, &chc->q.stamp_cap, clusters,
                 sizeof(*chc->q.cluster_stamp)) &&
-        tw_cull_reserve((void **)&chc->q.boxes, &chc->q.box_cap, nodes, sizeof(*chc->q.boxes));
+        tw_cull_reserve((void **)&chc->q.boxes, &chc->q.box_cap, nodes, sizeof(*chc->q.boxes)) &&
+        tw_cull_reserve((void **)&chc->q.group_len, &chc->q.group_cap, nodes,
+                        sizeof(*chc->q.group_len));
     if (!ok)
         return false;
     chc->q.heap_count = 0;

@@ -150,6 +150,32 @@ bool tw_cull_near_box(const struct tw_view *v, const struct tw_box *b, const flo
     return d <= r * 1.01f + 1e-4f;
 }
 
+float tw_cull_box_screen_fraction(const struct tw_view *v, const struct tw_box *b,
+                                  const float offset[3])
+{
+    const float *m = v->view_proj;
+    float lo[2] = {1.0f, 1.0f}, hi[2] = {-1.0f, -1.0f};
+    for (int k = 0; k < 8; k++) {
+        const float p[3] = {((k & 1) ? b->max[0] : b->min[0]) + (offset ? offset[0] : 0.0f),
+                            ((k & 2) ? b->max[1] : b->min[1]) + (offset ? offset[1] : 0.0f),
+                            ((k & 4) ? b->max[2] : b->min[2]) + (offset ? offset[2] : 0.0f)};
+        const float w = m[3] * p[0] + m[7] * p[1] + m[11] * p[2] + m[15];
+        if (!(w > 1e-6f))
+            return 1.0f;
+        for (int a = 0; a < 2; a++) {
+            const float ndc = (m[a] * p[0] + m[a + 4] * p[1] + m[a + 8] * p[2] + m[a + 12]) / w;
+            lo[a] = fminf(lo[a], ndc);
+            hi[a] = fmaxf(hi[a], ndc);
+        }
+    }
+    float area = 1.0f;
+    for (int a = 0; a < 2; a++) {
+        const float extent = fminf(hi[a], 1.0f) - fmaxf(lo[a], -1.0f);
+        area *= extent > 0.0f ? 0.5f * extent : 0.0f;
+    }
+    return area;
+}
+
 float tw_cull_box_distance(const struct tw_view *v, const struct tw_box *b, const float offset[3])
 {
     const float p[3] = {v->eye[0] - (offset ? offset[0] : 0.0f),

@@ -807,6 +807,15 @@ void tw_renderer_finish(struct tw_renderer *r)
     r->gl.Finish();
 }
 
+void tw_renderer_clear_depth(struct tw_renderer *r, bool occluded)
+{
+    const struct tw_gl *gl = &r->gl;
+    gl->DepthMask(GL_TRUE);
+    gl->ClearDepth(occluded != r->reversed_z ? 0.0 : 1.0);
+    gl->Clear(GL_DEPTH_BUFFER_BIT);
+    r->mode = MODE_NONE;   /* the next draw or query sets its own masks */
+}
+
 static void enter_draw_mode(struct tw_renderer *r)
 {
     if (r->mode == MODE_DRAW)

@@ -61,6 +61,10 @@ void tw_renderer_begin_frame(struct tw_renderer *r, const struct tw_view *v);
 void tw_renderer_end_frame(struct tw_renderer *r);
 /* Waits for the GPU to finish everything sent (glFinish). */
 void tw_renderer_finish(struct tw_renderer *r);
+/* Clears the depth buffer to the near plane (occluded true: every fragment
+ * drawn after fails the depth test, as a hidden cluster's do) or to the far
+ * plane (false: as tw_renderer_begin_frame leaves it). The calibration's. */
+void tw_renderer_clear_depth(struct tw_renderer *r, bool occluded);
 
 /* The query backend drawing into this renderer. */
 struct tw_query_backend tw_renderer_backend(struct tw_renderer *r);

@@ -646,7 +646,7 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
         cpu0 += tw_renderer_cpu_ms() - cs0;
     }
     struct tw_cost_model costs;
-    tw_calibrate_model(&w->calibration, w->s.width, w->s.height, w->s.fov_y, &costs);
+    tw_calibrate_model(&w->calibration, w->s.width, w->s.height, &costs);
     tw_cull_driver_set_costs(ms->driver, &costs);
     tw_renderer_begin_frame(w->renderer, &v);
     const struct tw_query_backend be = tw_renderer_backend(w->renderer);

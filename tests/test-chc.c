@@ -299,6 +299,7 @@ static uint32_t build_range(struct tree *t, uint32_t lo, uint32_t hi, uint32_t p
         node->first_cluster = lo;
         node->cluster_count = 1;
         node->triangle_count = 10;
+        node->cluster_total = 1;
         t->cluster_order[lo] = lo;
         t->leaf_node[lo] = n;
         t->bvh.leaf_count++;
@@ -311,6 +312,7 @@ static uint32_t build_range(struct tree *t, uint32_t lo, uint32_t hi, uint32_t p
         node->child[1] = b;
         node->box = box_union(&t->nodes[a].box, &t->nodes[b].box);
         node->triangle_count = t->nodes[a].triangle_count + t->nodes[b].triangle_count;
+        node->cluster_total = t->nodes[a].cluster_total + t->nodes[b].cluster_total;
     }
     t->tight[n] = t->nodes[n].box;
     return n;
@@ -1415,12 +1417,12 @@ static void test_determinism(void)
 /* Queries cost a millisecond, a leaf of 10 triangles 2 microseconds. */
 static const struct tw_cost_model expensive_queries = {
     .query = 1.0f, .query_box = 0.01f, .query_pixel = 0.0f, .draw = 1e-3f, .triangle = 1e-4f,
-    .pixels_per_sr = 1e5f, .screen_pixels = 1e5f,
+    .screen_pixels = 1e5f,
 };
 /* Queries cost a microsecond, a leaf of 10 triangles two milliseconds. */
 static const struct tw_cost_model cheap_queries = {
     .query = 1e-3f, .query_box = 0.0f, .query_pixel = 0.0f, .draw = 1.0f, .triangle = 0.1f,
-    .pixels_per_sr = 1e5f, .screen_pixels = 1e5f,
+    .screen_pixels = 1e5f,
 };
 
 /* Expensive queries: previously hidden small leaves are drawn without a
@@ -1502,7 +1504,7 @@ static void test_cost_requery_rate(void)
     /* A hidden answer saves at most 9 frames x 2 draws of the parent: 18 p
      * against a query of 4, worth it while p > 0.22. */
     static const struct tw_cost_model middling = {
-        .query = 4.0f, .draw = 1.0f, .pixels_per_sr = 1e5f, .screen_pixels = 1e5f,
+        .query = 4.0f, .draw = 1.0f, .screen_pixels = 1e5f,
     };
     for (int m = 0; m < 2; m++) {
         world_costs = m ? &cheap_queries : &middling;
@@ -1552,6 +1554,57 @@ static void test_cost_large_leaf(void)
     world_destroy(w);
 }
 
+/* A hidden node's pixels are priced too: the same small leaves that
+ * expensive queries leave unqueried are queried once drawing their boxes'
+ * pixels (depth-tested, hidden) costs more than a query. */
+static void test_cost_hidden_pixels(void)
+{
+    test_name = "cost_hidden_pixels";
+    struct tw_cost_model pixels = expensive_queries;
+    pixels.draw_pixel = 1e-1f;
+    for (int m = 0; m < 2; m++) {
+        world_costs = m ? &pixels : &expensive_queries;
+        struct world *w = world_create(column_tree(2), NULL, FAKE_NEVER);
+        world_costs = NULL;
+        set_interior_visible(w, 7);
+        set_leaf_invisible(w, 0, 3);
+        set_leaf_invisible(w, 1, 3);
+        const size_t mark = run_frame(w, 7);
+        CHECK_STR(describe(w, mark), m ? "Q(L0,L1) W" : "D(0,1)");
+        CHECK_U(tw_chc_stats(w->chc)->queries_skipped, m ? 0 : 2);
+        world_destroy(w);
+    }
+}
+
+/* The fixed costs are shared, so the choice is made per group and per
+ * batch: four small leaves, long hidden, that a query of their own would
+ * not pay for are queried as one group; the same four are drawn when
+ * sending the batch and waiting for it (query_flush) costs more than they
+ * can save. */
+static void test_cost_batch(void)
+{
+    test_name = "cost_batch";
+    /* A leaf: 10 triangles, 5 microseconds to draw; a query 10. */
+    struct tw_cost_model shared = {
+        .query = 0.01f, .draw = 0.004f, .triangle = 1e-4f,
+        .screen_pixels = 1e5f,
+    };
+    const char *expect[2] = {"Q(L0,L1,L2,L3) W", "D(0,1,2,3)"};
+    for (int m = 0; m < 2; m++) {
+        shared.query_flush = m ? 1.0f : 0.0f;
+        world_costs = &shared;
+        struct world *w = world_create(column_tree(4), NULL, FAKE_NEVER);
+        world_costs = NULL;
+        set_interior_visible(w, 20);
+        for (uint32_t k = 0; k < 4; k++)
+            set_leaf_invisible(w, k, 3);
+        const size_t mark = run_frame(w, 20);
+        CHECK_STR(describe(w, mark), expect[m]);
+        CHECK_U(tw_chc_stats(w->chc)->queries_skipped, m ? 4 : 0);
+        world_destroy(w);
+    }
+}
+
 /* Groups sized with costs: when a query's cost is all in its boxes (the
  * fixed part nothing), grouping saves nothing and every node goes alone;
  * when it is all in the fixed part, the groups are those of unit costs. */
@@ -1563,7 +1616,7 @@ static void test_cost_grouping(void)
         frames[k] = 50;
     const struct tw_cost_model boxes_cost = {
         .query = 1e-6f, .query_box = 1.0f, .draw = 10.0f, .triangle = 1.0f,
-        .pixels_per_sr = 1e5f, .screen_pixels = 1e5f,
+        .screen_pixels = 1e5f,
     };
     world_costs = &boxes_cost;
     CHECK_STR(grouping(4, frames, NULL), "L0 | L1 | L2 | L3");
@@ -1580,7 +1633,7 @@ static void test_cost_random_worlds(void)
     test_name = "cost_random_worlds";
     const struct tw_cost_model middle = {
         .query = 0.03f, .query_box = 0.001f, .query_pixel = 1e-6f, .draw = 0.002f,
-        .triangle = 1e-3f, .pixels_per_sr = 1e5f, .screen_pixels = 1e5f,
+        .triangle = 1e-3f, .screen_pixels = 1e5f,
     };
     const struct tw_cost_model *models[2] = {&expensive_queries, &middle};
     for (uint64_t seed = 1; seed <= 6; seed++)
@@ -1647,6 +1700,8 @@ int main(void)
     test_cost_skip_requery();
     test_cost_requery_rate();
     test_cost_large_leaf();
+    test_cost_hidden_pixels();
+    test_cost_batch();
     test_cost_grouping();
     test_cost_random_worlds();
     if (failures) {

@@ -68,6 +68,37 @@ static void test_near_rule(void)
     CHECK(v.near_radius > 0.2f && v.near_radius < 0.5f);
 }
 
+/* The screen rectangle of a box, as a fraction of the image: the camera of
+ * test_frustum_known_cases sees |x| <= z, |y| <= z. */
+static void test_screen_fraction(void)
+{
+    struct tw_view v;
+    const float eye[3] = {0, 0, 0};
+    tw_cull_view_setup(&v, (struct tw_cell){0, 0}, eye, 0.0f, 0.0f, 90.0f, 1.0f, 1.0f, 100.0f);
+    /* A flat square of side 10 at z = 10: half the image each way. */
+    struct tw_box b = box(-5, -5, 10, 5, 5, 10);
+    CHECK(fabsf(tw_cull_box_screen_fraction(&v, &b, NULL) - 0.25f) < 1e-4f);
+    /* Its depth adds nothing beyond its near face's rectangle. */
+    b = box(-5, -5, 10, 5, 5, 30);
+    CHECK(fabsf(tw_cull_box_screen_fraction(&v, &b, NULL) - 0.25f) < 1e-4f);
+    /* Off to one side: the part on screen only (a quarter of the width,
+     * half the height). */
+    b = box(5, -5, 10, 15, 5, 10);
+    CHECK(fabsf(tw_cull_box_screen_fraction(&v, &b, NULL) - 0.125f) < 1e-4f);
+    /* Wholly off screen, covering nothing; larger than the image: all. */
+    b = box(15, -5, 10, 25, 5, 10);
+    CHECK(tw_cull_box_screen_fraction(&v, &b, NULL) == 0.0f);
+    b = box(-50, -50, 10, 50, 50, 12);
+    CHECK(tw_cull_box_screen_fraction(&v, &b, NULL) == 1.0f);
+    /* Reaching behind the eye: all, the bound a query cannot exceed. */
+    b = box(-1, -1, -1, 1, 1, 5);
+    CHECK(tw_cull_box_screen_fraction(&v, &b, NULL) == 1.0f);
+    /* The offset moves the box: the square twice as far covers a quarter. */
+    b = box(-5, -5, 10, 5, 5, 10);
+    CHECK(fabsf(tw_cull_box_screen_fraction(&v, &b, (const float[3]){0, 0, 10}) - 0.0625f) <
+          1e-4f);
+}
+
 /* Cells come front to back, all within the view distance and the frustum,
  * and none is missing: compared with a brute-force scan. */
 static void test_cells_in_view(void)
@@ -168,6 +199,7 @@ int main(void)
 {
     test_frustum_known_cases();
     test_near_rule();
+    test_screen_fraction();
     test_cells_in_view();
     test_cells_in_view_bounded();
     return check_summary("test-cull");

@@ -28,6 +28,8 @@ struct tw_bvh_node {
     uint32_t tight_count;       /* >= 1; 1 means the node's own box */
     uint32_t depth;             /* root = 0 */
     uint32_t triangle_count;    /* in the whole subtree */
+    uint32_t cluster_total;     /* clusters of the whole subtree's leaves: the draws that
+                                   drawing it whole makes (a leaf: cluster_count) */
 };
 
 struct tw_bvh_settings {

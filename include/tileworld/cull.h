@@ -99,6 +99,13 @@ struct tw_box tw_cull_query_box(const float eye[3], const struct tw_box *b, cons
 bool tw_cull_near_box(const struct tw_view *v, const struct tw_box *b,
                       const float offset[3]);
 
+/* The fraction of the image that the screen-space rectangle of box b
+ * (moved by offset) covers, clipped to the image: at most 1, and 1 for a
+ * box reaching behind the eye. An upper bound of what drawing the box or
+ * the geometry inside it can touch. */
+float tw_cull_box_screen_fraction(const struct tw_view *v, const struct tw_box *b,
+                                  const float offset[3]);
+
 /* Distance from the eye to the nearest point of box b moved by offset. */
 float tw_cull_box_distance(const struct tw_view *v, const struct tw_box *b,
                            const float offset[3]);
@@ -202,14 +209,15 @@ struct tw_chc_settings {
  * of CPU time (a software rasteriser's work is CPU time). A zeroed model
  * (query == 0) is no model: every query costs one unit, as in the paper. */
 struct tw_cost_model {
-    float query;                /* one occlusion query (issue, one box, read back) */
+    float query;                /* one occlusion query of one box, in a batch */
+    float query_flush;          /* what a batch of queries adds once: sending it and
+                                   waiting for an answer (a round trip less a query) */
     float query_box;            /* each further box of a query */
     float query_pixel;          /* each pixel its boxes cover */
     float draw;                 /* one draw call (a cluster) */
     float triangle;             /* each triangle drawn */
-    float pixels_per_sr;        /* f^2, f the focal length in pixels: a box of surface
-                                   area S at distance d covers about (S / 4) f^2 / d^2
-                                   pixels */
+    float draw_pixel;           /* each pixel a drawn node's box covers (hidden: depth
+                                   tested, not shaded) */
     float screen_pixels;        /* width * height: no box covers more */
 };
 

@@ -80,19 +80,25 @@ struct tw_camera {
  * batch closed by glFinish; then refined from the frames drawn. */
 struct tw_calibration {
     double query_ms;         /* one occlusion query of one box: issue, draw, read back */
+    double query_batched_ms; /* the same query issued in a batch of them, all read at
+                                its end (0: query_ms) */
     double query_box_ms;     /* each further box of a query (an instance more) */
     double query_pixel_ns;   /* each pixel its boxes cover, nanoseconds */
-    double draw_ms;          /* one draw call (one cluster) */
+    double draw_ms;          /* one draw call (one cluster); the draw figures are of a
+                                hidden cluster, every fragment failing the depth test */
     double triangle_ns;      /* each triangle drawn, nanoseconds */
+    double draw_pixel_ns;    /* each pixel a drawn cluster's box covers, nanoseconds */
     double calibrate_ms;     /* CPU time the measurement took (0: not measured) */
     bool measured;           /* false: figures given in the settings, or the nominal
                                 ones of a deterministic world; neither is refined */
     uint32_t frames;         /* frames that refined the scales below */
     double query_scale;      /* refinement: the process CPU time of each finished frame
-                                (tw_world_finish) is regressed on its queries' and its
-                                draws' costs as calibrated; these are the fitted
+                                (tw_world_finish) is regressed on its queries' (batched)
+                                and its draws' costs as calibrated; these are the fitted
                                 factors (running, recent frames weigh more; 1 until
-                                enough frames of both kinds), within [0.1, 20] */
+                                enough frames of both kinds), within [0.1, 20]: how far
+                                the frames depart from the figures above. Reported, not
+                                applied to CHC++'s decisions (calibrate.c says why) */
     double draw_scale;
 };
 
