@@ -195,9 +195,7 @@ static void measure_hidden_draws(struct tw_renderer *r, const struct tw_query_ba
     }
     tw_renderer_finish(r);
     tw_renderer_clear_depth(r, false);
-    /* The far draws' pixels are left in the call and the triangle: the
-     * model's count of them is for a box seen from any side, and far more
-     * than a large flat cluster edge-on shows. */
+    /* The far draws' few pixels are left in the call and the triangle. */
     fig[FIG_DRAW] = d_lo - triangle * lo->triangles;
     fig[FIG_TRIANGLE] = triangle;
     fig[FIG_DRAW_PIXEL] = pixel;
@@ -278,8 +276,8 @@ int tw_calibrate_measure(struct tw_renderer *r, const struct tw_tileset *ts,
     const bool has_probes = find_probes(ts, &lo, &hi);
     double rounds[FIGURES][ROUNDS], fig[FIGURES];
     for (int k = 0; k < ROUNDS; k++) {
-        measure_round(r, &be, ts, first_content, &v, f, (double)width * height, has_probes, &lo, &hi,
-                      out, fig);
+        measure_round(r, &be, ts, first_content, &v, f, (double)width * height, has_probes,
+                      &lo, &hi, out, fig);
         for (int i = 0; i < FIGURES; i++)
             rounds[i][k] = fig[i];
     }
@@ -294,7 +292,9 @@ int tw_calibrate_measure(struct tw_renderer *r, const struct tw_tileset *ts,
      * never costs less than a microsecond. */
     out->query_ms = query > 1e-3 ? query : 1e-3;
     const double batched = fig[FIG_QUERY_BATCHED];
-    out->query_batched_ms = batched < 1e-3 ? 1e-3 : batched > out->query_ms ? out->query_ms : batched;
+    out->query_batched_ms = batched < 1e-3    ? 1e-3
+                            : batched > out->query_ms ? out->query_ms
+                                                      : batched;
     out->query_box_ms = box;
     out->query_pixel_ns = pixel * 1e6;
     out->draw_ms = draw > 1e-3 ? draw : 1e-3;
