@@ -150,24 +150,51 @@ bool tw_cull_near_box(const struct tw_view *v, const struct tw_box *b, const flo
     return d <= r * 1.01f + 1e-4f;
 }
 
+bool tw_cull_box_screen_rect(const struct tw_view *v, const struct tw_box *b,
+                             const float offset[3], float lo[2], float hi[2], float *w_min)
+{
+    /* view_proj and view_proj_rz differ only in their z row: x, y and w are
+     * the same for either depth convention. */
+    const float *m = v->view_proj;
+    float min[3];
+    for (int a = 0; a < 3; a++)
+        min[a] = b->min[a] + (offset ? offset[a] : 0.0f);
+    /* Corner (min) and the three edge vectors in clip space (x, y, w); the
+     * other corners are sums of them. */
+    static const int row[3] = {0, 1, 3};
+    float base[3], edge[3][3];
+    for (int r = 0; r < 3; r++) {
+        const int i = row[r];
+        base[r] = m[i] * min[0] + m[4 + i] * min[1] + m[8 + i] * min[2] + m[12 + i];
+        for (int a = 0; a < 3; a++)
+            edge[a][r] = m[4 * a + i] * (b->max[a] - b->min[a]);
+    }
+    lo[0] = lo[1] = INFINITY;
+    hi[0] = hi[1] = -INFINITY;
+    *w_min = INFINITY;
+    for (int c = 0; c < 8; c++) {
+        float p[3];
+        for (int r = 0; r < 3; r++)
+            p[r] = base[r] + (c & 1 ? edge[0][r] : 0.0f) + (c & 2 ? edge[1][r] : 0.0f) +
+                   (c & 4 ? edge[2][r] : 0.0f);
+        if (!(p[2] > v->near_plane))
+            return false;
+        for (int a = 0; a < 2; a++) {
+            const float ndc = p[a] / p[2];
+            lo[a] = ndc < lo[a] ? ndc : lo[a];
+            hi[a] = ndc > hi[a] ? ndc : hi[a];
+        }
+        *w_min = p[2] < *w_min ? p[2] : *w_min;
+    }
+    return lo[0] <= hi[0] && lo[1] <= hi[1];
+}
+
 float tw_cull_box_screen_fraction(const struct tw_view *v, const struct tw_box *b,
                                   const float offset[3])
 {
-    const float *m = v->view_proj;
-    float lo[2] = {1.0f, 1.0f}, hi[2] = {-1.0f, -1.0f};
-    for (int k = 0; k < 8; k++) {
-        const float p[3] = {((k & 1) ? b->max[0] : b->min[0]) + (offset ? offset[0] : 0.0f),
-                            ((k & 2) ? b->max[1] : b->min[1]) + (offset ? offset[1] : 0.0f),
-                            ((k & 4) ? b->max[2] : b->min[2]) + (offset ? offset[2] : 0.0f)};
-        const float w = m[3] * p[0] + m[7] * p[1] + m[11] * p[2] + m[15];
-        if (!(w > 1e-6f))
-            return 1.0f;
-        for (int a = 0; a < 2; a++) {
-            const float ndc = (m[a] * p[0] + m[a + 4] * p[1] + m[a + 8] * p[2] + m[a + 12]) / w;
-            lo[a] = fminf(lo[a], ndc);
-            hi[a] = fmaxf(hi[a], ndc);
-        }
-    }
+    float lo[2], hi[2], w_min;
+    if (!tw_cull_box_screen_rect(v, b, offset, lo, hi, &w_min))
+        return 1.0f;
     float area = 1.0f;
     for (int a = 0; a < 2; a++) {
         const float extent = fminf(hi[a], 1.0f) - fmaxf(lo[a], -1.0f);

@@ -172,35 +172,12 @@ uint32_t tw_hzb_levels(const struct tw_hzb *h)
  * screen rectangle touches. */
 static bool box_hidden(const struct tw_hzb *h, const struct tw_view *v, const struct tw_box *q)
 {
-    const float *m = h->reversed ? v->view_proj_rz : v->view_proj;
-    /* Corner (min) and the three edge vectors in clip space; the other
-     * corners are sums of them. */
-    float base[4], edge[3][4];
-    for (int r = 0; r < 4; r++) {
-        base[r] = m[r] * q->min[0] + m[4 + r] * q->min[1] + m[8 + r] * q->min[2] + m[12 + r];
-        for (int a = 0; a < 3; a++)
-            edge[a][r] = m[4 * a + r] * (q->max[a] - q->min[a]);
-    }
-    float xmin = INFINITY, xmax = -INFINITY, ymin = INFINITY, ymax = -INFINITY;
-    float wmin = INFINITY;
-    for (int c = 0; c < 8; c++) {
-        float p[4];
-        for (int r = 0; r < 4; r++)
-            p[r] = base[r] + (c & 1 ? edge[0][r] : 0.0f) + (c & 2 ? edge[1][r] : 0.0f) +
-                   (c & 4 ? edge[2][r] : 0.0f);
-        /* A corner on or before the near plane: the box reaches the near
-         * plane, and nothing drawn lies in front of it. */
-        if (!(p[3] > v->near_plane))
-            return false;
-        const float x = p[0] / p[3], y = p[1] / p[3];
-        xmin = x < xmin ? x : xmin;
-        xmax = x > xmax ? x : xmax;
-        ymin = y < ymin ? y : ymin;
-        ymax = y > ymax ? y : ymax;
-        wmin = p[3] < wmin ? p[3] : wmin;
-    }
-    if (!(xmin <= xmax && ymin <= ymax))
-        return false;   /* not finite */
+    /* No rectangle: a corner on or before the near plane (nothing drawn
+     * lies in front of it), or figures not finite. */
+    float lo[2], hi[2], wmin;
+    if (!tw_cull_box_screen_rect(v, q, NULL, lo, hi, &wmin))
+        return false;
+    const float xmin = lo[0], ymin = lo[1], xmax = hi[0], ymax = hi[1];
     /* Depth is a function of the eye distance w alone: the nearest corner
      * (smallest w) has the nearest depth. */
     const float *proj = h->reversed ? v->proj_rz : v->proj;

@@ -1,8 +1,8 @@
 /*
  * The cost calibration of DESIGN §14: what a query, a draw call and a
  * triangle cost on the GPU a world draws with, measured when the world is
- * created; the frames it finishes fit how far they depart from it (reported,
- * not applied). Private to runtime/.
+ * created; the frames it finishes fit how far they depart from it (kept in
+ * tw_calibration for a host to read, not applied). Private to runtime/.
  */
 #ifndef TW_RUNTIME_CALIBRATE_H
 #define TW_RUNTIME_CALIBRATE_H

@@ -99,10 +99,18 @@ struct tw_box tw_cull_query_box(const float eye[3], const struct tw_box *b, cons
 bool tw_cull_near_box(const struct tw_view *v, const struct tw_box *b,
                       const float offset[3]);
 
-/* The fraction of the image that the screen-space rectangle of box b
- * (moved by offset) covers, clipped to the image: at most 1, and 1 for a
- * box reaching behind the eye. An upper bound of what drawing the box or
- * the geometry inside it can touch. */
+/* The screen rectangle of box b (moved by offset, NULL: none): lo and hi in
+ * normalised device coordinates (x, y; not clipped to [-1, 1]), and the
+ * least clip w of its corners (the eye distance along the view axis of the
+ * nearest one). False if a corner lies on or before the near plane, or the
+ * figures are not finite: the box then has no rectangle. */
+bool tw_cull_box_screen_rect(const struct tw_view *v, const struct tw_box *b,
+                             const float offset[3], float lo[2], float hi[2], float *w_min);
+
+/* The fraction of the image that the screen rectangle of box b (moved by
+ * offset) covers, clipped to the image: at most 1, and 1 for a box reaching
+ * the near plane. An upper bound of what drawing the box or the geometry
+ * inside it can touch. */
 float tw_cull_box_screen_fraction(const struct tw_view *v, const struct tw_box *b,
                                   const float offset[3]);
 

@@ -97,8 +97,9 @@ struct tw_calibration {
                                 and its draws' costs as calibrated; these are the fitted
                                 factors (running, recent frames weigh more; 1 until
                                 enough frames of both kinds), within [0.1, 20]: how far
-                                the frames depart from the figures above. Reported, not
-                                applied to CHC++'s decisions (calibrate.c says why) */
+                                the frames depart from the figures above. Kept for a
+                                host to read, not applied to CHC++'s decisions
+                                (calibrate.c says why) */
     double draw_scale;
 };
 
