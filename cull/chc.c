@@ -792,7 +792,14 @@ static void process_node(struct pass *p, uint32_t node)
         group = (float)boxes * c->query_box + pixels * c->query_pixel;
         alone = c->query + group - c->query_box;
     }
-    if (was_visible(s, p->frame)) {
+    /* A leaf no query has found visible (next_query_frame 0: first sight,
+     * or only ever drawn by the near-plane rule) is asked before it is
+     * drawn: a new tile's interior nodes are taken as visible, so this costs
+     * one round trip for the tile, not one per level, and its hidden leaves
+     * are not drawn. */
+    const bool unproven =
+        leaf && s->next_query_frame == 0 && !chc->settings.first_sight_draws;
+    if (was_visible(s, p->frame) && !unproven) {
         if (!leaf) {
             push_children(p, node);
             return;

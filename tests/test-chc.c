@@ -413,12 +413,18 @@ static struct tw_chc_node_state *resolve(void *user, uint64_t tag, const struct 
 
 /* The cost model every world_create() hands its engine (NULL: none). */
 static const struct tw_cost_model *world_costs;
+/* Most tests follow DESIGN §7 as written, where a new tile's leaves are
+ * drawn before they are queried (first_sight_draws); the tests of the
+ * default, where they are queried first, set this. */
+static bool world_queries_first;
 
 static struct world *world_create(struct tree *t, const struct tw_chc_settings *settings,
                                   uint32_t ready_after)
 {
     struct world *w = xcalloc(1, sizeof(*w));
-    if (tw_chc_create(settings, &w->chc) != TW_OK) {
+    struct tw_chc_settings s = settings ? *settings : (struct tw_chc_settings){0};
+    s.first_sight_draws = !world_queries_first;
+    if (tw_chc_create(&s, &w->chc) != TW_OK) {
         fprintf(stderr, "tw_chc_create failed\n");
         exit(2);
     }
@@ -684,6 +690,55 @@ static void test_first_sight(void)
     CHECK(strstr(describe_issues(w, 0), "L4") == NULL);
     CHECK(strstr(describe_issues(w, 0), "L5") == NULL);
     world_destroy(w);
+}
+
+/* First sight, by default: the leaves in the frustum are queried before any
+ * is drawn, their parents taken as visible (no query of an interior node);
+ * only the leaves found visible are drawn, and they are then scheduled for
+ * re-queries like any visible leaf; the hidden ones count a hidden frame. */
+static void test_first_sight_queries(void)
+{
+    test_name = "first_sight_queries";
+    world_queries_first = true;
+    struct tw_box leaves[6];
+    for (uint32_t k = 0; k < 4; k++)
+        leaves[k] = column_box(k);
+    leaves[4] = make_box(-1, 0, -11, 1, 1, -10);      /* behind the eye */
+    leaves[5] = make_box(-1, 0, 600, 1, 1, 601);      /* beyond the view distance */
+    struct world *w = world_create(tree_build(leaves, 6), NULL, FAKE_NEVER);
+    point_in_leaf(w, 0);
+    point_in_leaf(w, 2);
+    tw_chc_state_init(w->state[0], &w->tree->bvh, 5);
+
+    const size_t mark = run_frame(w, 5);
+    CHECK_STR(describe(w, mark), "Q(L0) Q(L1) Q(L2) Q(L3) W D(0) W W D(2) W");
+    const struct tw_chc_stats *st = tw_chc_stats(w->chc);
+    CHECK_U(st->clusters_drawn, 2);
+    CHECK_U(st->nodes_queried, 4);
+    for (uint32_t k = 0; k < 4; k++) {
+        const struct tw_chc_node_state *s = &w->state[0][w->tree->leaf_node[k]];
+        if (k == 0 || k == 2) {
+            CHECK_U(s->visible_frame, 5);
+            CHECK(s->next_query_frame > 5);
+        } else {
+            CHECK_U(s->visible_frame, 4);
+            CHECK_U(s->invisible_frames, 1);
+        }
+        CHECK_U(s->pending_query, 0);
+    }
+    CHECK_U(w->state[0][w->tree->leaf_node[4]].visible_frame, 4);
+    CHECK_U(w->state[0][w->tree->leaf_node[5]].visible_frame, 4);
+    CHECK(strstr(describe_issues(w, 0), "L4") == NULL);
+    CHECK(strstr(describe_issues(w, 0), "L5") == NULL);
+
+    /* Next frame: L0 and L2 are drawn as visible leaves, before any query. */
+    const size_t mark6 = run_frame(w, 6);
+    bool drawn[MAX_NODES];
+    drawn_since(w, mark6, 0, drawn);
+    CHECK(drawn[0] && drawn[2] && !drawn[1] && !drawn[3]);
+    CHECK(strncmp(describe(w, mark6), "D(0", 3) == 0);
+    world_destroy(w);
+    world_queries_first = false;
 }
 
 /* Pull-up: a visible leaf marks itself and its ancestors visible, nothing else. */
@@ -1681,6 +1736,7 @@ int main(void)
 {
     test_api_edges();
     test_first_sight();
+    test_first_sight_queries();
     test_pull_up();
     test_shared_cluster();
     test_drawn_before_wait();

@@ -210,6 +210,10 @@ struct tw_chc_settings {
     bool no_tight_boxes;        /* query node boxes, not tight-box lists */
     bool no_cost_model;         /* ignore tw_chc_set_costs(): every query costs one unit,
                                    as in the paper (for measurements) */
+    bool first_sight_draws;     /* a leaf never found visible by a query (a new tile's) is
+                                   drawn before it is queried, as DESIGN §7 has it (for
+                                   measurements); default: it is queried first, with the
+                                   I-queue, its parents still taken as visible */
     uint64_t seed;              /* for the randomised re-query offsets */
 };
 

@@ -49,7 +49,8 @@ static void usage(FILE *f)
           "                        [--view-distance M] [--cluster-triangles N] [--tile-neighbours 4|8]\n"
           "                        [--evict-after N] [--chc-batch N] [--chc-nav N] [--threshold T]\n"
           "                        [--deterministic] [--verify-tolerance X] [--no-cost-model]\n"
-          "                        [--mutate-query-shrink F] [--workers N] [--policy wait|skip]\n"
+          "                        [--first-sight-draws] [--mutate-query-shrink F] [--workers N]\n"
+          "                        [--policy wait|skip]\n"
           "                        [--budget BYTES] [--upload-budget BYTES]\n"
           "       tileworld bench  [same options] [--methods M1,M2,...] [--sweep PARAM=v1,v2,...]\n"
           "                        [--scenario NAME|all] [--split]\n"
@@ -86,6 +87,8 @@ static void usage(FILE *f)
           "                      depend on GPU timing (slower; not for timings)\n"
           "--no-cost-model       CHC++ counts every query as one unit, as the paper does, and\n"
           "                      ignores the measured costs (what the cost model buys)\n"
+          "--first-sight-draws   CHC++ draws a new tile's leaves in view before it queries them,\n"
+          "                      as the paper does (default: queried first, one round trip)\n"
           "--split               bench: after every frame, its set of clusters drawn again from\n"
           "                      its camera with no culling, timed apart: frames.csv's set_*\n"
           "                      columns and summary.md's split of each method's CPU time into\n"
@@ -115,6 +118,7 @@ enum {
     OPT_CALIBRATE,
     OPT_SPLIT,
     OPT_NO_COST_MODEL,
+    OPT_FIRST_SIGHT_DRAWS,
 };
 
 static const struct option options_table[] = {
@@ -137,6 +141,7 @@ static const struct option options_table[] = {
     {"calibrate", no_argument, NULL, OPT_CALIBRATE},
     {"split", no_argument, NULL, OPT_SPLIT},
     {"no-cost-model", no_argument, NULL, OPT_NO_COST_MODEL},
+    {"first-sight-draws", no_argument, NULL, OPT_FIRST_SIGHT_DRAWS},
     {NULL, 0, NULL, 0},
 };
 
@@ -216,6 +221,7 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
     case OPT_CALIBRATE: o->calibrate = true; break;
     case OPT_SPLIT: o->split = true; break;
     case OPT_NO_COST_MODEL: ws->chc.no_cost_model = true; break;
+    case OPT_FIRST_SIGHT_DRAWS: ws->chc.first_sight_draws = true; break;
     case OPT_MUTATE_QUERY_SHRINK:
         ws->mutate_query_shrink = tw_cli_float(program, name, v, 0.0f, 1.0f);
         if (ws->mutate_query_shrink >= 1.0f)
