@@ -236,11 +236,89 @@ static bool same_surface(float a, float b, const struct tw_oracle_depth *dm)
     return fabs(za - zb) <= slack;
 }
 
+/* Whether an occlusion query of box b (tile-local, moved by offset) could
+ * find it visible: whether at some pixel centre the box lies in front of the
+ * frame's true depth (the ID pass's, of every cluster vfc draws), its eye
+ * distance within the verify tolerance of that depth's or nearer. A box the
+ * near plane may cut counts as showing, as the near-plane rule draws it. */
+static bool box_shows(const struct tw_view *v, const struct tw_box *b, const float offset[3],
+                      const float *depth, uint32_t width, uint32_t height,
+                      const struct tw_oracle_depth *dm)
+{
+    float lo[2], hi[2], w_min;
+    if (!tw_cull_box_screen_rect(v, b, offset, lo, hi, &w_min))
+        return true;
+    const double x0 = fmax(0.0, floor((lo[0] * 0.5 + 0.5) * width));
+    const double x1 = fmin(width, ceil((hi[0] * 0.5 + 0.5) * width));
+    const double y0 = fmax(0.0, floor((lo[1] * 0.5 + 0.5) * height));
+    const double y1 = fmin(height, ceil((hi[1] * 0.5 + 0.5) * height));
+    double bmin[3], bmax[3];
+    for (int a = 0; a < 3; a++) {
+        bmin[a] = (double)b->min[a] + offset[a];
+        bmax[a] = (double)b->max[a] + offset[a];
+    }
+    /* A ray per pixel centre from the eye, parametrised by eye-space depth:
+     * its eye-space direction is (x, y, -1), turned into view-relative
+     * space by the view's rotation, transposed (view is rigid). */
+    const float *m = v->view, *p = v->proj;
+    for (uint32_t y = (uint32_t)y0; y < (uint32_t)y1; y++) {
+        for (uint32_t x = (uint32_t)x0; x < (uint32_t)x1; x++) {
+            const double ndc[2] = {2.0 * (x + 0.5) / width - 1.0, 2.0 * (y + 0.5) / height - 1.0};
+            const double e[3] = {(ndc[0] + p[8]) / p[0], (ndc[1] + p[9]) / p[5], -1.0};
+            double t0 = 0.0, t1 = INFINITY;
+            for (int a = 0; a < 3 && t0 <= t1; a++) {
+                const double d = m[4 * a] * e[0] + m[4 * a + 1] * e[1] + m[4 * a + 2] * e[2];
+                const double o = v->eye[a];
+                if (fabs(d) < 1e-12) {
+                    if (o < bmin[a] || o > bmax[a])
+                        t0 = INFINITY;
+                    continue;
+                }
+                double ta = (bmin[a] - o) / d, tb = (bmax[a] - o) / d;
+                if (ta > tb) {
+                    const double t = ta;
+                    ta = tb;
+                    tb = t;
+                }
+                t0 = fmax(t0, ta);
+                t1 = fmin(t1, tb);
+            }
+            if (t0 > t1)
+                continue;
+            const double z = eye_distance(depth[(size_t)y * width + x], dm->n, dm->f, dm->reversed);
+            if (t0 <= z * (1.0 + dm->tol))
+                return true;
+        }
+    }
+    return false;
+}
+
+/* A drawn cluster with no visible pixel: overdraw, and whether its box
+ * would have shown to a query all the same. */
+static void count_overdraw(struct tw_world *w, const struct tw_drawn_cluster *d,
+                           const struct tw_cluster *cl, const struct tw_oracle_depth *dm,
+                           struct tw_frame_stats *st)
+{
+    const struct tw_view *v = &w->last_view;
+    st->overdraw_triangles += cl->triangle_count;
+    float offset[3];
+    tw_tiles_cell_offset(d->cell, v->cell, w->grid.footprint[0], w->grid.footprint[1], offset);
+    if (box_shows(v, &cl->box, offset, w->oracle.id_depth, w->s.width, w->s.height, dm))
+        st->overdraw_box_triangles += cl->triangle_count;
+}
+
 void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
 {
     struct tw_oracle *o = &w->oracle;
     memset(o->drawn, 0, o->count);
     memset(o->missed_per_id, 0, sizeof(*o->missed_per_id) * o->count);
+    const struct tw_view *v = &w->last_view;
+    const struct tw_oracle_depth dm = {
+        .n = v->near_plane,
+        .f = v->far_plane,
+        .reversed = tw_renderer_reversed_z(w->renderer),
+        .tol = w->s.verify_tolerance,
+    };
     size_t n = 0;
     const struct tw_drawn_cluster *d = tw_world_drawn(w, &n);
     for (size_t k = 0; k < n; k++) {
@@ -249,7 +327,7 @@ void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
             &tw_renderer_content(w->renderer, d[k].prototype, NULL)->clusters[d[k].cluster];
         if (!range) {
             /* Drawn where vfc would draw nothing: wasted. */
-            st->overdraw_triangles += cl->triangle_count;
+            count_overdraw(w, &d[k], cl, &dm, st);
             continue;
         }
         /* Ids of a tile are its clusters in ascending order: binary search. */
@@ -264,23 +342,16 @@ void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
         }
         if (lo < end && o->entries[lo].cluster == d[k].cluster) {
             if (!o->drawn[lo] && o->pixels[lo] == 0)
-                st->overdraw_triangles += cl->triangle_count;
+                count_overdraw(w, &d[k], cl, &dm, st);
             o->drawn[lo] = 1;
         } else {
-            st->overdraw_triangles += cl->triangle_count;
+            count_overdraw(w, &d[k], cl, &dm, st);
         }
     }
     /* Pixel by pixel: an undrawn visible cluster is an error only where what
      * the method shows instead lies farther; where the two surfaces touch
      * (a depth tie), the user sees the same thing. */
     tw_renderer_read_depth(w->renderer, o->depth);
-    const struct tw_view *v = &w->last_view;
-    const struct tw_oracle_depth dm = {
-        .n = v->near_plane,
-        .f = v->far_plane,
-        .reversed = tw_renderer_reversed_z(w->renderer),
-        .tol = w->s.verify_tolerance,
-    };
     const size_t npix = (size_t)w->s.width * w->s.height;
     for (size_t k = 0; k < npix; k++) {
         const bool same = same_surface(o->depth[k], o->id_depth[k], &dm);

@@ -196,7 +196,10 @@ struct tw_frame_stats {
     uint64_t missed_pixels;  /* pixels of a cluster the method did not draw, where what
                                 it shows lies farther (beyond verify_tolerance) */
     uint32_t missed_clusters;/* clusters with a missed pixel */
-    uint64_t overdraw_triangles;
+    uint64_t overdraw_triangles;     /* drawn, of clusters without a visible pixel */
+    uint64_t overdraw_box_triangles; /* of those, the clusters whose box shows in front of
+                                        the frame's true depth at a pixel centre: what no
+                                        query of their boxes could have culled */
     double cpu_ms;           /* process CPU time of the frame, every thread (including
                                 the GPU's, on a software rasteriser) */
     uint64_t depth_errors;   /* pixels whose depth differs from the oracle's beyond

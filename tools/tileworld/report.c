@@ -38,7 +38,7 @@ static const char *const csv_header =
     "missed_clusters,overdraw_triangles,cpu_ms,depth_errors,tiles_pending,loads_requested,"
     "loads_done,evictions,bytes_cpu,bytes_gpu,bytes_state,bytes_needed,over_budget,ms_upload,"
     "blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read,bytes_loading,"
-    "tiles_loading,set_cpu_ms,set_ms,set_triangles,set_draws\n";
+    "tiles_loading,set_cpu_ms,set_ms,set_triangles,set_draws,overdraw_box_triangles\n";
 
 /* A row of frames.csv as the row of a gnuplot data file: blank-separated,
  * without the method (its file says it). */
@@ -114,7 +114,7 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
     snprintf(row, sizeof(row),
              "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu,%.3f,%llu,"
              "%u,%u,%u,%u,%llu,%llu,%llu,%llu,%d,%.3f,"
-             "%u,%u,%u,%.3f,%.3f,%llu,%u,%.3f,%.3f,%llu,%u\n",
+             "%u,%u,%u,%.3f,%.3f,%llu,%u,%.3f,%.3f,%llu,%u,%llu\n",
              (unsigned long long)st->frame, tw_method_name(st->method), st->ms_frame, st->ms_cull,
              st->ms_wait, (unsigned long long)st->triangles, st->clusters, st->draws, st->queries,
              st->tiles_queried, st->tiles_visible, st->tiles_new, st->tiles_cached,
@@ -127,7 +127,8 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
              (unsigned long long)st->bytes_needed, st->over_budget ? 1 : 0, st->ms_upload,
              st->blocking_reads, st->queries_skipped, st->hzb_boxes, st->ms_hzb_build,
              st->ms_hzb_read, (unsigned long long)st->bytes_loading, st->tiles_loading,
-             sv->cpu_ms, sv->ms, (unsigned long long)sv->triangles, sv->draws);
+             sv->cpu_ms, sv->ms, (unsigned long long)sv->triangles, sv->draws,
+             (unsigned long long)st->overdraw_box_triangles);
     if (!tw_outfile_printf(&r->frames_csv, "%s", row))
         return tw_outfile_report(&r->frames_csv, err, err_size);
     if (r->chart_data) {
@@ -173,6 +174,7 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
         m->max_tiles_visible = st->tiles_visible;
     m->ms_wait += st->ms_wait;
     m->overdraw_triangles += (double)st->overdraw_triangles;
+    m->overdraw_box_triangles += (double)st->overdraw_box_triangles;
     if (st->ms_frame > m->ms_max)
         m->ms_max = st->ms_frame;
     if (set) {
@@ -356,6 +358,8 @@ int tw_report_close(struct tw_report *r, bool markdown,
         json_object_object_add(o, "max_ms", number(m->ms_max, 3));
         json_object_object_add(o, "mean_overdraw_triangles",
                                number(m->frames ? m->overdraw_triangles / m->frames : 0.0, 1));
+        json_object_object_add(o, "mean_overdraw_box_triangles",
+                               number(m->frames ? m->overdraw_box_triangles / m->frames : 0.0, 1));
         json_object_object_add(o, "mean_cpu_ms", number(row->cpu_mean, 3));
         json_object_object_add(o, "median_cpu_ms", number(row->cpu_median, 3));
         json_object_object_add(o, "p99_cpu_ms", number(row->cpu_p99, 3));

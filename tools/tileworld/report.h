@@ -43,6 +43,7 @@ struct tw_method_summary {
     uint32_t max_tiles_visible;
     double ms_wait;
     double overdraw_triangles;
+    double overdraw_box_triangles;
     double ms_max;
     uint32_t set_frames;      /* frames with a set drawn again (--split: every frame) */
     double set_cpu_ms, set_ms, set_triangles, set_draws;   /* their sums */
