@@ -105,7 +105,7 @@ struct pass {
 };
 
 /* A pass suspended where it would have blocked (tw_chc_traverse_async). */
-#define MAX_SUSPENDED 4
+#define MAX_SUSPENDED TW_CHC_MAX_SUSPENDED
 struct suspended {
     struct pass pass;
     struct tw_chc_tile tile;    /* pass.tile points here */
@@ -151,6 +151,8 @@ void tw_chc_default_settings(struct tw_chc_settings *s)
         s->batch_size = DEFAULT_BATCH_SIZE;
     if (s->assumed_visible == 0)
         s->assumed_visible = DEFAULT_ASSUMED_VISIBLE;
+    if (s->suspended_passes == 0)
+        s->suspended_passes = 1;
 }
 
 size_t tw_chc_state_bytes(const struct tw_bvh *bvh)
@@ -185,6 +187,10 @@ int tw_chc_create(const struct tw_chc_settings *settings, struct tw_chc **out)
     if (settings)
         chc->settings = *settings;
     tw_chc_default_settings(&chc->settings);
+    if (chc->settings.suspended_passes > MAX_SUSPENDED) {
+        free(chc);
+        return TW_ERR_INVALID;
+    }
     chc->rng = chc->settings.seed;
     *out = chc;
     return TW_OK;
@@ -1044,7 +1050,7 @@ void tw_chc_traverse_async(struct tw_chc *chc, const struct tw_view *v,
     /* Give the suspended passes what has come back; the oldest is finished
      * when every slot is taken. */
     uint32_t free_slot = MAX_SUSPENDED;
-    for (uint32_t k = 0; k < MAX_SUSPENDED; k++) {
+    for (uint32_t k = 0; k < chc->settings.suspended_passes; k++) {
         if (chc->slots[k].active)
             resume(chc, k, false);
         if (!chc->slots[k].active && free_slot == MAX_SUSPENDED)

@@ -1416,18 +1416,20 @@ static void test_random_worlds(void)
         }
 }
 
-/* The random worlds over six tiles, traversed with tw_chc_traverse_async():
- * the same invariants hold (every visible leaf drawn, nothing drawn twice,
- * nothing left in flight but deferred V-queries) while passes are suspended,
- * and more than four at a time (the oldest then finished first). Where
- * results come late, passes are suspended and fewer waits block. */
+/* The random worlds over six tiles, traversed with tw_chc_traverse_async(),
+ * one pass suspended at a time (the default) and four: the same invariants
+ * hold (every visible leaf drawn, nothing drawn twice, nothing left in
+ * flight but deferred V-queries) while passes are suspended, and more
+ * passes than slots (the oldest then finished first). Where results come
+ * late, passes are suspended and fewer waits block. */
 static void test_async_worlds(void)
 {
     test_name = "async_worlds";
     random_tiles = MAX_TILES;
-    for (uint64_t seed = 1; seed <= 8; seed++)
+    for (uint64_t seed = 1; seed <= 16; seed++)
         for (int m = 0; m < 4; m++) {
-            const struct tw_chc_settings s = random_settings(seed);
+            struct tw_chc_settings s = random_settings(seed);
+            s.suspended_passes = seed % 2 ? 1 : TW_CHC_MAX_SUSPENDED;
             random_async = false;
             const struct random_run sync = random_run(seed * 313, &s, ready_modes[m], 30);
             random_async = true;
@@ -1721,7 +1723,13 @@ static void test_api_edges(void)
     CHECK_U(s.batch_size, 50);
     CHECK_U(s.assumed_visible, 8);
     CHECK_U(s.threshold, 0);
+    CHECK_U(s.suspended_passes, 1);
     CHECK(tw_chc_create(NULL, NULL) == TW_ERR_INVALID);
+    {
+        struct tw_chc *bad = (struct tw_chc *)&s;
+        const struct tw_chc_settings many = {.suspended_passes = TW_CHC_MAX_SUSPENDED + 1};
+        CHECK(tw_chc_create(&many, &bad) == TW_ERR_INVALID && bad == NULL);
+    }
     tw_chc_destroy(NULL);
     struct tree *t = column_tree(3);
     CHECK_U(tw_chc_state_bytes(&t->bvh), 5 * sizeof(struct tw_chc_node_state));

@@ -202,6 +202,7 @@ uint32_t tw_cull_vfc_tile(const struct tw_view *v, const struct tw_prototype *pr
 
 /* ---- CHC++ inside one tile (DESIGN §7) --------------------------------------- */
 
+#define TW_CHC_MAX_SUSPENDED 4u
 struct tw_chc_settings {
     uint32_t batch_size;        /* b: I-queue batch; default 50 */
     uint32_t assumed_visible;   /* n_av: frames a visible leaf goes unqueried; default 8 */
@@ -210,6 +211,8 @@ struct tw_chc_settings {
     bool no_tight_boxes;        /* query node boxes, not tight-box lists */
     bool no_cost_model;         /* ignore tw_chc_set_costs(): every query costs one unit,
                                    as in the paper (for measurements) */
+    uint32_t suspended_passes;  /* tw_chc_traverse_async: passes suspended at once,
+                                   1..TW_CHC_MAX_SUSPENDED; default 1 */
     bool first_sight_draws;     /* a leaf never found visible by a query (a new tile's) is
                                    drawn before it is queried, as DESIGN §7 has it (for
                                    measurements); default: it is queried first, with the
@@ -311,10 +314,14 @@ void tw_chc_traverse(struct tw_chc *chc, const struct tw_view *v,
                      const struct tw_chc_tile *tile);
 
 /* The same, except that where the pass would block on an I-query with
- * nothing left to traverse it is suspended instead (up to four at a time,
- * the oldest finished when a fifth would start), so that the GPU gets the
- * next tiles' work rather than waiting: a frame's blocking reads are then
- * those of its last tiles. A suspended pass is resumed by later calls and
+ * nothing left to traverse it is suspended instead (up to
+ * settings.suspended_passes at a time, the oldest finished when one more
+ * would start), so that the GPU gets the next tiles' work rather than
+ * waiting: with more than one, a frame's blocking reads are then those of
+ * its last tiles, but a farther tile's queries may be answered before a
+ * nearer tile has drawn what would hide them (more overdraw); with one, the
+ * next tile's pass starts only when the last one is done, and what runs in
+ * between (the tile queries) overlaps the wait. A suspended pass is resumed by later calls and
  * finished by tw_chc_finish(), which the caller must call before the frame
  * ends and before tile, its BVH or its state may change or go. Tiles then
  * draw out of front-to-back order where a pass waits; conservative all the

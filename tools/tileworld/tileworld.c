@@ -47,7 +47,8 @@ static void usage(FILE *f)
           "                        [--frames N] [--method M] [--size WxH] [--start-cell I,J]\n"
           "                        [--repeat P] [--verify] [--png-every N] [--out DIR] [--quiet]\n"
           "                        [--view-distance M] [--cluster-triangles N] [--tile-neighbours 4|8]\n"
-          "                        [--evict-after N] [--chc-batch N] [--chc-nav N] [--threshold T]\n"
+          "                        [--evict-after N] [--chc-batch N] [--chc-nav N] [--chc-suspend N]\n"
+          "                        [--threshold T]\n"
           "                        [--deterministic] [--verify-tolerance X] [--no-cost-model]\n"
           "                        [--first-sight-draws] [--mutate-query-shrink F] [--workers N]\n"
           "                        [--policy wait|skip]\n"
@@ -89,6 +90,9 @@ static void usage(FILE *f)
           "                      ignores the measured costs (what the cost model buys)\n"
           "--first-sight-draws   CHC++ draws a new tile's leaves in view before it queries them,\n"
           "                      as the paper does (default: queried first, one round trip)\n"
+          "--chc-suspend N       tilequery+chc: CHC++ passes suspended at once where they would\n"
+          "                      wait, 1..4 (default 1: a tile's pass ends before the next starts;\n"
+          "                      more: fewer blocking reads, but farther tiles queried early)\n"
           "--split               bench: after every frame, its set of clusters drawn again from\n"
           "                      its camera with no culling, timed apart: frames.csv's set_*\n"
           "                      columns and summary.md's split of each method's CPU time into\n"
@@ -110,6 +114,7 @@ enum {
     OPT_NEIGHBOURS,
     OPT_EVICT_AFTER,
     OPT_CHC_BATCH,
+    OPT_CHC_SUSPEND,
     OPT_CHC_NAV,
     OPT_THRESHOLD,
     OPT_DETERMINISTIC,
@@ -133,6 +138,7 @@ static const struct option options_table[] = {
     {"tile-neighbours", required_argument, NULL, OPT_NEIGHBOURS},
     {"evict-after", required_argument, NULL, OPT_EVICT_AFTER},
     {"chc-batch", required_argument, NULL, OPT_CHC_BATCH},
+    {"chc-suspend", required_argument, NULL, OPT_CHC_SUSPEND},
     {"chc-nav", required_argument, NULL, OPT_CHC_NAV},
     {"threshold", required_argument, NULL, OPT_THRESHOLD},
     {"deterministic", no_argument, NULL, OPT_DETERMINISTIC},
@@ -206,6 +212,9 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
         ws->evict_after_frames = (uint32_t)tw_cli_u64(program, name, v, 1, 1000000);
         break;
     case OPT_CHC_BATCH: ws->chc.batch_size = (uint32_t)tw_cli_u64(program, name, v, 1, 100000); break;
+    case OPT_CHC_SUSPEND:
+        ws->chc.suspended_passes = (uint32_t)tw_cli_u64(program, name, v, 1, TW_CHC_MAX_SUSPENDED);
+        break;
     case OPT_CHC_NAV: ws->chc.assumed_visible = (uint32_t)tw_cli_u64(program, name, v, 1, 1000); break;
     case OPT_THRESHOLD:
         ws->chc.threshold = (uint32_t)tw_cli_u64(program, name, v, 0, 1000000);
