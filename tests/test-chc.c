@@ -638,13 +638,10 @@ static void point_in_leaf(struct world *w, uint32_t leaf)
 
 /* ---- tests ------------------------------------------------------------------------ */
 
-/* First sight: everything in the frustum is drawn at once, front to back,
- * before any query; each leaf in view is queried once (V-queries), no
- * interior node is queried; nodes behind the camera or beyond the view
- * distance are neither drawn nor queried. */
-static void test_first_sight(void)
+/* Four leaves in a column ahead, L0 and L2 seen, L4 behind the eye and L5
+ * beyond the view distance; every node's state new at frame 5. */
+static struct world *first_sight_world(void)
 {
-    test_name = "first_sight";
     struct tw_box leaves[6];
     for (uint32_t k = 0; k < 4; k++)
         leaves[k] = column_box(k);
@@ -654,6 +651,17 @@ static void test_first_sight(void)
     point_in_leaf(w, 0);
     point_in_leaf(w, 2);
     tw_chc_state_init(w->state[0], &w->tree->bvh, 5);
+    return w;
+}
+
+/* First sight: everything in the frustum is drawn at once, front to back,
+ * before any query; each leaf in view is queried once (V-queries), no
+ * interior node is queried; nodes behind the camera or beyond the view
+ * distance are neither drawn nor queried. */
+static void test_first_sight(void)
+{
+    test_name = "first_sight";
+    struct world *w = first_sight_world();
 
     const size_t mark = run_frame(w, 5);
     CHECK_STR(describe(w, mark), "D(0,1,2,3) Q(L0) Q(L1) Q(L2) Q(L3)");
@@ -700,15 +708,7 @@ static void test_first_sight_queries(void)
 {
     test_name = "first_sight_queries";
     world_queries_first = true;
-    struct tw_box leaves[6];
-    for (uint32_t k = 0; k < 4; k++)
-        leaves[k] = column_box(k);
-    leaves[4] = make_box(-1, 0, -11, 1, 1, -10);      /* behind the eye */
-    leaves[5] = make_box(-1, 0, 600, 1, 1, 601);      /* beyond the view distance */
-    struct world *w = world_create(tree_build(leaves, 6), NULL, FAKE_NEVER);
-    point_in_leaf(w, 0);
-    point_in_leaf(w, 2);
-    tw_chc_state_init(w->state[0], &w->tree->bvh, 5);
+    struct world *w = first_sight_world();
 
     const size_t mark = run_frame(w, 5);
     CHECK_STR(describe(w, mark), "Q(L0) Q(L1) Q(L2) Q(L3) W D(0) W W D(2) W");
