@@ -18,7 +18,7 @@
  *   render    clusters to draw, flushed before every query batch.
  *
  * Each traversal has its own set (struct queues): the running one's in
- * tw_chc.q, and up to MAX_SUSPENDED more with the passes that
+ * tw_chc.q, and up to TW_CHC_MAX_SUSPENDED more with the passes that
  * tw_chc_traverse_async() suspended where they would have blocked; resuming
  * one swaps its set in.
  */
@@ -105,7 +105,6 @@ struct pass {
 };
 
 /* A pass suspended where it would have blocked (tw_chc_traverse_async). */
-#define MAX_SUSPENDED TW_CHC_MAX_SUSPENDED
 struct suspended {
     struct pass pass;
     struct tw_chc_tile tile;    /* pass.tile points here */
@@ -130,7 +129,7 @@ struct tw_chc {
     struct queues q;            /* the running traversal's */
     struct deferred_vquery *deferred;
     size_t deferred_count, deferred_cap;
-    struct suspended slots[MAX_SUSPENDED];
+    struct suspended slots[TW_CHC_MAX_SUSPENDED];
     uint64_t passes_started;
     /* V-query answers, and of them hidden ones, decayed by VQ_DECAY per
      * answer: the chance that a visible leaf's re-query finds it hidden. */
@@ -187,7 +186,7 @@ int tw_chc_create(const struct tw_chc_settings *settings, struct tw_chc **out)
     if (settings)
         chc->settings = *settings;
     tw_chc_default_settings(&chc->settings);
-    if (chc->settings.suspended_passes > MAX_SUSPENDED) {
+    if (chc->settings.suspended_passes > TW_CHC_MAX_SUSPENDED) {
         free(chc);
         return TW_ERR_INVALID;
     }
@@ -224,7 +223,7 @@ void tw_chc_destroy(struct tw_chc *chc)
     if (!chc)
         return;
     free_queues(&chc->q);
-    for (uint32_t k = 0; k < MAX_SUSPENDED; k++)
+    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
         free_queues(&chc->slots[k].q);
     free(chc->deferred);
     free(chc);
@@ -254,7 +253,7 @@ size_t tw_chc_bytes(const struct tw_chc *chc)
         return 0;
     size_t bytes = sizeof(*chc) + queues_bytes(&chc->q) +
                    chc->deferred_cap * sizeof(*chc->deferred);
-    for (uint32_t k = 0; k < MAX_SUSPENDED; k++)
+    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
         bytes += queues_bytes(&chc->slots[k].q);
     return bytes;
 }
@@ -1018,14 +1017,14 @@ static void resume(struct tw_chc *chc, uint32_t k, bool block)
     swap_queues(chc, k);
 }
 
-/* The suspended pass started first (the nearest tile's), or MAX_SUSPENDED
+/* The suspended pass started first (the nearest tile's), or TW_CHC_MAX_SUSPENDED
  * when none is. */
 static uint32_t oldest_suspended(const struct tw_chc *chc)
 {
-    uint32_t oldest = MAX_SUSPENDED;
-    for (uint32_t k = 0; k < MAX_SUSPENDED; k++)
+    uint32_t oldest = TW_CHC_MAX_SUSPENDED;
+    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
         if (chc->slots[k].active &&
-            (oldest == MAX_SUSPENDED || chc->slots[k].started < chc->slots[oldest].started))
+            (oldest == TW_CHC_MAX_SUSPENDED || chc->slots[k].started < chc->slots[oldest].started))
             oldest = k;
     return oldest;
 }
@@ -1049,14 +1048,14 @@ void tw_chc_traverse_async(struct tw_chc *chc, const struct tw_view *v,
         return;
     /* Give the suspended passes what has come back; the oldest is finished
      * when every slot is taken. */
-    uint32_t free_slot = MAX_SUSPENDED;
+    uint32_t free_slot = TW_CHC_MAX_SUSPENDED;
     for (uint32_t k = 0; k < chc->settings.suspended_passes; k++) {
         if (chc->slots[k].active)
             resume(chc, k, false);
-        if (!chc->slots[k].active && free_slot == MAX_SUSPENDED)
+        if (!chc->slots[k].active && free_slot == TW_CHC_MAX_SUSPENDED)
             free_slot = k;
     }
-    if (free_slot == MAX_SUSPENDED) {
+    if (free_slot == TW_CHC_MAX_SUSPENDED) {
         free_slot = oldest_suspended(chc);
         resume(chc, free_slot, true);
     }
@@ -1080,7 +1079,7 @@ void tw_chc_finish(struct tw_chc *chc)
     if (!chc)
         return;
     /* Oldest first: the nearer tiles' passes, started first. */
-    for (uint32_t k = oldest_suspended(chc); k < MAX_SUSPENDED; k = oldest_suspended(chc))
+    for (uint32_t k = oldest_suspended(chc); k < TW_CHC_MAX_SUSPENDED; k = oldest_suspended(chc))
         resume(chc, k, true);
 }
 
@@ -1090,7 +1089,7 @@ void tw_chc_begin_frame(struct tw_chc *chc, const struct tw_view *v,
 {
     if (!chc)
         return;
-    for (uint32_t k = 0; k < MAX_SUSPENDED; k++)
+    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
         assert(!chc->slots[k].active && "tw_chc_finish() was not called at the end of a frame");
     memset(&chc->stats, 0, sizeof(chc->stats));
     if (!be) {

@@ -237,26 +237,23 @@ static bool same_surface(float a, float b, const struct tw_oracle_depth *dm)
 }
 
 /* Whether an occlusion query of box b (tile-local, moved by offset) could
- * find it visible: whether at some pixel centre the box lies in front of the
- * frame's true depth (the ID pass's, of every cluster vfc draws), its eye
- * distance within the verify tolerance of that depth's or nearer. A box the
- * near plane may cut counts as showing, as the near-plane rule draws it. */
+ * find it visible: whether at some pixel centre the box the query draws
+ * (tw_cull_query_box, its margin included) lies in front of the frame's
+ * true depth (the ID pass's, of every cluster vfc draws), its eye distance
+ * within the verify tolerance of that depth's or nearer. A box the near
+ * plane may cut counts as showing, as the near-plane rule draws it. */
 static bool box_shows(const struct tw_view *v, const struct tw_box *b, const float offset[3],
                       const float *depth, uint32_t width, uint32_t height,
                       const struct tw_oracle_depth *dm)
 {
+    const struct tw_box q = tw_cull_query_box(v->eye, b, offset);
     float lo[2], hi[2], w_min;
-    if (!tw_cull_box_screen_rect(v, b, offset, lo, hi, &w_min))
+    if (!tw_cull_box_screen_rect(v, &q, NULL, lo, hi, &w_min))
         return true;
     const double x0 = fmax(0.0, floor((lo[0] * 0.5 + 0.5) * width));
     const double x1 = fmin(width, ceil((hi[0] * 0.5 + 0.5) * width));
     const double y0 = fmax(0.0, floor((lo[1] * 0.5 + 0.5) * height));
     const double y1 = fmin(height, ceil((hi[1] * 0.5 + 0.5) * height));
-    double bmin[3], bmax[3];
-    for (int a = 0; a < 3; a++) {
-        bmin[a] = (double)b->min[a] + offset[a];
-        bmax[a] = (double)b->max[a] + offset[a];
-    }
     /* A ray per pixel centre from the eye, parametrised by eye-space depth:
      * its eye-space direction is (x, y, -1), turned into view-relative
      * space by the view's rotation, transposed (view is rigid). */
@@ -270,11 +267,11 @@ static bool box_shows(const struct tw_view *v, const struct tw_box *b, const flo
                 const double d = m[4 * a] * e[0] + m[4 * a + 1] * e[1] + m[4 * a + 2] * e[2];
                 const double o = v->eye[a];
                 if (fabs(d) < 1e-12) {
-                    if (o < bmin[a] || o > bmax[a])
+                    if (o < q.min[a] || o > q.max[a])
                         t0 = INFINITY;
                     continue;
                 }
-                double ta = (bmin[a] - o) / d, tb = (bmax[a] - o) / d;
+                double ta = (q.min[a] - o) / d, tb = (q.max[a] - o) / d;
                 if (ta > tb) {
                     const double t = ta;
                     ta = tb;
