@@ -11,12 +11,17 @@
 
 enum { W = 320, H = 180 };
 
+/* deterministic: no query result ready before it is waited on, and the
+ * nominal cost model, so that two worlds given the same cameras draw the
+ * same clusters in the same order whatever the GPU's timing (otherwise the
+ * pixels where two clusters' surfaces tie follow the GPU's timing). */
 static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tileset *ts,
-                                   int64_t repeat)
+                                   int64_t repeat, bool deterministic)
 {
     struct tw_world_settings s = world_settings(ctx, ts, W, H, 1, 400.0f);
     s.selection.repeat = repeat;
     s.verify = true;
+    s.deterministic = deterministic;
     struct tw_world *w = NULL;
     if (tw_world_create(&s, &w) != TW_OK)
         return NULL;
@@ -49,7 +54,7 @@ static bool is_sky(const uint8_t *p)
  * rare (a handful per million); more than 1 in 10 000 fails the test. */
 static void test_methods_match_vfc(struct tw_context *ctx, const struct tw_tileset *ts)
 {
-    struct tw_world *w = make_world(ctx, ts, 0);
+    struct tw_world *w = make_world(ctx, ts, 0, false);
     CHECK(w != NULL);
     if (!w)
         return;
@@ -155,7 +160,7 @@ int main(void)
 
     /* A known view: on the street at a crossing, looking down +z. */
     struct tw_camera cam = {{{0, 0}, {0.0f, 1.7f, 2.0f}}, 10.0f, 3.0f};
-    struct tw_world *w = make_world(ctx, ts, 0);
+    struct tw_world *w = make_world(ctx, ts, 0, true);
     CHECK(w != NULL);
     if (w) {
         struct tw_frame_stats st;
@@ -176,17 +181,26 @@ int main(void)
         }
         CHECK(ground > W * H / 3);
         CHECK(shades > 12);
-        /* The same frame again, and from a second world: identical bytes. */
-        CHECK(render(w, &cam, b, &st) == TW_OK);
-        CHECK(memcmp(a, b, W * H * 3) == 0);
-        struct tw_world *w2 = make_world(ctx, ts, 0);
+        /* The same frames from a second world: identical bytes, frame by
+         * frame. The second frame of one world draws fewer clusters than its
+         * first (CHC++ has learnt what is hidden), so it equals the first
+         * only up to depth ties. */
+        uint8_t *a2 = malloc(W * H * 3);
+        CHECK(a2 != NULL);
+        struct tw_world *w2 = make_world(ctx, ts, 0, true);
         CHECK(w2 != NULL);
-        if (w2) {
+        if (a2 && w2) {
+            CHECK(render(w, &cam, a2, &st) == TW_OK);
+            CHECK(count_differing(a, a2, W * H) <= W * H / 10000);
             memset(b, 0, W * H * 3);
             CHECK(render(w2, &cam, b, &st) == TW_OK);
             CHECK(memcmp(a, b, W * H * 3) == 0);
-            tw_world_destroy(w2);
+            CHECK(render(w2, &cam, b, &st) == TW_OK);
+            CHECK(memcmp(a2, b, W * H * 3) == 0);
         }
+        if (w2)
+            tw_world_destroy(w2);
+        free(a2);
         /* Bad cameras are refused, not rendered. */
         struct tw_camera bad = cam;
         bad.pos.local[0] = 1.0f / 0.0f;
@@ -197,11 +211,16 @@ int main(void)
         tw_world_destroy(w);
     }
 
-    /* Far from the origin: with a selection of period 4, the image at cell
-     * (k*4, k*4), k*4 = 2^40, is the image at (0, 0), pixel for pixel. */
-    w = make_world(ctx, ts, 4);
-    CHECK(w != NULL);
-    if (w) {
+    /* Far from the origin: with a selection of period 4, the images at cell
+     * (k*4, k*4), k*4 = 2^40, are the images at (0, 0), pixel for pixel.
+     * Three deterministic worlds walk the same cameras, one near the origin,
+     * one far from it, and one far with each camera given in another cell's
+     * terms, so that each frame of one is drawn from the same state as the
+     * same frame of the others. */
+    struct tw_world *near_w = make_world(ctx, ts, 4, true), *far_w = make_world(ctx, ts, 4, true),
+                    *shifted_w = make_world(ctx, ts, 4, true);
+    CHECK(near_w && far_w && shifted_w);
+    if (near_w && far_w && shifted_w) {
         const int64_t far = (int64_t)1 << 40;
         const float yaws[3] = {10.0f, 135.0f, 250.0f};
         for (int k = 0; k < 3; k++) {
@@ -211,18 +230,22 @@ int main(void)
             struct tw_camera far_cam = near_cam;
             far_cam.pos.cell.i = far;
             far_cam.pos.cell.j = far;
-            CHECK(render(w, &near_cam, a, NULL) == TW_OK);
-            CHECK(render(w, &far_cam, b, NULL) == TW_OK);
+            CHECK(render(near_w, &near_cam, a, NULL) == TW_OK);
+            CHECK(render(far_w, &far_cam, b, NULL) == TW_OK);
             CHECK(memcmp(a, b, W * H * 3) == 0);
-            /* And a camera given with its offset in another cell's terms. */
             struct tw_camera shifted = far_cam;
             shifted.pos.cell.i -= 2;
             shifted.pos.local[0] += 2.0f * ts->footprint[0];
-            CHECK(render(w, &shifted, b, NULL) == TW_OK);
+            CHECK(render(shifted_w, &shifted, b, NULL) == TW_OK);
             CHECK(memcmp(a, b, W * H * 3) == 0);
         }
-        tw_world_destroy(w);
     }
+    if (near_w)
+        tw_world_destroy(near_w);
+    if (far_w)
+        tw_world_destroy(far_w);
+    if (shifted_w)
+        tw_world_destroy(shifted_w);
     test_methods_match_vfc(ctx, ts);
     test_merged_colors(ctx);
     free(a);
