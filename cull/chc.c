@@ -180,17 +180,17 @@ int tw_chc_create(const struct tw_chc_settings *settings, struct tw_chc **out)
     if (!out)
         return TW_ERR_INVALID;
     *out = NULL;
+    struct tw_chc_settings s = {0};
+    if (settings)
+        s = *settings;
+    tw_chc_default_settings(&s);
+    if (s.suspended_passes > TW_CHC_MAX_SUSPENDED)
+        return TW_ERR_INVALID;
     struct tw_chc *chc = calloc(1, sizeof(*chc));
     if (!chc)
         return TW_ERR_NOMEM;
-    if (settings)
-        chc->settings = *settings;
-    tw_chc_default_settings(&chc->settings);
-    if (chc->settings.suspended_passes > TW_CHC_MAX_SUSPENDED) {
-        free(chc);
-        return TW_ERR_INVALID;
-    }
-    chc->rng = chc->settings.seed;
+    chc->settings = s;
+    chc->rng = s.seed;
     *out = chc;
     return TW_OK;
 }
