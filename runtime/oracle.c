@@ -25,7 +25,11 @@ int tw_oracle_init(struct tw_world *w)
     o->ids = malloc(sizeof(*o->ids) * npix);
     o->id_depth = malloc(sizeof(*o->id_depth) * npix);
     o->depth = malloc(sizeof(*o->depth) * npix);
-    if (!o->ids || !o->id_depth || !o->depth)
+    o->id_distance = malloc(sizeof(*o->id_distance) * npix);
+    o->blocks_x = (w->s.width + TW_ORACLE_BLOCK - 1) / TW_ORACLE_BLOCK;
+    o->blocks_y = (w->s.height + TW_ORACLE_BLOCK - 1) / TW_ORACLE_BLOCK;
+    o->block_far = malloc(sizeof(*o->block_far) * o->blocks_x * o->blocks_y);
+    if (!o->ids || !o->id_depth || !o->depth || !o->id_distance || !o->block_far)
         return TW_ERR_NOMEM;
     int err = tw_cell_map_create(&o->tiles);
     if (!err)
@@ -40,12 +44,15 @@ void tw_oracle_finish(struct tw_oracle *o)
     tw_cull_driver_destroy(o->vfc);
     free(o->entries);
     free(o->visible);
+    free(o->box_visible);
     free(o->order);
     free(o->pixels);
     free(o->drawn);
     free(o->ids);
     free(o->id_depth);
     free(o->depth);
+    free(o->id_distance);
+    free(o->block_far);
     free(o->missed_per_id);
     tw_cell_map_destroy(o->tiles);
     tw_cell_map_destroy(o->ranks);
@@ -166,6 +173,36 @@ int tw_oracle_order(struct tw_world *w, const struct tw_view *v, struct tw_drawn
     return TW_OK;
 }
 
+/* Eye distance (metres along the view axis) of window depth d. */
+static double eye_distance(double d, double n, double f, bool reversed)
+{
+    if (reversed)   /* d = n (f / z - 1) / (f - n) */
+        return f * n / (d * (f - n) + n);
+    const double z_ndc = 2.0 * d - 1.0;
+    return 2.0 * f * n / ((f + n) - z_ndc * (f - n));
+}
+
+/* The pass's depth as eye distances, and the farthest of each block. */
+static void distances(struct tw_world *w, const struct tw_view *v)
+{
+    struct tw_oracle *o = &w->oracle;
+    const uint32_t width = w->s.width, height = w->s.height;
+    const bool reversed = tw_renderer_reversed_z(w->renderer);
+    for (size_t k = 0; k < (size_t)width * height; k++)
+        o->id_distance[k] = (float)eye_distance(o->id_depth[k], v->near_plane, v->far_plane,
+                                                reversed);
+    for (uint32_t by = 0; by < o->blocks_y; by++)
+        for (uint32_t bx = 0; bx < o->blocks_x; bx++) {
+            float far = 0.0f;
+            const uint32_t x1 = bx * TW_ORACLE_BLOCK + TW_ORACLE_BLOCK;
+            const uint32_t y1 = by * TW_ORACLE_BLOCK + TW_ORACLE_BLOCK;
+            for (uint32_t y = by * TW_ORACLE_BLOCK; y < y1 && y < height; y++)
+                for (uint32_t x = bx * TW_ORACLE_BLOCK; x < x1 && x < width; x++)
+                    far = fmaxf(far, o->id_distance[(size_t)y * width + x]);
+            o->block_far[(size_t)by * o->blocks_x + bx] = far;
+        }
+}
+
 int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
 {
     struct tw_oracle *o = &w->oracle;
@@ -193,6 +230,7 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
     }
     memset(o->pixels, 0, sizeof(*o->pixels) * o->count);
     tw_renderer_id_read(w->renderer, o->ids, o->id_depth);
+    distances(w, v);
     const size_t npix = (size_t)w->s.width * w->s.height;
     for (size_t k = 0; k < npix; k++)
         if (o->ids[k] < o->count)
@@ -206,15 +244,6 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
         if (o->pixels[k] > 0)
             o->visible[o->visible_count++] = o->entries[k];
     return tw_oracle_order(w, v, o->visible, o->visible_count, true);
-}
-
-/* Eye distance (metres along the view axis) of window depth d. */
-static double eye_distance(double d, double n, double f, bool reversed)
-{
-    if (reversed)   /* d = n (f / z - 1) / (f - n) */
-        return f * n / (d * (f - n) + n);
-    const double z_ndc = 2.0 * d - 1.0;
-    return 2.0 * f * n / ((f + n) - z_ndc * (f - n));
 }
 
 /* Whether depths a and b name one surface for a user: their eye distances
@@ -236,55 +265,95 @@ static bool same_surface(float a, float b, const struct tw_oracle_depth *dm)
     return fabs(za - zb) <= slack;
 }
 
-/* Whether an occlusion query of box b (tile-local, moved by offset) could
- * find it visible: whether at some pixel centre the box the query draws
- * (tw_cull_query_box, its margin included) lies in front of the frame's
- * true depth (the ID pass's, of every cluster vfc draws), its eye distance
- * within the verify tolerance of that depth's or nearer. A box the near
- * plane may cut counts as showing, as the near-plane rule draws it. */
+/* Whether the ray through the centre of pixel (x, y) meets box q at an eye
+ * distance within the verify tolerance of the true depth's or nearer. The
+ * ray is parametrised by eye-space depth: its eye-space direction is
+ * (x, y, -1), turned into view-relative space by the view's rotation,
+ * transposed (view is rigid). */
+static bool pixel_shows(const struct tw_view *v, const struct tw_box *q, uint32_t x, uint32_t y,
+                        double depth, uint32_t width, uint32_t height,
+                        const struct tw_oracle_depth *dm)
+{
+    const float *m = v->view, *p = v->proj;
+    const double ndc[2] = {2.0 * (x + 0.5) / width - 1.0, 2.0 * (y + 0.5) / height - 1.0};
+    const double e[3] = {(ndc[0] + p[8]) / p[0], (ndc[1] + p[9]) / p[5], -1.0};
+    double t0 = 0.0, t1 = INFINITY;
+    for (int a = 0; a < 3 && t0 <= t1; a++) {
+        const double d = m[4 * a] * e[0] + m[4 * a + 1] * e[1] + m[4 * a + 2] * e[2];
+        const double o = v->eye[a];
+        if (fabs(d) < 1e-12) {
+            if (o < q->min[a] || o > q->max[a])
+                t0 = INFINITY;
+            continue;
+        }
+        double ta = (q->min[a] - o) / d, tb = (q->max[a] - o) / d;
+        if (ta > tb) {
+            const double t = ta;
+            ta = tb;
+            tb = t;
+        }
+        t0 = fmax(t0, ta);
+        t1 = fmin(t1, tb);
+    }
+    return t0 <= t1 && t0 <= eye_distance(depth, dm->n, dm->f, dm->reversed) * (1.0 + dm->tol);
+}
+
+/* Whether an occlusion query of box b (tile-local, moved by offset), or of
+ * any box containing it, must find it visible: whether at some pixel
+ * centre b lies in front of the frame's true depth (the ID pass's, of every
+ * cluster vfc draws), its eye distance within the verify tolerance of that
+ * depth's or nearer. The box is b itself, not the larger box a query draws
+ * (tw_cull_query_box): the margin grows with distance, so the query box of a
+ * node containing b, being nearer, may not contain b's own query box. A box
+ * within reach of the near plane (tw_cull_near_box's radius) counts as
+ * showing: no box containing it is ever queried. Otherwise every point of
+ * it in view lies beyond the near plane, and blocks of pixels whose
+ * farthest true depth lies nearer than the box's nearest point in view are
+ * passed over whole. */
 static bool box_shows(const struct tw_view *v, const struct tw_box *b, const float offset[3],
-                      const float *depth, uint32_t width, uint32_t height,
+                      const struct tw_oracle *o, uint32_t width, uint32_t height,
                       const struct tw_oracle_depth *dm)
 {
-    const struct tw_box q = tw_cull_query_box(v->eye, b, offset);
-    float lo[2], hi[2], w_min;
-    if (!tw_cull_box_screen_rect(v, &q, NULL, lo, hi, &w_min))
+    struct tw_box q;
+    for (int a = 0; a < 3; a++) {
+        q.min[a] = b->min[a] + offset[a];
+        q.max[a] = b->max[a] + offset[a];
+    }
+    const float reach = v->near_radius > v->near_plane ? v->near_radius : v->near_plane;
+    if (tw_cull_box_distance(v, &q, NULL) <= reach)
         return true;
-    const double x0 = fmax(0.0, floor((lo[0] * 0.5 + 0.5) * width));
-    const double x1 = fmin(width, ceil((hi[0] * 0.5 + 0.5) * width));
-    const double y0 = fmax(0.0, floor((lo[1] * 0.5 + 0.5) * height));
-    const double y1 = fmin(height, ceil((hi[1] * 0.5 + 0.5) * height));
-    /* A ray per pixel centre from the eye, parametrised by eye-space depth:
-     * its eye-space direction is (x, y, -1), turned into view-relative
-     * space by the view's rotation, transposed (view is rigid). */
-    const float *m = v->view, *p = v->proj;
-    for (uint32_t y = (uint32_t)y0; y < (uint32_t)y1; y++) {
-        for (uint32_t x = (uint32_t)x0; x < (uint32_t)x1; x++) {
-            const double ndc[2] = {2.0 * (x + 0.5) / width - 1.0, 2.0 * (y + 0.5) / height - 1.0};
-            const double e[3] = {(ndc[0] + p[8]) / p[0], (ndc[1] + p[9]) / p[5], -1.0};
-            double t0 = 0.0, t1 = INFINITY;
-            for (int a = 0; a < 3 && t0 <= t1; a++) {
-                const double d = m[4 * a] * e[0] + m[4 * a + 1] * e[1] + m[4 * a + 2] * e[2];
-                const double o = v->eye[a];
-                if (fabs(d) < 1e-12) {
-                    if (o < q.min[a] || o > q.max[a])
-                        t0 = INFINITY;
-                    continue;
-                }
-                double ta = (q.min[a] - o) / d, tb = (q.max[a] - o) / d;
-                if (ta > tb) {
-                    const double t = ta;
-                    ta = tb;
-                    tb = t;
-                }
-                t0 = fmax(t0, ta);
-                t1 = fmin(t1, tb);
-            }
-            if (t0 > t1)
+    float lo[2], hi[2], w_min;
+    double x0 = 0.0, x1 = width, y0 = 0.0, y1 = height;
+    if (tw_cull_box_screen_rect(v, &q, NULL, lo, hi, &w_min)) {
+        x0 = fmax(0.0, floor((lo[0] * 0.5 + 0.5) * width));
+        x1 = fmin(width, ceil((hi[0] * 0.5 + 0.5) * width));
+        y0 = fmax(0.0, floor((lo[1] * 0.5 + 0.5) * height));
+        y1 = fmin(height, ceil((hi[1] * 0.5 + 0.5) * height));
+    } else {
+        /* A corner behind the near plane, but the box out of its reach:
+         * what of it is in view lies beyond the near plane. Every pixel. */
+        w_min = v->near_plane;
+    }
+    if (!(x0 < x1 && y0 < y1))
+        return false;
+    /* A block is passed over when even its farthest depth, with the
+     * tolerance and a margin for the float distances, is nearer than the
+     * box's nearest corner (an eye-space depth, as the rays' are). */
+    const double slack = (1.0 + dm->tol) * (1.0 + 1e-5);
+    const uint32_t px0 = (uint32_t)x0, px1 = (uint32_t)x1, py0 = (uint32_t)y0, py1 = (uint32_t)y1;
+    for (uint32_t by = py0 / TW_ORACLE_BLOCK; by <= (py1 - 1) / TW_ORACLE_BLOCK; by++) {
+        for (uint32_t bx = px0 / TW_ORACLE_BLOCK; bx <= (px1 - 1) / TW_ORACLE_BLOCK; bx++) {
+            if ((double)w_min > o->block_far[(size_t)by * o->blocks_x + bx] * slack)
                 continue;
-            const double z = eye_distance(depth[(size_t)y * width + x], dm->n, dm->f, dm->reversed);
-            if (t0 <= z * (1.0 + dm->tol))
-                return true;
+            const uint32_t ya = by * TW_ORACLE_BLOCK > py0 ? by * TW_ORACLE_BLOCK : py0;
+            const uint32_t yb = (by + 1) * TW_ORACLE_BLOCK < py1 ? (by + 1) * TW_ORACLE_BLOCK : py1;
+            const uint32_t xa = bx * TW_ORACLE_BLOCK > px0 ? bx * TW_ORACLE_BLOCK : px0;
+            const uint32_t xb = (bx + 1) * TW_ORACLE_BLOCK < px1 ? (bx + 1) * TW_ORACLE_BLOCK : px1;
+            for (uint32_t y = ya; y < yb; y++)
+                for (uint32_t x = xa; x < xb; x++)
+                    if (pixel_shows(v, &q, x, y, o->id_depth[(size_t)y * width + x], width,
+                                    height, dm))
+                        return true;
         }
     }
     return false;
@@ -300,8 +369,44 @@ static void count_overdraw(struct tw_world *w, const struct tw_drawn_cluster *d,
     st->overdraw_triangles += cl->triangle_count;
     float offset[3];
     tw_tiles_cell_offset(d->cell, v->cell, w->grid.footprint[0], w->grid.footprint[1], offset);
-    if (box_shows(v, &cl->box, offset, w->oracle.id_depth, w->s.width, w->s.height, dm))
+    if (box_shows(v, &cl->box, offset, &w->oracle, w->s.width, w->s.height, dm))
         st->overdraw_box_triangles += cl->triangle_count;
+}
+
+static struct tw_oracle_depth depth_model(const struct tw_world *w, const struct tw_view *v)
+{
+    return (struct tw_oracle_depth){
+        .n = v->near_plane,
+        .f = v->far_plane,
+        .reversed = tw_renderer_reversed_z(w->renderer),
+        .tol = w->s.verify_tolerance,
+    };
+}
+
+int tw_oracle_box_set(struct tw_world *w, const struct tw_view *v)
+{
+    struct tw_oracle *o = &w->oracle;
+    o->box_visible_count = 0;
+    int err = grow((void **)&o->box_visible, &o->box_visible_cap, o->count,
+                   sizeof(*o->box_visible));
+    if (err)
+        return err;
+    const struct tw_oracle_depth dm = depth_model(w, v);
+    for (size_t k = 0; k < o->count; k++) {
+        const struct tw_drawn_cluster *e = &o->entries[k];
+        bool take = o->pixels[k] > 0;
+        if (!take) {
+            const struct tw_cluster *cl =
+                &tw_renderer_content(w->renderer, e->prototype, NULL)->clusters[e->cluster];
+            float offset[3];
+            tw_tiles_cell_offset(e->cell, v->cell, w->grid.footprint[0], w->grid.footprint[1],
+                                 offset);
+            take = box_shows(v, &cl->box, offset, o, w->s.width, w->s.height, &dm);
+        }
+        if (take)
+            o->box_visible[o->box_visible_count++] = *e;
+    }
+    return tw_oracle_order(w, v, o->box_visible, o->box_visible_count, true);
 }
 
 void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
@@ -310,12 +415,7 @@ void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
     memset(o->drawn, 0, o->count);
     memset(o->missed_per_id, 0, sizeof(*o->missed_per_id) * o->count);
     const struct tw_view *v = &w->last_view;
-    const struct tw_oracle_depth dm = {
-        .n = v->near_plane,
-        .f = v->far_plane,
-        .reversed = tw_renderer_reversed_z(w->renderer),
-        .tol = w->s.verify_tolerance,
-    };
+    const struct tw_oracle_depth dm = depth_model(w, v);
     size_t n = 0;
     const struct tw_drawn_cluster *d = tw_world_drawn(w, &n);
     for (size_t k = 0; k < n; k++) {

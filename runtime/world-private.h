@@ -12,6 +12,8 @@
 #include "tileworld/cull.h"
 #include "tileworld/runtime.h"
 
+#define TW_ORACLE_BLOCK 8
+
 /* The accuracy oracle: every cluster vfc would draw, rendered into an
  * object-ID buffer; id k names entries[k]. */
 struct tw_oracle {
@@ -30,6 +32,13 @@ struct tw_oracle {
     size_t per_id_cap;
     uint32_t *ids;                  /* the ID buffer, width * height */
     float *id_depth;                /* its depth */
+    float *id_distance;             /* that depth as eye distance along the view axis */
+    float *block_far;               /* the farthest id_distance of each block of
+                                       TW_ORACLE_BLOCK x TW_ORACLE_BLOCK pixels */
+    uint32_t blocks_x, blocks_y;
+    struct tw_drawn_cluster *box_visible;  /* the box oracle's set: the entries
+                                              visible or whose query box shows */
+    size_t box_visible_count, box_visible_cap;
     float *depth;                   /* the method's frame's depth */
     uint32_t *missed_per_id;        /* missed pixels per id (compare) */
     struct tw_cell_map *tiles;      /* cell -> first id << 32 | cluster count */
@@ -112,6 +121,12 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v);
  * its set; else in the set's own order. */
 int tw_oracle_order(struct tw_world *w, const struct tw_view *v, struct tw_drawn_cluster *set,
                     size_t count, bool front_to_back);
+/* The box oracle's set for the view of the last ID pass: every cluster vfc
+ * draws that is visible or whose query box (tw_cull_query_box) shows in
+ * front of the pass's depth at some pixel centre, ordered as the oracle
+ * orders its set. What any conservative method that culls by querying
+ * cluster boxes (or boxes containing them) must draw. */
+int tw_oracle_box_set(struct tw_world *w, const struct tw_view *v);
 /* Compares what the last frame drew with the last ID pass. */
 void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st);
 

@@ -21,6 +21,7 @@ static const char *const method_names[TW_METHOD_COUNT] = {
     [TW_METHOD_ORACLE] = "oracle",
     [TW_METHOD_HZB] = "hzb",
     [TW_METHOD_TILEQUERY_HZB] = "tilequery+hzb",
+    [TW_METHOD_BOX_ORACLE] = "box-oracle",
 };
 
 const char *tw_method_name(enum tw_method m)
@@ -57,6 +58,7 @@ bool tw_method_conservative(enum tw_method m, const struct tw_world_settings *s)
     switch (tw_method_resolve(m)) {
     case TW_METHOD_VFC:
     case TW_METHOD_ORACLE:
+    case TW_METHOD_BOX_ORACLE:
     case TW_METHOD_HZB:             /* no queries, no threshold */
     case TW_METHOD_TILEQUERY_HZB:
         return true;
@@ -69,6 +71,11 @@ bool tw_method_conservative(enum tw_method m, const struct tw_world_settings *s)
     default:
         return false;
     }
+}
+
+bool tw_method_limit(enum tw_method m)
+{
+    return m == TW_METHOD_ORACLE || m == TW_METHOD_BOX_ORACLE;
 }
 
 static uint32_t default_workers(void);
@@ -103,7 +110,7 @@ void tw_world_default_settings(struct tw_world_settings *s)
     tw_bvh_default_settings(&s->bvh);
 }
 
-/* The driver of method m (the oracle's timed part draws a given set). */
+/* The driver of method m (the oracles' timed parts draw a given set). */
 static int create_driver(const struct tw_world *w, enum tw_method m, struct tw_cull_driver **out)
 {
     static const enum tw_cull_method drivers[TW_METHOD_COUNT] = {
@@ -114,6 +121,7 @@ static int create_driver(const struct tw_world *w, enum tw_method m, struct tw_c
         [TW_METHOD_ORACLE] = TW_CULL_GIVEN,
         [TW_METHOD_HZB] = TW_CULL_HZB,
         [TW_METHOD_TILEQUERY_HZB] = TW_CULL_TILEQUERY_HZB,
+        [TW_METHOD_BOX_ORACLE] = TW_CULL_GIVEN,
     };
     const struct tw_cull_driver_settings ds = {
         .method = drivers[m],
@@ -635,13 +643,20 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     double t0 = tw_renderer_now_ms(), cpu0 = tw_renderer_cpu_ms();
     if (w->stream)
         tw_stream_begin_frame(w->stream, w->frame_serial);
-    if (w->method == TW_METHOD_ORACLE) {
-        /* The ID pass is the oracle's knowledge, not its work: untimed. */
+    const bool oracle = tw_method_limit(w->method);
+    if (oracle) {
+        /* The ID pass (and the box test) is an oracle's knowledge, not its
+         * work: untimed. */
         const double ts0 = tw_renderer_now_ms(), cs0 = tw_renderer_cpu_ms();
         err = tw_oracle_pass(w, &v);
+        if (!err && w->method == TW_METHOD_BOX_ORACLE)
+            err = tw_oracle_box_set(w, &v);
         if (err)
             return err;
-        tw_cull_driver_give(ms->driver, w->oracle.visible, w->oracle.visible_count);
+        if (w->method == TW_METHOD_ORACLE)
+            tw_cull_driver_give(ms->driver, w->oracle.visible, w->oracle.visible_count);
+        else
+            tw_cull_driver_give(ms->driver, w->oracle.box_visible, w->oracle.box_visible_count);
         t0 += tw_renderer_now_ms() - ts0;
         cpu0 += tw_renderer_cpu_ms() - cs0;
     }
@@ -682,7 +697,7 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
         tw_renderer_finish(w->renderer);
         st.ms_frame = tw_renderer_now_ms() - t0;
         st.cpu_ms = tw_renderer_cpu_ms() - cpu0;
-        if (w->method != TW_METHOD_ORACLE)
+        if (!oracle)
             err = tw_oracle_pass(w, &v);
         if (err)
             return err;

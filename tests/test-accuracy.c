@@ -4,6 +4,9 @@
  *     conservative method draws every cluster the oracle's ID pass sees
  *     (0 missed pixels, 0 depth errors at the default tolerance), and the
  *     oracle method itself draws exactly the visible clusters (no overdraw);
+ *   - the box oracle draws the visible clusters and the ones whose query
+ *     boxes show in front of the true depth, and every other method draws
+ *     at least that set (it is their floor);
  *   - the ID pass rasterises what the normal pass does: vfc and the oracle,
  *     which draw the same fragments, differ from it in no pixel's depth even
  *     at a tolerance of 1e-30, over fixed views and a flyover window;
@@ -39,9 +42,44 @@ static bool load_path(const char *name, uint32_t frames, const struct tw_tileset
     return rc == TW_OK;
 }
 
+/* Whether cluster c is among the n clusters of set (sorted by cmp_drawn). */
+static int cmp_drawn(const void *a, const void *b)
+{
+    const struct tw_drawn_cluster *x = a, *y = b;
+    if (x->cell.i != y->cell.i)
+        return x->cell.i < y->cell.i ? -1 : 1;
+    if (x->cell.j != y->cell.j)
+        return x->cell.j < y->cell.j ? -1 : 1;
+    if (x->prototype != y->prototype)
+        return x->prototype < y->prototype ? -1 : 1;
+    return (x->cluster > y->cluster) - (x->cluster < y->cluster);
+}
+
+/* How many clusters of floor (sorted) the last frame of w did not draw. */
+static size_t not_drawn(const struct tw_world *w, const struct tw_drawn_cluster *floor, size_t n)
+{
+    size_t count = 0;
+    const struct tw_drawn_cluster *d = tw_world_drawn(w, &count);
+    struct tw_drawn_cluster *sorted = malloc(sizeof(*sorted) * (count ? count : 1));
+    CHECK(sorted != NULL);
+    if (!sorted)
+        return n;
+    memcpy(sorted, d, sizeof(*sorted) * count);
+    qsort(sorted, count, sizeof(*sorted), cmp_drawn);
+    size_t missing = 0;
+    for (size_t k = 0; k < n; k++)
+        missing += !bsearch(&floor[k], sorted, count, sizeof(*sorted), cmp_drawn);
+    free(sorted);
+    return missing;
+}
+
+enum { METHODS = 8, VFC = 0, ORACLE = 4, BOX_ORACLE = 7 };
+
 /* Walks frames [first, frames) of a built-in path with every method: the
  * frames before first are skipped, not rendered, so a walk can start just
- * before a teleport or a spin. */
+ * before a teleport or a spin. The box oracle runs first on each view: every
+ * other conservative method, which culls only by queries or depth tests of
+ * boxes that contain the clusters' own, must draw at least its set. */
 static void walk(struct tw_context *ctx, const struct tw_tileset *ts, const char *path_name,
                  uint32_t first, uint32_t frames)
 {
@@ -51,47 +89,90 @@ static void walk(struct tw_context *ctx, const struct tw_tileset *ts, const char
     const struct tw_world_settings s = base_settings(ctx, ts);
     struct tw_world *w = NULL;
     CHECK(tw_world_create(&s, &w) == TW_OK);
-    const enum tw_method methods[] = {TW_METHOD_VFC, TW_METHOD_CHC, TW_METHOD_TILEQUERY,
-                                      TW_METHOD_TILEQUERY_CHC, TW_METHOD_ORACLE};
-    uint64_t triangles[5] = {0}, overdraw[5] = {0}, box_overdraw[5] = {0};
+    const enum tw_method methods[METHODS] = {
+        TW_METHOD_VFC, TW_METHOD_CHC, TW_METHOD_TILEQUERY, TW_METHOD_TILEQUERY_CHC,
+        TW_METHOD_ORACLE, TW_METHOD_HZB, TW_METHOD_TILEQUERY_HZB, TW_METHOD_BOX_ORACLE};
+    static const size_t order[METHODS] = {BOX_ORACLE, 0, 1, 2, 3, 4, 5, 6};
+    uint64_t triangles[METHODS] = {0}, overdraw[METHODS] = {0}, box_overdraw[METHODS] = {0};
+    uint64_t below_floor[METHODS] = {0}, floor_clusters = 0;
+    struct tw_drawn_cluster *floor = NULL;
+    size_t floor_count = 0;
     for (uint32_t f = first; w && f < path.count; f++) {
-        for (size_t m = 0; m < 5; m++) {
-            struct tw_frame_stats st;
+        struct tw_frame_stats frame[METHODS];
+        for (size_t k = 0; k < METHODS; k++) {
+            const size_t m = order[k];
+            struct tw_frame_stats *st = &frame[m];
             CHECK(tw_world_set_method(w, methods[m]) == TW_OK);
-            CHECK(tw_world_frame(w, &path.keys[f], &st) == TW_OK);
-            if (st.missed_pixels != 0 || st.depth_errors != 0)
+            CHECK(tw_world_frame(w, &path.keys[f], st) == TW_OK);
+            if (st->missed_pixels != 0 || st->depth_errors != 0)
                 fprintf(stderr, "%s/%s frame %u: %s missed %llu pixels in %u clusters, "
                         "%llu depth errors\n", ts->name, path_name, f,
-                        tw_method_name(methods[m]), (unsigned long long)st.missed_pixels,
-                        st.missed_clusters, (unsigned long long)st.depth_errors);
+                        tw_method_name(methods[m]), (unsigned long long)st->missed_pixels,
+                        st->missed_clusters, (unsigned long long)st->depth_errors);
             CHECK(tw_method_conservative(methods[m], &s));
-            CHECK(st.missed_pixels == 0 && st.missed_clusters == 0);
-            CHECK(st.depth_errors == 0);
+            CHECK(st->missed_pixels == 0 && st->missed_clusters == 0);
+            CHECK(st->depth_errors == 0);
             if (methods[m] == TW_METHOD_ORACLE)
-                CHECK(st.overdraw_triangles == 0);
-            CHECK(st.overdraw_box_triangles <= st.overdraw_triangles);
-            triangles[m] += st.triangles;
-            overdraw[m] += st.overdraw_triangles;
-            box_overdraw[m] += st.overdraw_box_triangles;
+                CHECK(st->overdraw_triangles == 0);
+            CHECK(st->overdraw_box_triangles <= st->overdraw_triangles);
+            if (m == BOX_ORACLE) {
+                /* All it overdraws shows its box. */
+                CHECK(st->overdraw_box_triangles == st->overdraw_triangles);
+                const struct tw_drawn_cluster *d = tw_world_drawn(w, &floor_count);
+                free(floor);
+                floor = malloc(sizeof(*floor) * (floor_count ? floor_count : 1));
+                CHECK(floor != NULL);
+                if (!floor)
+                    floor_count = 0;
+                else
+                    memcpy(floor, d, sizeof(*floor) * floor_count);
+                qsort(floor, floor_count, sizeof(*floor), cmp_drawn);
+                floor_clusters += floor_count;
+            } else if (!tw_method_limit(methods[m])) {
+                const size_t missing = not_drawn(w, floor, floor_count);
+                if (missing)
+                    fprintf(stderr, "%s/%s frame %u: %s did not draw %zu of the box oracle's "
+                            "%zu clusters\n", ts->name, path_name, f,
+                            tw_method_name(methods[m]), missing, floor_count);
+                below_floor[m] += missing;
+            }
+            triangles[m] += st->triangles;
+            overdraw[m] += st->overdraw_triangles;
+            box_overdraw[m] += st->overdraw_box_triangles;
         }
+        /* The box oracle draws the visible clusters and, of the rest, what
+         * vfc overdraws with boxes that show: the same box test. */
+        CHECK(frame[BOX_ORACLE].overdraw_triangles == frame[VFC].overdraw_box_triangles);
+        CHECK(frame[ORACLE].triangles <= frame[BOX_ORACLE].triangles &&
+              frame[BOX_ORACLE].triangles <= frame[VFC].triangles);
     }
+    /* No conservative method that culls by boxes draws less than the box
+     * oracle. */
+    for (size_t m = 0; m < METHODS; m++)
+        CHECK(below_floor[m] == 0);
     /* vfc draws hidden clusters of both kinds: some whose boxes show in
      * front of the true depth (a query could not cull them), and more
      * whose boxes are hidden too. */
-    CHECK(box_overdraw[0] > 0 && box_overdraw[0] < overdraw[0]);
+    CHECK(box_overdraw[VFC] > 0 && box_overdraw[VFC] < overdraw[VFC]);
     /* The methods really cull: fewer triangles than vfc over the walk. */
-    CHECK(triangles[4] <= triangles[1] && triangles[1] <= triangles[0]);
-    CHECK(triangles[3] < triangles[0]);
+    CHECK(triangles[ORACLE] <= triangles[1] && triangles[1] <= triangles[VFC]);
+    CHECK(triangles[3] < triangles[VFC]);
     printf("%-7s %-9s frames %u-%u:", ts->name, path_name, first, path.count - 1);
-    for (size_t m = 0; m < 5; m++)
+    for (size_t m = 0; m < METHODS; m++)
         printf(" %s %.0f%%", tw_method_name(methods[m]),
-               triangles[0] ? 100.0 * (double)triangles[m] / (double)triangles[0] : 0.0);
+               triangles[VFC] ? 100.0 * (double)triangles[m] / (double)triangles[VFC] : 0.0);
     printf(" of vfc's triangles; oracle overdraw %llu; overdraw whose box shows:",
-           (unsigned long long)overdraw[4]);
-    for (size_t m = 0; m < 4; m++)
-        printf(" %s %.0f%%", tw_method_name(methods[m]),
-               overdraw[m] ? 100.0 * (double)box_overdraw[m] / (double)overdraw[m] : 0.0);
-    printf("\n");
+           (unsigned long long)overdraw[ORACLE]);
+    for (size_t m = 0; m < METHODS; m++)
+        if (!tw_method_limit(methods[m]))
+            printf(" %s %.0f%%", tw_method_name(methods[m]),
+                   overdraw[m] ? 100.0 * (double)box_overdraw[m] / (double)overdraw[m] : 0.0);
+    uint64_t below = 0;
+    for (size_t m = 0; m < METHODS; m++)
+        below += below_floor[m];
+    printf("; box oracle %llu clusters, %llu of them not drawn by a method\n",
+           (unsigned long long)floor_clusters, (unsigned long long)below);
+    free(floor);
     tw_world_destroy(w);
     tw_path_finish(&path);
 }

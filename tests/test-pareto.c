@@ -11,11 +11,11 @@
 #include "tools/tileworld/pareto.h"
 #include "tests/check.h"
 
-enum { VALUES = 3, METHODS = 3 };
+enum { VALUES = 3, METHODS = 4 };
 
 static const double values[VALUES] = {0, 4, 16};
 static const enum tw_method methods[METHODS] = {TW_METHOD_CHC, TW_METHOD_TILEQUERY_CHC,
-                                                TW_METHOD_ORACLE};
+                                                TW_METHOD_ORACLE, TW_METHOD_BOX_ORACLE};
 
 /* Mean CPU ms and missed pixels (over 10 frames) per value and method. */
 static void set(struct tw_method_figures *fg, double cpu, uint64_t missed, uint64_t depth)
@@ -64,10 +64,11 @@ int main(void)
     set(&figures[0][TW_METHOD_TILEQUERY_CHC], 9.0, 0, 0);
     set(&figures[1][TW_METHOD_TILEQUERY_CHC], 9.5, 20, 20);
     set(&figures[2][TW_METHOD_TILEQUERY_CHC], 7.0, 100, 100);
-    /* The oracle beats everything and is on no front. */
+    /* The oracles (limits) beat everything and are on no front. */
     for (int k = 0; k < VALUES; k++) {
         set(&figures[k][TW_METHOD_ORACLE], 1.0, 0, 0);
-        conservative[k][TW_METHOD_ORACLE] = true;
+        set(&figures[k][TW_METHOD_BOX_ORACLE], 1.5, 0, 0);
+        conservative[k][TW_METHOD_ORACLE] = conservative[k][TW_METHOD_BOX_ORACLE] = true;
     }
     conservative[0][TW_METHOD_CHC] = conservative[0][TW_METHOD_TILEQUERY_CHC] = true;
 
@@ -85,8 +86,9 @@ int main(void)
     CHECK(!chc0->front && chc4->front && !chc16->front);
     CHECK(tq0->front && !tq4->front && tq16->front);
     for (int k = 0; k < VALUES; k++)
-        CHECK(!find(points, n, TW_METHOD_ORACLE, values[k])->front &&
-              !find(points, n, TW_METHOD_ORACLE, values[k])->front_depth);
+        for (int m = 2; m < METHODS; m++)
+            CHECK(!find(points, n, methods[m], values[k])->front &&
+                  !find(points, n, methods[m], values[k])->front_depth);
     /* Depth errors: chc T=16 (2 per 10 frames) now beats chc T=4 (7). */
     CHECK(chc16->front_depth && !chc4->front_depth && tq0->front_depth && tq16->front_depth);
     CHECK(chc4->missed_per_frame == 0.5 && chc16->depth_errors_per_frame == 0.2);
@@ -125,7 +127,8 @@ int main(void)
     CHECK(md != NULL);
     if (md) {
         CHECK(strstr(md, "| chc | 4 | 7.00 | 2.00x | 100.0 | 100.0 | no | yes (both) |"));
-        CHECK(strstr(md, "| oracle | 0 | 1.00 | - | 0.0 | 0.0 | yes | no (the limit) |"));
+        CHECK(strstr(md, "| oracle | 0 | 1.00 | - | 0.0 | 0.0 | yes | no (a limit) |"));
+        CHECK(strstr(md, "| box-oracle | 4 | 1.50 | - | 0.0 | 0.0 | yes | no (a limit) |"));
         CHECK(strstr(md, "| chc | 0 | 10.00 | 1.40x | 0.0 | 0.0 | yes | no |"));
         CHECK(strstr(md, "- tilequery+chc T=0: 9.00 ms CPU per frame, speed-up 1.56 over "
                          "defaults, 0.0 missed pixels per frame (conservative)"));

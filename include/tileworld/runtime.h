@@ -40,13 +40,16 @@ enum tw_method {
     TW_METHOD_ORACLE,
     TW_METHOD_HZB,              /* two-phase hierarchical-Z culling (DESIGN §6) */
     TW_METHOD_TILEQUERY_HZB,    /* §4 answered by the depth pyramid instead of queries */
+    TW_METHOD_BOX_ORACLE,       /* the limit of box queries: draws every cluster that is
+                                   visible or whose query box shows in front of the
+                                   frame's true depth (README "Methods") */
     TW_METHOD_COUNT
 };
 /* The first real method: loops over methods run [TW_METHOD_FIRST, TW_METHOD_COUNT). */
 #define TW_METHOD_FIRST TW_METHOD_VFC
 
 /* "vfc", "tilequery", "chc", "tilequery+chc", "oracle", "hzb",
- * "tilequery+hzb" ("default" for TW_METHOD_DEFAULT). */
+ * "tilequery+hzb", "box-oracle" ("default" for TW_METHOD_DEFAULT). */
 const char *tw_method_name(enum tw_method m);
 /* Parses a method name (not "default"); returns TW_ERR_INVALID for an
  * unknown one. */
@@ -61,6 +64,10 @@ struct tw_world_settings;
  * visible pixel: every method, unless its occlusion queries cull below a
  * visibility threshold T > 0 (contribution culling, DESIGN §7). */
 bool tw_method_conservative(enum tw_method m, const struct tw_world_settings *s);
+/* True for the limits, oracle and box-oracle: they know the frame's
+ * visibility from an untimed ID-buffer pass, so they are what the methods
+ * are measured against, never a method a renderer could use. */
+bool tw_method_limit(enum tw_method m);
 
 /* ---- the world ------------------------------------------------------------------ */
 

@@ -57,16 +57,17 @@ sweep_file(i) = 'chart-data/sweep-'.method(i).'.dat'
 listed(list, name) = strstrt(' '.list.' ', ' '.name.' ') > 0
 
 # One colour per method, the same in every chart of every run: vfc the grey
-# baseline, the oracle a black dashed lower bound. Linetypes, unlike line
-# styles, survive the reset before each chart.
-known = 'vfc tilequery chc tilequery+chc oracle hzb tilequery+hzb'
+# baseline, the oracle a black dashed lower bound, the box oracle (the bound
+# of box queries) an orange dashed one. Linetypes, unlike line styles,
+# survive the reset before each chart.
+known = 'vfc tilequery chc tilequery+chc oracle hzb tilequery+hzb box-oracle'
 palette = '#7f7f7f #56b4e9 #009e73 #d55e00 #000000 #0072b2 #cc79a7 #e69f00 #882255 #44aa99 #999933 #aa4499'
 position(list, name) = listed(list, name) ? words(substr(' '.list.' ', 1, strstrt(' '.list.' ', ' '.name.' '))) + 1 : 0
-line_of(m) = position(known, m) > 0 ? position(known, m) : 8 + (position(methods, m) + 4) % 5
+line_of(m) = position(known, m) > 0 ? position(known, m) : 9 + (position(methods, m) + 4) % 4
 line(i) = line_of(method(i))
 colour(i) = word(palette, line(i))
 do for [i = 1:n] {
-    dash = method(i) eq 'oracle' ? 2 : 1
+    dash = method(i) eq 'oracle' || method(i) eq 'box-oracle' ? 2 : 1
     set linetype line(i) lc rgb colour(i) lw 2 dt dash pt 7
 }
 
@@ -356,8 +357,8 @@ if (sweep_param ne '') {
 # pixels per frame (left) and depth errors per frame (right); conservative
 # points (T = 0) filled squares, the others open circles; the points of the
 # Pareto front (no other point as fast with as few errors, and better in
-# one) ringed, named and joined by a black staircase. The oracle is drawn but never on a front:
-# it needs the ID pass.
+# one) ringed, named and joined by a black staircase. The oracles are drawn but never on a
+# front: they need the ID pass (the front itself comes from pareto.c).
 if (pareto) {
     reset
     stats 'chart-data/pareto.dat' using 'mean_cpu_ms' nooutput

@@ -15,10 +15,10 @@ static void mark_front(struct tw_pareto_point *points, uint32_t n, bool depth)
 {
     for (uint32_t p = 0; p < n; p++) {
         struct tw_pareto_point *pp = &points[p];
-        bool beaten = pp->method == TW_METHOD_ORACLE;
+        bool beaten = tw_method_limit(pp->method);
         for (uint32_t q = 0; q < n && !beaten; q++) {
             const struct tw_pareto_point *qp = &points[q];
-            if (q == p || qp->method == TW_METHOD_ORACLE)
+            if (q == p || tw_method_limit(qp->method))
                 continue;
             beaten = depth ? dominates(qp->cpu_ms, qp->depth_errors_per_frame, pp->cpu_ms,
                                        pp->depth_errors_per_frame)
@@ -81,7 +81,7 @@ static void name_front(struct tw_outfile *o, const char *param, const char *refe
                        bool depth)
 {
     tw_outfile_printf(o, "\n**The front of CPU time against %s** (no other point is as fast "
-                         "with as few %s, and better in one; the oracle is left out: it needs "
+                         "with as few %s, and better in one; the oracles are left out: they need "
                          "the ID pass):\n\n", depth ? "depth errors" : "missed pixels",
                       depth ? "depth errors" : "missed pixels");
     for (uint32_t k = 0; k < n; k++) {
@@ -111,7 +111,7 @@ void tw_pareto_write_md(struct tw_outfile *o, const char *param, const char *ref
     for (uint32_t k = 0; k < n; k++) {
         const struct tw_pareto_point *p = &points[order[k]];
         const char *front = !verified ? "-"
-                            : p->method == TW_METHOD_ORACLE ? "no (the limit)"
+                            : tw_method_limit(p->method) ? "no (a limit)"
                             : p->front && p->front_depth ? "yes (both)"
                             : p->front ? "yes" : p->front_depth ? "depth errors only" : "no";
         char speedup[32] = "-";

@@ -67,7 +67,7 @@ static void usage(FILE *f)
           "tilesets: city, forest, hybrid, the providers city-gen and forest-gen (every cell\n"
           "generated on demand), or a manifest; paths: street, flyover, forest, teleport, spin,\n"
           "or a CSV file; methods: vfc, tilequery, chc, tilequery+chc (default), oracle, hzb,\n"
-          "tilequery+hzb\n"
+          "tilequery+hzb, box-oracle\n"
           "--workers N           threads generating a provider's tiles, 1..64 (default: cores - 1)\n"
           "--policy wait|skip    a visible tile not ready: the frame waits for it (wait, default)\n"
           "                      or draws without it, a hole counted in tiles_pending (skip)\n"

@@ -56,8 +56,8 @@ static void usage(FILE *f)
           "tilesets: city, forest, hybrid, the providers city-gen and forest-gen, or a manifest\n"
           "options take their value as --opt VALUE or --opt=VALUE; numbers are plain decimal digits\n"
           "keys: mouse drag or Tab (captured mouse) to look; W A S D to fly, Q/E down/up, Shift\n"
-          "fast, wheel changes speed; 1-7 method (vfc, tilequery, chc, tilequery+chc, oracle,\n"
-          "hzb, tilequery+hzb);\n"
+          "fast, wheel changes speed; 1-8 method (vfc, tilequery, chc, tilequery+chc, oracle,\n"
+          "hzb, tilequery+hzb, box-oracle);\n"
           "C cells, B BVH nodes, X query boxes; F freeze the culled set; P screenshot;\n"
           "H help; O overlay; Esc quits\n",
           f);
@@ -506,10 +506,11 @@ static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods)
         }
         break;
     case GLFW_KEY_1: case GLFW_KEY_2: case GLFW_KEY_3: case GLFW_KEY_4: case GLFW_KEY_5:
-    case GLFW_KEY_6: case GLFW_KEY_7: {
-        static const enum tw_method by_key[7] = {TW_METHOD_VFC, TW_METHOD_TILEQUERY, TW_METHOD_CHC,
+    case GLFW_KEY_6: case GLFW_KEY_7: case GLFW_KEY_8: {
+        static const enum tw_method by_key[8] = {TW_METHOD_VFC, TW_METHOD_TILEQUERY, TW_METHOD_CHC,
                                                  TW_METHOD_TILEQUERY_CHC, TW_METHOD_ORACLE,
-                                                 TW_METHOD_HZB, TW_METHOD_TILEQUERY_HZB};
+                                                 TW_METHOD_HZB, TW_METHOD_TILEQUERY_HZB,
+                                                 TW_METHOD_BOX_ORACLE};
         if (tw_world_set_method(v->world, by_key[key - GLFW_KEY_1]) == TW_OK)
             set_title(v);
         break;
@@ -730,7 +731,7 @@ static void draw_stats(struct viewer *v)
              (long long)v->cam.pos.cell.i, (long long)v->cam.pos.cell.j, v->cam.pos.local[0],
              v->cam.pos.local[1], v->cam.pos.local[2], lroundf(v->cam.yaw), lroundf(v->cam.pitch));
     memcpy(colors[n++], dim, sizeof(dim));
-    snprintf(lines[n], sizeof(lines[n]), "[1-7] method  [C] cells %s  [B] nodes %s  [X] queries %s  [H] help",
+    snprintf(lines[n], sizeof(lines[n]), "[1-8] method  [C] cells %s  [B] nodes %s  [X] queries %s  [H] help",
              v->debug & TW_DEBUG_CELLS ? "ON" : "off", v->debug & TW_DEBUG_NODES ? "ON" : "off",
              v->debug & TW_DEBUG_QUERIES ? "ON" : "off");
     memcpy(colors[n++], dim, sizeof(dim));
