@@ -25,11 +25,10 @@ int tw_oracle_init(struct tw_world *w)
     o->ids = malloc(sizeof(*o->ids) * npix);
     o->id_depth = malloc(sizeof(*o->id_depth) * npix);
     o->depth = malloc(sizeof(*o->depth) * npix);
-    o->id_distance = malloc(sizeof(*o->id_distance) * npix);
     o->blocks_x = (w->s.width + TW_ORACLE_BLOCK - 1) / TW_ORACLE_BLOCK;
     o->blocks_y = (w->s.height + TW_ORACLE_BLOCK - 1) / TW_ORACLE_BLOCK;
     o->block_far = malloc(sizeof(*o->block_far) * o->blocks_x * o->blocks_y);
-    if (!o->ids || !o->id_depth || !o->depth || !o->id_distance || !o->block_far)
+    if (!o->ids || !o->id_depth || !o->depth || !o->block_far)
         return TW_ERR_NOMEM;
     int err = tw_cell_map_create(&o->tiles);
     if (!err)
@@ -51,7 +50,6 @@ void tw_oracle_finish(struct tw_oracle *o)
     free(o->ids);
     free(o->id_depth);
     free(o->depth);
-    free(o->id_distance);
     free(o->block_far);
     free(o->missed_per_id);
     tw_cell_map_destroy(o->tiles);
@@ -182,24 +180,22 @@ static double eye_distance(double d, double n, double f, bool reversed)
     return 2.0 * f * n / ((f + n) - z_ndc * (f - n));
 }
 
-/* The pass's depth as eye distances, and the farthest of each block. */
-static void distances(struct tw_world *w, const struct tw_view *v)
+/* The farthest eye distance of the pass's depth in each block of pixels. */
+static void block_distances(struct tw_world *w, const struct tw_view *v)
 {
     struct tw_oracle *o = &w->oracle;
     const uint32_t width = w->s.width, height = w->s.height;
     const bool reversed = tw_renderer_reversed_z(w->renderer);
-    for (size_t k = 0; k < (size_t)width * height; k++)
-        o->id_distance[k] = (float)eye_distance(o->id_depth[k], v->near_plane, v->far_plane,
-                                                reversed);
     for (uint32_t by = 0; by < o->blocks_y; by++)
         for (uint32_t bx = 0; bx < o->blocks_x; bx++) {
-            float far = 0.0f;
+            double far = 0.0;
             const uint32_t x1 = bx * TW_ORACLE_BLOCK + TW_ORACLE_BLOCK;
             const uint32_t y1 = by * TW_ORACLE_BLOCK + TW_ORACLE_BLOCK;
             for (uint32_t y = by * TW_ORACLE_BLOCK; y < y1 && y < height; y++)
                 for (uint32_t x = bx * TW_ORACLE_BLOCK; x < x1 && x < width; x++)
-                    far = fmaxf(far, o->id_distance[(size_t)y * width + x]);
-            o->block_far[(size_t)by * o->blocks_x + bx] = far;
+                    far = fmax(far, eye_distance(o->id_depth[(size_t)y * width + x],
+                                                 v->near_plane, v->far_plane, reversed));
+            o->block_far[(size_t)by * o->blocks_x + bx] = (float)far;
         }
 }
 
@@ -230,7 +226,7 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
     }
     memset(o->pixels, 0, sizeof(*o->pixels) * o->count);
     tw_renderer_id_read(w->renderer, o->ids, o->id_depth);
-    distances(w, v);
+    block_distances(w, v);
     const size_t npix = (size_t)w->s.width * w->s.height;
     for (size_t k = 0; k < npix; k++)
         if (o->ids[k] < o->count)

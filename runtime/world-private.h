@@ -32,9 +32,8 @@ struct tw_oracle {
     size_t per_id_cap;
     uint32_t *ids;                  /* the ID buffer, width * height */
     float *id_depth;                /* its depth */
-    float *id_distance;             /* that depth as eye distance along the view axis */
-    float *block_far;               /* the farthest id_distance of each block of
-                                       TW_ORACLE_BLOCK x TW_ORACLE_BLOCK pixels */
+    float *block_far;               /* the farthest eye distance of id_depth in each
+                                       block of TW_ORACLE_BLOCK x TW_ORACLE_BLOCK pixels */
     uint32_t blocks_x, blocks_y;
     struct tw_drawn_cluster *box_visible;  /* the box oracle's set: the entries
                                               visible or whose query box shows */

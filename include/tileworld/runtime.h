@@ -40,9 +40,9 @@ enum tw_method {
     TW_METHOD_ORACLE,
     TW_METHOD_HZB,              /* two-phase hierarchical-Z culling (DESIGN §6) */
     TW_METHOD_TILEQUERY_HZB,    /* §4 answered by the depth pyramid instead of queries */
-    TW_METHOD_BOX_ORACLE,       /* the limit of box queries: draws every cluster that is
-                                   visible or whose query box shows in front of the
-                                   frame's true depth (README "Methods") */
+    TW_METHOD_BOX_ORACLE,       /* the limit of culling with boxes: draws every cluster
+                                   that is visible or whose own box shows in front of
+                                   the frame's true depth (README, "The box oracle") */
     TW_METHOD_COUNT
 };
 /* The first real method: loops over methods run [TW_METHOD_FIRST, TW_METHOD_COUNT). */
