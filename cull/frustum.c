@@ -138,9 +138,14 @@ struct tw_box tw_cull_query_box(const float eye[3], const struct tw_box *b, cons
     return q;
 }
 
+float tw_cull_near_reach(const struct tw_view *v)
+{
+    return v->near_radius > v->near_plane ? v->near_radius : v->near_plane;
+}
+
 bool tw_cull_near_box(const struct tw_view *v, const struct tw_box *b, const float offset[3])
 {
-    const float r = v->near_radius > v->near_plane ? v->near_radius : v->near_plane;
+    const float r = tw_cull_near_reach(v);
     /* The box a query would draw, margin included (DESIGN §5): that is the
      * box the near plane must not cut. */
     const struct tw_box q = tw_cull_query_box(v->eye, b, offset);

@@ -12,6 +12,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* Per id of a pass: whether its cluster's box shows (box_shows), once tested. */
+enum { BOX_UNKNOWN, BOX_HIDDEN, BOX_SHOWS };
+
 int tw_oracle_init(struct tw_world *w)
 {
     struct tw_oracle *o = &w->oracle;
@@ -52,6 +55,7 @@ void tw_oracle_finish(struct tw_oracle *o)
     free(o->depth);
     free(o->block_far);
     free(o->missed_per_id);
+    free(o->box_state);
     tw_cell_map_destroy(o->tiles);
     tw_cell_map_destroy(o->ranks);
     memset(o, 0, sizeof(*o));
@@ -180,7 +184,9 @@ static double eye_distance(double d, double n, double f, bool reversed)
     return 2.0 * f * n / ((f + n) - z_ndc * (f - n));
 }
 
-/* The farthest eye distance of the pass's depth in each block of pixels. */
+/* The farthest eye distance of the pass's depth in each block of pixels:
+ * the eye distance of the block's farthest depth (eye distance grows with
+ * window depth, or shrinks with it when depth is reversed). */
 static void block_distances(struct tw_world *w, const struct tw_view *v)
 {
     struct tw_oracle *o = &w->oracle;
@@ -188,14 +194,16 @@ static void block_distances(struct tw_world *w, const struct tw_view *v)
     const bool reversed = tw_renderer_reversed_z(w->renderer);
     for (uint32_t by = 0; by < o->blocks_y; by++)
         for (uint32_t bx = 0; bx < o->blocks_x; bx++) {
-            double far = 0.0;
+            float far = reversed ? 1.0f : 0.0f;
             const uint32_t x1 = bx * TW_ORACLE_BLOCK + TW_ORACLE_BLOCK;
             const uint32_t y1 = by * TW_ORACLE_BLOCK + TW_ORACLE_BLOCK;
             for (uint32_t y = by * TW_ORACLE_BLOCK; y < y1 && y < height; y++)
-                for (uint32_t x = bx * TW_ORACLE_BLOCK; x < x1 && x < width; x++)
-                    far = fmax(far, eye_distance(o->id_depth[(size_t)y * width + x],
-                                                 v->near_plane, v->far_plane, reversed));
-            o->block_far[(size_t)by * o->blocks_x + bx] = (float)far;
+                for (uint32_t x = bx * TW_ORACLE_BLOCK; x < x1 && x < width; x++) {
+                    const float d = o->id_depth[(size_t)y * width + x];
+                    far = reversed ? fminf(far, d) : fmaxf(far, d);
+                }
+            o->block_far[(size_t)by * o->blocks_x + bx] =
+                (float)eye_distance(far, v->near_plane, v->far_plane, reversed);
         }
 }
 
@@ -217,14 +225,18 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
         free(o->pixels);
         free(o->drawn);
         free(o->missed_per_id);
+        free(o->box_state);
         o->pixels = malloc(sizeof(*o->pixels) * o->count);
         o->drawn = malloc(o->count);
         o->missed_per_id = malloc(sizeof(*o->missed_per_id) * o->count);
-        o->per_id_cap = o->pixels && o->drawn && o->missed_per_id ? o->count : 0;
+        o->box_state = malloc(o->count);
+        o->per_id_cap =
+            o->pixels && o->drawn && o->missed_per_id && o->box_state ? o->count : 0;
         if (!o->per_id_cap)
             return TW_ERR_NOMEM;
     }
     memset(o->pixels, 0, sizeof(*o->pixels) * o->count);
+    memset(o->box_state, BOX_UNKNOWN, o->count);
     tw_renderer_id_read(w->renderer, o->ids, o->id_depth);
     block_distances(w, v);
     const size_t npix = (size_t)w->s.width * w->s.height;
@@ -315,8 +327,7 @@ static bool box_shows(const struct tw_view *v, const struct tw_box *b, const flo
         q.min[a] = b->min[a] + offset[a];
         q.max[a] = b->max[a] + offset[a];
     }
-    const float reach = v->near_radius > v->near_plane ? v->near_radius : v->near_plane;
-    if (tw_cull_box_distance(v, &q, NULL) <= reach)
+    if (tw_cull_box_distance(v, &q, NULL) <= tw_cull_near_reach(v))
         return true;
     float lo[2], hi[2], w_min;
     double x0 = 0.0, x1 = width, y0 = 0.0, y1 = height;
@@ -355,17 +366,35 @@ static bool box_shows(const struct tw_view *v, const struct tw_box *b, const flo
     return false;
 }
 
-/* A drawn cluster with no visible pixel: overdraw, and whether its box
- * would have shown to a query all the same. */
-static void count_overdraw(struct tw_world *w, const struct tw_drawn_cluster *d,
-                           const struct tw_cluster *cl, const struct tw_oracle_depth *dm,
-                           struct tw_frame_stats *st)
+/* Whether drawn cluster d's box shows (box_shows) in view v of the pass;
+ * id is its id in the pass, or UINT32_MAX for a cluster vfc does not draw.
+ * A cluster's answer is kept for the pass: the box oracle's set and the
+ * comparison ask about the same clusters. */
+static bool cluster_box_shows(struct tw_world *w, const struct tw_view *v,
+                              const struct tw_drawn_cluster *d, uint32_t id,
+                              const struct tw_oracle_depth *dm)
 {
-    const struct tw_view *v = &w->last_view;
-    st->overdraw_triangles += cl->triangle_count;
+    struct tw_oracle *o = &w->oracle;
+    if (id != UINT32_MAX && o->box_state[id] != BOX_UNKNOWN)
+        return o->box_state[id] == BOX_SHOWS;
+    const struct tw_cluster *cl =
+        &tw_renderer_content(w->renderer, d->prototype, NULL)->clusters[d->cluster];
     float offset[3];
     tw_tiles_cell_offset(d->cell, v->cell, w->grid.footprint[0], w->grid.footprint[1], offset);
-    if (box_shows(v, &cl->box, offset, &w->oracle, w->s.width, w->s.height, dm))
+    const bool shows = box_shows(v, &cl->box, offset, o, w->s.width, w->s.height, dm);
+    if (id != UINT32_MAX)
+        o->box_state[id] = shows ? BOX_SHOWS : BOX_HIDDEN;
+    return shows;
+}
+
+/* A drawn cluster with no visible pixel (id as for cluster_box_shows):
+ * overdraw, and whether its box would have shown to a query all the same. */
+static void count_overdraw(struct tw_world *w, const struct tw_drawn_cluster *d,
+                           const struct tw_cluster *cl, uint32_t id,
+                           const struct tw_oracle_depth *dm, struct tw_frame_stats *st)
+{
+    st->overdraw_triangles += cl->triangle_count;
+    if (cluster_box_shows(w, &w->last_view, d, id, dm))
         st->overdraw_box_triangles += cl->triangle_count;
 }
 
@@ -388,20 +417,9 @@ int tw_oracle_box_set(struct tw_world *w, const struct tw_view *v)
     if (err)
         return err;
     const struct tw_oracle_depth dm = depth_model(w, v);
-    for (size_t k = 0; k < o->count; k++) {
-        const struct tw_drawn_cluster *e = &o->entries[k];
-        bool take = o->pixels[k] > 0;
-        if (!take) {
-            const struct tw_cluster *cl =
-                &tw_renderer_content(w->renderer, e->prototype, NULL)->clusters[e->cluster];
-            float offset[3];
-            tw_tiles_cell_offset(e->cell, v->cell, w->grid.footprint[0], w->grid.footprint[1],
-                                 offset);
-            take = box_shows(v, &cl->box, offset, o, w->s.width, w->s.height, &dm);
-        }
-        if (take)
-            o->box_visible[o->box_visible_count++] = *e;
-    }
+    for (size_t k = 0; k < o->count; k++)
+        if (o->pixels[k] > 0 || cluster_box_shows(w, v, &o->entries[k], (uint32_t)k, &dm))
+            o->box_visible[o->box_visible_count++] = o->entries[k];
     return tw_oracle_order(w, v, o->box_visible, o->box_visible_count, true);
 }
 
@@ -420,7 +438,7 @@ void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
             &tw_renderer_content(w->renderer, d[k].prototype, NULL)->clusters[d[k].cluster];
         if (!range) {
             /* Drawn where vfc would draw nothing: wasted. */
-            count_overdraw(w, &d[k], cl, &dm, st);
+            count_overdraw(w, &d[k], cl, UINT32_MAX, &dm, st);
             continue;
         }
         /* Ids of a tile are its clusters in ascending order: binary search. */
@@ -435,10 +453,10 @@ void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
         }
         if (lo < end && o->entries[lo].cluster == d[k].cluster) {
             if (!o->drawn[lo] && o->pixels[lo] == 0)
-                count_overdraw(w, &d[k], cl, &dm, st);
+                count_overdraw(w, &d[k], cl, lo, &dm, st);
             o->drawn[lo] = 1;
         } else {
-            count_overdraw(w, &d[k], cl, &dm, st);
+            count_overdraw(w, &d[k], cl, UINT32_MAX, &dm, st);
         }
     }
     /* Pixel by pixel: an undrawn visible cluster is an error only where what

@@ -36,7 +36,9 @@ struct tw_oracle {
                                        block of TW_ORACLE_BLOCK x TW_ORACLE_BLOCK pixels */
     uint32_t blocks_x, blocks_y;
     struct tw_drawn_cluster *box_visible;  /* the box oracle's set: the entries
-                                              visible or whose query box shows */
+                                              visible or whose own box shows */
+    uint8_t *box_state;             /* per id: whether its box shows, once tested
+                                       (BOX_UNKNOWN, BOX_HIDDEN, BOX_SHOWS) */
     size_t box_visible_count, box_visible_cap;
     float *depth;                   /* the method's frame's depth */
     uint32_t *missed_per_id;        /* missed pixels per id (compare) */
@@ -121,10 +123,10 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v);
 int tw_oracle_order(struct tw_world *w, const struct tw_view *v, struct tw_drawn_cluster *set,
                     size_t count, bool front_to_back);
 /* The box oracle's set for the view of the last ID pass: every cluster vfc
- * draws that is visible or whose query box (tw_cull_query_box) shows in
- * front of the pass's depth at some pixel centre, ordered as the oracle
- * orders its set. What any conservative method that culls by querying
- * cluster boxes (or boxes containing them) must draw. */
+ * draws that is visible or whose own box shows in front of the pass's depth
+ * at some pixel centre (or lies within the near plane's reach), ordered as
+ * the oracle orders its set. What any conservative method that culls by
+ * querying or depth-testing boxes containing the clusters' own must draw. */
 int tw_oracle_box_set(struct tw_world *w, const struct tw_view *v);
 /* Compares what the last frame drew with the last ID pass. */
 void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st);

@@ -648,15 +648,14 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
         /* The ID pass (and the box test) is an oracle's knowledge, not its
          * work: untimed. */
         const double ts0 = tw_renderer_now_ms(), cs0 = tw_renderer_cpu_ms();
+        const bool box = w->method == TW_METHOD_BOX_ORACLE;
         err = tw_oracle_pass(w, &v);
-        if (!err && w->method == TW_METHOD_BOX_ORACLE)
+        if (!err && box)
             err = tw_oracle_box_set(w, &v);
         if (err)
             return err;
-        if (w->method == TW_METHOD_ORACLE)
-            tw_cull_driver_give(ms->driver, w->oracle.visible, w->oracle.visible_count);
-        else
-            tw_cull_driver_give(ms->driver, w->oracle.box_visible, w->oracle.box_visible_count);
+        tw_cull_driver_give(ms->driver, box ? w->oracle.box_visible : w->oracle.visible,
+                            box ? w->oracle.box_visible_count : w->oracle.visible_count);
         t0 += tw_renderer_now_ms() - ts0;
         cpu0 += tw_renderer_cpu_ms() - cs0;
     }

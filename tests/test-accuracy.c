@@ -4,7 +4,7 @@
  *     conservative method draws every cluster the oracle's ID pass sees
  *     (0 missed pixels, 0 depth errors at the default tolerance), and the
  *     oracle method itself draws exactly the visible clusters (no overdraw);
- *   - the box oracle draws the visible clusters and the ones whose query
+ *   - the box oracle draws the visible clusters and the ones whose own
  *     boxes show in front of the true depth, and every other method draws
  *     at least that set (it is their floor);
  *   - the ID pass rasterises what the normal pass does: vfc and the oracle,
@@ -42,7 +42,7 @@ static bool load_path(const char *name, uint32_t frames, const struct tw_tileset
     return rc == TW_OK;
 }
 
-/* Whether cluster c is among the n clusters of set (sorted by cmp_drawn). */
+/* Orders drawn clusters by cell, content and cluster (for bsearch). */
 static int cmp_drawn(const void *a, const void *b)
 {
     const struct tw_drawn_cluster *x = a, *y = b;

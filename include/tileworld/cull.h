@@ -92,6 +92,10 @@ void tw_cull_view_setup(struct tw_view *v, struct tw_cell cell,
 #define TW_CULL_QUERY_MARGIN_PER_M 2e-5f
 struct tw_box tw_cull_query_box(const float eye[3], const struct tw_box *b, const float offset[3]);
 
+/* The distance from the eye within which the near plane may cut a box: to
+ * the near plane's corners (at least to the plane itself). */
+float tw_cull_near_reach(const struct tw_view *v);
+
 /* True if the camera is inside the query box of b moved by offset
  * (tw_cull_query_box, margin included), or within near-plane distance of
  * it: such a box may be clipped by the near plane, so an occlusion query on
