@@ -13,6 +13,7 @@
 #include <json-c/json.h>
 
 #include "tileworld/context.h"
+#include "tools/tileworld/glcontext.h"
 #include "tileworld/runtime.h"
 #include "tools/cli.h"
 #include "tools/memtest-gp.h"   /* TW_MEMTEST_GP: tools/tileworld/memtest.gp, built in */
@@ -68,6 +69,7 @@ struct options {
     char sweep_text[MAX_SWEEP][32];
     uint32_t sweep_count;
     enum allocator allocator;
+    struct tw_context_settings gl; /* --gl, --gpu */
 };
 
 static void usage(FILE *f)
@@ -78,6 +80,7 @@ static void usage(FILE *f)
           "                         [--out DIR] [--sweep budget=B1,B2,...] [--seed N] [--quiet]\n"
           "                         [--method M] [--view-distance M] [--upload-budget BYTES]\n"
           "                         [--start-cell I,J] [--repeat P] [--allocator tuned|default]\n"
+          "                         [--gl auto|egl|osmesa] [--gpu N]\n"
           "Walks --distance km (default 5) of a long path (default straight; a CSV is repeated\n"
           "end to end) through --tileset (default city-gen), frames at --size (default 320x180),\n"
           "and every --every metres (default 100) records the tile cache's bytes, tiles, loads,\n"
@@ -93,6 +96,7 @@ static void usage(FILE *f)
           "long-running host should; default leaves malloc as it is (freed tile memory then\n"
           "stays with the allocator: memory.csv's heap_free_bytes).\n",
           f);
+    fputs(tw_gl_usage, f);
 }
 
 enum {
@@ -110,6 +114,7 @@ static const struct option options_table[] = {
     {"out", required_argument, NULL, OPT_OUT},
     {"sweep", required_argument, NULL, OPT_SWEEP},
     {"allocator", required_argument, NULL, OPT_ALLOCATOR},
+    TW_GL_OPTIONS,
     {NULL, 0, NULL, 0},
 };
 
@@ -146,6 +151,8 @@ static void parse_sweep(const char *opt, const char *v, struct options *o)
 static void apply_option(void *user, int opt, const char *name, const char *v)
 {
     struct options *o = user;
+    if (tw_gl_option(&o->gl, opt, name, v))
+        return;
     switch (opt) {
     case OPT_DISTANCE:
         /* Checked as a float, taken in double: 0.2 km is 200 m, not 200.000003. */
@@ -1089,11 +1096,12 @@ int tw_memtest_main(int argc, char **argv)
     struct tw_context *ctx = NULL;
     char msg[1400];
     int status = 1, world_error = 0;
-    int err = results ? tw_context_create_headless(o.cli.world.width, o.cli.world.height, &log, &ctx)
+    int err = results ? tw_gl_context_create(&o.gl, o.cli.world.width, o.cli.world.height, &log,
+                                             &ctx)
                       : TW_ERR_NOMEM;
     if (err) {
-        tw_cli_message(program, "cannot create the headless OpenGL context: %s",
-                       tw_error_to_str(err));
+        if (err == TW_ERR_NOMEM)
+            tw_cli_message(program, "out of memory");
         goto out;
     }
     if (o.sweep_count) {

@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "tools/tileworld/bench.h"
+#include "tools/tileworld/glcontext.h"
 #include "tools/cli.h"
 #include "tools/tileworld/memtest.h"
 #include "tools/tileworld/report.h"
@@ -37,6 +38,7 @@ struct options {
     const char *scenario;
     bool calibrate;             /* info --calibrate */
     bool split;                 /* bench --split */
+    struct tw_context_settings gl; /* --gl, --gpu */
 };
 
 static const uint32_t default_frames = 300;
@@ -57,6 +59,7 @@ static void usage(FILE *f)
           "                        [--scenario NAME|all] [--split]\n"
           "       tileworld info   [--tileset NAME|FILE.json] [--seed N] [--cluster-triangles N]\n"
           "                        [--calibrate [--size WxH]]\n"
+          "       (walk, bench, info and memtest also take [--gl auto|egl|osmesa] [--gpu N])\n"
           "       tileworld import FILE.gltf|FILE.glb\n"
           "       tileworld memtest [--tileset NAME] [--path straight|wander|FILE.csv] [--distance KM]\n"
           "                        [--budget BYTES] [--workers N] [--policy wait|skip] [--size WxH]\n"
@@ -101,6 +104,7 @@ static void usage(FILE *f)
           "--mutate-query-shrink F  testing only: every query box shrunk by F of its size,\n"
           "                      0 <= F < 1, a broken culler that --verify must catch\n",
           f);
+    fputs(tw_gl_usage, f);
 }
 
 enum {
@@ -148,6 +152,7 @@ static const struct option options_table[] = {
     {"split", no_argument, NULL, OPT_SPLIT},
     {"no-cost-model", no_argument, NULL, OPT_NO_COST_MODEL},
     {"first-sight-draws", no_argument, NULL, OPT_FIRST_SIGHT_DRAWS},
+    TW_GL_OPTIONS,
     {NULL, 0, NULL, 0},
 };
 
@@ -174,6 +179,8 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
 {
     struct options *o = user;
     struct tw_world_settings *ws = &o->cli.world;
+    if (tw_gl_option(&o->gl, opt, name, v))
+        return;
     switch (opt) {
     case OPT_OUT:
         if (*v == '\0')
@@ -331,12 +338,9 @@ static int run(const struct options *o, bool bench)
     int rc = 1;
     char msg[1400];
     struct tw_context *ctx = NULL;
-    int err = tw_context_create_headless(r.world.width, r.world.height, &log, &ctx);
-    if (err) {
-        tw_cli_message(program, "cannot create the headless OpenGL context: %s",
-                       tw_error_to_str(err));
+    int err = tw_gl_context_create(&o->gl, r.world.width, r.world.height, &log, &ctx);
+    if (err)
         goto out;
-    }
     if (o->scenario) {
         bool held = false;
         err = tw_run_scenarios(&r, ctx, o->scenario, &held, msg, sizeof(msg));
@@ -379,6 +383,20 @@ out:
     return rc;
 }
 
+/* What a context is, as info says it. */
+static void print_gl(const struct tw_context *ctx)
+{
+    struct tw_context_info ci;
+    tw_context_describe(ctx, &ci);
+    char renderer[300], vendor[160], version[160], device[300];
+    printf("OpenGL: %s (%s), %s, through %s", tw_cli_escape(ci.renderer, renderer, sizeof(renderer)),
+           tw_cli_escape(ci.vendor, vendor, sizeof(vendor)),
+           tw_cli_escape(ci.version, version, sizeof(version)), ci.kind);
+    if (ci.device_index >= 0)
+        printf(" (device %d: %s)", ci.device_index, tw_cli_escape(ci.device, device, sizeof(device)));
+    printf("%s\n", ci.software ? "; a software renderer: its GPU time is CPU work" : "");
+}
+
 /* info --calibrate: the cost model's figures (DESIGN §14) as a world over
  * the tileset measures them at creation in a headless context of --size. */
 static int print_calibration(const struct options *o, const struct tw_cli_world *shown,
@@ -390,12 +408,10 @@ static int print_calibration(const struct options *o, const struct tw_cli_world 
         ws.height = 360;
     }
     struct tw_context *ctx = NULL;
-    int err = tw_context_create_headless(ws.width, ws.height, log, &ctx);
-    if (err) {
-        tw_cli_message(program, "cannot create the headless OpenGL context: %s",
-                       tw_error_to_str(err));
+    int err = tw_gl_context_create(&o->gl, ws.width, ws.height, log, &ctx);
+    if (err)
         return 1;
-    }
+    print_gl(ctx);
     tw_cli_world_apply(shown, &ws);
     ws.get_proc = tw_context_get_proc(ctx);
     ws.log = *log;
@@ -449,6 +465,19 @@ static int info_provider(const struct tw_cli_world *shown)
     return 0;
 }
 
+/* info without --calibrate: the OpenGL a run would get, from a small context
+ * (none is a line, not a failure: the tileset's figures stand). */
+static void print_gl_of(const struct options *o, const struct tw_log *log)
+{
+    struct tw_context *ctx = NULL;
+    if (tw_gl_context_create(&o->gl, 16, 16, log, &ctx)) {
+        printf("OpenGL: none (no headless context could be made)\n");
+        return;
+    }
+    print_gl(ctx);
+    tw_context_destroy(ctx);
+}
+
 static int info(const struct options *o)
 {
     const struct tw_log log = {tw_cli_log, (void *)&o->cli};
@@ -458,6 +487,8 @@ static int info(const struct options *o)
         int rc = info_provider(&shown);
         if (!rc && o->calibrate)
             rc = print_calibration(o, &shown, &log);
+        else if (!rc)
+            print_gl_of(o, &log);
         tw_cli_world_finish(&shown);
         return rc;
     }
@@ -507,7 +538,11 @@ static int info(const struct options *o)
            cb->min[2], cb->max[0], cb->max[1], cb->max[2]);
     printf("geometry: %llu bytes uploaded once\n",
            (unsigned long long)tw_tileset_geometry_bytes(ts));
-    const int rc = o->calibrate ? print_calibration(o, &shown, &log) : 0;
+    int rc = 0;
+    if (o->calibrate)
+        rc = print_calibration(o, &shown, &log);
+    else
+        print_gl_of(o, &log);
     tw_tileset_destroy(ts);
     return rc;
 }
