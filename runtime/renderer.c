@@ -690,6 +690,11 @@ fail:
     return err;
 }
 
+const struct tw_gl *tw_renderer_gl(const struct tw_renderer *r)
+{
+    return &r->gl;
+}
+
 void tw_renderer_enter(struct tw_renderer *r)
 {
     if (r->entered++ > 0)

@@ -48,6 +48,10 @@ const struct tw_prototype *tw_renderer_content(const struct tw_renderer *r, uint
 uint64_t tw_renderer_gpu_bytes(const struct tw_renderer *r);
 void tw_renderer_destroy(struct tw_renderer *r);
 
+/* The renderer's GL entry points, for the world's other GL objects (its
+ * timers); valid until it is destroyed. */
+const struct tw_gl *tw_renderer_gl(const struct tw_renderer *r);
+
 /* Every call below that draws or reads runs between enter and leave: enter
  * saves the host's GL state (the first of nested calls) and sets what the
  * renderer relies on; leave restores it (the last). */

@@ -7,6 +7,7 @@
 #define TW_RUNTIME_WORLD_PRIVATE_H
 
 #include "runtime/calibrate.h"
+#include "runtime/gputime.h"
 #include "runtime/renderer.h"
 #include "runtime/stream.h"
 #include "tileworld/cull.h"
@@ -101,6 +102,7 @@ struct tw_world {
     struct tw_calibrate_fit fit;        /* its refinement from finished frames */
     uint32_t calibration_first;         /* the shared tileset's first content */
     struct tw_debug_state debug;    /* untouched while debug.flags is 0 */
+    struct tw_gputime gputime;      /* the frames' GPU time, read frames later */
 };
 
 /* How the oracle compares depths: the frame's near and far planes, the

@@ -323,6 +323,7 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
     tw_renderer_set_deterministic(w->renderer, w->s.deterministic);
     tw_renderer_set_count_samples(w->renderer, w->s.chc.threshold > 0 || w->s.tilequery.threshold > 0);
     tw_renderer_set_mutation(w->renderer, w->s.mutate_query_shrink);
+    tw_gputime_init(&w->gputime, tw_renderer_gl(w->renderer));
     const struct tw_cull_driver_settings given = {.method = TW_CULL_GIVEN};
     err = tw_oracle_init(w);
     if (!err)
@@ -353,7 +354,13 @@ void tw_world_destroy(struct tw_world *w)
     if (w->renderer) {
         tw_renderer_enter(w->renderer);
         tw_stream_destroy(w->stream);
+        tw_gputime_finish(&w->gputime);
         tw_renderer_leave(w->renderer);
+        if (w->gputime.dropped)
+            tw_log_printf(&w->s.log, TW_LOG_DEBUG,
+                          "GPU time: the timers of %llu frames were not back when their entry "
+                          "was reused (their GPU time unknown)",
+                          (unsigned long long)w->gputime.dropped);
     }
     if (w->bvhs)
         for (uint32_t p = 0; p < w->shared_count; p++)
@@ -640,24 +647,33 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     if (debug)
         tw_renderer_record_queries(w->renderer, (debug & TW_DEBUG_QUERIES) != 0);
     w->frame_serial++;
+    const bool oracle = tw_method_limit(w->method);
+    tw_gputime_begin(&w->gputime, w->method, st.frame);
+    tw_gputime_late(&w->gputime, w->method, &st.gpu_late_frame, &st.gpu_late_ms);
+    st.gpu_ms = -1.0;
+    st.gpu_ms_id = oracle || verify ? -1.0 : 0.0;
     double t0 = tw_renderer_now_ms(), cpu0 = tw_renderer_cpu_ms();
+    if (!oracle)
+        tw_gputime_mark(&w->gputime, TW_GPUTIME_FRAME_BEGIN);
     if (w->stream)
         tw_stream_begin_frame(w->stream, w->frame_serial);
-    const bool oracle = tw_method_limit(w->method);
     if (oracle) {
         /* The ID pass (and the box test) is an oracle's knowledge, not its
          * work: untimed. */
         const double ts0 = tw_renderer_now_ms(), cs0 = tw_renderer_cpu_ms();
         const bool box = w->method == TW_METHOD_BOX_ORACLE;
+        tw_gputime_mark(&w->gputime, TW_GPUTIME_ID_BEGIN);
         err = tw_oracle_pass(w, &v);
         if (!err && box)
             err = tw_oracle_box_set(w, &v);
         if (err)
             return err;
+        tw_gputime_mark(&w->gputime, TW_GPUTIME_ID_END);
         tw_cull_driver_give(ms->driver, box ? w->oracle.box_visible : w->oracle.visible,
                             box ? w->oracle.box_visible_count : w->oracle.visible_count);
         t0 += tw_renderer_now_ms() - ts0;
         cpu0 += tw_renderer_cpu_ms() - cs0;
+        tw_gputime_mark(&w->gputime, TW_GPUTIME_FRAME_BEGIN);
     }
     struct tw_cost_model costs;
     tw_calibrate_model(&w->calibration, w->s.width, w->s.height, &costs);
@@ -667,6 +683,7 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     struct tw_cull_frame_stats cs = {0};
     err = tw_cull_driver_frame(ms->driver, &v, &w->grid, &be, &w->cells, &cs);
     const double t1 = tw_renderer_now_ms();
+    tw_gputime_mark(&w->gputime, TW_GPUTIME_FRAME_END);
     tw_renderer_end_frame(w->renderer);
     st.tiles_queried = cs.tiles_queried;
     st.tiles_visible = cs.tiles_visible;
@@ -696,8 +713,11 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
         tw_renderer_finish(w->renderer);
         st.ms_frame = tw_renderer_now_ms() - t0;
         st.cpu_ms = tw_renderer_cpu_ms() - cpu0;
-        if (!oracle)
+        if (!oracle) {
+            tw_gputime_mark(&w->gputime, TW_GPUTIME_ID_BEGIN);
             err = tw_oracle_pass(w, &v);
+            tw_gputime_mark(&w->gputime, TW_GPUTIME_ID_END);
+        }
         if (err)
             return err;
         tw_oracle_compare(w, &st);
@@ -741,6 +761,8 @@ int tw_world_finish(struct tw_world *w, struct tw_frame_stats *st)
     if (st) {
         st->ms_frame += tw_renderer_now_ms() - t0;
         st->cpu_ms += tw_renderer_cpu_ms() - cpu0;
+        /* After glFinish the timers are back: reading them waits no more. */
+        tw_gputime_current(&w->gputime, &st->gpu_ms, &st->gpu_ms_id);
         /* A finished frame's CPU time refines what queries and draws cost;
          * not a fixed set's (no culling, no queries: not how a method
          * draws), and not while tiles were being made: the workers' CPU
@@ -822,6 +844,8 @@ static int frame_fixed(struct tw_world *w, const struct tw_camera *cam,
     struct tw_frame_stats st = {0};
     st.frame = w->methods[w->method].frame;
     st.method = w->method;
+    st.gpu_ms = st.gpu_late_ms = -1.0;
+    tw_gputime_forget(&w->gputime);
     v.frame = st.frame;
     w->last_view = v;
     w->has_view = true;

@@ -159,15 +159,22 @@ if "$tw" walk --path "$tmp/good.csv" --size 96x54 --png-every 0 --quiet --out "$
 if "$tw" walk --tileset city --path street --frames 5 --method vfc --size 160x90 --png-every 2 \
       --quiet --out "$tmp/walk" 2>"$tmp/err"; then
     [ "$(wc -l <"$tmp/walk/frames.csv")" -eq 6 ] && ok || bad "frames.csv row count"
-    head -1 "$tmp/walk/frames.csv" | grep -q '^frame,method,ms_frame,ms_cull,ms_wait,triangles,clusters,draws,queries,tiles_queried,tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,missed_clusters,overdraw_triangles,cpu_ms,depth_errors,tiles_pending,loads_requested,loads_done,evictions,bytes_cpu,bytes_gpu,bytes_state,bytes_needed,over_budget,ms_upload,blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read,bytes_loading,tiles_loading,set_cpu_ms,set_ms,set_triangles,set_draws,overdraw_box_triangles$' \
+    head -1 "$tmp/walk/frames.csv" | grep -q '^frame,method,ms_frame,ms_cull,ms_wait,triangles,clusters,draws,queries,tiles_queried,tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,missed_clusters,overdraw_triangles,cpu_ms,depth_errors,tiles_pending,loads_requested,loads_done,evictions,bytes_cpu,bytes_gpu,bytes_state,bytes_needed,over_budget,ms_upload,blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read,bytes_loading,tiles_loading,set_cpu_ms,set_ms,set_triangles,set_draws,overdraw_box_triangles,gpu_ms,gpu_ms_id$' \
         && ok || bad "frames.csv header"
     for key in '"methods"' '"vfc"' '"mean_ms"' '"median_ms"' '"p95_ms"' '"p99_ms"' '"mean_triangles"' \
                '"mean_queries"' '"missed_pixels_total"' '"frames_with_missed_pixels"' \
                '"tiles_new_total"' '"peak_cache_bytes"' '"predict_fail_rate"' '"tileset"' '"path"' \
                '"size"' '"seed"' '"mean_cpu_ms"' '"median_cpu_ms"' '"p99_cpu_ms"' \
-               '"depth_errors_total"' '"frames_with_depth_errors"' '"deterministic": false'; do
+               '"depth_errors_total"' '"frames_with_depth_errors"' '"deterministic": false' \
+               '"mean_gpu_ms": [0-9]' '"median_gpu_ms": [0-9]' '"gpu_frames_unknown": 0' \
+               '"run": {' '"context": "[a-z-]' '"gl_vendor": "' '"gl_renderer": "' '"gl_version": "' \
+               '"software": ' '"build_type": "[a-z]' '"commit": "[0-9a-z]'; do
         grep -q "$key" "$tmp/walk/summary.json" && ok || bad "summary.json lacks $key"
     done
+    # Each frame was finished, so its GPU time came back; no ID pass without --verify.
+    awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; next }
+        !($c["gpu_ms"] >= 0 && $c["gpu_ms_id"] == 0) { exit 1 }' "$tmp/walk/frames.csv" && ok ||
+        bad "frames.csv: a frame without its GPU time"
     [ -s "$tmp/walk/frame-00000.png" ] && [ -s "$tmp/walk/frame-00004.png" ] && ok || bad "PNG snapshots"
     [ ! -e "$tmp/walk/frame-00001.png" ] && ok || bad "--png-every 2 wrote frame 1"
     awk -F, 'NR > 1 && ($6 <= 0 || $11 <= 0) { exit 1 }' "$tmp/walk/frames.csv" && ok || bad "frames draw nothing"
@@ -198,6 +205,14 @@ if "$tw" bench --methods vfc,chc --frames 3 --size 96x54 --verify --verify-toler
     grep -q 'Testing only: every query box shrunk by 0.25' "$tmp/acc/summary.md" && ok || bad "summary.md: mutation"
     grep -q 'CPU / vfc' "$tmp/acc/summary.md" && grep -q 'CPU / oracle' "$tmp/acc/summary.md" && ok ||
         bad "summary.md: CPU-time ratios"
+    grep -q '| mean CPU ms | p99 CPU ms | mean GPU ms |' "$tmp/acc/summary.md" && ok ||
+        bad "summary.md: no GPU time column"
+    grep -Eq '^Ran on .+ \(.+, GL .+\) through [a-z-]+; [a-z]+ build of [0-9a-z-]+\.$' "$tmp/acc/summary.md" &&
+        ok || bad "summary.md: no line saying what ran"
+    # --verify times the ID pass apart from the frame.
+    awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; next }
+        !($c["gpu_ms"] >= 0 && $c["gpu_ms_id"] > 0) { exit 1 }' "$tmp/acc/frames.csv" && ok ||
+        bad "frames.csv: a verified frame without its ID pass's GPU time"
 else
     bad "bench with the accuracy options: $(cat "$tmp/err")"
 fi

@@ -1333,5 +1333,6 @@ int main(int argc, char **argv)
     test_manifests();
     test_shipped("tilesets/kenney-city/kenney-city.json", 6);
     test_shipped("tilesets/cesium-forest/cesium-forest.json", 3);
+    test_shipped("tilesets/cesium-buildings/cesium-buildings.json", 4);
     return check_summary("test-gltf");
 }

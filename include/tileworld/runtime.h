@@ -237,6 +237,17 @@ struct tw_frame_stats {
     double ms_hzb_build;     /* building it from the depth read back (in ms_cull) */
     double ms_hzb_read;      /* reading the depth back, blocked until phase 1 is drawn
                                 (in ms_wait) */
+    /* GPU time (GL_TIMESTAMP queries, never waited on; on a software rasteriser
+     * it is the CPU's rasterising work). */
+    double gpu_ms;           /* the timed frame's, from its start (an oracle's: after its
+                                ID pass) to its last draw; filled by tw_world_finish(),
+                                -1 not known */
+    double gpu_ms_id;        /* the untimed ID pass's (oracles, verify), likewise; 0 when
+                                the frame had none */
+    uint64_t gpu_late_frame; /* for a host that never finishes: the latest earlier frame
+                                of this method whose timers had come back when
+                                tw_world_frame() began (its frame number; 0: none) */
+    double gpu_late_ms;      /* that frame's gpu_ms; -1 with none */
 };
 
 struct tw_world;
@@ -269,7 +280,8 @@ int tw_world_frame(struct tw_world *w, const struct tw_camera *cam,
 
 /* Waits for the GPU to finish the last frame (glFinish) and adds the time
  * waited to stats->ms_frame and its CPU time to stats->cpu_ms (stats may be
- * NULL). A frame of tw_world_frame() so finished, with stats, refines the
+ * NULL); fills stats->gpu_ms and gpu_ms_id from the frame's timers, now
+ * back (a fixed set's frame has none: they stay unknown). A frame of tw_world_frame() so finished, with stats, refines the
  * cost model (tw_calibration); one of tw_world_frame_fixed() does not. */
 int tw_world_finish(struct tw_world *w, struct tw_frame_stats *stats);
 
@@ -435,7 +447,8 @@ int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, si
  * oracle draws its own: tiles in the order they first appear in it, each
  * tile's clusters in their order in it. Fills the drawing fields of *stats
  * (may be NULL), ms_frame and cpu_ms as tw_world_frame() does
- * (tw_world_finish() adds the GPU's end); leaves every method's temporal
+ * (tw_world_finish() adds the GPU's end; the GPU-time fields read unknown:
+ * no timers); leaves every method's temporal
  * state and the cost model alone. clusters is only read during the call. */
 int tw_world_frame_fixed(struct tw_world *w, const struct tw_camera *cam,
                          const struct tw_drawn_cluster *clusters, size_t count,

@@ -12,6 +12,7 @@
 
 #include "tools/cli.h"
 #include "tools/outfile.h"
+#include "tools/tileworld/buildinfo.h"
 #include "tools/tileworld/charts.h"
 #include "tools/tileworld/outputs.h"
 #include "tools/tileworld/pareto.h"
@@ -133,6 +134,16 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     about->verify_tolerance = tw_world_settings(world)->verify_tolerance;
     about->deterministic = ws.deterministic;
     about->mutate_query_shrink = ws.mutate_query_shrink;
+    struct tw_context_info info;
+    tw_context_describe(ctx, &info);
+    snprintf(about->context, sizeof(about->context), "%s", info.kind ? info.kind : "");
+    snprintf(about->gl_vendor, sizeof(about->gl_vendor), "%s", info.vendor ? info.vendor : "");
+    snprintf(about->gl_renderer, sizeof(about->gl_renderer), "%s",
+             info.renderer ? info.renderer : "");
+    snprintf(about->gl_version, sizeof(about->gl_version), "%s", info.version ? info.version : "");
+    about->software = info.software;
+    snprintf(about->build_type, sizeof(about->build_type), "%s", tw_build_type());
+    snprintf(about->commit, sizeof(about->commit), "%s", tw_build_commit());
     /* What an earlier run left here would pass for this one's. */
     rc = tw_outputs_remove_stale(run->out, err, err_size);
     if (rc)

@@ -38,7 +38,8 @@ static const char *const csv_header =
     "missed_clusters,overdraw_triangles,cpu_ms,depth_errors,tiles_pending,loads_requested,"
     "loads_done,evictions,bytes_cpu,bytes_gpu,bytes_state,bytes_needed,over_budget,ms_upload,"
     "blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read,bytes_loading,"
-    "tiles_loading,set_cpu_ms,set_ms,set_triangles,set_draws,overdraw_box_triangles\n";
+    "tiles_loading,set_cpu_ms,set_ms,set_triangles,set_draws,overdraw_box_triangles,gpu_ms,"
+    "gpu_ms_id\n";
 
 /* A row of frames.csv as the row of a gnuplot data file: blank-separated,
  * without the method (its file says it). */
@@ -114,7 +115,7 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
     snprintf(row, sizeof(row),
              "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu,%.3f,%llu,"
              "%u,%u,%u,%u,%llu,%llu,%llu,%llu,%d,%.3f,"
-             "%u,%u,%u,%.3f,%.3f,%llu,%u,%.3f,%.3f,%llu,%u,%llu\n",
+             "%u,%u,%u,%.3f,%.3f,%llu,%u,%.3f,%.3f,%llu,%u,%llu,%.3f,%.3f\n",
              (unsigned long long)st->frame, tw_method_name(st->method), st->ms_frame, st->ms_cull,
              st->ms_wait, (unsigned long long)st->triangles, st->clusters, st->draws, st->queries,
              st->tiles_queried, st->tiles_visible, st->tiles_new, st->tiles_cached,
@@ -128,7 +129,7 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
              st->blocking_reads, st->queries_skipped, st->hzb_boxes, st->ms_hzb_build,
              st->ms_hzb_read, (unsigned long long)st->bytes_loading, st->tiles_loading,
              sv->cpu_ms, sv->ms, (unsigned long long)sv->triangles, sv->draws,
-             (unsigned long long)st->overdraw_box_triangles);
+             (unsigned long long)st->overdraw_box_triangles, st->gpu_ms, st->gpu_ms_id);
     if (!tw_outfile_printf(&r->frames_csv, "%s", row))
         return tw_outfile_report(&r->frames_csv, err, err_size);
     if (r->chart_data) {
@@ -147,14 +148,19 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
         if (ms)
             m->ms = ms;
         double *cpu = ms ? realloc(m->cpu_ms, sizeof(*cpu) * cap) : NULL;
-        if (!cpu) {
+        if (cpu)
+            m->cpu_ms = cpu;
+        double *gpu = cpu ? realloc(m->gpu_ms, sizeof(*gpu) * cap) : NULL;
+        if (!gpu) {
             snprintf(err, err_size, "out of memory");
             return TW_ERR_NOMEM;
         }
-        m->cpu_ms = cpu;
+        m->gpu_ms = gpu;
         m->cap = cap;
     }
     m->used = true;
+    if (st->gpu_ms >= 0.0)
+        m->gpu_ms[m->gpu_frames++] = st->gpu_ms;
     m->cpu_ms[m->frames] = st->cpu_ms;
     m->ms[m->frames++] = st->ms_frame;
     m->triangles += (double)st->triangles;
@@ -221,6 +227,7 @@ struct row {
     enum tw_method method;
     double mean, median, p95, p99, triangles, queries;
     double cpu_mean, cpu_median, cpu_p99, cpu_max;
+    double gpu_mean, gpu_median;    /* -1: no frame's GPU time known */
 };
 
 static double mean_of(const double *values, uint32_t n)
@@ -241,6 +248,8 @@ static void summarise(struct tw_method_summary *m, struct row *out)
     out->cpu_median = tw_report_percentile(m->cpu_ms, m->frames, 50.0);
     out->cpu_p99 = tw_report_percentile(m->cpu_ms, m->frames, 99.0);
     out->cpu_max = tw_report_percentile(m->cpu_ms, m->frames, 100.0);
+    out->gpu_mean = m->gpu_frames ? mean_of(m->gpu_ms, m->gpu_frames) : -1.0;
+    out->gpu_median = m->gpu_frames ? tw_report_percentile(m->gpu_ms, m->gpu_frames, 50.0) : -1.0;
     out->triangles = m->frames ? m->triangles / m->frames : 0.0;
     out->queries = m->frames ? m->queries / m->frames : 0.0;
 }
@@ -260,6 +269,12 @@ static json_object *number(double v, int decimals)
     char text[64];
     snprintf(text, sizeof(text), "%.*f", decimals, v);
     return json_object_new_double_s(v, text);
+}
+
+/* What a report says of a fact it was not given. */
+static const char *known(const char *s)
+{
+    return s[0] ? s : "unknown";
 }
 
 /* A setting as it was given: 1e-05, 0.1. */
@@ -397,6 +412,11 @@ int tw_report_close(struct tw_report *r, bool markdown,
         json_object_object_add(o, "median_cpu_ms", number(row->cpu_median, 3));
         json_object_object_add(o, "p99_cpu_ms", number(row->cpu_p99, 3));
         json_object_object_add(o, "max_cpu_ms", number(row->cpu_max, 3));
+        json_object_object_add(o, "mean_gpu_ms", m->gpu_frames ? number(row->gpu_mean, 3) : NULL);
+        json_object_object_add(o, "median_gpu_ms",
+                               m->gpu_frames ? number(row->gpu_median, 3) : NULL);
+        json_object_object_add(o, "gpu_frames_unknown",
+                               json_object_new_int64(m->frames - m->gpu_frames));
         json_object_object_add(o, "missed_clusters_total",
                                json_object_new_int64((int64_t)m->missed_clusters_total));
         json_object_object_add(o, "depth_errors_total",
@@ -430,6 +450,9 @@ int tw_report_close(struct tw_report *r, bool markdown,
             fg->median_cpu_ms = row->cpu_median;
             fg->p99_cpu_ms = row->cpu_p99;
             fg->max_cpu_ms = row->cpu_max;
+            fg->mean_gpu_ms = row->gpu_mean;
+            fg->median_gpu_ms = row->gpu_median;
+            fg->gpu_frames_unknown = m->frames - m->gpu_frames;
             fg->mean_triangles = row->triangles;
             fg->mean_queries = row->queries;
             fg->mean_overdraw_triangles = m->frames ? m->overdraw_triangles / m->frames : 0.0;
@@ -458,6 +481,15 @@ int tw_report_close(struct tw_report *r, bool markdown,
     json_object_object_add(root, "deterministic", json_object_new_boolean(about->deterministic));
     if (about->mutate_query_shrink > 0.0f)
         json_object_object_add(root, "mutate_query_shrink", number_g(about->mutate_query_shrink));
+    json_object *ran = json_object_new_object();
+    json_object_object_add(ran, "context", json_object_new_string(known(about->context)));
+    json_object_object_add(ran, "gl_vendor", json_object_new_string(known(about->gl_vendor)));
+    json_object_object_add(ran, "gl_renderer", json_object_new_string(known(about->gl_renderer)));
+    json_object_object_add(ran, "gl_version", json_object_new_string(known(about->gl_version)));
+    json_object_object_add(ran, "software", json_object_new_boolean(about->software));
+    json_object_object_add(ran, "build_type", json_object_new_string(known(about->build_type)));
+    json_object_object_add(ran, "commit", json_object_new_string(known(about->commit)));
+    json_object_object_add(root, "run", ran);
     char file[1100];
     snprintf(file, sizeof(file), "%s/summary.json", r->dir);
     rc = tw_report_write_json(file, root, JSON_C_TO_STRING_PRETTY | JSON_C_TO_STRING_SPACED, err,
@@ -477,29 +509,37 @@ int tw_report_close(struct tw_report *r, bool markdown,
             tw_outfile_printf(&f, "# tileworld bench: %s, path %s, %ux%u, seed %llu\n\n",
                               about->tileset, about->path, about->width, about->height,
                               (unsigned long long)about->seed);
+            tw_outfile_printf(&f, "Ran on %s (%s, GL %s) through %s; %s build of %s.\n\n",
+                              known(about->gl_renderer), known(about->gl_vendor),
+                              known(about->gl_version), known(about->context),
+                              known(about->build_type), known(about->commit));
             if (about->mutate_query_shrink > 0.0f)
                 tw_outfile_printf(&f, "**Testing only: every query box shrunk by %g of its size "
                                       "(--mutate-query-shrink), a deliberately broken culler.**\n\n",
                                   about->mutate_query_shrink);
             tw_outfile_printf(&f, "| method | frames | mean ms | median ms | p95 ms | p99 ms | "
-                                  "mean CPU ms | p99 CPU ms | triangles | queries | missed pixels | "
-                                  "depth errors | time / vfc | CPU / vfc | triangles / vfc | "
-                                  "time / oracle | CPU / oracle |\n");
+                                  "mean CPU ms | p99 CPU ms | mean GPU ms | triangles | queries | "
+                                  "missed pixels | depth errors | time / vfc | CPU / vfc | "
+                                  "triangles / vfc | time / oracle | CPU / oracle |\n");
             tw_outfile_printf(&f, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
-                                  "---|\n");
+                                  "---|---|\n");
             for (int k = 0; k < nrows; k++) {
                 const struct row *row = &rows[k];
                 const struct tw_method_summary *m = &r->methods[row->method];
-                char rv[32], cv[32], tv[32], ro[32], co[32];
+                char rv[32], cv[32], tv[32], ro[32], co[32], gpu[32];
                 ratio(rv, sizeof(rv), row->mean, vfc ? vfc->mean : 0.0);
                 ratio(cv, sizeof(cv), row->cpu_mean, vfc ? vfc->cpu_mean : 0.0);
                 ratio(tv, sizeof(tv), row->triangles, vfc ? vfc->triangles : 0.0);
                 ratio(ro, sizeof(ro), row->mean, oracle ? oracle->mean : 0.0);
                 ratio(co, sizeof(co), row->cpu_mean, oracle ? oracle->cpu_mean : 0.0);
-                tw_outfile_printf(&f, "| %s | %u | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.0f | "
-                                      "%.1f | %llu | %llu | %s | %s | %s | %s | %s |\n",
+                if (row->gpu_mean >= 0.0)
+                    snprintf(gpu, sizeof(gpu), "%.2f", row->gpu_mean);
+                else
+                    snprintf(gpu, sizeof(gpu), "-");
+                tw_outfile_printf(&f, "| %s | %u | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %s | "
+                                      "%.0f | %.1f | %llu | %llu | %s | %s | %s | %s | %s |\n",
                                   row->name, m->frames, row->mean, row->median, row->p95, row->p99,
-                                  row->cpu_mean, row->cpu_p99, row->triangles, row->queries,
+                                  row->cpu_mean, row->cpu_p99, gpu, row->triangles, row->queries,
                                   (unsigned long long)m->missed_pixels_total,
                                   (unsigned long long)m->depth_errors_total, rv, cv, tv, ro, co);
             }
@@ -515,6 +555,14 @@ int tw_report_close(struct tw_report *r, bool markdown,
             tw_outfile_printf(&f, "CPU ms is the process's CPU time of a frame, all threads (the "
                                   "software rasteriser's too): the figure that holds on a busy "
                                   "machine.\n");
+            tw_outfile_printf(&f, "GPU ms is the frame's time on the GPU, from timestamp queries "
+                                  "read once it had finished (an oracle's or --verify's ID pass "
+                                  "apart; '-' where none came back).%s\n",
+                              about->software
+                                  ? " The renderer here is a software one: its GPU time is then "
+                                    "the CPU rasteriser's work, whose threads' time CPU ms "
+                                    "already counts."
+                                  : "");
             tw_outfile_printf(&f, "\nRatios compare methods measured side by side in this one run; "
                                   "absolute times depend on the machine.\n");
             rc = tw_outfile_commit(&f, err, err_size);
@@ -531,6 +579,7 @@ void tw_report_abort(struct tw_report *r)
         tw_outfile_discard(&r->chart_frames[k]);
         free(r->methods[k].ms);
         free(r->methods[k].cpu_ms);
+        free(r->methods[k].gpu_ms);
         memset(&r->methods[k], 0, sizeof(r->methods[k]));
     }
     r->open = false;

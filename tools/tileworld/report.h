@@ -29,7 +29,9 @@ struct tw_method_summary {
     bool used;
     double *ms;               /* every frame's ms_frame */
     double *cpu_ms;           /* every frame's cpu_ms */
+    double *gpu_ms;           /* the gpu_ms of the frames where it is known */
     uint32_t frames, cap;
+    uint32_t gpu_frames;      /* those frames */
     double triangles, queries;
     uint64_t missed_pixels_total;
     uint32_t frames_with_missed_pixels;
@@ -55,6 +57,8 @@ struct tw_method_figures {
     uint32_t frames;
     double mean_ms, median_ms, p95_ms, p99_ms, max_ms;
     double mean_cpu_ms, median_cpu_ms, p99_cpu_ms, max_cpu_ms;  /* process CPU time */
+    double mean_gpu_ms, median_gpu_ms;  /* over the frames whose GPU time is known; -1: none */
+    uint32_t gpu_frames_unknown;
     double mean_triangles, mean_queries, mean_overdraw_triangles;
     double mean_tiles_visible;
     uint32_t max_tiles_visible;
@@ -80,6 +84,15 @@ struct tw_report_about {
     float verify_tolerance;
     bool deterministic;
     float mutate_query_shrink;
+    /* What ran (DESIGN §15): the context's kind ("osmesa", "egl-device", ...),
+     * GL_VENDOR, GL_RENDERER, GL_VERSION, whether the renderer is a CPU
+     * rasteriser (GPU time is then CPU work), and the program's build. Empty
+     * strings are reported as "unknown". */
+    char context[32];
+    char gl_vendor[128], gl_renderer[256], gl_version[128];
+    bool software;
+    char build_type[32];
+    char commit[64];
 };
 
 struct tw_report {

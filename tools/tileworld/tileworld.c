@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "tools/tileworld/bench.h"
+#include "tools/tileworld/buildinfo.h"
 #include "tools/tileworld/glcontext.h"
 #include "tools/cli.h"
 #include "tools/tileworld/memtest.h"
@@ -395,6 +396,7 @@ static void print_gl(const struct tw_context *ctx)
     if (ci.device_index >= 0)
         printf(" (device %d: %s)", ci.device_index, tw_cli_escape(ci.device, device, sizeof(device)));
     printf("%s\n", ci.software ? "; a software renderer: its GPU time is CPU work" : "");
+    printf("build: %s build of %s\n", tw_build_type(), tw_build_commit());
 }
 
 /* info --calibrate: the cost model's figures (DESIGN §14) as a world over
