@@ -8,11 +8,13 @@
 set -euo pipefail
 
 usage() {
-    cat >&2 <<'EOF'
+    local status=${1:-2}
+    [ "$status" -eq 0 ] && exec 3>&1 || exec 3>&2
+    cat >&3 <<'EOF'
 usage: scripts/gpu-bench.sh [--pack DIR | --tileworld PATH] [--out DIR] [--budget-s S] [--quick]
                             [--gl auto|egl|osmesa] [--size WxH] [--frames N] [--verify-frames N]
 EOF
-    exit 2
+    exit "$status"
 }
 die() { echo "gpu-bench: $*" >&2; exit 1; }
 bad_input() { echo "gpu-bench: $*" >&2; exit 2; }
@@ -44,7 +46,7 @@ while [ $# -gt 0 ]; do
     case $1 in
     --*=*) opt=${1%%=*} val=${1#*=}; shift; set -- "$opt" "$val" "$@"; continue ;;
     --quick) quick=true; shift; continue ;;
-    -h | --help) usage ;;
+    -h | --help) usage 0 ;;
     --pack | --tileworld | --out | --budget-s | --gl | --size | --frames | --verify-frames)
         [ $# -ge 2 ] || bad_input "$1 needs a value" ;;
     *) bad_input "unknown option '$1'" ;;
