@@ -303,12 +303,19 @@ plan_frames() {
         print f
     }'
 }
-# run_tileworld LOG OUTDIR ARGS...: runs with the budget left as a timeout;
-# sets rc (the exit status) and ms (the milliseconds taken).
+# run_tileworld RUNS_LEFT LOG OUTDIR ARGS...: runs with a timeout of twice
+# its share of the budget left (RUNS_LEFT runs, this one included; at least a
+# minute, at most all that is left): a scene far slower than the ones it was
+# planned from (heavy tiles on a software renderer: 17 s a frame) is cut
+# there instead of starving every run after it. Sets rc (the exit status)
+# and ms (the milliseconds taken).
 run_tileworld() {
-    local log=$1 dir=$2 t limit
-    shift 2
-    limit=$(($(left_ms) / 1000))
+    local runs=$1 log=$2 dir=$3 t limit left
+    shift 3
+    left=$(($(left_ms) / 1000))
+    limit=$((2 * left / (runs > 0 ? runs : 1)))
+    [ "$limit" -ge 60 ] || limit=60
+    [ "$limit" -le "$left" ] || limit=$left
     [ "$limit" -ge 1 ] || limit=1
     commands+=("$(quote tileworld "$@" --out "$dir")")
     rm -rf "${dir:?}"
@@ -334,7 +341,7 @@ probe_frames=10
 probed="none (the first scene ran in full and timed the others)"
 if [ "$frames" -gt $((2 * probe_frames)) ]; then
     scene 0
-    run_tileworld "$out/probe.log" "$work/probe" "${args[@]}" --frames "$probe_frames"
+    run_tileworld $((2 * ${#scenes[@]})) "$out/probe.log" "$work/probe" "${args[@]}" --frames "$probe_frames"
     if [ "$rc" -eq 0 ]; then
         rate[probe]=$(fdiv $((ms > startup_ms ? ms - startup_ms : 1)) "$probe_frames")
     fi
@@ -361,7 +368,7 @@ for i in "${!scenes[@]}"; do
         note "$name: bench not run (budget)"
         continue
     fi
-    run_tileworld "$out/$name.log" "$out/$name" "${args[@]}" --frames "$f"
+    run_tileworld $((2 * ${#scenes[@]} - i)) "$out/$name.log" "$out/$name" "${args[@]}" --frames "$f"
     b_rc[$name]=$rc b_ms[$name]=$ms
     if [ "$rc" -eq 0 ]; then
         rate[$name]=$(fdiv $((ms > startup_ms ? ms - startup_ms : 1)) "$f")
@@ -388,7 +395,7 @@ for i in "${!names[@]}"; do
         note "$name: verify not run (budget)"
         continue
     fi
-    run_tileworld "$out/$name-verify.log" "$out/$name-verify" "${args[@]}" --verify --frames "$f"
+    run_tileworld "$nv" "$out/$name-verify.log" "$out/$name-verify" "${args[@]}" --verify --frames "$f"
     v_rc[$name]=$rc v_ms[$name]=$ms
     if [ "$rc" -eq 0 ]; then
         verify_factor=$(awk -v ms="$ms" -v s="$startup_ms" -v f="$f" -v r="${rate[$name]}" \
