@@ -4,6 +4,7 @@
 set -euo pipefail
 packages=(build-essential meson ninja-build pkg-config libembree-dev libosmesa6-dev
           mesa-common-dev libgl-dev libglfw3-dev libpng-dev libjson-c-dev gnuplot-nox
+          libegl-dev libegl1 libegl-mesa0 # EGL: headers, glvnd's loader, Mesa's vendor (llvmpipe)
           g++ libtinygltf-dev nlohmann-json3-dev
           libstb-dev                    # the viewer's overlay text (stb_easy_font)
           xvfb xauth libgl1-mesa-dri)   # the viewer's test: a GLFW window under xvfb-run
