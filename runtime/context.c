@@ -207,23 +207,17 @@ struct attempts {
 
 static void tried(struct attempts *a, const char *fmt, ...)
 {
-    if (a->len >= sizeof(a->text) - 1)
-        return;
-    if (a->len) {
-        int n = snprintf(a->text + a->len, sizeof(a->text) - a->len, "; ");
-        a->len += n > 0 ? (size_t)n : 0;
-        if (a->len >= sizeof(a->text))
-            a->len = sizeof(a->text) - 1;
-    }
+    char one[512];
     va_list ap;
     va_start(ap, fmt);
-    int n = vsnprintf(a->text + a->len, sizeof(a->text) - a->len, fmt, ap);
+    vsnprintf(one, sizeof(one), fmt, ap);
     va_end(ap);
+    const int n = snprintf(a->text + a->len, sizeof(a->text) - a->len, "%s%s",
+                           a->len ? "; " : "", one);
     a->len += n > 0 ? (size_t)n : 0;
     if (a->len >= sizeof(a->text))
-        a->len = sizeof(a->text) - 1;
+        a->len = sizeof(a->text) - 1;   /* cut: the text is full */
 }
-
 static bool renderer_is_software(const char *renderer)
 {
     static const char *const names[] = {"llvmpipe", "softpipe", "swrast", "SwiftShader",

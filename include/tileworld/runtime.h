@@ -280,9 +280,10 @@ int tw_world_frame(struct tw_world *w, const struct tw_camera *cam,
 
 /* Waits for the GPU to finish the last frame (glFinish) and adds the time
  * waited to stats->ms_frame and its CPU time to stats->cpu_ms (stats may be
- * NULL); fills stats->gpu_ms and gpu_ms_id from the frame's timers, now
- * back (a fixed set's frame has none: they stay unknown). A frame of tw_world_frame() so finished, with stats, refines the
- * cost model (tw_calibration); one of tw_world_frame_fixed() does not. */
+ * NULL); fills stats->gpu_ms and gpu_ms_id from the frame's timers, now back
+ * (a fixed set's frame has none: they stay unknown). A frame of
+ * tw_world_frame() so finished, with stats, refines the cost model
+ * (tw_calibration); one of tw_world_frame_fixed() does not. */
 int tw_world_finish(struct tw_world *w, struct tw_frame_stats *stats);
 
 /* What the cache holds, and what it did since the world was created. */
@@ -448,8 +449,7 @@ int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, si
  * tile's clusters in their order in it. Fills the drawing fields of *stats
  * (may be NULL), ms_frame and cpu_ms as tw_world_frame() does
  * (tw_world_finish() adds the GPU's end; the GPU-time fields read unknown:
- * no timers); leaves every method's temporal
- * state and the cost model alone. clusters is only read during the call. */
+ * no timers); leaves every method's temporal state and the cost model alone. clusters is only read during the call. */
 int tw_world_frame_fixed(struct tw_world *w, const struct tw_camera *cam,
                          const struct tw_drawn_cluster *clusters, size_t count,
                          struct tw_frame_stats *stats);

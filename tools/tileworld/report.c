@@ -450,9 +450,6 @@ int tw_report_close(struct tw_report *r, bool markdown,
             fg->median_cpu_ms = row->cpu_median;
             fg->p99_cpu_ms = row->cpu_p99;
             fg->max_cpu_ms = row->cpu_max;
-            fg->mean_gpu_ms = row->gpu_mean;
-            fg->median_gpu_ms = row->gpu_median;
-            fg->gpu_frames_unknown = m->frames - m->gpu_frames;
             fg->mean_triangles = row->triangles;
             fg->mean_queries = row->queries;
             fg->mean_overdraw_triangles = m->frames ? m->overdraw_triangles / m->frames : 0.0;

@@ -57,8 +57,6 @@ struct tw_method_figures {
     uint32_t frames;
     double mean_ms, median_ms, p95_ms, p99_ms, max_ms;
     double mean_cpu_ms, median_cpu_ms, p99_cpu_ms, max_cpu_ms;  /* process CPU time */
-    double mean_gpu_ms, median_gpu_ms;  /* over the frames whose GPU time is known; -1: none */
-    uint32_t gpu_frames_unknown;
     double mean_triangles, mean_queries, mean_overdraw_triangles;
     double mean_tiles_visible;
     uint32_t max_tiles_visible;
