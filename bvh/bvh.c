@@ -113,8 +113,8 @@ static int resolve_settings(const struct tw_bvh_settings *in, const char *proto_
     tw_bvh_default_settings(out);
     if (!isfinite(out->tight_area_ratio) || out->tight_area_ratio < 0.0f) {
         tw_log_printf(log, TW_LOG_ERROR,
-                      "bvh: prototype '%s': tight_area_ratio %g is not a finite "
-                      "non-negative number (caller's settings)",
+                      "prototype '%s': cannot build its bounding volume hierarchy: the "
+                      "setting tight_area_ratio (%g) is not a finite non-negative number",
                       proto_name, (double)out->tight_area_ratio);
         return TW_ERR_INVALID;
     }
@@ -125,20 +125,21 @@ static int check_prototype(const struct tw_prototype *proto, const struct tw_log
 {
     if (proto->cluster_count == 0 || !proto->clusters) {
         tw_log_printf(log, TW_LOG_ERROR,
-                      "bvh: prototype '%.48s' has no draw clusters (was its tileset finished?)",
+                      "prototype '%.48s': cannot build its bounding volume hierarchy: it has no "
+                      "draw clusters (was its tileset finished?)",
                       proto->name);
         return TW_ERR_INVALID;
     }
     /* The stage tree needs up to 2n - 1 nodes, indexed by uint32_t. */
     if (proto->cluster_count > UINT32_MAX / 2) {
-        tw_log_printf(log, TW_LOG_ERROR, "bvh: prototype '%.48s' has %u clusters, too many",
+        tw_log_printf(log, TW_LOG_ERROR, "prototype '%.48s': %u draw clusters, too many",
                       proto->name, proto->cluster_count);
         return TW_ERR_LIMIT;
     }
     for (uint32_t i = 0; i < proto->cluster_count; i++) {
         if (!box_is_valid(&proto->clusters[i].box)) {
             tw_log_printf(log, TW_LOG_ERROR,
-                          "bvh: prototype '%.48s', cluster %u: box is empty or not finite",
+                          "prototype '%.48s', cluster %u: its box is empty or not finite",
                           proto->name, i);
             return TW_ERR_INVALID;
         }
@@ -283,18 +284,24 @@ static void embree_error(void *user, enum RTCError code, const char *str)
     }
 }
 
-/* Logs (on the caller's thread) what Embree reported since the last call;
- * returns whether anything was. */
-static bool flush_embree_errors(struct tw_bvh_builder *b, const char *what)
+/* Logs (on the caller's thread) what Embree reported since the last call,
+ * while doing what; returns TW_OK if nothing was, else TW_ERR_NOMEM (it ran
+ * out of memory) or TW_ERR_EMBREE. */
+static int flush_embree_errors(struct tw_bvh_builder *b, const char *what)
 {
     const unsigned int count = atomic_exchange(&b->error_count, 0u);
     if (count == 0)
-        return false;
-    tw_log_printf(&b->log, TW_LOG_ERROR, "bvh: Embree error (%s) during %s: %s%s",
-                  embree_error_name(b->first_error), what, b->first_message,
-                  count > 1 ? " (and more)" : "");
+        return TW_OK;
+    const enum RTCError code = b->first_error;
+    /* Out of memory: the caller says so, once, with the prototype. */
+    if (code != RTC_ERROR_OUT_OF_MEMORY)
+        tw_log_printf(&b->log, TW_LOG_ERROR,
+                      "the BVH builder (Embree) failed while %s: %s%s%s%s%s", what,
+                      embree_error_name(code), b->first_message[0] ? " (" : "",
+                      b->first_message, b->first_message[0] ? ")" : "",
+                      count > 1 ? " (and more)" : "");
     atomic_store(&b->error_claimed, 0);
-    return true;
+    return code == RTC_ERROR_OUT_OF_MEMORY ? TW_ERR_NOMEM : TW_ERR_EMBREE;
 }
 
 int tw_bvh_builder_create(const struct tw_log *log, struct tw_bvh_builder **out)
@@ -312,7 +319,7 @@ int tw_bvh_builder_create_ex(const struct tw_log *log, uint32_t threads,
 
     struct tw_bvh_builder *b = calloc(1, sizeof(*b));
     if (!b) {
-        tw_log_printf(log, TW_LOG_ERROR, "bvh: out of memory creating a BVH builder");
+        tw_log_printf(log, TW_LOG_ERROR, "cannot start the BVH builder: out of memory");
         return TW_ERR_NOMEM;
     }
     if (log)
@@ -326,9 +333,9 @@ int tw_bvh_builder_create_ex(const struct tw_log *log, uint32_t threads,
     b->device = rtcNewDevice(config);
     if (!b->device) {
         const enum RTCError code = rtcGetDeviceError(NULL);
-        tw_log_printf(&b->log, TW_LOG_ERROR, "bvh: rtcNewDevice failed: %s",
+        tw_log_printf(&b->log, TW_LOG_ERROR, "cannot start the BVH builder (Embree): %s",
                       embree_error_name(code));
-        ret = TW_ERR_EMBREE;
+        ret = code == RTC_ERROR_OUT_OF_MEMORY ? TW_ERR_NOMEM : TW_ERR_EMBREE;
         goto fail;
     }
     rtcSetDeviceErrorFunction(b->device, embree_error, b);
@@ -347,7 +354,7 @@ void tw_bvh_builder_destroy(struct tw_bvh_builder *b)
         return;
     if (b->device) {
         rtcReleaseDevice(b->device);
-        flush_embree_errors(b, "device release");
+        flush_embree_errors(b, "shutting down");
     }
     free(b);
 }
@@ -380,7 +387,7 @@ static int stage_from_embree(struct stage *st, const void *root, uint32_t cluste
         const enum embree_node_kind *kind = p.node;
         if (!kind || st->node_count == st->node_cap) {
             tw_log_printf(log, TW_LOG_ERROR,
-                          "bvh: prototype '%s': Embree returned a malformed tree "
+                          "prototype '%s': the BVH builder (Embree) returned a malformed tree "
                           "(%s)", proto_name, kind ? "too many nodes" : "missing node");
             ret = TW_ERR_EMBREE;
             goto out;
@@ -395,8 +402,8 @@ static int stage_from_embree(struct stage *st, const void *root, uint32_t cluste
             const struct embree_inner *inner = p.node;
             if (top + 2 > cluster_count + 1) {
                 tw_log_printf(log, TW_LOG_ERROR,
-                              "bvh: prototype '%s': Embree returned a malformed tree "
-                              "(too deep)", proto_name);
+                              "prototype '%s': the BVH builder (Embree) returned a malformed "
+                              "tree (too deep)", proto_name);
                 ret = TW_ERR_EMBREE;
                 goto out;
             }
@@ -411,15 +418,15 @@ static int stage_from_embree(struct stage *st, const void *root, uint32_t cluste
         const struct embree_leaf *leaf = p.node;
         if (leaf->count != 1) {
             tw_log_printf(log, TW_LOG_ERROR,
-                          "bvh: prototype '%s': Embree made a leaf of %u clusters "
-                          "despite maxLeafSize 1", proto_name, leaf->count);
+                          "prototype '%s': the BVH builder (Embree) made a leaf of %u "
+                          "clusters where one was asked for", proto_name, leaf->count);
             ret = TW_ERR_EMBREE;
             goto out;
         }
         const uint32_t c = leaf->cluster[0];
         if (c >= cluster_count || seen[c] || st->leaf_cluster_count == cluster_count) {
             tw_log_printf(log, TW_LOG_ERROR,
-                          "bvh: prototype '%s': Embree returned cluster %u %s", proto_name,
+                          "prototype '%s': the BVH builder (Embree) returned cluster %u %s", proto_name,
                           c, c >= cluster_count ? "out of range" : "twice");
             ret = TW_ERR_EMBREE;
             goto out;
@@ -432,7 +439,8 @@ static int stage_from_embree(struct stage *st, const void *root, uint32_t cluste
     }
     if (st->leaf_cluster_count != cluster_count) {
         tw_log_printf(log, TW_LOG_ERROR,
-                      "bvh: prototype '%s': Embree's tree holds %u of %u clusters",
+                      "prototype '%s': the BVH builder's (Embree's) tree holds %u of %u "
+                      "clusters",
                       proto_name, st->leaf_cluster_count, cluster_count);
         ret = TW_ERR_EMBREE;
         goto out;
@@ -473,8 +481,9 @@ static int stage_build_embree(struct tw_bvh_builder *b, const struct tw_prototyp
 
     embree_bvh = rtcNewBVH(b->device);
     if (!embree_bvh) {
-        flush_embree_errors(b, "rtcNewBVH");
-        ret = TW_ERR_EMBREE;
+        ret = flush_embree_errors(b, "starting a build");
+        if (!ret)
+            ret = TW_ERR_EMBREE;
         goto out;
     }
 
@@ -513,12 +522,14 @@ static int stage_build_embree(struct tw_bvh_builder *b, const struct tw_prototyp
     args.userPtr = b;
 
     const void *root = rtcBuildBVH(&args);
-    if (flush_embree_errors(b, "rtcBuildBVH") || !root) {
-        if (!root)
+    ret = flush_embree_errors(b, "building");
+    if (ret || !root) {
+        if (!ret) {
             tw_log_printf(&b->log, TW_LOG_ERROR,
-                          "bvh: prototype '%.48s': rtcBuildBVH returned no tree",
+                          "prototype '%.48s': the BVH builder (Embree) returned no tree",
                           proto->name);
-        ret = TW_ERR_EMBREE;
+            ret = TW_ERR_EMBREE;
+        }
         goto out;
     }
 
@@ -530,7 +541,7 @@ static int stage_build_embree(struct tw_bvh_builder *b, const struct tw_prototyp
 out:
     if (embree_bvh) {
         rtcReleaseBVH(embree_bvh);
-        flush_embree_errors(b, "rtcReleaseBVH");
+        flush_embree_errors(b, "releasing a build");
     }
     free(prims);
     return ret;
@@ -735,7 +746,7 @@ static int flatten(struct stage *st, const struct tw_prototype *proto,
     }
     if (st->nodes[0].triangles > UINT32_MAX) {
         tw_log_printf(log, TW_LOG_ERROR,
-                      "bvh: prototype '%.48s' has %llu triangles, more than a node counts",
+                      "prototype '%.48s': %llu triangles, more than a BVH node can count",
                       proto->name, (unsigned long long)st->nodes[0].triangles);
         ret = TW_ERR_LIMIT;
         goto fail;
@@ -827,9 +838,6 @@ static int flatten(struct stage *st, const struct tw_prototype *proto,
     return TW_OK;
 
 fail:
-    if (ret == TW_ERR_NOMEM)
-        tw_log_printf(log, TW_LOG_ERROR, "bvh: prototype '%.48s': out of memory flattening",
-                      proto->name);
     tw_bvh_destroy(bvh);
     free(stack_nodes);
     free(stack);
@@ -869,8 +877,10 @@ static int build(struct tw_bvh_builder *b, const struct tw_prototype *proto,
     (*out)->build_ms = now_ms() - start;
 
 out:
-    if (b && ret == TW_ERR_NOMEM)
-        tw_log_printf(log, TW_LOG_ERROR, "bvh: prototype '%.48s': out of memory", proto->name);
+    if (ret == TW_ERR_NOMEM)
+        tw_log_printf(log, TW_LOG_ERROR,
+                      "prototype '%.48s': out of memory for its bounding volume hierarchy",
+                      proto->name);
     stage_finish(&st);
     return ret;
 }

@@ -250,7 +250,7 @@ int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, si
     if (!w || (count && !boxes))
         return TW_ERR_INVALID;
     if (!w->has_view) {
-        tw_log_printf(&w->s.log, TW_LOG_ERROR, "tw_world_draw_debug: no frame rendered yet");
+        tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot draw the debug view: no frame has been rendered yet");
         return TW_ERR_STATE;
     }
     if (count > w->debug.draw_cap) {

@@ -219,8 +219,6 @@ int tw_path_builtin_speed(const char *name, uint64_t seed, uint32_t frames, floa
 /* ---- path CSV files --------------------------------------------------------------- */
 
 #define MAX_LINE 1022                  /* characters of a row, its newline excluded */
-#define MAX_CSV_BYTES (256u << 20)
-#define MAX_ROWS (1u << 24)
 #define MAX_OFFSET 1.0e7               /* |x|, |z|: metres from the cell's origin */
 #define MAX_YAW 1.0e6                  /* degrees (kept modulo 360) */
 #define MAX_PITCH 89.9                 /* degrees, exclusive */
@@ -357,119 +355,139 @@ static int parse_row(const char *line, size_t len, int64_t cell[2], double v[7],
     return TW_OK;
 }
 
-int tw_path_parse_csv(const char *text, size_t size, const char *name, uint32_t frames, float w,
-                      float d, struct tw_path *out, char *err, size_t err_size)
+/* The reader of a path CSV, fed one line at a time (from memory or as a
+ * file is read): the first bad line ends it, before anything after it is
+ * read. */
+struct csv_reader {
+    const char *shown;          /* the file name, escaped */
+    uint32_t frames;            /* > 0: stop after this many rows */
+    float w, d;
+    struct tw_path *out;
+    uint32_t cap, lineno;
+    bool header;
+    char *err;
+    size_t err_size;
+};
+
+/* Line lineno of the file, line[0, len) without its newline. Returns 0 to go
+ * on, 1 when the rows asked for are read (the rest need not be), or a
+ * negative error (err written). */
+static int feed_line(struct csv_reader *r, const char *line, size_t len)
 {
-    char shown[256], why[256];
-    char dummy[1];
-    if (!err || err_size == 0) {
-        err = dummy;
-        err_size = sizeof(dummy);
+    struct tw_path *out = r->out;
+    r->lineno++;
+    const char *nul = memchr(line, '\0', len);
+    if (nul) {
+        snprintf(r->err, r->err_size, "%s:%u: a NUL byte at column %zu: not a text file",
+                 r->shown, r->lineno, (size_t)(nul - line) + 1);
+        return TW_ERR_FORMAT;
     }
+    if (len > (size_t)MAX_LINE + (len > 0 && line[len - 1] == '\r')) {
+        snprintf(r->err, r->err_size, "%s:%u: line longer than %d characters", r->shown,
+                 r->lineno, MAX_LINE);
+        return TW_ERR_FORMAT;
+    }
+    if (!r->header) {
+        if (len < 6 || strncmp(line, "cell_i", 6) != 0) {
+            snprintf(r->err, r->err_size,
+                     "%s:%u: expected the header cell_i,cell_j,x,y,z,yaw,pitch", r->shown,
+                     r->lineno);
+            return TW_ERR_FORMAT;
+        }
+        r->header = true;
+        return TW_OK;
+    }
+    size_t blank = 0;
+    while (blank < len && (line[blank] == ' ' || line[blank] == '\t' || line[blank] == '\r'))
+        blank++;
+    if (blank == len)
+        return TW_OK;
+    double v[7];
+    int64_t cell[2];
+    char why[256];
+    if (parse_row(line, len, cell, v, why, sizeof(why))) {
+        snprintf(r->err, r->err_size, "%s:%u: %s", r->shown, r->lineno, why);
+        return TW_ERR_FORMAT;
+    }
+    if (out->count == r->cap) {
+        if (r->cap >= TW_PATH_MAX_ROWS) {
+            snprintf(r->err, r->err_size,
+                     "%s:%u: more than %u camera rows, the most frames a path may have",
+                     r->shown, r->lineno, TW_PATH_MAX_ROWS);
+            return TW_ERR_LIMIT;
+        }
+        uint32_t cap = r->cap ? 2 * r->cap : 256;
+        if (cap > TW_PATH_MAX_ROWS)
+            cap = TW_PATH_MAX_ROWS;
+        struct tw_camera *k = realloc(out->keys, sizeof(*k) * cap);
+        if (!k) {
+            snprintf(r->err, r->err_size, "%s:%u: out of memory", r->shown, r->lineno);
+            return TW_ERR_NOMEM;
+        }
+        out->keys = k;
+        r->cap = cap;
+    }
+    struct tw_camera *key = &out->keys[out->count];
+    const double local[3] = {v[2], v[3], v[4]};
+    const struct tw_cell c = {cell[0], cell[1]};
+    if (tw_tiles_normalize_double(c, local, r->w, r->d, &key->pos)) {
+        snprintf(r->err, r->err_size,
+                 "%s:%u: the position overflows the grid (cell plus offset beyond 64 bits)",
+                 r->shown, r->lineno);
+        return TW_ERR_FORMAT;
+    }
+    key->yaw = (float)fmod(v[5], 360.0);
+    key->pitch = (float)v[6];
+    out->count++;
+    return r->frames > 0 && out->count == r->frames ? 1 : TW_OK;
+}
+
+/* Sets r up for out, or writes why not (a caller's bug). */
+static int reader_begin(struct csv_reader *r, const char *name, uint32_t frames, float w, float d,
+                        struct tw_path *out, char *shown, size_t shown_size, char *err,
+                        size_t err_size)
+{
+    memset(r, 0, sizeof(*r));
+    r->err = err;
+    r->err_size = err_size;
     err[0] = '\0';
     if (!out) {
         snprintf(err, err_size, "path: out is NULL (caller's bug)");
         return TW_ERR_INVALID;
     }
     memset(out, 0, sizeof(*out));
-    tw_log_escape(name ? name : "(path)", shown, sizeof(shown));
-    if ((!text && size) || !(w > 0.0f) || !(d > 0.0f) || !isfinite(w) || !isfinite(d)) {
+    tw_log_escape(name ? name : "(path)", shown, shown_size);
+    if (!(w > 0.0f) || !(d > 0.0f) || !isfinite(w) || !isfinite(d) ||
+        frames > TW_PATH_MAX_ROWS) {
         snprintf(err, err_size, "%s: invalid arguments (caller's bug)", shown);
         return TW_ERR_INVALID;
     }
-    uint32_t cap = 0, lineno = 0;
-    int rc = TW_OK;
-    bool header = false;
-    size_t pos = 0;
-    /* A UTF-8 byte order mark before the header is not text. */
-    if (size >= 3 && memcmp(text, "\xef\xbb\xbf", 3) == 0)
-        pos = 3;
-    while (pos < size) {
-        lineno++;
-        const char *line = text + pos;
-        const char *nl = memchr(line, '\n', size - pos);
-        const size_t len = nl ? (size_t)(nl - line) : size - pos;
-        pos += len + (nl ? 1 : 0);
-        const char *nul = memchr(line, '\0', len);
-        if (nul) {
-            snprintf(err, err_size, "%s:%u: a NUL byte at column %zu: not a text file", shown,
-                     lineno, (size_t)(nul - line) + 1);
-            rc = TW_ERR_FORMAT;
-            goto out;
-        }
-        if (len > (size_t)MAX_LINE + (len > 0 && line[len - 1] == '\r')) {
-            snprintf(err, err_size, "%s:%u: line longer than %d characters", shown, lineno,
-                     MAX_LINE);
-            rc = TW_ERR_FORMAT;
-            goto out;
-        }
-        if (!header) {
-            if (len < 6 || strncmp(line, "cell_i", 6) != 0) {
-                snprintf(err, err_size,
-                         "%s:%u: expected the header cell_i,cell_j,x,y,z,yaw,pitch", shown,
-                         lineno);
-                rc = TW_ERR_FORMAT;
-                goto out;
-            }
-            header = true;
-            continue;
-        }
-        size_t blank = 0;
-        while (blank < len && (line[blank] == ' ' || line[blank] == '\t' || line[blank] == '\r'))
-            blank++;
-        if (blank == len)
-            continue;
-        if (frames > 0 && out->count == frames)
-            break;
-        double v[7];
-        int64_t cell[2];
-        if (parse_row(line, len, cell, v, why, sizeof(why))) {
-            snprintf(err, err_size, "%s:%u: %s", shown, lineno, why);
-            rc = TW_ERR_FORMAT;
-            goto out;
-        }
-        if (out->count == cap) {
-            if (cap >= MAX_ROWS) {
-                snprintf(err, err_size, "%s:%u: more than %u camera rows", shown, lineno,
-                         MAX_ROWS);
-                rc = TW_ERR_LIMIT;
-                goto out;
-            }
-            cap = cap ? cap * 2 : 256;
-            struct tw_camera *k = realloc(out->keys, sizeof(*k) * cap);
-            if (!k) {
-                snprintf(err, err_size, "%s:%u: out of memory", shown, lineno);
-                rc = TW_ERR_NOMEM;
-                goto out;
-            }
-            out->keys = k;
-        }
-        struct tw_camera *key = &out->keys[out->count];
-        const double local[3] = {v[2], v[3], v[4]};
-        const struct tw_cell c = {cell[0], cell[1]};
-        if (tw_tiles_normalize_double(c, local, w, d, &key->pos)) {
-            snprintf(err, err_size,
-                     "%s:%u: the position overflows the grid (cell plus offset beyond 64 bits)",
-                     shown, lineno);
-            rc = TW_ERR_FORMAT;
-            goto out;
-        }
-        key->yaw = (float)fmod(v[5], 360.0);
-        key->pitch = (float)v[6];
-        out->count++;
-    }
-    if (!header) {
-        snprintf(err, err_size, "%s: empty file (expected a header line)", shown);
+    r->shown = shown;
+    r->frames = frames;
+    r->w = w;
+    r->d = d;
+    r->out = out;
+    return TW_OK;
+}
+
+/* After the last line (rc: what feeding ended with): the checks of the
+ * whole file, then the path's name, or the path freed on error. */
+static int reader_end(struct csv_reader *r, int rc, const char *name)
+{
+    struct tw_path *out = r->out;
+    if (rc > 0)
+        rc = TW_OK;
+    else if (!rc && !r->header) {
+        snprintf(r->err, r->err_size, "%s: empty file (expected a header line)", r->shown);
         rc = TW_ERR_FORMAT;
-    } else if (out->count == 0) {
-        snprintf(err, err_size, "%s: no camera rows after the header", shown);
+    } else if (!rc && out->count == 0) {
+        snprintf(r->err, r->err_size, "%s: no camera rows after the header", r->shown);
         rc = TW_ERR_FORMAT;
-    } else if (frames > 0 && out->count < frames) {
-        snprintf(err, err_size, "%s: %u frames asked for but the file has %u rows", shown, frames,
-                 out->count);
+    } else if (!rc && r->frames > 0 && out->count < r->frames) {
+        snprintf(r->err, r->err_size, "%s: %u frames asked for but the file has %u rows",
+                 r->shown, r->frames, out->count);
         rc = TW_ERR_FORMAT;
     }
-out:
     if (rc) {
         tw_path_finish(out);
     } else {
@@ -480,84 +498,74 @@ out:
     return rc;
 }
 
-/* Reads the regular file at path (at most limit bytes). Opened non-blocking
- * and checked with fstat() before anything is read, so that a FIFO or a
- * device is refused instead of waited on. */
-static int read_regular_file(const char *path, size_t limit, char **data, size_t *size,
-                             char *why, size_t why_size)
+int tw_path_parse_csv(const char *text, size_t size, const char *name, uint32_t frames, float w,
+                      float d, struct tw_path *out, char *err, size_t err_size)
 {
-    *data = NULL;
-    *size = 0;
+    char shown[256];
+    char dummy[1];
+    if (!err || err_size == 0) {
+        err = dummy;
+        err_size = sizeof(dummy);
+    }
+    struct csv_reader r;
+    int rc = reader_begin(&r, name, frames, w, d, out, shown, sizeof(shown), err, err_size);
+    if (rc)
+        return rc;
+    if (!text && size) {
+        snprintf(err, err_size, "%s: invalid arguments (caller's bug)", shown);
+        return TW_ERR_INVALID;
+    }
+    size_t pos = 0;
+    /* A UTF-8 byte order mark before the header is not text. */
+    if (size >= 3 && memcmp(text, "\xef\xbb\xbf", 3) == 0)
+        pos = 3;
+    while (pos < size && !rc) {
+        const char *line = text + pos;
+        const char *nl = memchr(line, '\n', size - pos);
+        const size_t len = nl ? (size_t)(nl - line) : size - pos;
+        pos += len + (nl ? 1 : 0);
+        rc = feed_line(&r, line, len);
+    }
+    return reader_end(&r, rc, name);
+}
+
+/* Opens the regular file at path for reading (non-blocking: a FIFO or a
+ * device is refused instead of waited on) and checks its size against
+ * limit before anything is read. */
+static int open_regular_file(const char *path, uint64_t limit, int *out_fd, char *why,
+                             size_t why_size)
+{
+    *out_fd = -1;
     const int fd = open(path, O_RDONLY | O_NONBLOCK | O_NOCTTY | O_CLOEXEC);
     if (fd < 0) {
-        snprintf(why, why_size, "cannot open: %s", strerror(errno));
+        if (errno == ENOENT)
+            snprintf(why, why_size, "no such file");
+        else
+            snprintf(why, why_size, "cannot open: %s", strerror(errno));
         return TW_ERR_IO;
     }
-    int rc = TW_OK;
-    char *buf = NULL;
     struct stat st;
     if (fstat(fd, &st) != 0) {
         snprintf(why, why_size, "cannot stat: %s", strerror(errno));
-        rc = TW_ERR_IO;
-        goto out;
+        close(fd);
+        return TW_ERR_IO;
     }
     if (!S_ISREG(st.st_mode)) {
         snprintf(why, why_size, "is not a regular file (a %s)",
                  S_ISFIFO(st.st_mode) ? "FIFO" : S_ISDIR(st.st_mode) ? "folder"
                  : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "device" : S_ISSOCK(st.st_mode)
                  ? "socket" : "special file");
-        rc = TW_ERR_IO;
-        goto out;
+        close(fd);
+        return TW_ERR_IO;
     }
     if (st.st_size < 0 || (uint64_t)st.st_size > limit) {
-        snprintf(why, why_size, "is %lld bytes, more than the limit of %zu", (long long)st.st_size,
-                 limit);
-        rc = TW_ERR_LIMIT;
-        goto out;
+        snprintf(why, why_size, "is %lld bytes, more than the limit of %llu", (long long)st.st_size,
+                 (unsigned long long)limit);
+        close(fd);
+        return TW_ERR_LIMIT;
     }
-    /* Read to the end, not to st_size: the file may change meanwhile. */
-    size_t cap = (size_t)st.st_size + 1, n = 0;
-    buf = malloc(cap);
-    if (!buf) {
-        snprintf(why, why_size, "out of memory");
-        rc = TW_ERR_NOMEM;
-        goto out;
-    }
-    for (;;) {
-        if (n == cap) {
-            if (cap > limit) {
-                snprintf(why, why_size, "grew beyond the limit of %zu bytes while read", limit);
-                rc = TW_ERR_LIMIT;
-                goto out;
-            }
-            char *grown = realloc(buf, cap * 2);
-            if (!grown) {
-                snprintf(why, why_size, "out of memory");
-                rc = TW_ERR_NOMEM;
-                goto out;
-            }
-            buf = grown;
-            cap *= 2;
-        }
-        const ssize_t r = read(fd, buf + n, cap - n);
-        if (r < 0 && errno == EINTR)
-            continue;
-        if (r < 0) {
-            snprintf(why, why_size, "cannot read: %s", strerror(errno));
-            rc = TW_ERR_IO;
-            goto out;
-        }
-        if (r == 0)
-            break;
-        n += (size_t)r;
-    }
-    *data = buf;
-    *size = n;
-    buf = NULL;
-out:
-    free(buf);
-    close(fd);
-    return rc;
+    *out_fd = fd;
+    return TW_OK;
 }
 
 int tw_path_load_csv(const char *file, uint32_t frames, float w, float d, struct tw_path *out,
@@ -572,18 +580,79 @@ int tw_path_load_csv(const char *file, uint32_t frames, float w, float d, struct
         snprintf(err, err_size, "path: %s is NULL (caller's bug)", out ? "file" : "out");
         return TW_ERR_INVALID;
     }
-    memset(out, 0, sizeof(*out));
-    char *text = NULL, why[256];
-    size_t size = 0;
-    const int rc = read_regular_file(file, MAX_CSV_BYTES, &text, &size, why, sizeof(why));
-    if (rc) {
-        char shown[256];
-        snprintf(err, err_size, "%s: %s", tw_log_escape(file, shown, sizeof(shown)), why);
+    char shown[256], why[256];
+    struct csv_reader r;
+    int rc = reader_begin(&r, file, frames, w, d, out, shown, sizeof(shown), err, err_size);
+    if (rc)
+        return rc;
+    int fd = -1;
+    if ((rc = open_regular_file(file, TW_PATH_MAX_CSV_BYTES, &fd, why, sizeof(why)))) {
+        snprintf(err, err_size, "%s: %s", shown, why);
         return rc;
     }
-    const int perr = tw_path_parse_csv(text, size, file, frames, w, d, out, err, err_size);
-    free(text);
-    return perr;
+    /* Read in blocks, a line at a time: a bad row ends the reading there,
+     * and so do the rows asked for. A line is at most MAX_LINE characters
+     * and a \r, so a block always holds a whole one. */
+    enum { BLOCK = 1 << 16 };
+    char *buf = malloc(BLOCK);
+    if (!buf) {
+        close(fd);
+        snprintf(err, err_size, "%s: out of memory", shown);
+        return reader_end(&r, TW_ERR_NOMEM, file);
+    }
+    size_t have = 0;
+    uint64_t total = 0;
+    bool eof = false, bom_checked = false;
+    for (;;) {
+        if (!eof && have < BLOCK) {
+            const ssize_t n = read(fd, buf + have, BLOCK - have);
+            if (n < 0 && errno == EINTR)
+                continue;
+            if (n < 0) {
+                snprintf(err, err_size, "%s: cannot read: %s", shown, strerror(errno));
+                rc = TW_ERR_IO;
+                break;
+            }
+            eof = n == 0;
+            have += (size_t)n;
+            total += (uint64_t)n;
+            if (total > TW_PATH_MAX_CSV_BYTES) {
+                snprintf(err, err_size, "%s: grew beyond the limit of %llu bytes while read",
+                         shown, (unsigned long long)TW_PATH_MAX_CSV_BYTES);
+                rc = TW_ERR_LIMIT;
+                break;
+            }
+            /* A UTF-8 byte order mark before the header is not text. */
+            if (!bom_checked && (have >= 3 || eof)) {
+                bom_checked = true;
+                if (have >= 3 && memcmp(buf, "\xef\xbb\xbf", 3) == 0) {
+                    memmove(buf, buf + 3, have - 3);
+                    have -= 3;
+                }
+            }
+            if (!eof && have < BLOCK && (!bom_checked || !memchr(buf, '\n', have)))
+                continue;
+        }
+        /* Whole lines of buf[0, have); a last one without its newline only
+         * at the end of the file (or when it is too long already). */
+        size_t pos = 0;
+        while (!rc && pos < have) {
+            const char *line = buf + pos;
+            const char *nl = memchr(line, '\n', have - pos);
+            if (!nl && !eof && have - pos <= (size_t)MAX_LINE + 1)
+                break;
+            const size_t len = nl ? (size_t)(nl - line) : have - pos;
+            pos += len + (nl ? 1 : 0);
+            rc = feed_line(&r, line, len);
+        }
+        memmove(buf, buf + pos, have - pos);
+        have -= pos;
+        if (rc || (eof && have == 0))
+            break;
+    }
+    free(buf);
+    close(fd);
+    return reader_end(&r, rc, file);
 }
 
 int tw_path_translate(struct tw_path *p, int64_t di, int64_t dj)

@@ -32,6 +32,7 @@ struct tw_renderer {
     struct tw_log log;
     const struct tw_tileset *ts;
     uint32_t width, height;
+    bool out_of_memory;         /* a shader failed for the driver's memory (said once) */
 
     GLuint program;
     GLint u_view_proj, u_model, u_offset, u_color, u_eye, u_fog;
@@ -249,7 +250,13 @@ static GLuint compile(struct tw_renderer *r, GLenum type, const char *src)
     if (!ok) {
         char msg[1024] = "";
         gl->GetShaderInfoLog(s, sizeof(msg), NULL, msg);
-        tw_log_printf(&r->log, TW_LOG_ERROR, "shader compilation failed (a bug): %s", msg);
+        if (gl->GetError() == GL_OUT_OF_MEMORY && !r->out_of_memory) {
+            r->out_of_memory = true;
+            tw_log_printf(&r->log, TW_LOG_ERROR, "the OpenGL driver ran out of memory "
+                          "compiling a shader");
+        } else if (!r->out_of_memory) {
+            tw_log_printf(&r->log, TW_LOG_ERROR, "a shader does not compile (a bug): %s", msg);
+        }
         gl->DeleteShader(s);
         return 0;
     }
@@ -276,7 +283,14 @@ static GLuint link_program(struct tw_renderer *r, const char *vs_src, const char
         if (!ok) {
             char msg[1024] = "";
             gl->GetProgramInfoLog(p, sizeof(msg), NULL, msg);
-            tw_log_printf(&r->log, TW_LOG_ERROR, "shader link failed (a bug): %s", msg);
+            if (gl->GetError() == GL_OUT_OF_MEMORY && !r->out_of_memory) {
+                r->out_of_memory = true;
+                tw_log_printf(&r->log, TW_LOG_ERROR, "the OpenGL driver ran out of memory "
+                              "linking a shader program");
+            } else if (!r->out_of_memory) {
+                tw_log_printf(&r->log, TW_LOG_ERROR, "a shader program does not link (a bug): %s",
+                              msg);
+            }
             gl->DeleteProgram(p);
             p = 0;
         }
@@ -372,6 +386,13 @@ static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts, st
     gl->BindVertexArray(0);
     r->bound_vao = 0;
     b->bytes = (uint64_t)VERTEX_BYTES * vertices + sizeof(uint32_t) * indices;
+    /* Buffers without storage would draw nothing, silently. */
+    if (gl->GetError() == GL_OUT_OF_MEMORY) {
+        tw_log_printf(&r->log, TW_LOG_ERROR, "the OpenGL driver is out of memory for the "
+                      "buffers of tileset '%.48s' (%llu bytes)", ts->name,
+                      (unsigned long long)b->bytes);
+        err = TW_ERR_NOMEM;
+    }
 out:
     free(interleaved);
     free(index_data);
@@ -546,6 +567,20 @@ static void upload_box(struct tw_renderer *r)
     gl->BindVertexArray(0);
 }
 
+/* An offscreen framebuffer that cannot be completed: the driver's memory,
+ * most often (a software rasteriser under an address-space limit). */
+static int framebuffer_failed(struct tw_renderer *r, const char *what)
+{
+    if (r->gl.GetError() == GL_OUT_OF_MEMORY) {
+        tw_log_printf(&r->log, TW_LOG_ERROR, "the OpenGL driver is out of memory for the %s "
+                      "(%u x %u pixels)", what, r->width, r->height);
+        return TW_ERR_NOMEM;
+    }
+    tw_log_printf(&r->log, TW_LOG_ERROR, "the OpenGL driver cannot make the offscreen %s "
+                  "(%u x %u pixels)", what, r->width, r->height);
+    return TW_ERR_GL;
+}
+
 static int create_framebuffer(struct tw_renderer *r)
 {
     const struct tw_gl *gl = &r->gl;
@@ -563,10 +598,8 @@ static int create_framebuffer(struct tw_renderer *r)
                             (GLsizei)r->height);
     gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER,
                                 r->depth_rb);
-    if (gl->CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
-        tw_log_printf(&r->log, TW_LOG_ERROR, "the offscreen framebuffer is incomplete");
-        return TW_ERR_GL;
-    }
+    if (gl->CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+        return framebuffer_failed(r, "image");
     /* The oracle's object-ID buffer: one uint per pixel, its own depth. */
     gl->GenFramebuffers(1, &r->id_fbo);
     gl->BindFramebuffer(GL_FRAMEBUFFER, r->id_fbo);
@@ -580,10 +613,8 @@ static int create_framebuffer(struct tw_renderer *r)
                             (GLsizei)r->height);
     gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER,
                                 r->id_depth_rb);
-    if (gl->CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
-        tw_log_printf(&r->log, TW_LOG_ERROR, "the object-ID framebuffer is incomplete");
-        return TW_ERR_GL;
-    }
+    if (gl->CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+        return framebuffer_failed(r, "object-ID image");
     gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
     return TW_OK;
 }
@@ -617,9 +648,18 @@ int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_pr
     r->gl_loaded = true;
     const struct tw_gl *gl = &r->gl;
     {
-        GLenum pending = gl->GetError();
+        /* An error left by the host's own calls is not ours (cleared); one
+         * of memory is the context's: nothing drawn with it can be trusted. */
+        const GLenum pending = gl->GetError();
+        if (pending == GL_OUT_OF_MEMORY) {
+            tw_log_printf(&r->log, TW_LOG_ERROR, "the OpenGL driver ran out of memory before "
+                          "the world was set up");
+            err = TW_ERR_NOMEM;
+            goto fail;
+        }
         if (pending != GL_NO_ERROR)
-            tw_log_printf(&r->log, TW_LOG_WARN, "DEBUG pending GL error 0x%x before setup", pending);
+            tw_log_printf(&r->log, TW_LOG_DEBUG, "OpenGL error 0x%x was pending when the world "
+                          "was set up (left by earlier calls): cleared", pending);
     }
     GLint major = 0, minor = 0;
     gl->GetIntegerv(GL_MAJOR_VERSION, &major);
@@ -647,7 +687,7 @@ int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_pr
     r->fill_program = link_program(r, box_vs, NULL, color_fs);
     if (!r->program || !r->box_program || !r->id_program || !r->line_program ||
         !r->fill_program) {
-        err = TW_ERR_GL;
+        err = r->out_of_memory ? TW_ERR_NOMEM : TW_ERR_GL;
         goto fail;
     }
     r->u_view_proj = gl->GetUniformLocation(r->program, "u_view_proj");
@@ -675,8 +715,15 @@ int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_pr
     if (err)
         goto fail;
     GLenum gl_err = gl->GetError();
+    if (gl_err == GL_OUT_OF_MEMORY) {
+        tw_log_printf(&r->log, TW_LOG_ERROR, "the OpenGL driver ran out of memory while the "
+                      "world was set up");
+        err = TW_ERR_NOMEM;
+        goto fail;
+    }
     if (gl_err != GL_NO_ERROR) {
-        tw_log_printf(&r->log, TW_LOG_ERROR, "OpenGL error 0x%x while setting up", gl_err);
+        tw_log_printf(&r->log, TW_LOG_ERROR, "OpenGL error 0x%x while the world was set up",
+                      gl_err);
         err = TW_ERR_GL;
         goto fail;
     }

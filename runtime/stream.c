@@ -12,15 +12,25 @@
  * finish it, check it against the provider's bound, build its BVH. Under
  * policy wait the render thread runs a job itself when no worker has
  * started it yet, so a frame never waits behind less urgent work.
+ *
+ * A job runs on what its worker owns (a copy of the provider, its own BVH
+ * builder, the result on its stack), so that a worker stuck in the
+ * provider's generate() can be left behind when the stream is destroyed:
+ * the lock and the conditions live in a block of their own (struct pool)
+ * that the last of the stream and such workers frees, and a worker that
+ * comes back to find itself left behind drops its result, frees what it
+ * owns and ends without touching the stream again.
  */
 #include "runtime/stream.h"
 
+#include <errno.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 enum render_state { R_FREE = 0, R_LOADING, R_READY, R_REFUSED };
 enum job_state { J_NONE = 0, J_QUEUED, J_RUNNING, J_DONE };
@@ -53,12 +63,32 @@ struct entry {
     struct job_result result;
 };
 
+/* What the workers share with the stream (see the top of the file). */
+struct pool {
+    pthread_mutex_t lock;
+    pthread_cond_t work;                 /* a job was queued, or quit */
+    pthread_cond_t done;                 /* a job finished, or a worker stopped
+                                            (CLOCK_MONOTONIC, for the wait at destroy) */
+    bool quit;
+    uint32_t refs;                       /* the stream's, and one per worker thread */
+};
+
 struct worker {
-    struct tw_stream *s;
+    struct tw_stream *s;                 /* (lock) NULL once left behind */
+    struct pool *pool;
+    struct tw_tile_provider provider;    /* a copy: the world's may be gone when a job
+                                            left behind comes back */
+    struct tw_bvh_settings bvh;
     pthread_t thread;
     bool started;
+    /* Under the lock. */
+    bool busy;                           /* running a job on cell */
+    struct tw_cell cell;
+    bool stopped;                        /* out of its loop: can be joined */
+    bool left_behind;                    /* the stream is gone: the thread owns this */
+    /* The worker's own. */
     struct tw_bvh_builder *builder;
-    char message[256];           /* what the builder logged last */
+    char message[256];                   /* what the builder logged last */
 };
 
 struct tw_stream {
@@ -77,22 +107,19 @@ struct tw_stream {
     uint32_t ready, loading;
     uint64_t bytes_cpu, bytes_gpu;
 
-    /* Jobs (lock). */
-    pthread_mutex_t lock;
-    pthread_cond_t work;                 /* a job was queued, or quit */
-    pthread_cond_t done;                 /* a job finished */
+    /* Jobs (under pool->lock). */
+    struct pool *pool;
     uint32_t *heap;                      /* queued entries, by priority then seq */
     uint32_t heap_count, heap_cap;
     uint32_t *finished;                  /* entries whose job is done, not yet collected */
     uint32_t finished_count, finished_cap;
     uint64_t seq;
-    bool quit;
 
     /* Done, collected, waiting for their upload (render thread). */
     uint32_t *to_upload;
     uint32_t to_upload_count, to_upload_cap;
 
-    struct worker *workers;
+    struct worker **workers;             /* NULL where one was left behind */
     uint32_t worker_count;
     struct worker inline_worker;         /* the render thread's own builder */
 
@@ -147,11 +174,11 @@ static void fail(struct job_result *r, int err, const char *fmt, ...)
     va_end(ap);
 }
 
-/* Makes the tile of cell. Any thread; touches no shared state. */
-static void run_job(const struct tw_stream *s, struct worker *wk, struct tw_cell cell,
-                    struct job_result *r)
+/* Makes the tile of cell. Any thread; touches nothing but what wk owns
+ * (the stream may be gone by the time generate() returns). */
+static void run_job(struct worker *wk, struct tw_cell cell, struct job_result *r)
 {
-    const struct tw_tile_provider *p = s->p;
+    const struct tw_tile_provider *p = &wk->provider;
     memset(r, 0, sizeof(*r));
     wk->message[0] = '\0';
     char name[64];
@@ -163,11 +190,11 @@ static void run_job(const struct tw_stream *s, struct worker *wk, struct tw_cell
     }
     err = p->generate(p->user, cell, r->ts);
     if (err) {
-        fail(r, err, "generate() failed: %s", tw_error_to_str(err));
+        fail(r, err, "the provider could not make it: %s", tw_error_to_str(err));
         goto out;
     }
     if (r->ts->prototype_count != 1) {
-        fail(r, TW_ERR_INVALID, "generate() made %u prototypes (one is needed)",
+        fail(r, TW_ERR_INVALID, "the provider made %u prototypes for it (one is needed)",
              r->ts->prototype_count);
         goto out;
     }
@@ -190,7 +217,7 @@ static void run_job(const struct tw_stream *s, struct worker *wk, struct tw_cell
      * returns whole pages (without: the heap kept 5-10 MiB of holes over
      * 10 km). Out of memory here leaves both as they are, still valid. */
     (void)tw_tileset_pack(&r->ts);
-    err = tw_bvh_build(wk->builder, &r->ts->prototypes[0], &s->set.bvh, &r->bvh);
+    err = tw_bvh_build(wk->builder, &r->ts->prototypes[0], &wk->bvh, &r->bvh);
     if (err) {
         fail(r, err, "its BVH cannot be built: %s", wk->message[0] ? wk->message
                                                                   : tw_error_to_str(err));
@@ -295,30 +322,61 @@ static void finish_job(struct tw_stream *s, uint32_t index, struct job_result *r
         /* Out of memory to file it: the entry is collected when it is
          * waited on or invalidated; never lost. */
     }
-    pthread_cond_broadcast(&s->done);
+    pthread_cond_broadcast(&s->pool->done);
+}
+
+static void pool_unref(struct pool *pool)
+{
+    pthread_mutex_lock(&pool->lock);
+    const bool last = --pool->refs == 0;
+    pthread_mutex_unlock(&pool->lock);
+    if (!last)
+        return;
+    pthread_cond_destroy(&pool->work);
+    pthread_cond_destroy(&pool->done);
+    pthread_mutex_destroy(&pool->lock);
+    free(pool);
 }
 
 static void *worker_main(void *arg)
 {
     struct worker *wk = arg;
-    struct tw_stream *s = wk->s;
-    pthread_mutex_lock(&s->lock);
+    struct pool *pool = wk->pool;
+    pthread_mutex_lock(&pool->lock);
     for (;;) {
         uint32_t index = UINT32_MAX;
-        while (!s->quit && (index = pop_job(s)) == UINT32_MAX)
-            pthread_cond_wait(&s->work, &s->lock);
-        if (s->quit)
+        /* quit is set before any worker is left behind: wk->s is valid here. */
+        while (!pool->quit && (index = pop_job(wk->s)) == UINT32_MAX)
+            pthread_cond_wait(&pool->work, &pool->lock);
+        if (pool->quit)
             break;
-        struct entry *e = &s->entries[index];
+        struct entry *e = &wk->s->entries[index];
         e->jstate = J_RUNNING;
         const struct tw_cell cell = e->cell;
-        pthread_mutex_unlock(&s->lock);
+        wk->cell = cell;
+        wk->busy = true;
+        pthread_mutex_unlock(&pool->lock);
         struct job_result r;
-        run_job(s, wk, cell, &r);
-        pthread_mutex_lock(&s->lock);
-        finish_job(s, index, &r);
+        run_job(wk, cell, &r);
+        pthread_mutex_lock(&pool->lock);
+        wk->busy = false;
+        if (wk->left_behind) {
+            free_result(&r);
+            break;
+        }
+        finish_job(wk->s, index, &r);
     }
-    pthread_mutex_unlock(&s->lock);
+    const bool left_behind = wk->left_behind;
+    wk->stopped = true;
+    pthread_cond_broadcast(&pool->done);
+    pthread_mutex_unlock(&pool->lock);
+    if (left_behind) {
+        /* Detached by tw_stream_destroy(): what is left is this thread's. */
+        tw_bvh_builder_destroy(wk->builder);
+        free(wk);
+    }
+    /* Otherwise joined by tw_stream_destroy(), which frees wk. */
+    pool_unref(pool);
     return NULL;
 }
 
@@ -351,13 +409,13 @@ static struct entry *new_entry(struct tw_stream *s, struct tw_cell cell, uint32_
     } else {
         if (s->entry_count == s->entry_cap) {
             const uint32_t cap = s->entry_cap ? 2 * s->entry_cap : 64;
-            pthread_mutex_lock(&s->lock);
+            pthread_mutex_lock(&s->pool->lock);
             struct entry *e = realloc(s->entries, sizeof(*e) * cap);
             if (e) {
                 s->entries = e;
                 s->entry_cap = cap;
             }
-            pthread_mutex_unlock(&s->lock);
+            pthread_mutex_unlock(&s->pool->lock);
             if (!e)
                 return NULL;
         }
@@ -371,9 +429,9 @@ static struct entry *new_entry(struct tw_stream *s, struct tw_cell cell, uint32_
     struct entry *e = &s->entries[k];
     /* A worker may still compare this slot's old priority in the heap
      * (lazy deletion): the job fields change under the lock only. */
-    pthread_mutex_lock(&s->lock);
+    pthread_mutex_lock(&s->pool->lock);
     memset(e, 0, sizeof(*e));
-    pthread_mutex_unlock(&s->lock);
+    pthread_mutex_unlock(&s->pool->lock);
     e->cell = cell;
     const uint64_t *gen = tw_cell_map_find(s->generations, cell);
     e->key = s->set.key_base + (gen ? (uint32_t)*gen : 0u);
@@ -403,18 +461,18 @@ static struct entry *request(struct tw_stream *s, struct tw_cell cell, float dis
     s->loading++;
     s->stats.loads_requested++;
     s->totals.loads_requested++;
-    pthread_mutex_lock(&s->lock);
+    pthread_mutex_lock(&s->pool->lock);
     e->priority = distance;
     e->seq = s->seq++;
     e->jstate = J_QUEUED;
     if (grow_u32(&s->heap, &s->heap_cap, s->heap_count + 1) == TW_OK) {
         s->heap[s->heap_count] = *index;
         sift_up(s, s->heap_count++);
-        pthread_cond_signal(&s->work);
+        pthread_cond_signal(&s->pool->work);
     }
     /* Without room in the heap the job stays queued for the render thread
      * to run when the tile is needed. */
-    pthread_mutex_unlock(&s->lock);
+    pthread_mutex_unlock(&s->pool->lock);
     return e;
 }
 
@@ -438,11 +496,11 @@ static int make_ready(struct tw_stream *s, uint32_t k)
     struct entry *e = &s->entries[k];
     if (e->rstate != R_LOADING)
         return TW_OK;
-    pthread_mutex_lock(&s->lock);
+    pthread_mutex_lock(&s->pool->lock);
     struct job_result r = e->result;
     memset(&e->result, 0, sizeof(e->result));
     e->jstate = J_NONE;
-    pthread_mutex_unlock(&s->lock);
+    pthread_mutex_unlock(&s->pool->lock);
     s->loading--;
     const double t0 = tw_renderer_now_ms();
     if (!r.err) {
@@ -489,7 +547,7 @@ static int make_ready(struct tw_stream *s, uint32_t k)
  * of discarded ones. */
 static void collect(struct tw_stream *s)
 {
-    pthread_mutex_lock(&s->lock);
+    pthread_mutex_lock(&s->pool->lock);
     uint32_t n = s->finished_count;
     if (grow_u32(&s->to_upload, &s->to_upload_cap, s->to_upload_count + n) != TW_OK)
         n = 0;      /* collected another frame */
@@ -510,7 +568,7 @@ static void collect(struct tw_stream *s)
     if (n > 0 && n < s->finished_count)
         memmove(s->finished, s->finished + n, sizeof(*s->finished) * (s->finished_count - n));
     s->finished_count -= n;
-    pthread_mutex_unlock(&s->lock);
+    pthread_mutex_unlock(&s->pool->lock);
 }
 
 /* Drops entry k wherever its job is; the cell is out of the map after. */
@@ -531,7 +589,7 @@ static void drop_entry(struct tw_stream *s, uint32_t k)
      * but not collected (its result is discarded when collected, and the
      * slot freed then), or done and collected (waiting for its upload). */
     s->loading--;
-    pthread_mutex_lock(&s->lock);
+    pthread_mutex_lock(&s->pool->lock);
     bool later = e->jstate == J_RUNNING;
     if (e->jstate == J_DONE) {
         for (uint32_t q = 0; q < s->finished_count && !later; q++)
@@ -543,7 +601,7 @@ static void drop_entry(struct tw_stream *s, uint32_t k)
         e->discard = true;
     else
         e->jstate = J_NONE;
-    pthread_mutex_unlock(&s->lock);
+    pthread_mutex_unlock(&s->pool->lock);
     e->rstate = R_FREE;
     if (later)
         return;
@@ -556,6 +614,23 @@ static void drop_entry(struct tw_stream *s, uint32_t k)
 }
 
 /* ---- the API ---------------------------------------------------------------------------- */
+
+static int pool_create(struct pool **out)
+{
+    struct pool *pool = calloc(1, sizeof(*pool));
+    if (!pool)
+        return TW_ERR_NOMEM;
+    pthread_condattr_t attr;
+    pthread_condattr_init(&attr);
+    pthread_condattr_setclock(&attr, CLOCK_MONOTONIC);
+    pthread_mutex_init(&pool->lock, NULL);
+    pthread_cond_init(&pool->work, NULL);
+    pthread_cond_init(&pool->done, &attr);
+    pthread_condattr_destroy(&attr);
+    pool->refs = 1;
+    *out = pool;
+    return TW_OK;
+}
 
 int tw_stream_create(const struct tw_stream_settings *set, struct tw_renderer *r,
                      struct tw_stream **out)
@@ -571,15 +646,22 @@ int tw_stream_create(const struct tw_stream_settings *set, struct tw_renderer *r
         s->set.cancel_after = 2;
     if (s->set.evict_after == 0)
         s->set.evict_after = 60;
-    pthread_mutex_init(&s->lock, NULL);
-    pthread_cond_init(&s->work, NULL);
-    pthread_cond_init(&s->done, NULL);
-    int err = tw_cell_map_create(&s->by_cell);
+    if (s->set.stop_ms == 0)
+        s->set.stop_ms = TW_STREAM_STOP_MS;
+    int err = pool_create(&s->pool);
+    if (err) {
+        free(s);
+        return err;
+    }
+    err = tw_cell_map_create(&s->by_cell);
     if (!err)
         err = tw_cell_map_create(&s->generations);
     if (!err)
         err = tw_cell_map_create(&s->evicted);
     s->inline_worker.s = s;
+    s->inline_worker.pool = s->pool;
+    s->inline_worker.provider = *s->p;
+    s->inline_worker.bvh = s->set.bvh;
     if (!err)
         err = tw_bvh_builder_create_ex(&(struct tw_log){capture_log, &s->inline_worker}, 0,
                                        &s->inline_worker.builder);
@@ -589,17 +671,29 @@ int tw_stream_create(const struct tw_stream_settings *set, struct tw_renderer *r
             err = TW_ERR_NOMEM;
     }
     for (uint32_t k = 0; !err && k < set->workers; k++) {
-        struct worker *wk = &s->workers[k];
-        wk->s = s;
+        struct worker *wk = calloc(1, sizeof(*wk));
+        if (!wk) {
+            err = TW_ERR_NOMEM;
+            break;
+        }
+        s->workers[k] = wk;
+        s->worker_count = k + 1;
+        *wk = s->inline_worker;
+        wk->builder = NULL;
         /* One build thread each: the pool is the parallelism. */
         err = tw_bvh_builder_create_ex(&(struct tw_log){capture_log, wk}, 1, &wk->builder);
-        if (!err && pthread_create(&wk->thread, NULL, worker_main, wk) != 0) {
+        if (err)
+            break;
+        pthread_mutex_lock(&s->pool->lock);
+        s->pool->refs++;
+        pthread_mutex_unlock(&s->pool->lock);
+        if (pthread_create(&wk->thread, NULL, worker_main, wk) != 0) {
+            pool_unref(s->pool);
             tw_log_printf(set->log, TW_LOG_ERROR, "cannot start tile worker thread %u", k);
             err = TW_ERR_NOMEM;
+            break;
         }
-        if (!err)
-            wk->started = true;
-        s->worker_count = k + 1;
+        wk->started = true;
     }
     if (err) {
         tw_stream_destroy(s);
@@ -609,18 +703,77 @@ int tw_stream_create(const struct tw_stream_settings *set, struct tw_renderer *r
     return TW_OK;
 }
 
-void tw_stream_destroy(struct tw_stream *s)
+/* Stops the workers: waits up to stop_ms for those in a job, then leaves
+ * the ones still in it behind (detached, owning their worker record).
+ * Returns how many were left behind; their cells in *cells. */
+static uint32_t stop_workers(struct tw_stream *s, char *cells, size_t cells_size)
+{
+    struct pool *pool = s->pool;
+    struct timespec deadline;
+    clock_gettime(CLOCK_MONOTONIC, &deadline);
+    deadline.tv_sec += (time_t)(s->set.stop_ms / 1000u);
+    deadline.tv_nsec += (long)(s->set.stop_ms % 1000u) * 1000000L;
+    if (deadline.tv_nsec >= 1000000000L) {
+        deadline.tv_sec++;
+        deadline.tv_nsec -= 1000000000L;
+    }
+    uint32_t left = 0;
+    size_t at = 0;
+    cells[0] = '\0';
+    pthread_mutex_lock(&pool->lock);
+    pool->quit = true;
+    pthread_cond_broadcast(&pool->work);
+    for (bool timed_out = false;;) {
+        bool running = false;
+        for (uint32_t k = 0; k < s->worker_count && !running; k++)
+            running = s->workers[k] && s->workers[k]->started && !s->workers[k]->stopped;
+        if (!running || timed_out)
+            break;
+        timed_out = pthread_cond_timedwait(&pool->done, &pool->lock, &deadline) == ETIMEDOUT;
+    }
+    for (uint32_t k = 0; k < s->worker_count; k++) {
+        struct worker *wk = s->workers[k];
+        if (!wk || !wk->started || wk->stopped)
+            continue;
+        /* From here the thread owns wk; it takes the lock before it looks
+         * at anything, so it cannot free wk before this loop is done. */
+        wk->left_behind = true;
+        wk->s = NULL;
+        pthread_detach(wk->thread);
+        s->workers[k] = NULL;
+        if (wk->busy && at + 48 < cells_size)
+            at += (size_t)snprintf(cells + at, cells_size - at, "%s(%lld, %lld)",
+                                   left ? ", " : "", (long long)wk->cell.i,
+                                   (long long)wk->cell.j);
+        left++;
+    }
+    pthread_mutex_unlock(&pool->lock);
+    return left;
+}
+
+uint32_t tw_stream_destroy(struct tw_stream *s)
 {
     if (!s)
-        return;
-    pthread_mutex_lock(&s->lock);
-    s->quit = true;
-    pthread_cond_broadcast(&s->work);
-    pthread_mutex_unlock(&s->lock);
+        return 0;
+    char cells[256];
+    const uint32_t left = stop_workers(s, cells, sizeof(cells));
+    if (left > 0)
+        tw_log_printf(s->set.log, TW_LOG_ERROR,
+                      "provider %s: gave up after %.1f s waiting for %u tile worker%s still "
+                      "generating%s%s%s when the world was destroyed: left running, detached; "
+                      "the provider's code and user data must stay valid until generate() "
+                      "returns",
+                      s->p->name ? s->p->name : "(unnamed)", (double)s->set.stop_ms / 1000.0,
+                      left, left == 1 ? "" : "s", cells[0] ? " (cells " : "", cells,
+                      cells[0] ? ")" : "");
     for (uint32_t k = 0; k < s->worker_count; k++) {
-        if (s->workers[k].started)
-            pthread_join(s->workers[k].thread, NULL);
-        tw_bvh_builder_destroy(s->workers[k].builder);
+        struct worker *wk = s->workers[k];
+        if (!wk)
+            continue;
+        if (wk->started)
+            pthread_join(wk->thread, NULL);
+        tw_bvh_builder_destroy(wk->builder);
+        free(wk);
     }
     free(s->workers);
     tw_bvh_builder_destroy(s->inline_worker.builder);
@@ -637,10 +790,9 @@ void tw_stream_destroy(struct tw_stream *s)
     tw_cell_map_destroy(s->by_cell);
     tw_cell_map_destroy(s->generations);
     tw_cell_map_destroy(s->evicted);
-    pthread_cond_destroy(&s->work);
-    pthread_cond_destroy(&s->done);
-    pthread_mutex_destroy(&s->lock);
+    pool_unref(s->pool);
     free(s);
+    return left;
 }
 
 void tw_stream_set_events(struct tw_stream *s, tw_stream_event_fn fn, void *user)
@@ -700,7 +852,7 @@ void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame)
     s->stats.tiles_loading = s->to_upload_count;
 
     /* Requests nobody wanted lately: cancelled if no worker took them yet. */
-    pthread_mutex_lock(&s->lock);
+    pthread_mutex_lock(&s->pool->lock);
     bool reorder = false;
     for (uint32_t k = 0; k < s->entry_count; k++) {
         struct entry *e = &s->entries[k];
@@ -715,7 +867,7 @@ void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame)
     }
     if (reorder)
         rebuild_heap(s);
-    pthread_mutex_unlock(&s->lock);
+    pthread_mutex_unlock(&s->pool->lock);
 
     /* Tiles unseen for evict_after frames retire, as tile instances do;
      * refused cells are asked again once they have been out of sight. */
@@ -755,28 +907,28 @@ static int complete_now(struct tw_stream *s, uint32_t k)
 {
     const double t0 = tw_renderer_now_ms();
     s->stats.waits++;
-    pthread_mutex_lock(&s->lock);
+    pthread_mutex_lock(&s->pool->lock);
     struct entry *e = &s->entries[k];
     if (e->jstate == J_QUEUED || e->jstate == J_NONE) {
         e->jstate = J_RUNNING;
         const struct tw_cell cell = e->cell;
-        pthread_mutex_unlock(&s->lock);
+        pthread_mutex_unlock(&s->pool->lock);
         struct job_result r;
-        run_job(s, &s->inline_worker, cell, &r);
-        pthread_mutex_lock(&s->lock);
+        run_job(&s->inline_worker, cell, &r);
+        pthread_mutex_lock(&s->pool->lock);
         e = &s->entries[k];
         e->result = r;
         e->jstate = J_DONE;
     }
     while (s->entries[k].jstate == J_RUNNING)
-        pthread_cond_wait(&s->done, &s->lock);
+        pthread_cond_wait(&s->pool->done, &s->pool->lock);
     /* Done: if a worker filed it, take it off the finished list. */
     for (uint32_t q = 0; q < s->finished_count; q++)
         if (s->finished[q] == k) {
             s->finished[q] = s->finished[--s->finished_count];
             break;
         }
-    pthread_mutex_unlock(&s->lock);
+    pthread_mutex_unlock(&s->pool->lock);
     for (uint32_t q = 0; q < s->to_upload_count; q++)
         if (s->to_upload[q] == k) {
             s->to_upload[q] = s->to_upload[--s->to_upload_count];
@@ -831,10 +983,10 @@ int tw_stream_get(struct tw_stream *s, struct tw_cell cell, float distance, unsi
     }
     e->wanted_frame = s->frame;
     if (s->set.policy == TW_STREAM_SKIP && !(flags & TW_TILE_SOURCE_WAIT)) {
-        pthread_mutex_lock(&s->lock);
+        pthread_mutex_lock(&s->pool->lock);
         if (e->jstate == J_QUEUED && distance < e->priority)
             e->priority = distance;
-        pthread_mutex_unlock(&s->lock);
+        pthread_mutex_unlock(&s->pool->lock);
         return TW_TILE_PENDING;
     }
     const int err = complete_now(s, k);
@@ -925,9 +1077,9 @@ uint64_t tw_stream_tile_bytes(const struct tw_stream *s)
 void tw_stream_bytes(struct tw_stream *s, uint64_t *cpu, uint64_t *gpu)
 {
     /* The job lists grow under the lock, from the workers too. */
-    pthread_mutex_lock(&s->lock);
+    pthread_mutex_lock(&s->pool->lock);
     const uint64_t jobs = (uint64_t)s->heap_cap + s->finished_cap;
-    pthread_mutex_unlock(&s->lock);
+    pthread_mutex_unlock(&s->pool->lock);
     *cpu = s->bytes_cpu + sizeof(*s) + (uint64_t)sizeof(*s->entries) * s->entry_cap +
            tw_cell_map_bytes(s->by_cell) + tw_cell_map_bytes(s->generations) +
            tw_cell_map_bytes(s->evicted) + sizeof(uint32_t) * (jobs + s->to_upload_cap);

@@ -29,6 +29,8 @@ struct tw_stream_settings {
                                         fill it */
     uint32_t key_base;               /* instance keys of own tiles start here (above the
                                         shared prototypes' indices) */
+    uint32_t stop_ms;                /* how long destroy waits for jobs still running;
+                                        0: TW_STREAM_STOP_MS */
     const struct tw_log *log;        /* borrowed; called on the render thread only */
 };
 
@@ -54,11 +56,17 @@ struct tw_stream_totals {
 
 struct tw_stream;
 
+/* The default of tw_stream_settings.stop_ms. */
+#define TW_STREAM_STOP_MS 5000u
+
 int tw_stream_create(const struct tw_stream_settings *s, struct tw_renderer *r,
                      struct tw_stream **out);
 /* Stops the workers, frees every tile (GL buffers too: between enter and
- * leave). Accepts NULL. */
-void tw_stream_destroy(struct tw_stream *s);
+ * leave). A worker still in a job after stop_ms is left behind: logged,
+ * detached, and from then on it touches only what it owns (its copy of
+ * the provider, its builder, its result), and the provider's own code and
+ * user data. Returns how many were left behind. Accepts NULL (0). */
+uint32_t tw_stream_destroy(struct tw_stream *s);
 
 /* Starts frame: collects finished tiles, uploads what the per-frame budget
  * allows (oldest request first), cancels requests no longer wanted.

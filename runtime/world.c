@@ -103,6 +103,8 @@ void tw_world_default_settings(struct tw_world_settings *s)
         s->upload_budget_bytes = 32u << 20;
     if (!(s->upload_budget_ms > 0.0f))
         s->upload_budget_ms = 4.0f;
+    if (s->shutdown_timeout_ms == 0)
+        s->shutdown_timeout_ms = 5000;
     if (!(s->verify_tolerance > 0.0f))
         s->verify_tolerance = TW_VERIFY_TOLERANCE;
     tw_chc_default_settings(&s->chc);
@@ -210,36 +212,60 @@ static uint32_t default_workers(void)
     return cores > 2 ? (uint32_t)(cores - 1) : 1u;
 }
 
+/* What is wrong with s's numbers, or NULL. */
+static const char *out_of_range(const struct tw_world_settings *s)
+{
+    if (s->width > 16384 || s->height > 16384)
+        return "the image is larger than 16384 pixels across";
+    if (!isfinite(s->fov_y) || s->fov_y >= 179.0f)
+        return "the field of view is not a finite angle below 179 degrees";
+    if (!isfinite(s->view_distance) || !isfinite(s->near_plane))
+        return "the view distance or the near plane is not a finite number";
+    if ((unsigned)s->method >= TW_METHOD_COUNT)
+        return "the method is unknown";
+    if (!(s->verify_tolerance >= 0.0f && s->verify_tolerance < 1.0f))
+        return "the verify tolerance is not in [0, 1)";
+    if (!(s->mutate_query_shrink >= 0.0f && s->mutate_query_shrink < 1.0f))
+        return "the query shrink is not in [0, 1)";
+    if ((unsigned)s->policy > TW_STREAM_SKIP)
+        return "the stream policy is unknown";
+    if (s->workers > 256)
+        return "more than 256 tile workers";
+    if (!(s->upload_budget_ms >= 0.0f))
+        return "the upload budget in milliseconds is negative or not a number";
+    return NULL;
+}
+
 int tw_world_create(const struct tw_world_settings *settings, struct tw_world **out)
 {
     if (!settings || !out)
         return TW_ERR_INVALID;
     const struct tw_log *log = &settings->log;
     if (settings->provider && settings->tileset) {
-        tw_log_printf(log, TW_LOG_ERROR, "tw_world_create: give a tileset or a provider, not both");
+        tw_log_printf(log, TW_LOG_ERROR, "cannot create the world: its settings give both a "
+                      "tileset and a provider (one of them, not both)");
         return TW_ERR_INVALID;
     }
     if (!settings->provider && (!settings->tileset || !settings->tileset->finished)) {
-        tw_log_printf(log, TW_LOG_ERROR, "tw_world_create: the tileset is missing or unfinished");
+        tw_log_printf(log, TW_LOG_ERROR, "cannot create the world: its settings give no tileset "
+                      "or provider, or an unfinished tileset");
         return TW_ERR_INVALID;
     }
     if (!settings->get_proc) {
-        tw_log_printf(log, TW_LOG_ERROR, "tw_world_create: get_proc (the GL loader) is missing");
+        tw_log_printf(log, TW_LOG_ERROR, "cannot create the world: its settings give no OpenGL "
+                      "loader (get_proc)");
         return TW_ERR_INVALID;
     }
-    if (settings->width > 16384 || settings->height > 16384 || !isfinite(settings->fov_y) ||
-        settings->fov_y >= 179.0f || !isfinite(settings->view_distance) ||
-        !isfinite(settings->near_plane) || (unsigned)settings->method >= TW_METHOD_COUNT ||
-        !(settings->verify_tolerance >= 0.0f && settings->verify_tolerance < 1.0f) ||
-        !(settings->mutate_query_shrink >= 0.0f && settings->mutate_query_shrink < 1.0f) ||
-        (unsigned)settings->policy > TW_STREAM_SKIP || settings->workers > 256 ||
-        !(settings->upload_budget_ms >= 0.0f)) {
-        tw_log_printf(log, TW_LOG_ERROR, "tw_world_create: settings out of range");
+    const char *bad = out_of_range(settings);
+    if (bad) {
+        tw_log_printf(log, TW_LOG_ERROR, "cannot create the world: %s", bad);
         return TW_ERR_INVALID;
     }
     struct tw_world *w = calloc(1, sizeof(*w));
-    if (!w)
+    if (!w) {
+        tw_log_printf(log, TW_LOG_ERROR, "cannot create the world: out of memory");
         return TW_ERR_NOMEM;
+    }
     w->s = *settings;
     tw_world_default_settings(&w->s);
     int err = resolve_provider(w);
@@ -250,7 +276,7 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
                                                      w->provider.footprint[1], w->s.view_distance);
         if (!(reach <= TW_TILES_MAX_CELLS_IN_VIEW)) {
             tw_log_printf(log, TW_LOG_ERROR,
-                          "tw_world_create: %s: a view distance of %g m over %g x %g m tiles "
+                          "cannot create the world: %s: a view distance of %g m over %g x %g m tiles "
                           "reaches about %.3g cells, more than the limit of %u a frame may "
                           "consider: shorten the view distance or use larger tiles",
                           w->provider.name ? w->provider.name : "the world",
@@ -305,6 +331,7 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
             .evict_after = w->s.evict_after_frames,
             .budget = w->s.cache_budget_bytes,
             .key_base = w->shared_count,
+            .stop_ms = w->s.shutdown_timeout_ms,
             .log = &w->s.log,
         };
         err = tw_stream_create(&ss, w->renderer, &w->stream);
@@ -339,10 +366,11 @@ fail:
     return err;
 }
 
-void tw_world_destroy(struct tw_world *w)
+uint32_t tw_world_destroy(struct tw_world *w)
 {
     if (!w)
-        return;
+        return 0;
+    uint32_t left_behind = 0;
     for (int m = 0; m < TW_METHOD_COUNT; m++)
         tw_cull_driver_destroy(w->methods[m].driver);
     tw_cull_driver_destroy(w->fixed_set);
@@ -353,7 +381,7 @@ void tw_world_destroy(struct tw_world *w)
     tw_cull_cells_finish(&w->ahead);
     if (w->renderer) {
         tw_renderer_enter(w->renderer);
-        tw_stream_destroy(w->stream);
+        left_behind = tw_stream_destroy(w->stream);
         tw_gputime_finish(&w->gputime);
         tw_renderer_leave(w->renderer);
         if (w->gputime.dropped)
@@ -370,6 +398,7 @@ void tw_world_destroy(struct tw_world *w)
     free(w->next_events);
     tw_renderer_destroy(w->renderer);
     free(w);
+    return left_behind;
 }
 
 int tw_world_set_method(struct tw_world *w, enum tw_method m)
@@ -837,7 +866,8 @@ static int frame_fixed(struct tw_world *w, const struct tw_camera *cam,
         const struct tw_prototype *proto = tw_renderer_content(w->renderer, clusters[k].prototype, NULL);
         if (!proto || clusters[k].cluster >= proto->cluster_count) {
             tw_log_printf(&w->s.log, TW_LOG_ERROR,
-                          "tw_world_frame_fixed: cluster %zu names no cluster of the tileset", k);
+                          "cannot draw the given set: its entry %zu names no cluster of the "
+                          "tileset", k);
             return TW_ERR_INVALID;
         }
     }

@@ -31,7 +31,7 @@ static void exercise(const struct tw_gltf_scene *scene)
 
 /* The importer's first pass (gltf-scan.h) must count what tinygltf makes of
  * the same JSON: its memory budget and tinygltf's reserved arrays rest on
- * it. (issue 11) */
+ * it. */
 static void check_scan(const uint8_t *data, size_t size)
 {
     const uint8_t *text = data;
@@ -66,6 +66,19 @@ static void check_scan(const uint8_t *data, size_t size)
             {scan.counts[TW_GLTF_SAMPLERS], doc.sampler_count},
             {scan.extensions_required_count, doc.extensions_required_count},
         };
+        /* ... and read asset.version and minVersion as tinygltf does (the
+         * version is checked on the scan, before tinygltf runs). */
+        if ((scan.version.text && strlen(scan.version.text) == scan.version.length &&
+             strcmp(scan.version.text, doc.version) != 0) ||
+            (scan.min_version.text && strlen(scan.min_version.text) == scan.min_version.length &&
+             strcmp(scan.min_version.text, doc.min_version) != 0)) {
+            fprintf(stderr, "fuzz-gltf: the scan read asset.version \"%s\", minVersion \"%s\"; "
+                            "tinygltf \"%s\", \"%s\"\n",
+                    scan.version.text ? scan.version.text : "",
+                    scan.min_version.text ? scan.min_version.text : "", doc.version,
+                    doc.min_version);
+            abort();
+        }
         for (size_t k = 0; k < sizeof(got) / sizeof(got[0]); k++) {
             if (got[k][0] != got[k][1]) {
                 fprintf(stderr, "fuzz-gltf: the scan counted %llu of kind %zu, tinygltf %llu\n",

@@ -1,14 +1,58 @@
 /* Fuzz target for the camera-path CSV reader (runtime/paths.c):
  * LLVMFuzzerTestOneInput parses the input as a path file on two footprints
  * and, when it loads, moves it by a few cells and checks what every reader of
- * a path relies on. Built with libFuzzer when TW_LIBFUZZER is defined;
+ * a path relies on. It also writes the input to a file and loads that (the
+ * reader of files works a block at a time): both must give the same path or
+ * the same message. Built with libFuzzer when TW_LIBFUZZER is defined;
  * otherwise a plain main replays the files and folders given as arguments
  * (the seed corpus is tests/corpus/path). */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "tileworld/runtime.h"
+
+/* The input as a file, the same for every input (made on first use). */
+static const char *as_file(const uint8_t *data, size_t size)
+{
+    static char path[64];
+    static int fd = -1;
+    if (fd < 0) {
+        snprintf(path, sizeof(path), "/tmp/tw-fuzz-path-XXXXXX");
+        fd = mkstemp(path);
+        if (fd < 0)
+            abort();
+    }
+    if (ftruncate(fd, 0) != 0 || (size && pwrite(fd, data, size, 0) != (ssize_t)size))
+        abort();
+    return path;
+}
+
+/* Loading the input from a file gives what parsing it from memory gave. */
+static void same_from_file(const uint8_t *data, size_t size, uint32_t frames, float w, float d)
+{
+    const char *path = as_file(data, size);
+    struct tw_path from_memory, from_file;
+    char err_memory[512], err_file[512];
+    const int rc_memory = tw_path_parse_csv((const char *)data, size, path, frames, w, d,
+                                            &from_memory, err_memory, sizeof(err_memory));
+    const int rc_file = tw_path_load_csv(path, frames, w, d, &from_file, err_file,
+                                         sizeof(err_file));
+    if (rc_memory != rc_file || from_memory.count != from_file.count ||
+        (rc_memory && strcmp(err_memory, err_file) != 0))
+        abort();
+    for (uint32_t k = 0; k < from_memory.count; k++) {
+        const struct tw_camera *a = &from_memory.keys[k], *b = &from_file.keys[k];
+        if (a->pos.cell.i != b->pos.cell.i || a->pos.cell.j != b->pos.cell.j ||
+            memcmp(a->pos.local, b->pos.local, sizeof(a->pos.local)) != 0 || a->yaw != b->yaw ||
+            a->pitch != b->pitch)
+            abort();
+    }
+    tw_path_finish(&from_memory);
+    tw_path_finish(&from_file);
+}
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
@@ -38,6 +82,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         tw_path_translate(&p, -3, INT64_MAX);
         tw_path_finish(&p);
     }
+    same_from_file(data, size, 0, 80.0f, 80.0f);
+    same_from_file(data, size, 2, 80.0f, 80.0f);
     return 0;
 }
 

@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
 # Charts of a bench run (tools/tileworld/charts.h): a small bench draws PNGs
-# that decode; its charts.gp re-runs in the folder; a sweep adds the sweep
-# chart; gnuplot missing or failing is one warning line and the run still
-# succeeds, with no chart under its final name.
+# that decode, plotting CPU time (llvmpipe is a software renderer) with wall
+# time in charts of its own; its charts.gp re-runs in the folder; a sweep
+# adds the sweep charts; gnuplot missing or failing is one warning line and
+# the run still succeeds, with no chart under its final name; a full disk
+# (a small tmpfs, where mounting is permitted) fails the run with one line
+# and leaves no chart that is not whole.
 #   test-charts.sh PATH/TO/tileworld PATH/TO/png-check
 set -u
 tw=${1:?usage: test-charts.sh PATH/TO/tileworld PATH/TO/png-check}
@@ -68,6 +71,7 @@ if ! "$tw" bench --frames 6 "${small[@]}" --out "$run" 2>"$tmp/bench-err"; then
 fi
 [ ! -s "$tmp/bench-err" ] && ok || bad "bench printed: $(head -c 400 "$tmp/bench-err")"
 expect_chart "$run/chart-frame-time.png" 1000x600
+expect_chart "$run/chart-frame-time-wall.png" 1000x600
 expect_chart "$run/chart-triangles.png" 1000x600
 expect_chart "$run/chart-speed-accuracy.png" 1200x600
 [ ! -e "$run/chart-sweep.png" ] && ok || bad "chart-sweep.png drawn without a sweep"
@@ -97,6 +101,17 @@ grep -q '^method frames mean_ms ' "$run/chart-data/methods.dat" && ok || bad "me
 grep -q "^methods = 'vfc chc oracle'" "$run/chart-data/run.gp" && ok || bad "run.gp methods"
 grep -q "^run_title = 'tileset city, path street, 160x90'" "$run/chart-data/run.gp" && ok || bad "run.gp title"
 grep -q '^verified = 1' "$run/chart-data/run.gp" && ok || bad "run.gp verified"
+# The time the charts plot: CPU time on a software renderer (OSMesa's
+# llvmpipe), each method's mean the summary's.
+grep -q "^time = 'cpu'$" "$run/chart-data/run.gp" && grep -q "^frame_time_column = 'cpu_ms'$" \
+    "$run/chart-data/run.gp" && grep -q "^mean_time_column = 'mean_cpu_ms'$" "$run/chart-data/run.gp" &&
+    ok || bad "run.gp: not CPU time: $(grep -E '^(time|frame_time_column|mean_time_column) ' "$run/chart-data/run.gp")"
+grep -q ' mean_cpu_ms .* mean_gpu_ms gpu_frames$' "$run/chart-data/methods.dat" && ok || bad "methods.dat: time columns"
+# The speed-accuracy labels: one per method in each panel, none of kind 0.
+for p in 1 2; do
+    f="$run/chart-data/labels-speed-accuracy-$p.dat"
+    [ "$(awk 'NR > 2 && $2 == 1' "$f" 2>/dev/null | wc -l)" -eq 3 ] && ok || bad "$f: expected 3 method labels"
+done
 
 # The same script is built into the program and written into the folder.
 src=$(dirname "$0")/../tools/tileworld/charts.gp
@@ -125,7 +140,13 @@ sweep="$tmp/sweep"
 if "$tw" bench --frames 3 "${small[@]}" --sweep T=0,10 --out "$sweep" 2>"$tmp/err"; then
     ok
     expect_chart "$sweep/chart-sweep.png" 1000x600
+    expect_chart "$sweep/chart-sweep-wall.png" 1000x600
     expect_chart "$sweep/chart-speed-accuracy.png" 1200x600
+    # A label for each method and each value of chc (vfc and the oracle are
+    # unaffected: their points are not repeated).
+    f="$sweep/chart-data/labels-speed-accuracy-1.dat"
+    [ "$(awk 'NR > 2 && $2 == 2 && $1 == "chc"' "$f" | wc -l)" -eq 2 ] &&
+        [ "$(awk 'NR > 2 && $2 == 2 && $1 != "chc"' "$f" | wc -l)" -eq 0 ] && ok || bad "$f: sweep labels"
     for m in vfc chc oracle; do
         f="$sweep/chart-data/sweep-$m.dat"
         [ "$(awk '$1 == "0" || $1 == "10"' "$f" 2>/dev/null | wc -l)" -eq 2 ] && ok ||
@@ -140,7 +161,7 @@ if "$tw" bench --frames 3 "${small[@]}" --sweep T=0,10 --out "$sweep" 2>"$tmp/er
     expect_chart "$sweep/chart-pareto.png" 1200x600
     grep -q '^pareto = 1' "$sweep/chart-data/run.gp" && ok || bad "run.gp: pareto"
     f="$sweep/chart-data/pareto.dat"
-    head -2 "$f" | tail -1 | grep -q '^method value mean_cpu_ms missed_per_frame depth_errors_per_frame conservative front front_depth speedup$' &&
+    head -2 "$f" | tail -1 | grep -q '^method value mean_cpu_ms missed_per_frame depth_errors_per_frame conservative front front_depth speedup time_ms mean_gpu_ms$' &&
         ok || bad "$f: header"
     [ "$(grep -vc '^#' "$f")" -eq 7 ] && ok || bad "$f: expected a header and 6 points"
     # T=0 is conservative, T=10 not, for chc; vfc and the oracle always.
@@ -149,6 +170,8 @@ if "$tw" bench --frames 3 "${small[@]}" --sweep T=0,10 --out "$sweep" 2>"$tmp/er
         bad "$f: conservative column: $(cat "$f")"
     # The oracle is never on a front, and every front point is in pareto.dat.
     awk '$1 == "oracle" && ($7 == 1 || $8 == 1) { exit 1 }' "$f" && ok || bad "$f: the oracle on a front"
+    # CPU time: time_ms is mean_cpu_ms.
+    awk 'NR > 2 && $10 != $3 { exit 1 }' "$f" && ok || bad "$f: time_ms is not mean_cpu_ms"
     front=$(awk 'NR > 2 && $7 == 1' "$f")
     [ -n "$front" ] && [ "$front" = "$(tail -n +3 "$sweep/chart-data/pareto-front.dat")" ] && ok ||
         bad "pareto-front.dat does not hold the front of pareto.dat"
@@ -209,6 +232,30 @@ if env PATH="$tmp/fake-bin:$PATH" "$tw" bench --frames 2 "${small[@]}" --out "$f
     grep -q 'something broke' "$fails/gnuplot.log" && ok || bad "gnuplot.log lacks gnuplot's output"
 else
     bad "gnuplot fails: bench exited non-zero: $(cat "$tmp/err")"
+fi
+
+# ---- a full disk: one error line, exit 1, no chart that is not whole ---------------
+# A tmpfs the run's data fits in (the size of the no-gnuplot run's folder,
+# and 96 KiB more) and its charts do not. gnuplot exits 0 there having
+# written charts short; they are refused. Needs mount: skipped without it.
+full="$tmp/full"
+mkdir -p "$full"
+data_kb=$(du -sk "$nogp" 2>/dev/null | awk '{ print $1 }')
+if [ -n "$data_kb" ] && mount -t tmpfs -o size=$((data_kb + 96))k tmpfs "$full" 2>/dev/null; then
+    "$tw" bench --frames 2 "${small[@]}" --out "$full/run" 2>"$tmp/err"
+    status=$?
+    [ "$status" -eq 1 ] && ok || bad "full disk: exit status $status, not 1: $(cat "$tmp/err")"
+    expect_one_line "full disk" \
+        "^tileworld: $full/run(/chart-[a-z-]+\.png: cannot write|: cannot write the charts): No space left on device" \
+        "$tmp/err"
+    for f in "$full"/run/chart-*.png; do
+        [ -e "$f" ] || continue
+        "$check" "$f" >/dev/null 2>&1 && ok || bad "full disk: $f is not a whole PNG"
+    done
+    [ -z "$(cd "$full/run" && ls -A | grep '\.tmp$')" ] && ok || bad "full disk: temporaries left"
+    umount "$full" || bad "cannot unmount $full"
+else
+    echo "full disk: skipped (cannot mount a tmpfs here)"
 fi
 
 finish charts

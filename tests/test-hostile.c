@@ -866,6 +866,646 @@ static void test_confined(void)
     free(fifo);
 }
 
+/* ---- the glTF specification's refusals ----------------------------------------------- */
+
+/* A document drawing one triangle, with the given "asset" and extra members. */
+static char *asset_doc(const char *asset, const char *extra)
+{
+    char *uri = triangle_uri(unit_triangle);
+    char *doc = format("{\"asset\":%s,"
+                       "\"buffers\":[{\"byteLength\":36,\"uri\":\"%s\"}],"
+                       "\"bufferViews\":[{\"buffer\":0,\"byteLength\":36}],"
+                       "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,"
+                       "\"type\":\"VEC3\"}],"
+                       "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0}}]}],"
+                       "\"nodes\":[{\"mesh\":0}]%s%s}",
+                       asset, uri, extra ? "," : "", extra ? extra : "");
+    free(uri);
+    return doc;
+}
+
+static void expect_imports(const char *what, const char *doc)
+{
+    struct log_capture cap;
+    struct tw_gltf_scene *s = NULL;
+    const int err = import_text(doc, "fine.gltf", NULL, &cap, &s);
+    CHECK_MSG(err == 0 && s && cap.errors == 0, "%s: %s", what, cap.error);
+    tw_gltf_scene_destroy(s);
+}
+
+/* A document of the given buffer bytes (base64 in a data: URI) and JSON
+ * members. */
+static char *buffer_doc(const void *bytes, size_t n, const char *members)
+{
+    char *b64 = malloc(4 * (n / 3 + 1) + 1);
+    if (!b64)
+        exit(3);
+    base64(bytes, n, b64);
+    char *doc = format("{\"asset\":{\"version\":\"2.0\"},\"buffers\":[{\"byteLength\":%zu,"
+                       "\"uri\":\"data:application/octet-stream;base64,%s\"}],%s}",
+                       n, b64, members);
+    free(b64);
+    return doc;
+}
+
+static void test_spec(void)
+{
+    static const struct {
+        const char *what, *asset, *extra, *want;
+    } refused[] = {
+        {"glTF 3", "{\"version\":\"3.0\"}", NULL,
+         "asset.version: \"3.0\" is glTF 3; this importer reads glTF 2.x"},
+        {"version 2", "{\"version\":\"2\"}", NULL, "asset.version: \"2\" is not <major>.<minor>"},
+        {"version 2.x", "{\"version\":\"2.x\"}", NULL,
+         "asset.version: \"2.x\" is not <major>.<minor>"},
+        {"version a number", "{\"version\":2.0}", NULL,
+         "asset.version: must be a string such as \"2.0\""},
+        {"no version", "{\"generator\":\"x\"}", NULL, "asset.version: is missing"},
+        {"minVersion above version", "{\"version\":\"2.0\",\"minVersion\":\"2.1\"}", NULL,
+         "asset.minVersion: \"2.1\" is greater than asset.version \"2.0\""},
+        {"minVersion 2.1", "{\"version\":\"2.1\",\"minVersion\":\"2.1\"}", NULL,
+         "asset.minVersion: \"2.1\": the document needs a glTF 2.1 reader; this importer "
+         "reads glTF 2.0"},
+        {"minVersion 3.0", "{\"version\":\"3.1\",\"minVersion\":\"3.0\"}", NULL,
+         "asset.version: \"3.1\" is glTF 3"},
+        {"GPU instancing required", "{\"version\":\"2.0\"}",
+         "\"extensionsRequired\":[\"EXT_mesh_gpu_instancing\"]",
+         "extensionsRequired[0]: \"EXT_mesh_gpu_instancing\" is not supported (GPU instancing"},
+        {"unknown material extension required", "{\"version\":\"2.0\"}",
+         "\"extensionsRequired\":[\"KHR_materials_unlit\",\"KHR_materials_bogus\"]",
+         "extensionsRequired[1]: \"KHR_materials_bogus\" is not supported"},
+        {"no buffer uri", "{\"version\":\"2.0\"}",
+         "\"scenes\":[{\"nodes\":[0]}],\"animations\":[],\"buffers\":[{\"byteLength\":4}]",
+         "buffers[0]: has no uri (only a .glb's first buffer may omit it)"},
+    };
+    for (size_t k = 0; k < sizeof(refused) / sizeof(refused[0]); k++) {
+        char *doc = asset_doc(refused[k].asset, refused[k].extra);
+        expect_refused(refused[k].what, doc, TW_ERR_FORMAT, refused[k].want);
+        free(doc);
+    }
+    static const struct {
+        const char *what, *asset, *extra;
+    } accepted[] = {
+        {"minVersion 2.0", "{\"version\":\"2.0\",\"minVersion\":\"2.0\"}", NULL},
+        {"version 2.5", "{\"version\":\"2.5\"}", NULL},
+        {"material extensions required", "{\"version\":\"2.0\"}",
+         "\"extensionsRequired\":[\"KHR_materials_unlit\",\"KHR_texture_transform\"]"},
+    };
+    for (size_t k = 0; k < sizeof(accepted) / sizeof(accepted[0]); k++) {
+        char *doc = asset_doc(accepted[k].asset, accepted[k].extra);
+        expect_imports(accepted[k].what, doc);
+        free(doc);
+    }
+    expect_refused("empty", "", TW_ERR_FORMAT, "JSON: is empty");
+    expect_refused("an array", " [1]", TW_ERR_FORMAT,
+                   "JSON: the document is not a JSON object (it starts with '[')");
+    expect_refused("no asset", "{}", TW_ERR_FORMAT,
+                   "asset: is missing or not an object (it gives the glTF version)");
+
+    /* Accessor data aligned to its component size (glTF 2.0 §3.6.2.4). */
+    float data[16] = {0};
+    memcpy(data, unit_triangle, sizeof(unit_triangle));
+    char *doc = buffer_doc(data, 40, "\"bufferViews\":[{\"buffer\":0,\"byteLength\":40}],"
+                           "\"accessors\":[{\"bufferView\":0,\"byteOffset\":2,"
+                           "\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"}],"
+                           "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0}}]}],"
+                           "\"nodes\":[{\"mesh\":0}]");
+    expect_refused("misaligned accessor", doc, TW_ERR_FORMAT,
+                   "accessors[0].byteOffset: 2 puts its data at byte 2 of buffers[0], not a "
+                   "multiple of 4 (its component type, FLOAT, is aligned to its size)");
+    free(doc);
+
+    /* Sparse indices strictly increase. */
+    uint8_t sparse[64] = {0};
+    memcpy(sparse, unit_triangle, 36);
+    sparse[36] = 1;
+    sparse[37] = 1;
+    memcpy(sparse + 40, unit_triangle, 24);
+    doc = buffer_doc(sparse, sizeof(sparse),
+                     "\"bufferViews\":[{\"buffer\":0,\"byteLength\":36},"
+                     "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":2},"
+                     "{\"buffer\":0,\"byteOffset\":40,\"byteLength\":24}],"
+                     "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,"
+                     "\"type\":\"VEC3\",\"sparse\":{\"count\":2,\"indices\":{\"bufferView\":1,"
+                     "\"componentType\":5121},\"values\":{\"bufferView\":2}}}],"
+                     "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0}}]}],"
+                     "\"nodes\":[{\"mesh\":0}]");
+    expect_refused("sparse indices", doc, TW_ERR_FORMAT,
+                   "accessors[0].sparse.indices[1]: 1 follows 1; sparse indices must strictly "
+                   "increase");
+    free(doc);
+
+    /* 255 in UNSIGNED_BYTE indices is primitive restart, forbidden in glTF,
+     * though below the vertex count (300 zero positions). */
+    const uint8_t restart[4] = {0, 1, 255, 0};
+    doc = buffer_doc(restart, sizeof(restart),
+                     "\"bufferViews\":[{\"buffer\":0,\"byteLength\":3}],"
+                     "\"accessors\":[{\"componentType\":5126,\"count\":300,\"type\":\"VEC3\"},"
+                     "{\"bufferView\":0,\"componentType\":5121,\"count\":3,\"type\":\"SCALAR\"}],"
+                     "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},"
+                     "\"indices\":1}]}],\"nodes\":[{\"mesh\":0}]");
+    expect_refused("primitive restart", doc, TW_ERR_FORMAT,
+                   "meshes[0].primitives[0].indices: accessors[1] element 2 is 255, the largest "
+                   "UNSIGNED_BYTE, which glTF reserves (primitive restart)");
+    free(doc);
+}
+
+/* ---- cost bounded by the input: accessors and conversion ----------------------------- */
+
+/* 300000 UNSIGNED_INT indices 0, 1, 2, ... (1.2 MB) under many accessors. */
+static char *indices_doc(uint32_t accessors, uint32_t primitives, bool shared)
+{
+    const uint32_t count = 300000;
+    uint32_t *ix = malloc(4 * (size_t)count + 36);
+    if (!ix)
+        exit(3);
+    memcpy(ix, unit_triangle, 36);
+    for (uint32_t k = 0; k < count; k++)
+        ix[9 + k] = k % 3;
+    size_t cap = 256 + 128 * (size_t)(accessors + primitives), n = 0;
+    char *members = malloc(cap);
+    if (!members)
+        exit(3);
+    n += (size_t)snprintf(members, cap,
+                          "\"bufferViews\":[{\"buffer\":0,\"byteLength\":36},"
+                          "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":%u}],"
+                          "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,"
+                          "\"type\":\"VEC3\"}",
+                          4 * count);
+    for (uint32_t k = 0; k < accessors; k++)
+        n += (size_t)snprintf(members + n, cap - n,
+                              ",{\"bufferView\":1,\"componentType\":5125,\"count\":%u,"
+                              "\"type\":\"SCALAR\"}",
+                              count);
+    n += (size_t)snprintf(members + n, cap - n,
+                          "],\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0}}]},"
+                          "{\"primitives\":[");
+    for (uint32_t k = 0; k < primitives; k++)
+        n += (size_t)snprintf(members + n, cap - n,
+                              "%s{\"attributes\":{\"POSITION\":0},\"indices\":%u}", k ? "," : "",
+                              shared ? 1 : 1 + k % accessors);
+    snprintf(members + n, cap - n, "]}],\"nodes\":[{\"mesh\":0}]");
+    char *doc = buffer_doc(ix, 4 * (size_t)count + 36, members);
+    free(members);
+    free(ix);
+    return doc;
+}
+
+static void test_accessor_cost(void)
+{
+    /* 100 accessors over one 1.2 MB view, checked by 100 primitives (of a
+     * mesh no node draws): 120 MB to check from a 1.6 MB file. */
+    char *doc = indices_doc(100, 100, false);
+    struct log_capture cap;
+    struct tw_gltf_scene *s = NULL;
+    int err = import_text(doc, "overlap.gltf", NULL, &cap, &s);
+    CHECK_MSG(err == TW_ERR_LIMIT && strstr(cap.error, "overlap.gltf: accessors[") &&
+                  strstr(cap.error, "accessors overlap"),
+              "overlapping accessors: %d, %s", err, cap.error);
+    tw_gltf_scene_destroy(s);
+    free(doc);
+    /* One accessor used by 1000 primitives is checked once. */
+    doc = indices_doc(1, 1000, true);
+    err = import_text(doc, "shared.gltf", NULL, &cap, &s);
+    CHECK_MSG(err == 0, "one accessor, 1000 primitives: %s", cap.error);
+    tw_gltf_scene_destroy(s);
+    free(doc);
+
+    /* 6 million positions without a buffer view (zeros) in a 300-byte
+     * file: converting them would take 92 MiB. */
+    const uint8_t none[4] = {0};
+    doc = buffer_doc(none, sizeof(none),
+                     "\"accessors\":[{\"componentType\":5126,\"count\":6000000,\"type\":"
+                     "\"VEC3\"}],\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0}}]}],"
+                     "\"nodes\":[{\"mesh\":0}]");
+    expect_refused("6 million zero positions", doc, TW_ERR_LIMIT,
+                   "meshes[0]: converting the scene's meshes would take 92 MiB, more than the "
+                   "64 MiB allowed for");
+    free(doc);
+}
+
+/* ---- cost bounded by the input: images -------------------------------------------------- */
+
+struct bytes {
+    uint8_t *p;
+    size_t n, cap;
+};
+
+static void put(struct bytes *b, const void *data, size_t n)
+{
+    if (b->n + n > b->cap) {
+        b->cap = 2 * (b->n + n) + 64;
+        b->p = realloc(b->p, b->cap);
+        if (!b->p)
+            exit(3);
+    }
+    if (n)
+        memcpy(b->p + b->n, data, n);
+    b->n += n;
+}
+
+static void put32be(struct bytes *b, uint32_t v)
+{
+    const uint8_t x[4] = {(uint8_t)(v >> 24), (uint8_t)(v >> 16), (uint8_t)(v >> 8), (uint8_t)v};
+    put(b, x, 4);
+}
+
+static uint32_t crc32_of(const uint8_t *p, size_t n)
+{
+    uint32_t crc = 0xffffffffu;
+    for (size_t k = 0; k < n; k++) {
+        crc ^= p[k];
+        for (int bit = 0; bit < 8; bit++)
+            crc = crc >> 1 ^ (0xedb88320u & (0u - (crc & 1u)));
+    }
+    return ~crc;
+}
+
+static void png_chunk(struct bytes *b, const char *type, const uint8_t *data, size_t n)
+{
+    put32be(b, (uint32_t)n);
+    const size_t at = b->n;
+    put(b, type, 4);
+    put(b, data, n);
+    put32be(b, crc32_of(b->p + at, n + 4));
+}
+
+/* A w x h PNG of 1-bit grey, every pixel black, its rows stored without
+ * compression (w * h / 8 bytes or so); it decodes to 4 bytes a pixel. With
+ * rows false, only its header and an empty IDAT: enough to read its size. */
+static uint8_t *black_png(uint32_t w, uint32_t h, bool rows, size_t *size)
+{
+    static const uint8_t signature[8] = {137, 80, 78, 71, 13, 10, 26, 10};
+    struct bytes b = {0}, z = {0};
+    put(&b, signature, 8);
+    uint8_t ihdr[13] = {0};
+    for (int k = 0; k < 4; k++) {
+        ihdr[k] = (uint8_t)(w >> (24 - 8 * k));
+        ihdr[4 + k] = (uint8_t)(h >> (24 - 8 * k));
+    }
+    ihdr[8] = 1;    /* bit depth; colour type 0: grey */
+    png_chunk(&b, "IHDR", ihdr, sizeof(ihdr));
+    if (rows) {
+        static const uint8_t zlib_header[2] = {0x78, 0x01};
+        put(&z, zlib_header, 2);
+        const uint64_t raw = (uint64_t)h * (1 + (w + 7) / 8);
+        static const uint8_t zeros[65535];
+        for (uint64_t left = raw; left > 0;) {
+            const uint32_t n = left > 65535 ? 65535 : (uint32_t)left;
+            left -= n;
+            const uint8_t block[5] = {left == 0, (uint8_t)n, (uint8_t)(n >> 8),
+                                      (uint8_t)~n, (uint8_t)(~n >> 8)};
+            put(&z, block, 5);
+            put(&z, zeros, n);
+        }
+        /* Adler-32 of zeros: a = 1, b = the count. */
+        put32be(&z, (uint32_t)(raw % 65521) << 16 | 1u);
+    }
+    png_chunk(&b, "IDAT", z.p, z.n);
+    png_chunk(&b, "IEND", NULL, 0);
+    free(z.p);
+    *size = b.n;
+    return b.p;
+}
+
+/* A document of n triangles, triangle k textured by material k, texture k,
+ * images[k]; images_json holds the n images, views_json more buffer views
+ * (after the two of the triangle), buffer1 a second buffer (NULL: none). */
+static char *textured_doc(uint32_t n, const char *images_json, const char *views_json,
+                          const uint8_t *buffer1, size_t buffer1_size)
+{
+    uint8_t tri[60];
+    static const float uv[6] = {0, 0, 1, 0, 0, 1};
+    memcpy(tri, unit_triangle, 36);
+    memcpy(tri + 36, uv, 24);
+    char b0[96];
+    base64(tri, sizeof(tri), b0);
+    char *b1 = NULL;
+    if (buffer1) {
+        b1 = malloc(4 * (buffer1_size / 3 + 1) + 1);
+        if (!b1)
+            exit(3);
+        base64(buffer1, buffer1_size, b1);
+    }
+    struct bytes list = {0};
+    for (int part = 0; part < 3; part++) {
+        const char *open = part == 0 ? "\"textures\":[" : part == 1 ? "],\"materials\":["
+                                                                    : "],\"meshes\":[{\"primitives\":[";
+        put(&list, open, strlen(open));
+        for (uint32_t k = 0; k < n; k++) {
+            char item[160];
+            if (part == 0)
+                snprintf(item, sizeof(item), "%s{\"source\":%u}", k ? "," : "", k);
+            else if (part == 1)
+                snprintf(item, sizeof(item),
+                         "%s{\"pbrMetallicRoughness\":{\"baseColorTexture\":{\"index\":%u}}}",
+                         k ? "," : "", k);
+            else
+                snprintf(item, sizeof(item),
+                         "%s{\"attributes\":{\"POSITION\":0,\"TEXCOORD_0\":1},\"material\":%u}",
+                         k ? "," : "", k);
+            put(&list, item, strlen(item));
+        }
+    }
+    put(&list, "]}]", 4);
+    char *second = b1 ? format(",{\"byteLength\":%zu,\"uri\":"
+                               "\"data:application/octet-stream;base64,%s\"}",
+                               buffer1_size, b1)
+                      : format("%s", "");
+    char *doc = format("{\"asset\":{\"version\":\"2.0\"},"
+                       "\"buffers\":[{\"byteLength\":60,\"uri\":"
+                       "\"data:application/octet-stream;base64,%s\"}%s],"
+                       "\"bufferViews\":[{\"buffer\":0,\"byteLength\":36},"
+                       "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":24}%s],"
+                       "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,"
+                       "\"type\":\"VEC3\"},{\"bufferView\":1,\"componentType\":5126,"
+                       "\"count\":3,\"type\":\"VEC2\"}],"
+                       "\"images\":[%s],%s,\"nodes\":[{\"mesh\":0}]}",
+                       b0, second, views_json, images_json, list.p);
+    free(second);
+    free(b1);
+    free(list.p);
+    return doc;
+}
+
+static void test_image_cost(void)
+{
+    /* 4096 x 4096 decodes to 64 MiB from 2 MB. */
+    size_t png_size;
+    uint8_t *png = black_png(4096, 4096, true, &png_size);
+    struct log_capture cap;
+    struct tw_gltf_scene *s = NULL;
+
+    /* Five images over the same bytes (five buffer views of one range):
+     * decoded once, 64 MiB of the 256 MiB an import may decode. */
+    struct bytes v = {0}, im = {0};
+    for (uint32_t k = 0; k < 5; k++) {
+        char item[128];
+        snprintf(item, sizeof(item), ",{\"buffer\":1,\"byteLength\":%zu}", png_size);
+        put(&v, item, strlen(item));
+        snprintf(item, sizeof(item), "%s{\"bufferView\":%u,\"mimeType\":\"image/png\"}",
+                 k ? "," : "", 2 + k);
+        put(&im, item, strlen(item));
+    }
+    put(&v, "", 1);
+    put(&im, "", 1);
+    char *doc = textured_doc(5, (char *)im.p, (char *)v.p, png, png_size);
+    int err = import_text(doc, "shared-image.gltf", NULL, &cap, &s);
+    CHECK_MSG(err == 0 && cap.warnings == 0 && s && s->primitive_count == 5,
+              "one image five times: %d, %d warnings, \"%s\"", err, cap.warnings, cap.warning);
+    tw_gltf_scene_destroy(s);
+    free(doc);
+    free(v.p);
+
+    /* Five copies at five places of the buffer: five images, the fifth
+     * beyond the 256 MiB an import may decode (kept as its base colour). */
+    uint8_t *copies = malloc(5 * png_size);
+    if (!copies)
+        exit(3);
+    v = (struct bytes){0};
+    for (uint32_t k = 0; k < 5; k++) {
+        memcpy(copies + k * png_size, png, png_size);
+        char item[128];
+        snprintf(item, sizeof(item), ",{\"buffer\":1,\"byteOffset\":%zu,\"byteLength\":%zu}",
+                 k * png_size, png_size);
+        put(&v, item, strlen(item));
+    }
+    put(&v, "", 1);
+    doc = textured_doc(5, (char *)im.p, (char *)v.p, copies, 5 * png_size);
+    err = import_text(doc, "five-images.gltf", NULL, &cap, &s);
+    CHECK_MSG(err == 0 && cap.warnings == 1 &&
+                  strcmp(cap.warning, "five-images.gltf: images[4] (bufferViews[6]): a 4096 x "
+                                      "4096 PNG would decode to 64 MiB, and the images decoded "
+                                      "before it hold 256 MiB: more than the limit of 256 MiB "
+                                      "per import; its materials keep their base colour "
+                                      "factor") == 0,
+              "five images: %d, %d warnings, \"%s\"", err, cap.warnings, cap.warning);
+    tw_gltf_scene_destroy(s);
+    free(doc);
+    free(v.p);
+    free(copies);
+    free(im.p);
+
+    /* A 200-byte PNG whose header says 32768 x 32768: refused by its
+     * header, nothing decoded. */
+    size_t header_size;
+    uint8_t *header = black_png(32768, 32768, false, &header_size);
+    char *b64 = malloc(4 * (header_size / 3 + 1) + 1);
+    if (!b64)
+        exit(3);
+    base64(header, header_size, b64);
+    char *one = format("{\"uri\":\"data:image/png;base64,%s\"}", b64);
+    doc = textured_doc(1, one, "", NULL, 0);
+    err = import_text(doc, "huge-image.gltf", NULL, &cap, &s);
+    CHECK_MSG(err == 0 && cap.warnings == 1 &&
+                  strcmp(cap.warning, "huge-image.gltf: images[0] (a data: URI): a 32768 x 32768 "
+                                      "PNG would decode to 4.0 GiB, more than the limit of 64 "
+                                      "MiB per image; its materials keep their base colour "
+                                      "factor") == 0,
+              "huge image: %d, \"%s\"", err, cap.warning);
+    tw_gltf_scene_destroy(s);
+    free(doc);
+    free(one);
+    free(b64);
+    free(header);
+
+    /* Twelve unusable images: eight warnings, then one line counting the
+     * rest. */
+    struct bytes bad = {0};
+    for (uint32_t k = 0; k < 12; k++) {
+        char text[32], enc[64], item[128];
+        snprintf(text, sizeof(text), "not a PNG, number %02u", k);
+        base64((const uint8_t *)text, strlen(text), enc);
+        snprintf(item, sizeof(item), "%s{\"uri\":\"data:image/png;base64,%s\"}", k ? "," : "",
+                 enc);
+        put(&bad, item, strlen(item));
+    }
+    put(&bad, "", 1);
+    doc = textured_doc(12, (char *)bad.p, "", NULL, 0);
+    err = import_text(doc, "twelve.gltf", NULL, &cap, &s);
+    CHECK_MSG(err == 0 && cap.warnings == 9 &&
+                  strcmp(cap.warning, "twelve.gltf: 4 more warnings about textures and colours "
+                                      "not shown") == 0,
+              "twelve bad images: %d, %d warnings, last \"%s\"", err, cap.warnings, cap.warning);
+    tw_gltf_scene_destroy(s);
+    free(doc);
+    free(bad.p);
+    free(png);
+}
+
+/* ---- manifests: what many files cost together ------------------------------------------ */
+
+static int load_manifest_in(const char *folder, const char *text,
+                            const struct tw_manifest_settings *settings, struct log_capture *cap,
+                            struct tw_tileset **ts)
+{
+    char *path = format("%s/test.json", folder);
+    write_file(path, text, strlen(text));
+    const struct tw_log log = new_log(cap);
+    *ts = NULL;
+    const int err = tw_tilesets_load_manifest_ex(path, settings, &log, ts);
+    free(path);
+    return err;
+}
+
+/* A manifest of n prototypes "p<k>", prototype k placing the files that
+ * file_of(k, o) names, objects_per of them. */
+static char *manifest_of(uint32_t n, uint32_t objects_per, const char *name_fmt)
+{
+    struct bytes b = {0};
+    const char *head = "{\"footprint\": [40, 40], \"prototypes\": [";
+    put(&b, head, strlen(head));
+    for (uint32_t k = 0; k < n; k++) {
+        char item[160];
+        snprintf(item, sizeof(item), "%s{\"name\": \"p%u\", \"objects\": [", k ? "," : "", k);
+        put(&b, item, strlen(item));
+        for (uint32_t o = 0; o < objects_per; o++) {
+            char file[64];
+            snprintf(file, sizeof(file), name_fmt, k, o);
+            snprintf(item, sizeof(item), "%s{\"gltf\": \"%s\"}", o ? "," : "", file);
+            put(&b, item, strlen(item));
+        }
+        put(&b, "]}", 2);
+    }
+    put(&b, "]}", 3);
+    return (char *)b.p;
+}
+
+static void test_manifest_cost(void)
+{
+    char *folder = in_tmp("mc");
+    mkdir(folder, 0755);
+    struct log_capture cap;
+    struct tw_tileset *ts = NULL;
+
+    /* Five files naming one external 4096 x 4096 PNG (64 MiB decoded): read
+     * and decoded once for the manifest, not five times (320 MiB, beyond
+     * the 256 MiB a manifest's imports may decode together). */
+    size_t png_size;
+    uint8_t *png = black_png(4096, 4096, true, &png_size);
+    char *path = format("%s/big.png", folder);
+    write_file(path, png, png_size);
+    free(path);
+    free(png);
+    for (int k = 0; k < 5; k++) {
+        char *doc = textured_doc(1, "{\"uri\":\"big.png\"}", "", NULL, 0);
+        path = format("%s/g%d.gltf", folder, k);
+        write_file(path, doc, strlen(doc));
+        free(path);
+        free(doc);
+    }
+    char *text = manifest_of(5, 1, "g%u.gltf");
+    int err = load_manifest_in(folder, text, NULL, &cap, &ts);
+    CHECK_MSG(err == 0 && ts && cap.warnings == 0,
+              "one PNG named by five files: %d, \"%s\", %d warnings, \"%s\"", err, cap.error,
+              cap.warnings, cap.warning);
+    tw_tileset_destroy(ts);
+    free(text);
+
+    /* Six files each reading a 900 KiB buffer file, files of at most 1 MiB:
+     * the manifest's imports may read 4 MiB together. */
+    char *bin = format("%s/big.bin", folder);
+    char *zeros = calloc(1, 900 << 10);
+    if (!zeros)
+        exit(3);
+    memcpy(zeros, unit_triangle, sizeof(unit_triangle));
+    write_file(bin, zeros, 900 << 10);
+    free(zeros);
+    free(bin);
+    for (int k = 0; k < 6; k++) {
+        char *doc = format("{\"asset\":{\"version\":\"2.0\"},"
+                           "\"buffers\":[{\"byteLength\":%d,\"uri\":\"big.bin\"}],"
+                           "\"bufferViews\":[{\"buffer\":0,\"byteLength\":36}],"
+                           "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,"
+                           "\"type\":\"VEC3\"}],"
+                           "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0}}]}],"
+                           "\"nodes\":[{\"mesh\":0}]}",
+                           900 << 10);
+        path = format("%s/b%d.gltf", folder, k);
+        write_file(path, doc, strlen(doc));
+        free(path);
+        free(doc);
+    }
+    struct tw_manifest_settings settings = {0};
+    settings.gltf.max_file_bytes = 1 << 20;
+    text = manifest_of(6, 1, "b%u.gltf");
+    err = load_manifest_in(folder, text, &settings, &cap, &ts);
+    CHECK_MSG(err == TW_ERR_LIMIT && !ts &&
+                  strstr(cap.error, "test.json: prototypes[4].objects[0].gltf: b4.gltf: buffers: "
+                                    "buffer file \"big.bin\" is too large: with the files read "
+                                    "before it for the same manifest it exceeds the limit of "
+                                    "4194304 bytes"),
+              "six files reading 900 KiB: %d, \"%s\"", err, cap.error);
+    free(text);
+
+    /* Triangles placed: a file drawing 40 triangles (one mesh, 40 nodes),
+     * with a limit of 100 a prototype, 1000 a tileset. */
+    char *nodes = format("%s", "");
+    for (int k = 0; k < 40; k++) {
+        char *more = format("%s%s{\"mesh\":0,\"translation\":[%d,0,0]}", nodes, k ? "," : "",
+                            k % 20);
+        free(nodes);
+        nodes = more;
+    }
+    char *list = format("[%s]", nodes);
+    char *doc = triangle_doc(unit_triangle, list, NULL);
+    path = format("%s/t40.gltf", folder);
+    write_file(path, doc, strlen(doc));
+    free(path);
+    free(doc);
+    free(list);
+    free(nodes);
+    settings = (struct tw_manifest_settings){0};
+    settings.gltf.max_triangles = 100;
+    text = manifest_of(1, 3, "t40.gltf");
+    err = load_manifest_in(folder, text, &settings, &cap, &ts);
+    CHECK_MSG(err == TW_ERR_LIMIT &&
+                  strstr(cap.error, "test.json: prototypes[0].objects[2].gltf: placing "
+                                    "\"t40.gltf\" (40 triangles) here makes the prototype draw "
+                                    "120 triangles, more than the limit of 100"),
+              "a prototype of 120 triangles: %d, \"%s\"", err, cap.error);
+    free(text);
+    text = manifest_of(13, 2, "t40.gltf");
+    err = load_manifest_in(folder, text, &settings, &cap, &ts);
+    CHECK_MSG(err == TW_ERR_LIMIT &&
+                  strstr(cap.error, "test.json: prototypes[12].objects[1].gltf: placing "
+                                    "\"t40.gltf\" (40 triangles) here makes the tileset's "
+                                    "prototypes draw 1040 triangles together, more than the "
+                                    "limit of 1000"),
+              "a tileset of 1040 triangles: %d, \"%s\"", err, cap.error);
+    free(text);
+
+    /* A prototype whose every triangle has no area draws nothing: said so,
+     * not "invalid argument". */
+    static const float flat[9] = {0, 0, 0, 1, 0, 0, 2, 0, 0};
+    doc = triangle_doc(flat, "[{\"mesh\":0}]", NULL);
+    path = format("%s/flat.gltf", folder);
+    write_file(path, doc, strlen(doc));
+    free(path);
+    free(doc);
+    err = load_manifest_in(folder,
+                           "{\"footprint\": [10, 10], \"prototypes\": [{\"name\": \"ok\", "
+                           "\"gltf\": \"t40.gltf\"}, {\"name\": \"flat\", \"gltf\": "
+                           "\"flat.gltf\"}]}",
+                           NULL, &cap, &ts);
+    CHECK_MSG(err == TW_ERR_FORMAT &&
+                  strstr(cap.error, "test.json: prototypes[1]: every triangle of \"flat\" has no "
+                                    "area (collinear or coincident corners): it would draw "
+                                    "nothing"),
+              "a prototype without area: %d, \"%s\"", err, cap.error);
+
+    /* A manifest that does not exist. */
+    char *missing = format("%s/missing.json", folder);
+    const struct tw_log log = new_log(&cap);
+    err = tw_tilesets_load_manifest(missing, &log, &ts);
+    char *want = format("%s: no such file", missing);
+    CHECK_MSG(err == TW_ERR_IO && strcmp(cap.error, want) == 0, "missing manifest: \"%s\"",
+              cap.error);
+    free(want);
+    free(missing);
+    free(folder);
+}
+
 /* ---- main ---------------------------------------------------------------------------- */
 
 static void remove_tree(const char *path)
@@ -902,6 +1542,10 @@ int main(int argc, char **argv)
     test_manifests();
     test_confined();
     test_import_cost();
+    test_spec();
+    test_accessor_cost();
+    test_image_cost();
+    test_manifest_cost();
     remove_tree(tmp);
     return check_summary("test-hostile");
 }

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# tileworld memtest (issue 14), slow suite: 10 km of city-gen at a tiny size
+# tileworld memtest, slow suite: 10 km of city-gen at a tiny size
 # under a small budget (48M: more than most frames draw, less than the walk
 # would prefetch); exit status 0 (every check held) and every check in
 # summary.json with its verdict. Measured with tiles packed (one block each

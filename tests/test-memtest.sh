@@ -1,9 +1,13 @@
 #!/usr/bin/env bash
-# tileworld memtest (issue 14), fast: bad input is one line and exit 2; a
-# short walk (200 m) writes memory.csv with its header, one row per record
-# interval, summary.json with the four checks, summary.md; --budget 0 makes
-# the budget check "not applicable"; a prototype tileset has no load to
-# time; a budget sweep writes one folder per value and sweep.csv.
+# tileworld memtest, fast: bad input is one line and exit 2; a walk it
+# cannot afford (a path that moves micrometres a row, rows of memory.csv by
+# the million) is refused at once; --help names every option; a short walk
+# (200 m) writes memory.csv with its header, one row per record interval,
+# summary.json with the four checks, summary.md; --budget 0 makes the budget
+# check "not applicable"; a prototype tileset has no load to time; the last
+# line says how many checks held and why the others were not applicable;
+# progress lines on stderr only (TW_PROGRESS_INTERVAL_S), none with --quiet;
+# a budget sweep writes one folder per value and sweep.csv.
 set -u
 tw=${1:?usage: test-memtest.sh PATH/TO/tileworld}
 . "$(dirname "$0")/test-lib.sh"
@@ -35,6 +39,31 @@ expect_usage_error --view-distance 100000 --distance 0.01 "${quick[@]}"
 expect_usage_error --allocator jemalloc "${quick[@]}"
 expect_usage_error --bogus "${quick[@]}"
 if "$tw" memtest --help | grep -q '^usage: tileworld memtest'; then ok; else bad "memtest --help"; fi
+# --help names every option memtest takes (and README's list is this one).
+"$tw" memtest --help >"$tmp/help"
+for opt in tileset path distance every budget sweep size workers policy method view-distance \
+           upload-budget start-cell repeat seed allocator out quiet gl gpu; do
+    grep -q -- "^--$opt " "$tmp/help" && grep -q -- "\[--$opt[] ]" "$tmp/help" && ok ||
+        bad "memtest --help does not describe --$opt"
+done
+grep -q 'TW_PROGRESS_INTERVAL_S' "$tmp/help" && ok || bad "memtest --help: no TW_PROGRESS_INTERVAL_S"
+if grep -q 'tw_[a-z_]*\|malloc_trim' "$tmp/help"; then bad "memtest --help names a function"; else ok; fi
+
+# A walk memtest cannot afford is refused before a frame is rendered, in one
+# line that names the limit and what to change: a path that moves 2
+# micrometres over its rows (0.2 km would be 2e8 frames), and a row of
+# memory.csv every metre over 5000 km.
+printf 'cell_i,cell_j,x,y,z,yaw,pitch\n0,0,10,1.7,10,0,0\n0,0,10,1.7,10.000001,0,0\n0,0,10,1.7,10.000002,0,0\n' \
+    >"$tmp/micro.csv"
+start=$(date +%s%N)
+expect_usage_error --path "$tmp/micro.csv" --distance 0.2 "${quick[@]}"
+elapsed_ms=$((($(date +%s%N) - start) / 1000000))
+grep -q 'frames, more than .*limit of 10000000.*farther.*shorter --distance' "$tmp/err" && ok ||
+    bad "micrometre path: $(cat "$tmp/err")"
+[ "$elapsed_ms" -lt 2000 ] && ok || bad "micrometre path: refused after $elapsed_ms ms"
+expect_usage_error --every 1 --distance 5000 "${quick[@]}"
+grep -q 'rows of memory.csv, more than .*limit of 1000000.*larger --every' "$tmp/err" && ok ||
+    bad "--every 1 over 5000 km: $(cat "$tmp/err")"
 
 header='distance_m,frame,bytes_state,bytes_geometry,bytes_gpu,bytes_total,bytes_needed,budget,tiles_cached,tiles_ready,loads_requested,loads_done,evictions,reloads,latency_median,latency_p99,holes,rss_bytes,ms_frame,cpu_ms,ms_frame_max,heap_used_bytes,heap_free_bytes,bytes_loading,tiles_loading'
 # run DIR ARGS...: a short memtest, exit 0 or 3 (a check's verdict is the
@@ -47,7 +76,10 @@ run() {
     if [ "$rc" -eq 0 ] || [ "$rc" -eq 3 ]; then ok; else bad "memtest $* exited $rc: $(cat "$tmp/err")"; fi
 }
 
+# The runs below are --quiet: no progress line even at every frame.
+export TW_PROGRESS_INTERVAL_S=0
 run "$tmp/m" --budget 32M --workers 2
+if grep -q ' m ([0-9.]* %)' "$tmp/err"; then bad "--quiet printed progress: $(head -3 "$tmp/err")"; else ok; fi
 [ "$(head -1 "$tmp/m/memory.csv")" = "$header" ] && ok || bad "memory.csv header: $(head -1 "$tmp/m/memory.csv")"
 rows=$(tail -n +2 "$tmp/m/memory.csv" | wc -l)
 # A row at 0 m, one every 50 m: 5 rows (the last at >= 200 m).
@@ -105,6 +137,29 @@ grep -A2 '"must_hold": "load latency' "$tmp/city/summary.json" | grep -q '"held"
     ok || bad "city: latency check not 'not applicable'"
 grep -q '"allocator": "default"' "$tmp/city/summary.json" && grep -q '| allocator | default' "$tmp/city/summary.md" &&
     ok || bad "--allocator default not said in the summaries"
+if grep -q 'tw_[a-z_]*\|malloc_trim' "$tmp/city/summary.md" "$tmp/city/summary.json"; then
+    bad "the summaries name a function: $(grep -h 'tw_[a-z_]*\|malloc_trim' "$tmp/city/summary.md")"
+else ok; fi
+
+# Not quiet, 3 of the 4 checks not applicable (no budget, a prototype tileset,
+# one row in each tenth): the last line counts what held and says why the
+# rest were not applicable; progress lines (every frame here) on stderr only,
+# never a carriage return.
+"$tw" memtest --tileset city --budget 0 --distance 0.05 --every 50 --size 96x54 --out "$tmp/v" \
+    >"$tmp/out" 2>"$tmp/err"
+rc=$?
+[ "$rc" -eq 0 ] && ok || bad "verdict run exited $rc: $(cat "$tmp/err")"
+verdict=$(grep '^tileworld: wrote .*summary.md' "$tmp/err")
+case $verdict in
+*": 1 of 4 checks held, 3 not applicable: within the budget (no --budget given); RSS flat ("*"); load latency (no tile was loaded"*) ok ;;
+*) bad "verdict line: '$verdict'" ;;
+esac
+if grep -q 'everything' "$tmp/err"; then bad "'everything' held with 3 checks not applicable"; else ok; fi
+n=$(grep -c "^$tmp/v: [0-9]*/50 m ([0-9.]* %)" "$tmp/err")
+[ "$n" -ge 20 ] && ok || bad "memtest, TW_PROGRESS_INTERVAL_S=0: $n progress lines: $(head -3 "$tmp/err")"
+grep -q "^$tmp/v: 50/50 m (100.0 %), done in " "$tmp/err" && ok || bad "memtest: no last progress line"
+if grep -q $'\r' "$tmp/err"; then bad "memtest piped: a carriage return on stderr"; else ok; fi
+if grep -q ' m ([0-9.]* %)' "$tmp/out"; then bad "memtest: progress on stdout"; else ok; fi
 
 # A budget sweep: a folder per value, sweep.csv, the summary of each run.
 "$tw" memtest --distance 0.1 --every 50 --size 96x54 --quiet --sweep budget=8M,48M --out "$tmp/sw" 2>"$tmp/err"

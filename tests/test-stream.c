@@ -9,12 +9,18 @@
  *   - an impure selection and invalidated cells render correctly;
  *   - a tile that exceeds the provider's bound is refused, with its cell;
  *   - thousands of cells generated and evicted leave nothing behind (ASan);
- *   - policy skip draws holes and counts them, then fills them in.
+ *   - policy skip draws holes and counts them, then fills them in;
+ *   - a provider whose generate() does not return: destroying the world
+ *     returns after the shutdown timeout, logs it, and the threads left
+ *     behind end harmlessly when generate() returns later (ASan, TSan).
  */
+#include <dirent.h>
+#include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "tests/captured-log.h"
 #include "tests/check.h"
@@ -474,6 +480,200 @@ static void test_many_cells(struct tw_context *ctx)
     tw_world_destroy(w);
 }
 
+/* ---- a provider that does not return until the test says so ---------------------------- */
+
+struct stuck {
+    struct blocks blocks;        /* what it makes once let go */
+    pthread_mutex_t lock;
+    pthread_cond_t changed;
+    bool go;                     /* generate() may return */
+    unsigned entered, returned;
+};
+
+static int generate_stuck(void *user, struct tw_cell cell, struct tw_tileset *ts)
+{
+    struct stuck *st = user;
+    pthread_mutex_lock(&st->lock);
+    st->entered++;
+    pthread_cond_broadcast(&st->changed);
+    while (!st->go)
+        pthread_cond_wait(&st->changed, &st->lock);
+    pthread_mutex_unlock(&st->lock);
+    const int err = generate_block(&st->blocks, cell, ts);
+    pthread_mutex_lock(&st->lock);
+    st->returned++;
+    pthread_cond_broadcast(&st->changed);
+    pthread_mutex_unlock(&st->lock);
+    return err;
+}
+
+static double now_s(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static void sleep_ms(long ms)
+{
+    const struct timespec t = {ms / 1000, (ms % 1000) * 1000000L};
+    nanosleep(&t, NULL);
+}
+
+/* Waits up to seconds for the count of generate() calls that entered (or,
+ * with returned, that returned) to reach n; returns it. */
+static unsigned wait_count(struct stuck *st, bool returned, unsigned n, double seconds)
+{
+    const double end = now_s() + seconds;
+    pthread_mutex_lock(&st->lock);
+    unsigned got;
+    while ((got = returned ? st->returned : st->entered) < n && now_s() < end) {
+        pthread_mutex_unlock(&st->lock);
+        sleep_ms(5);
+        pthread_mutex_lock(&st->lock);
+    }
+    pthread_mutex_unlock(&st->lock);
+    return got;
+}
+
+static void let_go(struct stuck *st)
+{
+    pthread_mutex_lock(&st->lock);
+    st->go = true;
+    pthread_cond_broadcast(&st->changed);
+    pthread_mutex_unlock(&st->lock);
+}
+
+/* The process's threads (Linux), or -1 where that cannot be read. */
+static int thread_count(void)
+{
+    DIR *d = opendir("/proc/self/task");
+    if (!d)
+        return -1;
+    int n = 0;
+    for (const struct dirent *e; (e = readdir(d)) != NULL;)
+        n += e->d_name[0] != '.';
+    closedir(d);
+    return n;
+}
+
+static struct tw_world *make_stuck_world(struct tw_context *ctx, const struct tw_tile_provider *p,
+                                         uint32_t timeout_ms, struct captured_log *cap)
+{
+    struct tw_world_settings s = {0};
+    s.provider = p;
+    s.workers = 2;
+    s.policy = TW_STREAM_SKIP;      /* frames never wait for the stuck tiles */
+    s.shutdown_timeout_ms = timeout_ms;
+    s.width = W;
+    s.height = H;
+    s.view_distance = 300.0f;
+    s.deterministic = true;
+    s.get_proc = tw_context_get_proc(ctx);
+    s.log = (struct tw_log){capture, cap};
+    struct tw_world *w = NULL;
+    return tw_world_create(&s, &w) == TW_OK ? w : NULL;
+}
+
+static void *let_go_later(void *arg)
+{
+    sleep_ms(300);
+    let_go(arg);
+    return NULL;
+}
+
+/* generate() never returns while the world is destroyed: the destroy gives
+ * up after the timeout, says so, and what is left behind ends harmlessly
+ * once generate() returns. A slow generate() that does return within the
+ * timeout is waited for. */
+static void test_stuck_provider(struct tw_context *ctx)
+{
+    enum { TIMEOUT_MS = 300 };
+    static struct stuck st = {.blocks = {.seed = 17, .too_tall_i = INT64_MIN},
+                              .lock = PTHREAD_MUTEX_INITIALIZER,
+                              .changed = PTHREAD_COND_INITIALIZER};
+    /* The host's provider struct goes with the world: only user must stay. */
+    struct tw_tile_provider *p = malloc(sizeof(*p));
+    CHECK(p != NULL);
+    if (!p)
+        return;
+    *p = block_provider(&st.blocks);
+    p->name = "stuck";
+    p->generate = generate_stuck;
+    p->user = &st;
+    struct captured_log cap = {0};
+    struct tw_world *w = make_stuck_world(ctx, p, TIMEOUT_MS, &cap);
+    CHECK(w != NULL);
+    if (!w) {
+        free(p);
+        return;
+    }
+    const struct tw_camera cam = walk_camera(0);
+    struct tw_frame_stats stats;
+    CHECK(tw_world_frame(w, &cam, &stats) == TW_OK);
+    CHECK(stats.tiles_pending > 0);
+    /* Both workers inside generate(), for good. */
+    CHECK(wait_count(&st, false, 2, 30.0) == 2);
+    const double t0 = now_s();
+    const uint32_t left = tw_world_destroy(w);
+    const double waited = now_s() - t0;
+    free(p);
+    const int threads_after = thread_count();
+    CHECK_MSG(left == 2, "%u left behind", left);
+    /* The bound, and slack for a loaded machine (or a sanitizer). */
+    CHECK_MSG(waited >= 0.001 * TIMEOUT_MS * 0.9 && waited < 0.001 * TIMEOUT_MS + 10.0,
+              "destroy took %.3f s", waited);
+    CHECK_MSG(cap.errors == 1 && strstr(cap.last, "provider stuck: gave up after 0.3 s waiting "
+                                                  "for 2 tile workers still generating (cells (") &&
+              strstr(cap.last, "user data must stay valid"), "%u errors, \"%s\"", cap.errors,
+              cap.last);
+    printf("stuck provider: destroyed in %.3f s (timeout %u ms), %u workers left behind: \"%s\"\n",
+           waited, (unsigned)TIMEOUT_MS, left, cap.last);
+    /* generate() returns now, after the world is gone: the threads drop
+     * their tiles and end, touching nothing of the world's. */
+    let_go(&st);
+    CHECK(wait_count(&st, true, 2, 30.0) == 2);
+    bool ended = threads_after < 0;
+    for (int k = 0; k < 3000 && !ended; k++) {
+        ended = thread_count() <= threads_after - 2;
+        if (!ended)
+            sleep_ms(10);
+    }
+    CHECK_MSG(ended, "%d threads after the destroy, %d now", threads_after, thread_count());
+    /* Nothing more was asked of the provider after its world went. */
+    CHECK(st.entered == 2 && st.returned == 2);
+    printf("stuck provider: both generate() calls returned after the destroy; their threads "
+           "ended\n");
+
+    /* Slow, not stuck: the default timeout (5 s) waits for it. */
+    pthread_mutex_lock(&st.lock);
+    st.go = false;
+    st.entered = st.returned = 0;
+    pthread_mutex_unlock(&st.lock);
+    struct tw_tile_provider slow = block_provider(&st.blocks);
+    slow.name = "slow";
+    slow.generate = generate_stuck;
+    slow.user = &st;
+    struct captured_log cap2 = {0};
+    w = make_stuck_world(ctx, &slow, 0, &cap2);
+    CHECK(w != NULL && tw_world_settings(w)->shutdown_timeout_ms == 5000);
+    if (!w)
+        return;
+    CHECK(tw_world_frame(w, &cam, &stats) == TW_OK);
+    CHECK(wait_count(&st, false, 2, 30.0) == 2);
+    pthread_t helper;
+    const bool started = pthread_create(&helper, NULL, let_go_later, &st) == 0;
+    CHECK(started);
+    if (!started)
+        let_go(&st);
+    CHECK(tw_world_destroy(w) == 0);
+    CHECK(cap2.errors == 0);
+    CHECK(st.returned == st.entered && st.entered >= 2);
+    if (started)
+        pthread_join(helper, NULL);
+    printf("slow provider: destroy waited for its %u generate() calls\n", st.entered);
+}
+
 int main(void)
 {
     struct tw_context *ctx = NULL;
@@ -488,6 +688,7 @@ int main(void)
     test_impure_selection(ctx);
     test_skip(ctx);
     test_many_cells(ctx);
+    test_stuck_provider(ctx);
     tw_context_destroy(ctx);
     return check_summary("test-stream");
 }

@@ -411,6 +411,15 @@ static void test_escape(void)
     tw_log_printf(&log, TW_LOG_ERROR, "key \"%s\": unknown", "\x1b[2J\nforged: ok");
     CHECK(strcmp(last, "key \"\\x1b[2J\\nforged: ok\": unknown") == 0);
     CHECK(!strchr(last, '\n') && !strchr(last, '\x1b'));
+    /* The reversible form: the same, and a backslash doubled, so that a
+     * backslash of the text is told from an escape. */
+    CHECK(strcmp(tw_log_escape_reversible("a\\x1b\x1b", out, sizeof(out)), "a\\\\x1b\\x1b") == 0);
+    CHECK(strcmp(tw_log_escape_reversible("x\xe2\x80\xae\xc2\x9b\xff\\", out, sizeof(out)),
+                 "x\\u202e\\u009b\\xff\\\\") == 0);
+    CHECK(strcmp(tw_log_escape_reversible("caf\xc3\xa9\n", out, sizeof(out)),
+                 "caf\xc3\xa9\\n") == 0);
+    CHECK(strcmp(tw_log_escape_reversible("abc\\def", small, sizeof(small)), "abc...") == 0);
+    CHECK(strcmp(tw_log_escape_reversible(NULL, out, sizeof(out)), "") == 0);
 }
 
 /* Whether a mesh holds triangle (a, b, c), its corners in that order. */

@@ -784,6 +784,18 @@ static void test_builtin(void)
               tw_error_to_str(err));
     tw_tileset_destroy(ts);
 
+    /* An unknown name says which kind of mistake it is. */
+    err = tw_tilesets_builtin("citty", 5, 0, &log, &ts);
+    CHECK_MSG(err == TW_ERR_INVALID && !ts &&
+                  strcmp(captured.last, "tileset \"citty\": no such built-in tileset (city, "
+                                        "forest, hybrid)") == 0,
+              "unknown name: %s", captured.last);
+    err = tw_tilesets_builtin("my/tiles.json", 5, 0, &log, &ts);
+    CHECK_MSG(err == TW_ERR_INVALID && !ts &&
+                  strstr(captured.last, "tileset \"my/tiles.json\": a file name, not a built-in "
+                                        "tileset"),
+              "a file name: %s", captured.last);
+
     /* forest and hybrid: the generators with default settings. */
     ts = NULL;
     direct = NULL;

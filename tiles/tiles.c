@@ -88,7 +88,9 @@ static bool dangerous_code_point(uint32_t cp)
            (cp >= 0x2066 && cp <= 0x2069);
 }
 
-const char *tw_log_escape_bytes(const void *data, size_t n, char *out, size_t size)
+/* tw_log_escape_bytes(), with backslashes doubled when backslash is set. */
+static const char *escape_bytes(const void *data, size_t n, bool backslash, char *out,
+                                size_t size)
 {
     if (!out || size == 0)
         return out;
@@ -105,7 +107,10 @@ const char *tw_log_escape_bytes(const void *data, size_t n, char *out, size_t si
         size_t len = 0, used = 1;
         const unsigned char c = s[k];
         uint32_t cp = 0;
-        if (c >= 0x20 && c < 0x7f) {
+        if (c == '\\' && backslash) {
+            piece[0] = piece[1] = '\\';
+            len = 2;
+        } else if (c >= 0x20 && c < 0x7f) {
             piece[0] = (char)c;
             len = 1;
         } else if (c == '\n' || c == '\r' || c == '\t') {
@@ -142,9 +147,19 @@ const char *tw_log_escape_bytes(const void *data, size_t n, char *out, size_t si
     return out;
 }
 
+const char *tw_log_escape_bytes(const void *data, size_t n, char *out, size_t size)
+{
+    return escape_bytes(data, n, false, out, size);
+}
+
 const char *tw_log_escape(const char *text, char *out, size_t size)
 {
-    return tw_log_escape_bytes(text, text ? strlen(text) : 0, out, size);
+    return escape_bytes(text, text ? strlen(text) : 0, false, out, size);
+}
+
+const char *tw_log_escape_reversible(const char *text, char *out, size_t size)
+{
+    return escape_bytes(text, text ? strlen(text) : 0, true, out, size);
 }
 
 /* ---- boxes ----------------------------------------------------------------- */

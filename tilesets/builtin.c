@@ -13,7 +13,7 @@ int tw_tilesets_builtin(const char *name, uint64_t seed, uint32_t max_cluster_tr
         return TW_ERR_INVALID;
     *out = NULL;
     if (!name) {
-        tw_log_printf(log, TW_LOG_ERROR, "tilesets: builtin: no tileset name given");
+        tw_log_printf(log, TW_LOG_ERROR, "built-in tileset: no name given (caller's bug)");
         return TW_ERR_INVALID;
     }
     if (strcmp(name, "city") == 0) {
@@ -31,7 +31,16 @@ int tw_tilesets_builtin(const char *name, uint64_t seed, uint32_t max_cluster_tr
         settings.max_cluster_triangles = max_cluster_triangles;
         return tw_tilesets_hybrid(seed, &settings, log, out);
     }
-    tw_log_printf(log, TW_LOG_ERROR,
-                  "tilesets: builtin: unknown tileset \"%s\" (known: city, forest, hybrid)", name);
+    char shown[256];
+    tw_log_escape(name, shown, sizeof(shown));
+    const size_t n = strlen(name);
+    if (strchr(name, '/') || (n > 5 && strcmp(name + n - 5, ".json") == 0))
+        tw_log_printf(log, TW_LOG_ERROR,
+                      "tileset \"%s\": a file name, not a built-in tileset (city, forest, "
+                      "hybrid): a manifest file is loaded by its path",
+                      shown);
+    else
+        tw_log_printf(log, TW_LOG_ERROR,
+                      "tileset \"%s\": no such built-in tileset (city, forest, hybrid)", shown);
     return TW_ERR_INVALID;
 }

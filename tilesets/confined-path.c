@@ -435,7 +435,10 @@ int tw_confined_open_user(const char *path, int *out_fd, char *why, size_t why_s
     *out_fd = -1;
     const int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
     if (fd < 0) {
-        snprintf(why, why_size, "cannot open: %s", strerror(errno));
+        if (errno == ENOENT)
+            snprintf(why, why_size, "no such file");
+        else
+            snprintf(why, why_size, "cannot open: %s", strerror(errno));
         return TW_ERR_IO;
     }
     struct stat st;

@@ -52,7 +52,8 @@ int tw_confined_open_parent(int dir_fd, const char *rel, enum tw_confined_mode m
 
 /* Opens a file the user named (a command-line argument: not confined) the
  * same way: regular files only, never blocking. On failure writes the
- * reason into why ("cannot open: ...", "is not a regular file (a FIFO)"). */
+ * reason into why ("no such file", "cannot open: <strerror>", "is not a
+ * regular file (a FIFO)"). */
 int tw_confined_open_user(const char *path, int *out_fd, char *why, size_t why_size);
 
 /* Opens the folder path names, or the folder of the file path names ("."

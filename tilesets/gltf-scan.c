@@ -19,6 +19,7 @@ enum context {
     IN_MESHES,          /* "meshes" */
     IN_MESH,            /* one of its elements */
     IN_PRIMITIVES,      /* meshes[*].primitives */
+    IN_ASSET,           /* "asset" */
 };
 
 static const char *const kind_keys[TW_GLTF_KIND_COUNT] = {
@@ -271,6 +272,15 @@ static struct tw_gltf_scan_string *append_string(struct scanner *sc,
 static bool scan_value(struct scanner *sc, uint32_t depth, enum context ctx, int kind,
                        bool in_extension);
 
+static void clear_asset(struct tw_gltf_scan *out)
+{
+    free(out->version.text);
+    free(out->min_version.text);
+    out->version.text = out->min_version.text = NULL;
+    out->version.length = out->min_version.length = 0;
+    out->asset_found = out->version_not_string = out->min_version_not_string = false;
+}
+
 /* The value of member key of an object in context ctx. */
 static bool scan_member_value(struct scanner *sc, uint32_t depth, enum context ctx,
                               const struct tw_gltf_scan_string *key, bool in_extension,
@@ -282,6 +292,12 @@ static bool scan_member_value(struct scanner *sc, uint32_t depth, enum context c
         if (key_is(key, "extensionsRequired")) {
             free_strings(&sc->out->extensions_required, &sc->out->extensions_required_count);
             return scan_value(sc, depth, IN_REQUIRED, -1, in_extension);
+        }
+        if (key_is(key, "asset")) {
+            /* A repeated "asset" replaces the earlier one. */
+            clear_asset(sc->out);
+            sc->out->asset_found = sc->pos < sc->n && sc->s[sc->pos] == '{';
+            return scan_value(sc, depth, IN_ASSET, -1, in_extension);
         }
         for (int k = 0; kind_keys[k]; k++) {
             if (!key_is(key, kind_keys[k]))
@@ -302,6 +318,18 @@ static bool scan_member_value(struct scanner *sc, uint32_t depth, enum context c
         if (sc->pos < sc->n && sc->s[sc->pos] == '"') {
             sc->out->values++;
             return scan_string(sc, uri);
+        }
+    } else if (ctx == IN_ASSET && (key_is(key, "version") || key_is(key, "minVersion"))) {
+        const bool min = key_is(key, "minVersion");
+        struct tw_gltf_scan_string *keep = min ? &sc->out->min_version : &sc->out->version;
+        bool *not_string = min ? &sc->out->min_version_not_string : &sc->out->version_not_string;
+        free(keep->text);
+        keep->text = NULL;
+        keep->length = 0;
+        *not_string = !(sc->pos < sc->n && sc->s[sc->pos] == '"');
+        if (!*not_string) {
+            sc->out->values++;
+            return scan_string(sc, keep);
         }
     } else if (ctx == IN_MESH && key_is(key, "primitives")) {
         return scan_value(sc, depth, IN_PRIMITIVES, TW_GLTF_PRIMITIVES, in_extension);
@@ -352,7 +380,7 @@ static bool scan_object(struct scanner *sc, uint32_t depth, enum context ctx, bo
         }
         /* Keys are kept only where the scan looks at them. */
         const bool want_key = ctx == IN_ROOT || ctx == IN_BUFFER || ctx == IN_MESH ||
-                              !in_extension;
+                              ctx == IN_ASSET || !in_extension;
         if (!scan_string(sc, want_key ? &key : NULL))
             break;
         if (!want_key) {
@@ -472,4 +500,5 @@ void tw_gltf_scan_finish(struct tw_gltf_scan *s)
         return;
     free_strings(&s->buffer_uris, &s->buffer_uri_count);
     free_strings(&s->extensions_required, &s->extensions_required_count);
+    clear_asset(s);
 }

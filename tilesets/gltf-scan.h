@@ -12,7 +12,9 @@
  *   - the raw "uri" of every buffer, as written (tinygltf hands the reader a
  *     URL-decoded copy that turned '+' into a space);
  *   - the names in "extensionsRequired", so that an unsupported one is
- *     reported by name instead of as whatever tinygltf trips on first.
+ *     reported by name instead of as whatever tinygltf trips on first;
+ *   - "asset": its "version" and "minVersion", so that a document for
+ *     another glTF version is refused as such before it is parsed.
  *
  * For a text that is not JSON the scan stops where the text stops being JSON
  * (valid is false) with what it counted so far; tinygltf then reports the
@@ -67,6 +69,11 @@ struct tw_gltf_scan {
     uint32_t buffer_uri_count;
     struct tw_gltf_scan_string *extensions_required;
     uint32_t extensions_required_count;
+    /* asset.version and asset.minVersion (text NULL: absent, or not a
+     * string when the matching *_not_string is set). */
+    bool asset_found;           /* the document has an "asset" object */
+    struct tw_gltf_scan_string version, min_version;
+    bool version_not_string, min_version_not_string;
 };
 
 /* Scans text[0, size) (a .gltf, or a .glb's JSON chunk). Returns 0, or

@@ -318,6 +318,7 @@ void export_document(holder &h, tw_gltf_doc *out)
         h.extensions_required.push_back(e.c_str());
 
     out->version = m.asset.version.c_str();
+    out->min_version = m.asset.minVersion.c_str();
     out->default_scene = m.defaultScene;
     out->extensions_required = h.extensions_required.data();
     out->extensions_required_count = count32(h.extensions_required.size());

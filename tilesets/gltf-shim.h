@@ -131,6 +131,7 @@ struct tw_gltf_doc_scene {
  * until tw_gltf_shim_free(). */
 struct tw_gltf_doc {
     const char *version;            /* asset.version */
+    const char *min_version;        /* asset.minVersion, "" when absent */
     int32_t default_scene;          /* "scene", or -1 */
     const char *const *extensions_required;
     uint32_t extensions_required_count;

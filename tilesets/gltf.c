@@ -115,9 +115,15 @@ struct importer {
     int io_error;                     /* set by the external-file reader */
     char io_msg[800];
     const struct tw_log *log;         /* for warnings */
-    struct decoded_image *images;     /* per document image, decoded on first use */
+    struct tw_gltf_shared *shared;    /* bytes read and decoded with other imports */
+    bool own_shared;                  /* shared is own */
+    struct tw_gltf_shared own;
+    struct tw_gltf_image_cache *images; /* images in the document, by source */
+    struct decoded_image **image_of;  /* per document image: its entry, once resolved */
     struct material_texture *material_textures; /* per document material */
-    uint64_t decoded_bytes;           /* of images */
+    uint32_t texture_warnings;        /* shown, then only counted */
+    struct accessor_facts *facts;     /* per accessor, what its checks found */
+    uint64_t checked_bytes;           /* of accessor data read by the checks */
     uint32_t skipped_primitives;      /* points and lines, not drawn */
     char skipped_first[160];          /* the first of them, for the warning */
 };
@@ -153,6 +159,20 @@ static void warn(struct importer *im, const char *fmt, ...)
     vsnprintf(text, sizeof(text), fmt, ap);
     va_end(ap);
     tw_log_printf(im->log, TW_LOG_WARN, "%s: %s", im->shown, text);
+}
+
+/* "4.3 GiB", "17 MiB", "300 KiB", "12 bytes". */
+static const char *byte_size(uint64_t n, char *out, size_t size)
+{
+    if (n >= (1ull << 30))
+        snprintf(out, size, "%.1f GiB", (double)n / (double)(1ull << 30));
+    else if (n >= (1ull << 20))
+        snprintf(out, size, "%llu MiB", (unsigned long long)((n + (1ull << 19)) >> 20));
+    else if (n >= 1024)
+        snprintf(out, size, "%llu KiB", (unsigned long long)((n + 512) >> 10));
+    else
+        snprintf(out, size, "%llu bytes", (unsigned long long)n);
+    return out;
 }
 
 /* ---- reading files ----------------------------------------------------------- */
@@ -216,8 +236,38 @@ static bool tinygltf_data_uri(const char *uri)
     return false;
 }
 
-/* Opens rel beneath the document's folder and reads it whole, within what is
- * left of the byte budget. On failure why completes "\"rel\" ...". */
+/* Reads the open file fd whole, within what is left of this import's byte
+ * budget and of the shared one. On failure why completes "\"rel\" ...". */
+static int read_fd(struct importer *im, int fd, uint8_t **data, size_t *size, char *why,
+                   size_t why_size)
+{
+    const uint64_t own_left = im->settings.max_file_bytes - im->bytes_read;
+    const struct tw_gltf_shared *sh = im->shared;
+    const uint64_t shared_left =
+        sh->bytes_read < sh->max_bytes_read ? sh->max_bytes_read - sh->bytes_read : 0;
+    const bool by_shared = !im->own_shared && shared_left < own_left;
+    char detail[512];
+    const int err = tw_confined_read(fd, by_shared ? shared_left : own_left, data, size, detail,
+                                     sizeof(detail));
+    if (err == TW_ERR_LIMIT && by_shared)
+        snprintf(why, why_size,
+                 "is too large: with the files read before it for the same manifest it exceeds "
+                 "the limit of %llu bytes",
+                 (unsigned long long)sh->max_bytes_read);
+    else if (err == TW_ERR_LIMIT && im->bytes_read > 0)
+        snprintf(why, why_size,
+                 "is too large: with the document it exceeds the limit of %llu bytes",
+                 (unsigned long long)im->settings.max_file_bytes);
+    else if (err)
+        snprintf(why, why_size, "%s", detail);
+    if (!err) {
+        im->bytes_read += *size;
+        im->shared->bytes_read += *size;
+    }
+    return err;
+}
+
+/* Opens rel beneath the document's folder and reads it whole (read_fd()). */
 static int read_beneath(struct importer *im, const char *rel, uint8_t **data, size_t *size,
                         char *why, size_t why_size)
 {
@@ -230,18 +280,8 @@ static int read_beneath(struct importer *im, const char *rel, uint8_t **data, si
         snprintf(why, why_size, "%s", reason ? reason : "cannot be opened");
         return err;
     }
-    char detail[512];
-    err = tw_confined_read(fd, im->settings.max_file_bytes - im->bytes_read, data, size, detail,
-                           sizeof(detail));
+    err = read_fd(im, fd, data, size, why, why_size);
     close(fd);
-    if (err == TW_ERR_LIMIT)
-        snprintf(why, why_size,
-                 "is too large: with the document it exceeds the limit of %llu bytes",
-                 (unsigned long long)im->settings.max_file_bytes);
-    else if (err)
-        snprintf(why, why_size, "%s", detail);
-    else
-        im->bytes_read += *size;
     return err;
 }
 
@@ -459,6 +499,9 @@ static int check_buffer_views(struct importer *im)
     return TW_OK;
 }
 
+static uint32_t load_uint(const uint8_t *p, int32_t comp);
+static const uint8_t *view_data(const struct tw_gltf_doc *d, int32_t view, int32_t offset);
+
 static int check_accessors(struct importer *im)
 {
     const struct tw_gltf_doc *d = im->doc;
@@ -486,6 +529,16 @@ static int check_accessors(struct importer *im)
                             "one element (%llu bytes)",
                             k, a->buffer_view, (unsigned long long)stride,
                             (unsigned long long)elem);
+            /* glTF 2.0 §3.6.2.4: data aligned to its component size. */
+            const uint32_t cs = component_size(a->component_type);
+            if (a->byte_offset % cs != 0 || (v->byte_offset + a->byte_offset) % cs != 0)
+                return fail(im, TW_ERR_FORMAT,
+                            "accessors[%u].byteOffset: %llu puts its data at byte %llu of "
+                            "buffers[%d], not a multiple of %u (its component type, %s, is "
+                            "aligned to its size)",
+                            k, (unsigned long long)a->byte_offset,
+                            (unsigned long long)(v->byte_offset + a->byte_offset), v->buffer,
+                            cs, component_name(a->component_type));
             if (!range_fits(a->byte_offset, stride, a->count, elem, v->byte_length))
                 return fail(im, TW_ERR_FORMAT,
                             "accessors[%u]: %llu elements of %llu bytes every %llu bytes from "
@@ -533,6 +586,31 @@ static int check_accessors(struct importer *im)
                             "bufferViews[%d] (%llu bytes)",
                             k, parts[p].what, a->sparse_count, parts[p].offset, parts[p].view,
                             (unsigned long long)v->byte_length);
+            const uint32_t cs = component_size(p == 0 ? ic : a->component_type);
+            if ((v->byte_offset + (uint64_t)parts[p].offset) % cs != 0)
+                return fail(im, TW_ERR_FORMAT,
+                            "accessors[%u].sparse.%s.byteOffset: %d puts its data at byte %llu "
+                            "of buffers[%d], not a multiple of %u (its component size)",
+                            k, parts[p].what, parts[p].offset,
+                            (unsigned long long)(v->byte_offset + (uint64_t)parts[p].offset),
+                            v->buffer, cs);
+        }
+        /* The spec: sparse indices strictly increase (and so stay below
+         * count, checked as they are read too). */
+        const uint8_t *idx = view_data(d, a->sparse_indices_view, a->sparse_indices_offset);
+        const uint64_t is = component_size(ic);
+        for (uint32_t e = 0; e < (uint32_t)a->sparse_count; e++) {
+            const uint32_t target = load_uint(idx + e * is, ic);
+            const uint32_t before = e ? load_uint(idx + (e - 1) * is, ic) : 0;
+            if (target >= a->count)
+                return fail(im, TW_ERR_FORMAT,
+                            "accessors[%u].sparse.indices[%u]: %u is not below the count %llu",
+                            k, e, target, (unsigned long long)a->count);
+            if (e > 0 && target <= before)
+                return fail(im, TW_ERR_FORMAT,
+                            "accessors[%u].sparse.indices[%u]: %u follows %u; sparse indices "
+                            "must strictly increase",
+                            k, e, target, before);
         }
     }
     return TW_OK;
@@ -837,10 +915,92 @@ static int primitive_triangles(struct importer *im, uint32_t m, uint32_t k, uint
     return TW_OK;
 }
 
+/* What the data checks learnt of an accessor: each is read once per import
+ * however many primitives use it. */
+enum {
+    FACT_POSITIONS_OK = 1,            /* finite and within bounds */
+    FACT_INDICES_READ = 2,            /* index_max and FACT_RESTART known */
+    FACT_RESTART = 4,                 /* holds its type's largest value */
+};
+
+struct accessor_facts {
+    uint8_t flags;
+    uint32_t index_max;
+};
+
+/* Charges the checks' reading of n more bytes of accessor data to what the
+ * input allows: overlapping accessors could otherwise make a buffer be
+ * read again for each (CHECK_BASE + CHECK_PER_BYTE bytes per byte of the
+ * file and its buffers). */
+#define CHECK_BASE (64ull << 20)
+#define CHECK_PER_BYTE 4ull
+
+static int charge_check(struct importer *im, int32_t acc, uint64_t n)
+{
+    const uint64_t allowed = CHECK_BASE + CHECK_PER_BYTE * im->bytes_read;
+    im->checked_bytes += n;
+    if (im->checked_bytes <= allowed)
+        return TW_OK;
+    char a[32], b[32];
+    return fail(im, TW_ERR_LIMIT,
+                "accessors[%d]: the meshes' accessors hold %s to check, more than the %s "
+                "allowed for %llu bytes of file and buffers (64 MiB + 4 bytes per byte): "
+                "accessors overlap",
+                acc, byte_size(im->checked_bytes, a, sizeof(a)), byte_size(allowed, b, sizeof(b)),
+                (unsigned long long)im->bytes_read);
+}
+
+/* The largest value of an index component type, which glTF reserves
+ * (primitive restart) and forbids in indices. */
+static uint32_t restart_value(int32_t comp)
+{
+    return comp == COMP_UNSIGNED_BYTE ? 0xffu : comp == COMP_UNSIGNED_SHORT ? 0xffffu
+                                                                            : 0xffffffffu;
+}
+
+/* Reads the index accessor ia once: its largest value and whether it holds
+ * the restart value, sparse substitutes included (and the base values they
+ * replace). */
+static int read_index_facts(struct importer *im, int32_t ia)
+{
+    struct accessor_facts *f = &im->facts[ia];
+    if (f->flags & FACT_INDICES_READ)
+        return TW_OK;
+    const struct tw_gltf_doc *d = im->doc;
+    const struct tw_gltf_doc_accessor *a = &d->accessors[ia];
+    const uint64_t size = component_size(a->component_type);
+    uint64_t stride;
+    const uint8_t *base = accessor_base(d, a, &stride);
+    int err = charge_check(im, ia, (base ? a->count * size : 0) +
+                                       (a->sparse ? (uint64_t)a->sparse_count * size : 0));
+    if (err)
+        return err;
+    const uint32_t restart = restart_value(a->component_type);
+    uint32_t max = 0;
+    bool has_restart = false;
+    for (uint64_t e = 0; base && e < a->count; e++) {
+        const uint32_t i = load_uint(base + e * stride, a->component_type);
+        max = i > max ? i : max;
+        has_restart |= i == restart;
+    }
+    if (a->sparse) {
+        const uint8_t *val = view_data(d, a->sparse_values_view, a->sparse_values_offset);
+        for (int32_t e = 0; e < a->sparse_count; e++) {
+            const uint32_t i = load_uint(val + size * (uint64_t)e, a->component_type);
+            max = i > max ? i : max;
+            has_restart |= i == restart;
+        }
+    }
+    f->index_max = max;
+    f->flags |= FACT_INDICES_READ | (has_restart ? FACT_RESTART : 0);
+    return TW_OK;
+}
+
 /* Checks the data of primitive k of mesh m without allocating: positions
  * finite and within +-TW_TILES_MAX_MESH_COORD, every index below the vertex
- * count (sparse substitutes included; base values that a substitute replaces
- * must be in range too). Runs on every triangle primitive, drawn or not. */
+ * count and never the restart value (sparse substitutes included; base
+ * values that a substitute replaces must be in range too). Runs on every
+ * triangle primitive, drawn or not; each accessor is read once. */
 static int check_primitive_data(struct importer *im, uint32_t m, uint32_t k)
 {
     const struct tw_gltf_doc *d = im->doc;
@@ -853,44 +1013,59 @@ static int check_primitive_data(struct importer *im, uint32_t m, uint32_t k)
     const uint8_t *base = accessor_base(d, pa, &stride);
     /* Integer positions (KHR_mesh_quantization) are small by their type. */
     const bool floats = pa->component_type == COMP_FLOAT;
-    for (uint64_t v = 0; floats && base && v < pa->count; v++) {
-        for (int c = 0; c < 3; c++) {
-            const float x = load_float(base + v * stride + 4 * c);
-            if (!isfinite(x))
-                return fail(im, TW_ERR_FORMAT,
-                            "meshes[%u].primitives[%u].attributes.POSITION: accessors[%d] "
-                            "element %llu is not finite",
-                            m, k, pos, (unsigned long long)v);
-            if (fabsf(x) > TW_TILES_MAX_MESH_COORD)
-                return fail(im, TW_ERR_LIMIT,
-                            "meshes[%u].primitives[%u].attributes.POSITION: accessors[%d] "
-                            "element %llu has %c = %g, beyond +-%g",
-                            m, k, pos, (unsigned long long)v, "xyz"[c], x,
-                            (double)TW_TILES_MAX_MESH_COORD);
-        }
-    }
-    if (floats && pa->sparse) {
-        const uint8_t *val = view_data(d, pa->sparse_values_view, pa->sparse_values_offset);
-        for (int32_t e = 0; e < pa->sparse_count; e++) {
+    int err;
+    if (floats && !(im->facts[pos].flags & FACT_POSITIONS_OK)) {
+        if ((err = charge_check(im, pos, (base ? 12 * pa->count : 0) +
+                                             (pa->sparse ? 12 * (uint64_t)pa->sparse_count : 0))))
+            return err;
+        for (uint64_t v = 0; base && v < pa->count; v++) {
             for (int c = 0; c < 3; c++) {
-                const float x = load_float(val + 12 * (uint64_t)e + 4 * c);
+                const float x = load_float(base + v * stride + 4 * c);
                 if (!isfinite(x))
                     return fail(im, TW_ERR_FORMAT,
                                 "meshes[%u].primitives[%u].attributes.POSITION: accessors[%d] "
-                                "sparse value %d is not finite",
-                                m, k, pos, e);
+                                "element %llu is not finite",
+                                m, k, pos, (unsigned long long)v);
                 if (fabsf(x) > TW_TILES_MAX_MESH_COORD)
                     return fail(im, TW_ERR_LIMIT,
                                 "meshes[%u].primitives[%u].attributes.POSITION: accessors[%d] "
-                                "sparse value %d has %c = %g, beyond +-%g",
-                                m, k, pos, e, "xyz"[c], x, (double)TW_TILES_MAX_MESH_COORD);
+                                "element %llu has %c = %g, beyond +-%g",
+                                m, k, pos, (unsigned long long)v, "xyz"[c], x,
+                                (double)TW_TILES_MAX_MESH_COORD);
             }
         }
+        if (pa->sparse) {
+            const uint8_t *val = view_data(d, pa->sparse_values_view, pa->sparse_values_offset);
+            for (int32_t e = 0; e < pa->sparse_count; e++) {
+                for (int c = 0; c < 3; c++) {
+                    const float x = load_float(val + 12 * (uint64_t)e + 4 * c);
+                    if (!isfinite(x))
+                        return fail(im, TW_ERR_FORMAT,
+                                    "meshes[%u].primitives[%u].attributes.POSITION: "
+                                    "accessors[%d] sparse value %d is not finite",
+                                    m, k, pos, e);
+                    if (fabsf(x) > TW_TILES_MAX_MESH_COORD)
+                        return fail(im, TW_ERR_LIMIT,
+                                    "meshes[%u].primitives[%u].attributes.POSITION: "
+                                    "accessors[%d] sparse value %d has %c = %g, beyond +-%g",
+                                    m, k, pos, e, "xyz"[c], x, (double)TW_TILES_MAX_MESH_COORD);
+                }
+            }
+        }
+        im->facts[pos].flags |= FACT_POSITIONS_OK;
     }
     if (p->indices < 0)
         return TW_OK;
-    const struct tw_gltf_doc_accessor *ia = &d->accessors[p->indices];
+    if ((err = read_index_facts(im, p->indices)))
+        return err;
+    const struct accessor_facts *f = &im->facts[p->indices];
     const uint64_t nv = pa->count;
+    if (f->index_max < nv && !(f->flags & FACT_RESTART))
+        return TW_OK;
+    /* A bad index: find the first, for the message (once: it ends the
+     * import). */
+    const struct tw_gltf_doc_accessor *ia = &d->accessors[p->indices];
+    const uint32_t restart = restart_value(ia->component_type);
     base = accessor_base(d, ia, &stride);
     for (uint64_t e = 0; base && e < ia->count; e++) {
         const uint32_t i = load_uint(base + e * stride, ia->component_type);
@@ -899,20 +1074,30 @@ static int check_primitive_data(struct importer *im, uint32_t m, uint32_t k)
                         "meshes[%u].primitives[%u].indices: accessors[%d] element %llu is %u, "
                         "not below the vertex count %llu",
                         m, k, p->indices, (unsigned long long)e, i, (unsigned long long)nv);
+        if (i == restart)
+            return fail(im, TW_ERR_FORMAT,
+                        "meshes[%u].primitives[%u].indices: accessors[%d] element %llu is %u, "
+                        "the largest %s, which glTF reserves (primitive restart)",
+                        m, k, p->indices, (unsigned long long)e, i,
+                        component_name(ia->component_type));
     }
-    if (ia->sparse) {
+    const uint64_t size = component_size(ia->component_type);
+    for (int32_t e = 0; ia->sparse && e < ia->sparse_count; e++) {
         const uint8_t *val = view_data(d, ia->sparse_values_view, ia->sparse_values_offset);
-        const uint64_t size = component_size(ia->component_type);
-        for (int32_t e = 0; e < ia->sparse_count; e++) {
-            const uint32_t i = load_uint(val + size * (uint64_t)e, ia->component_type);
-            if (i >= nv)
-                return fail(im, TW_ERR_FORMAT,
-                            "meshes[%u].primitives[%u].indices: accessors[%d] sparse value %d "
-                            "is %u, not below the vertex count %llu",
-                            m, k, p->indices, e, i, (unsigned long long)nv);
-        }
+        const uint32_t i = load_uint(val + size * (uint64_t)e, ia->component_type);
+        if (i >= nv)
+            return fail(im, TW_ERR_FORMAT,
+                        "meshes[%u].primitives[%u].indices: accessors[%d] sparse value %d is "
+                        "%u, not below the vertex count %llu",
+                        m, k, p->indices, e, i, (unsigned long long)nv);
+        if (i == restart)
+            return fail(im, TW_ERR_FORMAT,
+                        "meshes[%u].primitives[%u].indices: accessors[%d] sparse value %d is "
+                        "%u, the largest %s, which glTF reserves (primitive restart)",
+                        m, k, p->indices, e, i, component_name(ia->component_type));
     }
-    return TW_OK;
+    return fail(im, TW_ERR_FORMAT, "meshes[%u].primitives[%u].indices: accessors[%d]: a bad index",
+                m, k, p->indices);
 }
 
 static int check_mesh_data(struct importer *im)
@@ -1200,8 +1385,11 @@ static void compose(const double a[12], const double b[12], double out[12])
  * texture that cannot be used costs a warning, never the import. */
 
 #define MAX_SPLIT_COLOURS 64
-#define MAX_TEXTURE_PIXELS (16u << 20)
-#define MAX_DECODED_BYTES (256ull << 20)
+/* A decoded image takes 4 bytes a pixel, however small its PNG: the size
+ * its header gives is bounded before anything is decoded. */
+#define MAX_IMAGE_DECODED_BYTES (64ull << 20)
+/* Texture warnings shown per import; the rest are counted in one line. */
+#define MAX_TEXTURE_WARNINGS 8
 
 enum {
     WRAP_REPEAT = 10497,
@@ -1209,11 +1397,137 @@ enum {
     WRAP_MIRRORED_REPEAT = 33648,
 };
 
+/* Where an image's bytes come from, which makes two images one: a file (by
+ * its identity, however it is named; shared between the imports of a
+ * manifest), a byte range of a buffer, or the bytes of a data: URI (by
+ * content). */
+enum image_source {
+    SOURCE_FILE = 1,
+    SOURCE_VIEW,
+    SOURCE_DATA,
+};
+
 struct decoded_image {
-    int state;                        /* 0 not tried, 1 decoded, -1 unusable (warned) */
+    enum image_source source;
+    uint64_t key[3];                  /* FILE: device, inode; VIEW: buffer, offset, length;
+                                         DATA: hash, size */
+    const uint8_t *bytes;             /* DATA: the document's, to compare */
+    uint64_t hash;
+    int state;                        /* 1 decoded, -1 unusable (warned once) */
     uint32_t width, height;
     uint8_t *rgba;
 };
+
+/* Decoded images by source: an open-addressing table of entries. */
+struct tw_gltf_image_cache {
+    struct decoded_image **entries;
+    uint32_t count, cap;
+    uint32_t *slots;                  /* entry indices; UINT32_MAX: empty */
+    uint32_t size;                    /* a power of two */
+};
+
+static void image_cache_destroy(struct tw_gltf_image_cache *c)
+{
+    if (!c)
+        return;
+    for (uint32_t k = 0; k < c->count; k++) {
+        free(c->entries[k]->rgba);
+        free(c->entries[k]);
+    }
+    free(c->entries);
+    free(c->slots);
+    free(c);
+}
+
+void tw_gltf_shared_finish(struct tw_gltf_shared *shared)
+{
+    if (!shared)
+        return;
+    image_cache_destroy(shared->images);
+    shared->images = NULL;
+}
+
+/* FNV-1a over n bytes. */
+static uint64_t hash_data(const uint8_t *p, uint64_t n)
+{
+    uint64_t h = 0xcbf29ce484222325ull;
+    for (uint64_t k = 0; k < n; k++)
+        h = (h ^ p[k]) * 0x100000001b3ull;
+    return h;
+}
+
+static uint64_t hash_words(const uint64_t *w, int n, uint64_t h)
+{
+    for (int k = 0; k < n; k++) {
+        h ^= w[k];
+        h *= 0x100000001b3ull;
+        h ^= h >> 29;
+    }
+    return h;
+}
+
+static bool same_source(const struct decoded_image *a, const struct decoded_image *b)
+{
+    if (a->source != b->source || a->hash != b->hash ||
+        memcmp(a->key, b->key, sizeof(a->key)) != 0)
+        return false;
+    return a->source != SOURCE_DATA || memcmp(a->bytes, b->bytes, (size_t)a->key[1]) == 0;
+}
+
+/* The entry of probe's source in *cache (created on first use), or a new
+ * one copied from probe with state 0; NULL when out of memory. */
+static struct decoded_image *image_cache_find(struct tw_gltf_image_cache **cache,
+                                              const struct decoded_image *probe)
+{
+    struct tw_gltf_image_cache *c = *cache;
+    if (!c && !(c = *cache = calloc(1, sizeof(*c))))
+        return NULL;
+    if (c->size) {
+        for (uint32_t h = (uint32_t)probe->hash & (c->size - 1); c->slots[h] != UINT32_MAX;
+             h = (h + 1) & (c->size - 1))
+            if (same_source(c->entries[c->slots[h]], probe))
+                return c->entries[c->slots[h]];
+    }
+    if (2 * ((uint64_t)c->count + 1) > c->size) {
+        if (c->size > UINT32_MAX / 4)
+            return NULL;
+        const uint32_t size = c->size ? 2 * c->size : 16;
+        uint32_t *slots = malloc(sizeof(*slots) * size);
+        if (!slots)
+            return NULL;
+        for (uint32_t k = 0; k < size; k++)
+            slots[k] = UINT32_MAX;
+        for (uint32_t e = 0; e < c->count; e++) {
+            uint32_t h = (uint32_t)c->entries[e]->hash & (size - 1);
+            while (slots[h] != UINT32_MAX)
+                h = (h + 1) & (size - 1);
+            slots[h] = e;
+        }
+        free(c->slots);
+        c->slots = slots;
+        c->size = size;
+    }
+    if (c->count == c->cap) {
+        const uint32_t cap = c->cap ? 2 * c->cap : 8;
+        struct decoded_image **grown = realloc(c->entries, sizeof(*grown) * cap);
+        if (!grown)
+            return NULL;
+        c->entries = grown;
+        c->cap = cap;
+    }
+    struct decoded_image *e = malloc(sizeof(*e));
+    if (!e)
+        return NULL;
+    *e = *probe;
+    e->state = 0;
+    e->rgba = NULL;
+    uint32_t h = (uint32_t)e->hash & (c->size - 1);
+    while (c->slots[h] != UINT32_MAX)
+        h = (h + 1) & (c->size - 1);
+    c->slots[h] = c->count;
+    c->entries[c->count++] = e;
+    return e;
+}
 
 struct material_texture {
     int state;                        /* 0 not resolved, 1 textured, -1 none */
@@ -1226,44 +1540,84 @@ struct material_texture {
     double offset[2], a, b, c, d;
 };
 
+/* A texture that cannot be used costs a warning, never the import; past
+ * MAX_TEXTURE_WARNINGS of them they are only counted. */
+static void warn_texture(struct importer *im, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+
+static void warn_texture(struct importer *im, const char *fmt, ...)
+{
+    if (im->texture_warnings++ >= MAX_TEXTURE_WARNINGS)
+        return;
+    char text[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(text, sizeof(text), fmt, ap);
+    va_end(ap);
+    warn(im, "%s", text);
+}
+
+/* Decodes the PNG at bytes into out, within the limits: its header's size is
+ * checked before anything is decoded. false (warned) if it cannot be used. */
 static bool decode_png(struct importer *im, const char *what, const uint8_t *bytes, uint64_t size,
                        struct decoded_image *out)
 {
     static const uint8_t signature[8] = {137, 80, 78, 71, 13, 10, 26, 10};
     if (size < 8 || memcmp(bytes, signature, 8) != 0) {
-        warn(im, "%s: is not a PNG image; its materials keep their base colour factor", what);
+        warn_texture(im, "%s: is not a PNG image; its materials keep their base colour factor",
+                     what);
         return false;
     }
     png_image png;
     memset(&png, 0, sizeof(png));
     png.version = PNG_IMAGE_VERSION;
     if (!png_image_begin_read_from_memory(&png, bytes, (size_t)size)) {
-        warn(im, "%s: cannot decode the PNG (%s); its materials keep their base colour factor",
-             what, png.message);
+        warn_texture(im, "%s: cannot decode the PNG (%s); its materials keep their base colour "
+                         "factor",
+                     what, png.message);
         png_image_free(&png);
         return false;
     }
-    const uint64_t pixels = (uint64_t)png.width * png.height;
-    if (pixels == 0 || pixels > MAX_TEXTURE_PIXELS ||
-        im->decoded_bytes + 4 * pixels > MAX_DECODED_BYTES) {
-        warn(im, "%s: a %u x %u PNG is beyond the limit of %u pixels (%llu MiB decoded per "
-                 "import); its materials keep their base colour factor",
-             what, png.width, png.height, MAX_TEXTURE_PIXELS, MAX_DECODED_BYTES >> 20);
+    const uint64_t decoded = 4ull * png.width * png.height;
+    struct tw_gltf_shared *sh = im->shared;
+    char a[32], b[32], c[32];
+    if (decoded == 0 || decoded > MAX_IMAGE_DECODED_BYTES) {
+        warn_texture(im, "%s: a %u x %u PNG would decode to %s, more than the limit of %s per "
+                         "image; its materials keep their base colour factor",
+                     what, png.width, png.height, byte_size(decoded, a, sizeof(a)),
+                     byte_size(MAX_IMAGE_DECODED_BYTES, b, sizeof(b)));
+        png_image_free(&png);
+        return false;
+    }
+    if (sh->decoded_bytes + decoded > sh->max_decoded_bytes) {
+        warn_texture(im, "%s: a %u x %u PNG would decode to %s, and the images decoded before "
+                         "it hold %s: more than the limit of %s %s; its materials keep their "
+                         "base colour factor",
+                     what, png.width, png.height, byte_size(decoded, a, sizeof(a)),
+                     byte_size(sh->decoded_bytes, b, sizeof(b)),
+                     byte_size(sh->max_decoded_bytes, c, sizeof(c)),
+                     im->own_shared ? "per import" : "per manifest");
         png_image_free(&png);
         return false;
     }
     png.format = PNG_FORMAT_RGBA;
-    uint8_t *rgba = malloc((size_t)(4 * pixels));
+    uint8_t *rgba = malloc((size_t)decoded);
     if (!rgba) {
-        warn(im, "%s: out of memory decoding the PNG; its materials keep their base colour "
-                 "factor",
-             what);
+        warn_texture(im, "%s: out of memory decoding the PNG; its materials keep their base "
+                         "colour factor",
+                     what);
         png_image_free(&png);
         return false;
     }
+    /* Charged before decoding: a PNG that fails halfway cost its time. */
+    sh->decoded_bytes += decoded;
     if (!png_image_finish_read(&png, NULL, rgba, 0, NULL)) {
-        warn(im, "%s: cannot decode the PNG (%s); its materials keep their base colour factor",
-             what, png.message);
+        warn_texture(im, "%s: cannot decode the PNG (%s); its materials keep their base colour "
+                         "factor",
+                     what, png.message);
         png_image_free(&png);
         free(rgba);
         return false;
@@ -1272,70 +1626,132 @@ static bool decode_png(struct importer *im, const char *what, const uint8_t *byt
     out->width = png.width;
     out->height = png.height;
     out->rgba = rgba;
-    im->decoded_bytes += 4 * pixels;
     return true;
 }
 
-/* Image index decoded once per import; NULL (warned once) if unusable. */
+/* The entry of an external image file, opened beneath the document's
+ * folder: by its identity, in the shared cache, read and decoded the first
+ * time. NULL (warned) if unusable. */
+static struct decoded_image *load_image_file(struct importer *im, uint32_t index, const char *uri)
+{
+    char what[320], shown[224];
+    snprintf(what, sizeof(what), "images[%u] \"%s\"", index,
+             tw_log_escape(uri, shown, sizeof(shown)));
+    if (im->dir_fd < 0) {
+        warn_texture(im, "%s: external files are not allowed here; its materials keep their "
+                         "base colour factor",
+                     what);
+        return NULL;
+    }
+    char *rel = uri_decode(uri);
+    if (!rel) {
+        warn_texture(im, "%s cannot be read: out of memory; its materials keep their base colour "
+                         "factor",
+                     what);
+        return NULL;
+    }
+    int fd = -1;
+    const char *reason = NULL;
+    int err = tw_confined_open(im->dir_fd, rel, TW_CONFINED_AUTO, &fd, &reason);
+    free(rel);
+    struct stat st;
+    if (!err && fstat(fd, &st) != 0) {
+        reason = "cannot be read";
+        err = TW_ERR_IO;
+    }
+    if (err) {
+        if (fd >= 0)
+            close(fd);
+        warn_texture(im, "%s %s; its materials keep their base colour factor", what,
+                     reason ? reason : "cannot be opened");
+        return NULL;
+    }
+    struct decoded_image probe = {SOURCE_FILE, {(uint64_t)st.st_dev, (uint64_t)st.st_ino, 0},
+                                  NULL, 0, 0, 0, 0, NULL};
+    probe.hash = hash_words(probe.key, 3, SOURCE_FILE);
+    struct decoded_image *e = image_cache_find(&im->shared->images, &probe);
+    if (!e || e->state) {
+        close(fd);
+        if (!e)
+            warn_texture(im, "%s: out of memory; its materials keep their base colour factor",
+                         what);
+        return e;
+    }
+    e->state = -1;
+    uint8_t *bytes = NULL;
+    size_t size = 0;
+    char why[512];
+    err = read_fd(im, fd, &bytes, &size, why, sizeof(why));
+    close(fd);
+    if (err) {
+        warn_texture(im, "%s %s; its materials keep their base colour factor", what, why);
+        return e;
+    }
+    if (decode_png(im, what, bytes, size, e))
+        e->state = 1;
+    free(bytes);
+    return e;
+}
+
+/* Image index, resolved once per import and decoded once per source; NULL
+ * (warned once per source) if unusable. */
 static const struct decoded_image *load_image(struct importer *im, uint32_t index)
 {
-    struct decoded_image *di = &im->images[index];
-    if (di->state)
-        return di->state > 0 ? di : NULL;
-    di->state = -1;
+    if (im->image_of[index])
+        return im->image_of[index]->state > 0 ? im->image_of[index] : NULL;
     const struct tw_gltf_doc *d = im->doc;
     const struct tw_gltf_doc_image *img = &d->images[index];
+    struct decoded_image *e = NULL;
     char what[320];
-    bool ok = false;
     if (img->uri) {
-        char shown[224];
-        snprintf(what, sizeof(what), "images[%u] \"%s\"", index,
-                 tw_log_escape(img->uri, shown, sizeof(shown)));
-        if (im->dir_fd < 0) {
-            warn(im, "%s: external files are not allowed here; its materials keep their base "
-                     "colour factor",
-                 what);
-            return NULL;
+        e = load_image_file(im, index, img->uri);
+    } else if (img->buffer_view >= 0 || img->data) {
+        struct decoded_image probe = {0};
+        const uint8_t *bytes = NULL;
+        uint64_t size = 0;
+        if (img->buffer_view >= 0) {
+            snprintf(what, sizeof(what), "images[%u] (bufferViews[%d])", index, img->buffer_view);
+            if ((uint32_t)img->buffer_view >= d->buffer_view_count) {
+                warn_texture(im, "%s: not a buffer view (%u); its materials keep their base "
+                                 "colour factor",
+                             what, d->buffer_view_count);
+                return NULL;
+            }
+            /* Checked against its buffer by check_buffer_views(). */
+            const struct tw_gltf_doc_buffer_view *v = &d->buffer_views[img->buffer_view];
+            bytes = d->buffers[v->buffer].data;
+            bytes = bytes ? bytes + v->byte_offset : bytes;
+            size = bytes ? v->byte_length : 0;
+            probe.source = SOURCE_VIEW;
+            probe.key[0] = (uint64_t)v->buffer;
+            probe.key[1] = v->byte_offset;
+            probe.key[2] = v->byte_length;
+            probe.hash = hash_words(probe.key, 3, SOURCE_VIEW);
+        } else {
+            snprintf(what, sizeof(what), "images[%u] (a data: URI)", index);
+            bytes = img->data;
+            size = img->size;
+            probe.source = SOURCE_DATA;
+            probe.bytes = bytes;
+            probe.key[0] = hash_data(bytes, size);
+            probe.key[1] = size;
+            probe.hash = hash_words(probe.key, 2, SOURCE_DATA);
         }
-        char *rel = uri_decode(img->uri);
-        if (!rel) {
-            warn(im, "%s cannot be read: out of memory; its materials keep their base colour "
-                     "factor",
-                 what);
-            return NULL;
+        e = image_cache_find(&im->images, &probe);
+        if (!e) {
+            warn_texture(im, "%s: out of memory; its materials keep their base colour factor",
+                         what);
+        } else if (!e->state) {
+            e->state = decode_png(im, what, bytes, size, e) ? 1 : -1;
         }
-        uint8_t *bytes = NULL;
-        size_t size = 0;
-        char why[512];
-        const int err = read_beneath(im, rel, &bytes, &size, why, sizeof(why));
-        free(rel);
-        if (err) {
-            warn(im, "%s %s; its materials keep their base colour factor", what, why);
-            return NULL;
-        }
-        ok = decode_png(im, what, bytes, size, di);
-        free(bytes);
-    } else if (img->buffer_view >= 0) {
-        snprintf(what, sizeof(what), "images[%u] (bufferViews[%d])", index, img->buffer_view);
-        if ((uint32_t)img->buffer_view >= d->buffer_view_count) {
-            warn(im, "%s: not a buffer view (%u); its materials keep their base colour factor",
-                 what, d->buffer_view_count);
-            return NULL;
-        }
-        /* Checked against its buffer by check_buffer_views(). */
-        const struct tw_gltf_doc_buffer_view *v = &d->buffer_views[img->buffer_view];
-        const uint8_t *bytes = d->buffers[v->buffer].data;
-        ok = decode_png(im, what, bytes ? bytes + v->byte_offset : bytes,
-                        bytes ? v->byte_length : 0, di);
-    } else if (img->data) {
-        snprintf(what, sizeof(what), "images[%u] (a data: URI)", index);
-        ok = decode_png(im, what, img->data, img->size, di);
     } else {
-        warn(im, "images[%u]: has no data; its materials keep their base colour factor", index);
+        warn_texture(im, "images[%u]: has no data; its materials keep their base colour factor",
+                     index);
     }
-    if (ok)
-        di->state = 1;
-    return ok ? di : NULL;
+    if (!e)
+        return NULL;
+    im->image_of[index] = e;
+    return e->state > 0 ? e : NULL;
 }
 
 /* The usable baseColorTexture of material index, resolved (and warned about)
@@ -1352,20 +1768,20 @@ static const struct material_texture *material_texture(struct importer *im, uint
     if (t < 0)
         return NULL;
     if ((uint32_t)t >= d->texture_count) {
-        warn(im, "materials[%u].pbrMetallicRoughness.baseColorTexture: %d is not a texture "
+        warn_texture(im, "materials[%u].pbrMetallicRoughness.baseColorTexture: %d is not a texture "
                  "(%u); using the base colour factor",
              index, t, d->texture_count);
         return NULL;
     }
     if (mat->base_color_texcoord < 0 || mat->base_color_texcoord > 99) {
-        warn(im, "materials[%u].pbrMetallicRoughness.baseColorTexture.texCoord: %d is not "
+        warn_texture(im, "materials[%u].pbrMetallicRoughness.baseColorTexture.texCoord: %d is not "
                  "valid; using the base colour factor",
              index, mat->base_color_texcoord);
         return NULL;
     }
     const struct tw_gltf_doc_texture *tex = &d->textures[t];
     if (tex->source < 0 || (uint32_t)tex->source >= d->image_count) {
-        warn(im, "textures[%d].source: %d is not an image (%u); using the base colour factor", t,
+        warn_texture(im, "textures[%d].source: %d is not an image (%u); using the base colour factor", t,
              tex->source, d->image_count);
         return NULL;
     }
@@ -1383,7 +1799,7 @@ static const struct material_texture *material_texture(struct importer *im, uint
         const double xf[6] = {mat->uv_offset[0], mat->uv_offset[1], cos(r) * sx, sin(r) * sy,
                              -sin(r) * sx, cos(r) * sy};
         if (!all_finite(xf, 6)) {
-            warn(im, "materials[%u].pbrMetallicRoughness.baseColorTexture.extensions."
+            warn_texture(im, "materials[%u].pbrMetallicRoughness.baseColorTexture.extensions."
                      "KHR_texture_transform: a value is not finite; ignored",
                  index);
         } else {
@@ -1423,7 +1839,8 @@ static int32_t colour_attribute(struct importer *im, uint32_t m, uint32_t k, con
                            a->component_type == COMP_UNSIGNED_SHORT) &&
                           a->normalized);
     if (!type_ok || !comp_ok || a->count != nv) {
-        warn(im, "meshes[%u].primitives[%u].attributes.%s: accessors[%d] is not %u %s of FLOAT "
+        warn_texture(im, "meshes[%u].primitives[%u].attributes.%s: accessors[%d] is not %u %s of "
+                         "FLOAT "
                  "or %s; ignored",
              m, k, name, acc, nv, want == 2 ? "VEC2" : "VEC3/VEC4",
              want == 2 ? "8- or 16-bit integers" : "normalized UNSIGNED_BYTE/SHORT");
@@ -1652,7 +2069,8 @@ static int add_primitive(struct importer *im, uint32_t m, uint32_t k, struct pal
         snprintf(name, sizeof(name), "TEXCOORD_%u", tex->texcoord);
         uv_acc = colour_attribute(im, m, k, name, 2, nv);
         if (uv_acc < 0 && find_attribute(&d->meshes[m].primitives[k], name) < 0)
-            warn(im, "meshes[%u].primitives[%u]: materials[%u] has a baseColorTexture but the "
+            warn_texture(im, "meshes[%u].primitives[%u]: materials[%u] has a baseColorTexture but "
+                             "the "
                      "primitive has no %s; using the base colour factor",
                  m, k, material, name);
     }
@@ -1849,17 +2267,29 @@ static char *copy_string(const char *s)
     return c;
 }
 
+/* The extensions a document may require: those read here, and those whose
+ * absence changes only what this importer does not draw anyway (material
+ * models, lights, image formats: a texture that is not a PNG leaves the base
+ * colour, with a warning). Any other name, a misspelt one included, may
+ * change geometry (compression, GPU instancing) and is refused: glTF 2.0
+ * §3.12, a loader MUST NOT load a document requiring an extension it does
+ * not support. */
 static bool supported_extension(const char *name)
 {
-    /* Required extensions that change only materials or textures can be
-     * ignored; anything else (compression) changes geometry. */
-    static const char *const prefixes[] = {"KHR_materials_", "KHR_texture_", "KHR_lights_",
-                                           "EXT_texture_", NULL};
-    for (const char *const *p = prefixes; *p; p++)
-        if (strncmp(name, *p, strlen(*p)) == 0)
+    static const char *const names[] = {
+        "KHR_mesh_quantization",           /* integer vertex attributes, dequantised */
+        "KHR_texture_transform",           /* read for base colour textures */
+        "KHR_materials_anisotropy", "KHR_materials_clearcoat", "KHR_materials_diffuse_transmission",
+        "KHR_materials_dispersion", "KHR_materials_emissive_strength", "KHR_materials_ior",
+        "KHR_materials_iridescence", "KHR_materials_pbrSpecularGlossiness",
+        "KHR_materials_sheen", "KHR_materials_specular", "KHR_materials_transmission",
+        "KHR_materials_unlit", "KHR_materials_variants", "KHR_materials_volume",
+        "KHR_lights_punctual", "KHR_texture_basisu", "EXT_texture_webp", "EXT_texture_avif",
+        "KHR_xmp_json_ld", NULL};
+    for (const char *const *n = names; *n; n++)
+        if (strcmp(name, *n) == 0)
             return true;
-    /* Integer vertex attributes, dequantised on import (check_meshes()). */
-    return strcmp(name, "KHR_mesh_quantization") == 0;
+    return false;
 }
 
 /* Builds the scene from a checked document. Linear in the document's size:
@@ -1941,7 +2371,7 @@ static int build_scene(struct importer *im, const int32_t *parent, struct tw_glt
     }
 
     /* Depth first; every node is pushed at most once (one parent, no cycle). */
-    uint64_t drawn = 0, vertices = 0;
+    uint64_t drawn = 0, vertices = 0, converted = 0;
     while (top > 0) {
         const uint32_t n = stack[--top];
         const struct tw_gltf_doc_node *node = &d->nodes[n];
@@ -1970,11 +2400,19 @@ static int build_scene(struct importer *im, const int32_t *parent, struct tw_glt
             mesh_slot[m] = sc->mesh_count++;
             sc->unique_triangles += tris;
             /* Accessors without a buffer view hold any count in no bytes:
-             * bound vertices too before anything is allocated for them. */
+             * bound vertices too before anything is allocated for them, and
+             * what converting takes by what was read. */
             for (uint32_t k = 0; k < d->meshes[m].primitive_count; k++) {
-                const int32_t pos = find_attribute(&d->meshes[m].primitives[k], "POSITION");
-                if (pos >= 0)
-                    vertices += d->accessors[pos].count;
+                const struct tw_gltf_doc_primitive *p = &d->meshes[m].primitives[k];
+                const int32_t pos = find_attribute(p, "POSITION");
+                if (pos < 0 || !draws_triangles(p))
+                    continue;
+                const uint64_t nv = d->accessors[pos].count;
+                uint64_t t;
+                primitive_triangles(im, m, k, &t);
+                vertices += nv;
+                converted += 12 * nv * (find_attribute(p, "NORMAL") >= 0 ? 2 : 1) + 12 * t +
+                             (p->indices >= 0 ? 4 * d->accessors[p->indices].count : 0);
             }
             if (vertices > 3 * im->settings.max_triangles) {
                 err = fail(im, TW_ERR_LIMIT,
@@ -1987,6 +2425,17 @@ static int build_scene(struct importer *im, const int32_t *parent, struct tw_glt
                 err = fail(im, TW_ERR_LIMIT,
                            "meshes: more than the limit of %llu triangles",
                            (unsigned long long)im->settings.max_triangles);
+                goto out;
+            }
+            const uint64_t allowed = MEMORY_BASE + MEMORY_PER_BYTE * im->bytes_read;
+            if (converted > allowed) {
+                char a[32], b[32];
+                err = fail(im, TW_ERR_LIMIT,
+                           "meshes[%u]: converting the scene's meshes would take %s, more than "
+                           "the %s allowed for %llu bytes of file and buffers (64 MiB + 32 "
+                           "bytes per byte)",
+                           m, byte_size(converted, a, sizeof(a)), byte_size(allowed, b, sizeof(b)),
+                           (unsigned long long)im->bytes_read);
                 goto out;
             }
         }
@@ -2161,7 +2610,8 @@ static uint64_t memory_estimate(const struct tw_gltf_scan *s)
     bytes += s->counts[TW_GLTF_NODES] * (4 + 4 + 96 + sizeof(struct tw_gltf_instance) + 4 + 1);
     bytes += s->counts[TW_GLTF_MATERIALS] * (sizeof(struct tw_material) +
                                              sizeof(struct material_texture));
-    bytes += s->counts[TW_GLTF_IMAGES] * sizeof(struct decoded_image);
+    bytes += s->counts[TW_GLTF_IMAGES] * (sizeof(struct decoded_image) + 2 * sizeof(void *));
+    bytes += s->counts[TW_GLTF_ACCESSORS] * sizeof(struct accessor_facts);
     bytes += s->counts[TW_GLTF_PRIMITIVES] * sizeof(struct tw_gltf_primitive);
     return bytes;
 }
@@ -2174,7 +2624,74 @@ static const char *extension_advice(const char *name)
     if (strcmp(name, "EXT_meshopt_compression") == 0 ||
         strcmp(name, "KHR_meshopt_compression") == 0)
         return " (meshopt-compressed buffers: write the file without -c, e.g. gltfpack -noq)";
+    if (strcmp(name, "EXT_mesh_gpu_instancing") == 0)
+        return " (GPU instancing: each mesh would be drawn once instead of at every instance)";
     return "";
+}
+
+/* A glTF version "<major>.<minor>" (the schema's pattern ^[0-9]+\.[0-9]+$)
+ * of length bytes at text; false if it is not one. */
+static bool parse_version(const char *text, size_t length, uint32_t *major, uint32_t *minor)
+{
+    uint32_t part[2] = {0, 0};
+    size_t k = 0;
+    for (int p = 0; p < 2; p++) {
+        const size_t start = k;
+        while (k < length && text[k] >= '0' && text[k] <= '9') {
+            if (part[p] > 100000000u)
+                return false;
+            part[p] = 10 * part[p] + (uint32_t)(text[k++] - '0');
+        }
+        if (k == start || (p == 0 && (k == length || text[k++] != '.')))
+            return false;
+    }
+    if (k != length)
+        return false;
+    *major = part[0];
+    *minor = part[1];
+    return true;
+}
+
+/* glTF 2.0 §3.2 and the asset schema: asset.version is "<major>.<minor>",
+ * and a reader refuses another major version, and a minVersion above the
+ * 2.0 it reads (minVersion may not exceed version). A NULL text is absent;
+ * *_typed false: given, but not as a string. */
+static int check_version(struct importer *im, const char *version, size_t version_len,
+                         bool version_typed, const char *min_version, size_t min_len,
+                         bool min_typed)
+{
+    char shown[48];
+    uint32_t major, minor, min_major, min_minor;
+    if (!version_typed)
+        return fail(im, TW_ERR_FORMAT, "asset.version: must be a string such as \"2.0\"");
+    if (!version)
+        return fail(im, TW_ERR_FORMAT, "asset.version: is missing");
+    tw_log_escape_bytes(version, version_len, shown, sizeof(shown));
+    if (!parse_version(version, version_len, &major, &minor))
+        return fail(im, TW_ERR_FORMAT, "asset.version: \"%s\" is not <major>.<minor>", shown);
+    if (major != 2)
+        return fail(im, TW_ERR_FORMAT,
+                    "asset.version: \"%s\" is glTF %u; this importer reads glTF 2.x", shown,
+                    major);
+    if (!min_typed)
+        return fail(im, TW_ERR_FORMAT, "asset.minVersion: must be a string such as \"2.0\"");
+    if (!min_version)
+        return TW_OK;
+    char min_shown[48];
+    tw_log_escape_bytes(min_version, min_len, min_shown, sizeof(min_shown));
+    if (!parse_version(min_version, min_len, &min_major, &min_minor))
+        return fail(im, TW_ERR_FORMAT, "asset.minVersion: \"%s\" is not <major>.<minor>",
+                    min_shown);
+    if (min_major > major || (min_major == major && min_minor > minor))
+        return fail(im, TW_ERR_FORMAT,
+                    "asset.minVersion: \"%s\" is greater than asset.version \"%s\"", min_shown,
+                    shown);
+    if (min_major != 2 || min_minor > 0)
+        return fail(im, TW_ERR_FORMAT,
+                    "asset.minVersion: \"%s\": the document needs a glTF %u.%u reader; this "
+                    "importer reads glTF 2.0",
+                    min_shown, min_major, min_minor);
+    return TW_OK;
 }
 
 /* The first required extension that the importer does not support, by name
@@ -2221,6 +2738,52 @@ static int import_document(struct importer *im, const uint8_t *data, size_t size
         err = fail(im, TW_ERR_LIMIT, "JSON: %llu values, more than the limit of %d",
                    (unsigned long long)scan.values, MAX_JSON_VALUES);
         goto out;
+    }
+    {
+        /* What tinygltf would refuse with a message that hides the cause
+         * ("JSON string too short"): an empty text, a root that is not an
+         * object. */
+        size_t first = text_len >= 3 && memcmp(text, "\xef\xbb\xbf", 3) == 0 ? 3 : 0;
+        while (first < text_len && (text[first] == ' ' || text[first] == '\t' ||
+                                    text[first] == '\n' || text[first] == '\r'))
+            first++;
+        if (first == text_len) {
+            err = fail(im, TW_ERR_FORMAT, "JSON: is empty%s",
+                       text == data ? "" : " (the GLB's JSON chunk)");
+            goto out;
+        }
+        if (text[first] != '{') {
+            if (text[first] >= ' ' && text[first] < 0x7f)
+                err = fail(im, TW_ERR_FORMAT, "JSON: the document is not a JSON object (it "
+                                              "starts with '%c')",
+                           text[first]);
+            else
+                err = fail(im, TW_ERR_FORMAT, "is neither a GLB (it does not start with "
+                                              "\"glTF\") nor JSON text");
+            goto out;
+        }
+    }
+    /* The version first: a document for another glTF is refused as such,
+     * not by what tinygltf trips on. */
+    if (scan.valid && !scan.asset_found) {
+        err = fail(im, TW_ERR_FORMAT, "asset: is missing or not an object (it gives the glTF "
+                                      "version)");
+        goto out;
+    }
+    if (scan.asset_found &&
+        (err = check_version(im, scan.version.text, scan.version.length,
+                             !scan.version_not_string, scan.min_version.text,
+                             scan.min_version.length, !scan.min_version_not_string)))
+        goto out;
+    /* Only a GLB's buffer may omit its uri (the first: it is the BIN
+     * chunk); tinygltf's message would say "File not found". */
+    for (uint32_t k = 0; scan.valid && text == data && k < scan.buffer_uri_count; k++) {
+        if (!scan.buffer_uris[k].text) {
+            err = fail(im, TW_ERR_FORMAT, "buffers[%u]: has no uri (only a .glb's first buffer "
+                                          "may omit it)",
+                       k);
+            goto out;
+        }
     }
     {
         /* Before tinygltf: it would trip over what the extension changes
@@ -2290,20 +2853,21 @@ static int import_document(struct importer *im, const uint8_t *data, size_t size
     }
     im->doc = &doc;
 
-    if (!doc.version || doc.version[0] != '2' || doc.version[1] != '.') {
-        char shown[48];
-        err = fail(im, TW_ERR_FORMAT, "asset.version: \"%s\" is not 2.x",
-                   tw_log_escape(doc.version ? doc.version : "", shown, sizeof(shown)));
+    /* Checked on the scan already; again on what tinygltf read. */
+    if ((err = check_version(im, doc.version && doc.version[0] ? doc.version : NULL,
+                             doc.version ? strlen(doc.version) : 0, true,
+                             doc.min_version && doc.min_version[0] ? doc.min_version : NULL,
+                             doc.min_version ? strlen(doc.min_version) : 0, true)))
         goto out;
-    }
     if ((err = check_required(im, doc.extensions_required, NULL, doc.extensions_required_count)))
         goto out;
     parent = malloc(sizeof(*parent) * (doc.node_count ? doc.node_count : 1));
     sc = calloc(1, sizeof(*sc));
-    im->images = calloc(doc.image_count ? doc.image_count : 1, sizeof(*im->images));
+    im->image_of = calloc(doc.image_count ? doc.image_count : 1, sizeof(*im->image_of));
+    im->facts = calloc(doc.accessor_count ? doc.accessor_count : 1, sizeof(*im->facts));
     im->material_textures =
         calloc(doc.material_count ? doc.material_count : 1, sizeof(*im->material_textures));
-    if (!parent || !sc || !im->images || !im->material_textures) {
+    if (!parent || !sc || !im->image_of || !im->facts || !im->material_textures) {
         err = fail(im, TW_ERR_NOMEM, "out of memory");
         goto out;
     }
@@ -2329,12 +2893,17 @@ static int import_document(struct importer *im, const uint8_t *data, size_t size
 out:
     tw_gltf_scene_destroy(sc);
     free(parent);
-    for (uint32_t k = 0; im->images && k < doc.image_count; k++)
-        free(im->images[k].rgba);
-    free(im->images);
+    if (im->texture_warnings > MAX_TEXTURE_WARNINGS)
+        warn(im, "%u more warnings about textures and colours not shown",
+             im->texture_warnings - MAX_TEXTURE_WARNINGS);
+    image_cache_destroy(im->images);
+    free(im->image_of);
+    free(im->facts);
+    im->facts = NULL;
     free(im->material_textures);
     free(im->uri_used);
     im->images = NULL;
+    im->image_of = NULL;
     im->material_textures = NULL;
     im->uri_used = NULL;
     im->scan = NULL;
@@ -2344,8 +2913,12 @@ out:
     return err;
 }
 
-static int report(const struct importer *im, const struct tw_log *log, int err)
+/* The end of an import: logs the error, if any, and frees the import's own
+ * shared state. */
+static int import_end(struct importer *im, const struct tw_log *log, int err)
 {
+    if (im->own_shared)
+        tw_gltf_shared_finish(im->shared);
     if (err)
         tw_log_printf(log, TW_LOG_ERROR, "%s: %s", im->shown,
                       im->msg[0] ? im->msg : tw_error_to_str(err));
@@ -2353,7 +2926,8 @@ static int report(const struct importer *im, const struct tw_log *log, int err)
 }
 
 static void importer_init(struct importer *im, const char *name,
-                          const struct tw_gltf_settings *settings, const struct tw_log *log)
+                          const struct tw_gltf_settings *settings, struct tw_gltf_shared *shared,
+                          const struct tw_log *log)
 {
     memset(im, 0, sizeof(*im));
     im->name = name;
@@ -2361,20 +2935,26 @@ static void importer_init(struct importer *im, const char *name,
     im->dir_fd = -1;
     im->log = log;
     im->settings = resolve_settings(settings);
+    im->own_shared = !shared;
+    im->shared = shared ? shared : &im->own;
+    if (!im->shared->max_bytes_read)
+        im->shared->max_bytes_read = (shared ? 4 : 1) * im->settings.max_file_bytes;
+    if (!im->shared->max_decoded_bytes)
+        im->shared->max_decoded_bytes = TW_GLTF_MAX_DECODED_BYTES;
 }
 
 /* The start of an import from memory or a file: out checked and cleared,
  * im set up. */
 static int import_begin(struct importer *im, const char *name,
-                        const struct tw_gltf_settings *settings, const struct tw_log *log,
-                        struct tw_gltf_scene **out)
+                        const struct tw_gltf_settings *settings, struct tw_gltf_shared *shared,
+                        const struct tw_log *log, struct tw_gltf_scene **out)
 {
     if (!out) {
-        tw_log_printf(log, TW_LOG_ERROR, "gltf: import: out is NULL (caller's bug)");
+        tw_log_printf(log, TW_LOG_ERROR, "glTF import: out is NULL (caller's bug)");
         return TW_ERR_INVALID;
     }
     *out = NULL;
-    importer_init(im, name, settings, log);
+    importer_init(im, name, settings, shared, log);
     return TW_OK;
 }
 
@@ -2383,49 +2963,51 @@ int tw_gltf_import_memory(const void *data, size_t size, const char *name, const
                           struct tw_gltf_scene **out)
 {
     struct importer im;
-    if (import_begin(&im, name ? name : "(memory)", settings, log, out))
+    if (import_begin(&im, name ? name : "(memory)", settings, NULL, log, out))
         return TW_ERR_INVALID;
     if (!data && size)
-        return report(&im, log, fail(&im, TW_ERR_INVALID, "no data (caller's bug)"));
+        return import_end(&im, log, fail(&im, TW_ERR_INVALID, "no data (caller's bug)"));
     if (size > im.settings.max_file_bytes)
-        return report(&im, log,
-                      fail(&im, TW_ERR_LIMIT, "is %zu bytes, more than the limit of %llu bytes",
-                           size, (unsigned long long)im.settings.max_file_bytes));
+        return import_end(&im, log,
+                          fail(&im, TW_ERR_LIMIT,
+                               "is %zu bytes, more than the limit of %llu bytes", size,
+                               (unsigned long long)im.settings.max_file_bytes));
     if (base_dir) {
         im.dir_fd = tw_confined_open_folder(base_dir);
         if (im.dir_fd < 0) {
             char shown[256];
-            return report(&im, log,
-                          fail(&im, TW_ERR_IO, "the folder of external files \"%s\": %s",
-                               tw_log_escape(base_dir, shown, sizeof(shown)), strerror(errno)));
+            return import_end(&im, log,
+                              fail(&im, TW_ERR_IO, "the folder of external files \"%s\": %s",
+                                   tw_log_escape(base_dir, shown, sizeof(shown)),
+                                   strerror(errno)));
         }
     }
     im.bytes_read = size;
+    im.shared->bytes_read += size;
     static const uint8_t nothing = 0;
     const int err = import_document(&im, data ? data : &nothing, size, out);
     if (im.dir_fd >= 0)
         close(im.dir_fd);
-    return report(&im, log, err);
+    return import_end(&im, log, err);
 }
 
 int tw_gltf_import_fd(int fd, int dir_fd, const char *name,
-                      const struct tw_gltf_settings *settings, const struct tw_log *log,
-                      struct tw_gltf_scene **out)
+                      const struct tw_gltf_settings *settings, struct tw_gltf_shared *shared,
+                      const struct tw_log *log, struct tw_gltf_scene **out)
 {
     struct importer im;
-    if (import_begin(&im, name ? name : "(file)", settings, log, out))
+    if (import_begin(&im, name ? name : "(file)", settings, shared, log, out))
         return TW_ERR_INVALID;
     uint8_t *data = NULL;
     size_t size = 0;
     char why[512];
-    int err = tw_confined_read(fd, im.settings.max_file_bytes, &data, &size, why, sizeof(why));
+    int err = read_fd(&im, fd, &data, &size, why, sizeof(why));
     if (err)
-        return report(&im, log, fail(&im, err, "%s", why));
+        return import_end(&im, log, fail(&im, err, "%s", why));
     im.dir_fd = dir_fd;
-    im.bytes_read = size;
     err = import_document(&im, data, size, out);
     free(data);
-    return report(&im, log, err);
+    return import_end(&im, log, err);
 }
 
 int tw_gltf_import(const char *path, const struct tw_gltf_settings *settings,
@@ -2442,12 +3024,12 @@ int tw_gltf_import(const char *path, const struct tw_gltf_settings *settings,
     int err = tw_confined_open_user(path, &fd, why, sizeof(why));
     if (err) {
         struct importer im;
-        importer_init(&im, path, settings, log);
-        return report(&im, log, fail(&im, err, "%s", why));
+        importer_init(&im, path, settings, NULL, log);
+        return import_end(&im, log, fail(&im, err, "%s", why));
     }
     /* External files resolve beneath the document's own folder. */
     const int dir_fd = tw_confined_open_folder_of(path);
-    err = tw_gltf_import_fd(fd, dir_fd, path, settings, log, out);
+    err = tw_gltf_import_fd(fd, dir_fd, path, settings, NULL, log, out);
     close(fd);
     if (dir_fd >= 0)
         close(dir_fd);

@@ -75,6 +75,11 @@
 #define MAX_OBJECTS 65536
 #define MAX_FILES 1024
 #define MAX_INSTANCES (1u << 20)
+/* Triangles placed: a prototype draws at most the glTF limit
+ * (settings.gltf.max_triangles, 10 M by default), the tileset's prototypes
+ * together at most PLACED_TRIANGLES_FACTOR times it (finishing the tileset
+ * visits each). */
+#define PLACED_TRIANGLES_FACTOR 10ull
 #define DEFAULT_CLUSTER_TRIANGLES 2048
 #define MIN_FACTOR 1e-6                /* weights and scales */
 #define MAX_FACTOR 1e6
@@ -84,6 +89,7 @@ struct imported_file {
     ino_t ino;
     struct tw_gltf_scene *scene;
     struct tw_gltf_binding binding;
+    uint64_t instances;            /* what one placement adds: tileset instances */
 };
 
 /* A name as written in the manifest and the file it opened. */
@@ -115,7 +121,10 @@ struct loader {
     struct index_table name_table;
     struct index_table prototype_table; /* prototype names */
     uint64_t file_bytes;           /* summed sizes of the imported files */
+    struct tw_gltf_shared shared;  /* bytes read and decoded by all the imports together */
     uint64_t instances;            /* placed so far */
+    uint64_t triangles;            /* placed so far */
+    uint64_t prototype_triangles;  /* placed so far in the current prototype */
     char place[160];               /* JSON place of the value being read */
     char msg[1536];
 };
@@ -480,7 +489,8 @@ static int get_file(struct loader *ld, const char *rel, struct imported_file **o
     }
     struct captured_log cap = {ld->log, ""};
     const struct tw_log capture_log = {capture, &cap};
-    err = tw_gltf_import_fd(fd, dir_fd, rel, &ld->settings.gltf, &capture_log, &f->scene);
+    err = tw_gltf_import_fd(fd, dir_fd, rel, &ld->settings.gltf, &ld->shared, &capture_log,
+                            &f->scene);
     close(fd);
     close(dir_fd);
     if (err)
@@ -491,6 +501,8 @@ static int get_file(struct loader *ld, const char *rel, struct imported_file **o
         return fail(ld, TW_ERR_LIMIT,
                     "the manifest's glTF files hold more than %llu bytes of geometry",
                     (unsigned long long)(4 * ld->settings.gltf.max_file_bytes));
+    for (uint32_t k = 0; k < f->scene->instance_count; k++)
+        f->instances += f->scene->meshes[f->scene->instances[k].mesh].primitive_count;
     err = tw_gltf_bind(f->scene, ld->ts, &f->binding);
     if (err)
         return fail(ld, err, "cannot add \"%s\" to the tileset: %s", shown,
@@ -507,6 +519,7 @@ static int place_object(struct loader *ld, uint32_t proto, const struct json_obj
     float position[3] = {0, 0, 0}, yaw = 0.0f, scale = 1.0f;
     const char *rel = NULL;
     struct json_object *v;
+    char shown[256];
     int err;
 
     set_place(ld, "%s.gltf", prefix);
@@ -559,16 +572,33 @@ static int place_object(struct loader *ld, uint32_t proto, const struct json_obj
                         "every frame would have to consider the cells it overhangs (scale %g)",
                         span, "xyz"[a], (double)TW_TILES_MAX_SPAN, most, scale);
     }
+    /* Counted before anything is placed: a file of many triangles placed
+     * many times multiplies what finishing the tileset and every frame cost. */
     set_place(ld, "%s.gltf", prefix);
-    uint64_t added = 0;
-    for (uint32_t k = 0; k < f->scene->instance_count; k++)
-        added += f->scene->meshes[f->scene->instances[k].mesh].primitive_count;
-    if ((ld->instances += added) > MAX_INSTANCES)
+    if ((ld->instances += f->instances) > MAX_INSTANCES)
         return fail(ld, TW_ERR_LIMIT, "the tileset would hold more than %u instances",
                     MAX_INSTANCES);
+    ld->prototype_triangles += f->scene->triangle_count;
+    ld->triangles += f->scene->triangle_count;
+    if (ld->prototype_triangles > ld->settings.gltf.max_triangles)
+        return fail(ld, TW_ERR_LIMIT,
+                    "placing \"%s\" (%llu triangles) here makes the prototype draw %llu "
+                    "triangles, more than the limit of %llu",
+                    quote(rel, shown, sizeof(shown)),
+                    (unsigned long long)f->scene->triangle_count,
+                    (unsigned long long)ld->prototype_triangles,
+                    (unsigned long long)ld->settings.gltf.max_triangles);
+    if (ld->triangles > PLACED_TRIANGLES_FACTOR * ld->settings.gltf.max_triangles)
+        return fail(ld, TW_ERR_LIMIT,
+                    "placing \"%s\" (%llu triangles) here makes the tileset's prototypes draw "
+                    "%llu triangles together, more than the limit of %llu",
+                    quote(rel, shown, sizeof(shown)),
+                    (unsigned long long)f->scene->triangle_count,
+                    (unsigned long long)ld->triangles,
+                    (unsigned long long)(PLACED_TRIANGLES_FACTOR *
+                                         ld->settings.gltf.max_triangles));
     err = tw_gltf_place(f->scene, &f->binding, ld->ts, proto, placement);
     if (err) {
-        char shown[256];
         return fail(ld, err, "cannot place \"%s\": %s", quote(rel, shown, sizeof(shown)),
                     tw_error_to_str(err));
     }
@@ -596,6 +626,7 @@ static int read_prototype(struct loader *ld, const struct json_object *p, uint32
     int err;
 
     set_place(ld, "%s", prefix);
+    ld->prototype_triangles = 0;
     if (!json_object_is_type(p, json_type_object))
         return fail(ld, TW_ERR_FORMAT, "must be an object, not %s", json_type_phrase(p));
     const bool single = member(p, "gltf") != NULL;
@@ -710,6 +741,22 @@ static uint32_t widest_prototype(const struct tw_tileset *ts)
     return widest;
 }
 
+/* After tw_tileset_finish() refused the tileset as invalid: the first
+ * prototype of which every instance's mesh lost all its triangles to
+ * tw_tileset_finish() (triangles without area are dropped), or -1. */
+static int prototype_without_area(const struct tw_tileset *ts)
+{
+    for (uint32_t p = 0; p < ts->prototype_count; p++) {
+        const struct tw_prototype *proto = &ts->prototypes[p];
+        bool empty = proto->instance_count > 0;
+        for (uint32_t k = 0; k < proto->instance_count && empty; k++)
+            empty = ts->meshes[proto->instances[k].mesh].triangle_count == 0;
+        if (empty)
+            return (int)p;
+    }
+    return -1;
+}
+
 static int read_manifest(struct loader *ld, const struct json_object *root)
 {
     static const char *const keys[] = {"name", "footprint", "max_cluster_triangles",
@@ -786,6 +833,15 @@ static int read_manifest(struct loader *ld, const struct json_object *root)
             return fail(ld, err, "spans more than %g footprints: every frame would have to "
                                  "consider the cells it overhangs",
                         (double)TW_TILES_MAX_SPAN);
+        }
+        const int empty = prototype_without_area(ld->ts);
+        if (err == TW_ERR_INVALID && empty >= 0) {
+            char shown[64];
+            set_place(ld, "prototypes[%d]", empty);
+            return fail(ld, TW_ERR_FORMAT,
+                        "every triangle of \"%s\" has no area (collinear or coincident "
+                        "corners): it would draw nothing",
+                        quote(ld->ts->prototypes[empty].name, shown, sizeof(shown)));
         }
         return fail(ld, err, "cannot finish the tileset: %s", tw_error_to_str(err));
     }
@@ -932,6 +988,7 @@ static int finish_loader(struct loader *ld, int err)
     table_finish(&ld->file_table);
     table_finish(&ld->name_table);
     table_finish(&ld->prototype_table);
+    tw_gltf_shared_finish(&ld->shared);
     tw_tileset_destroy(ld->ts);
     if (ld->dir_fd >= 0)
         close(ld->dir_fd);

@@ -201,13 +201,35 @@ int tw_provider_check_tile(const struct tw_tile_provider *provider, const struct
 
 /* ---- glTF import from an open file (gltf.c) ---------------------------------------------- */
 
+/* What several imports share (a manifest's): the bytes they may read and
+ * decode together, and the external images they decoded, by file identity,
+ * so that a texture named by every file is read and decoded once.
+ * Zero-initialise, set the limits if wanted, pass to every import, then
+ * tw_gltf_shared_finish(). One thread at a time. */
+#define TW_GLTF_MAX_DECODED_BYTES (256ull << 20)       /* RGBA of decoded images */
+struct tw_gltf_image_cache;
+struct tw_gltf_shared {
+    uint64_t max_bytes_read;        /* files, buffers and images; 0: 4 times the first
+                                       import's max_file_bytes */
+    uint64_t max_decoded_bytes;     /* 0: TW_GLTF_MAX_DECODED_BYTES */
+    uint64_t bytes_read;            /* so far */
+    uint64_t decoded_bytes;         /* so far */
+    struct tw_gltf_image_cache *images; /* gltf.c's */
+};
+
+/* Frees what the imports left in shared (their decoded images); the scenes
+ * they made do not refer to it. Accepts NULL. */
+void tw_gltf_shared_finish(struct tw_gltf_shared *shared);
+
 /* tw_gltf_import() of the regular file open as fd (read from where it is,
  * not closed), whose external buffers and images are opened beneath the
  * folder dir_fd (confined-path.h; -1: none allowed). name is used in
- * messages. Used by manifests, which open every file beneath their folder
- * once and never by name again. */
+ * messages. shared (NULL: this import's own) bounds what this import reads
+ * and decodes together with the others that share it. Used by manifests,
+ * which open every file beneath their folder once and never by name
+ * again. */
 int tw_gltf_import_fd(int fd, int dir_fd, const char *name,
-                      const struct tw_gltf_settings *settings, const struct tw_log *log,
-                      struct tw_gltf_scene **out);
+                      const struct tw_gltf_settings *settings, struct tw_gltf_shared *shared,
+                      const struct tw_log *log, struct tw_gltf_scene **out);
 
 #endif

@@ -1,40 +1,111 @@
 /* Command lines of the tileworld programs (cli.h). */
+/* sigaltstack() and SA_ONSTACK are XSI: the crash handler runs on a stack of
+ * its own, so that it can still say something when the stack is what ran
+ * out. */
+#define _XOPEN_SOURCE 700
+
 #include "tools/cli.h"
 
 #include <errno.h>
 #include <math.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 char *tw_cli_escape(const char *s, char *out, size_t out_size)
 {
-    static const char hex[] = "0123456789abcdef";
-    size_t n = 0;
-    for (; s && *s; s++) {
-        const unsigned char c = (unsigned char)*s;
-        char e[4];
-        size_t len = 1;
-        e[0] = (char)c;
-        if (c < 0x20 || c == 0x7f) {
-            e[0] = '\\';
-            e[1] = 'x';
-            e[2] = hex[c >> 4];
-            e[3] = hex[c & 15];
-            len = 4;
-        } else if (c == '\\') {
-            e[1] = '\\';
-            len = 2;
-        }
-        if (n + len >= out_size)
-            break;
-        memcpy(out + n, e, len);
-        n += len;
-    }
-    if (out_size)
-        out[n] = '\0';
+    tw_log_escape_reversible(s, out, out_size);
     return out;
+}
+
+/* ---- crashes ------------------------------------------------------------------------ */
+
+/* What the handler writes, made when it is installed: it may only call
+ * async-signal-safe functions (write, signal, raise). */
+static char crash_head[96];        /* "PROGRAM: crashed (" */
+static char crash_tail[320];       /* "): ... \n" */
+static size_t crash_head_len, crash_tail_len;
+static char crash_stack[64 * 1024];
+
+static void crash_write(const char *text, size_t len)
+{
+    while (len > 0) {
+        const ssize_t n = write(STDERR_FILENO, text, len);
+        if (n <= 0)
+            return;
+        text += n;
+        len -= (size_t)n;
+    }
+}
+
+static void crashed(int sig)
+{
+    crash_write(crash_head, crash_head_len);
+    if (sig == SIGBUS)
+        crash_write("SIGBUS", 6);
+    else
+        crash_write("SIGSEGV", 7);
+    crash_write(crash_tail, crash_tail_len);
+    /* Die of the signal itself (status 128 + sig, a core dump where they are
+     * on): delivered as soon as this handler returns. */
+    signal(sig, SIG_DFL);
+    raise(sig);
+}
+
+/* True when this build runs under a sanitizer that handles crashes itself. */
+static bool sanitized(void)
+{
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    return true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || \
+    __has_feature(memory_sanitizer)
+    return true;
+#else
+    return false;
+#endif
+#else
+    return false;
+#endif
+}
+
+void tw_cli_catch_crashes(const char *program)
+{
+    if (sanitized())
+        return;
+    struct rlimit rl;
+    const bool limited = getrlimit(RLIMIT_AS, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY;
+    snprintf(crash_head, sizeof(crash_head), "%s: crashed (", program);
+    if (limited)
+        snprintf(crash_tail, sizeof(crash_tail),
+                 ") under an address-space limit of %llu MiB (ulimit -v): most likely out of "
+                 "memory inside the OpenGL driver or another library that does not check its "
+                 "allocations; raise the limit\n", (unsigned long long)(rl.rlim_cur >> 20));
+    else
+        snprintf(crash_tail, sizeof(crash_tail), "): this is a bug, please report it\n");
+    crash_head_len = strlen(crash_head);
+    crash_tail_len = strlen(crash_tail);
+    const stack_t stack = {.ss_sp = crash_stack, .ss_size = sizeof(crash_stack)};
+    const bool own_stack = sigaltstack(&stack, NULL) == 0;
+    const int signals[2] = {SIGSEGV, SIGBUS};
+    for (int k = 0; k < 2; k++) {
+        /* A handler installed already (a sanitizer's, a debugging tool's)
+         * stays: it knows more than this one. */
+        struct sigaction old;
+        if (sigaction(signals[k], NULL, &old) != 0 ||
+            ((old.sa_flags & SA_SIGINFO) ? old.sa_sigaction != NULL
+                                         : old.sa_handler != SIG_DFL))
+            continue;
+        struct sigaction sa;
+        memset(&sa, 0, sizeof(sa));
+        sa.sa_handler = crashed;
+        sigemptyset(&sa.sa_mask);
+        sa.sa_flags = own_stack ? SA_ONSTACK : 0;
+        sigaction(signals[k], &sa, NULL);
+    }
 }
 
 static void vmessage(const char *program, const char *place, const char *fmt, va_list ap)
@@ -342,6 +413,7 @@ void tw_cli_load_path(const struct tw_cli *c, const char *name, uint32_t frames,
 
 void tw_cli_init(struct tw_cli *c, const char *program)
 {
+    tw_cli_catch_crashes(program);
     memset(c, 0, sizeof(*c));
     c->program = program;
     c->tileset = "city";

@@ -7,7 +7,7 @@
  *
  * Bad input is the user's: a parser ends the program with exit status
  * TW_CLI_EXIT_USAGE and exactly one line "PROGRAM: PLACE: reason" on
- * stderr (control characters escaped as \xHH), never a crash. getopt's own
+ * stderr (escaped by tw_cli_escape()), never a crash. getopt's own
  * messages are silenced. Linked into the executables only: it exits.
  *
  * Numbers mean what they say: only plain decimal digits (no sign where a
@@ -83,8 +83,25 @@ struct tw_cli {
 bool tw_cli_given(const struct tw_cli *c, int opt);
 
 /* Defaults: tileset city, seed 1, method tilequery+chc, view distance
- * 600 m; the program sets its own size and path. */
+ * 600 m; the program sets its own size and path. Calls
+ * tw_cli_catch_crashes(program) first. */
 void tw_cli_init(struct tw_cli *c, const char *program);
+
+/* Makes a crash (SIGSEGV, SIGBUS) end with one line on stderr before the
+ * program dies of it: "PROGRAM: crashed (SIGSEGV) under an address-space
+ * limit of N MiB (ulimit -v): most likely out of memory inside the OpenGL
+ * driver or another library that does not check its allocations; raise the
+ * limit" when RLIMIT_AS is finite (a software rasteriser that runs out of
+ * address space crashes rather than fails), else "PROGRAM: crashed
+ * (SIGSEGV): this is a bug, please report it". The program then dies of
+ * the signal itself (exit status 128 + signal, 139 for SIGSEGV; a core dump
+ * where they are enabled), not of an exit code of its own: a crash must not
+ * read as an error the program handled, and a debugger or a core dump
+ * still sees where it was. The line is made now (the handler only writes);
+ * it runs on a stack of its own. Does nothing in a build with a sanitizer
+ * (AddressSanitizer, ThreadSanitizer), and leaves a handler that was
+ * installed already in place. */
+void tw_cli_catch_crashes(const char *program);
 
 /* Applies one of a program's own options: opt is its getopt_long value,
  * name its long name (for messages, "--name"), arg its value or NULL. */
@@ -114,8 +131,12 @@ noreturn void tw_cli_fail(const char *program, const char *place, const char *fm
 #endif
     ;
 
-/* Writes s into out (out_size bytes) with control characters, DEL and
- * backslashes escaped as \xHH and \\ (cut to fit). Returns out. */
+/* Writes s into out (out_size bytes) as one line of plain text that
+ * cannot drive a terminal: tiles.h's tw_log_escape_reversible() (newline,
+ * carriage return and tab as \n, \r, \t; other control characters, DEL and
+ * bytes that are not valid UTF-8 as \xHH; the C1 controls and the
+ * bidirectional overrides as \uHHHH; a backslash as \\; "..." ends a cut).
+ * At most four bytes out per byte in. Returns out. */
 char *tw_cli_escape(const char *s, char *out, size_t out_size);
 
 /* The forms of a plain decimal number. */

@@ -146,6 +146,9 @@ struct tw_world_settings {
     uint64_t cache_budget_bytes;       /* every byte the tiles cost, CPU and GPU; 0: none */
     uint64_t upload_budget_bytes;      /* per frame, of tiles not yet needed; default 32 MiB */
     float upload_budget_ms;            /* per frame, likewise; default 4 */
+    uint32_t shutdown_timeout_ms;      /* how long tw_world_destroy() waits for a provider's
+                                          generate() calls still running before it leaves
+                                          them behind; default (0) 5000 */
     enum tw_method method;             /* default (0): tilequery+chc */
     uint32_t width, height;            /* default 640 x 360 */
     float fov_y;                       /* vertical field of view, degrees; default 60 */
@@ -255,7 +258,19 @@ struct tw_world;
 /* Creates a world; the GL context that s->get_proc belongs to must be
  * current. Uploads the tileset's meshes once. The caller owns *out. */
 int tw_world_create(const struct tw_world_settings *s, struct tw_world **out);
-void tw_world_destroy(struct tw_world *w);
+/* Destroys w (NULL: nothing), with its GL context current, and returns the
+ * number of tile workers left behind: 0, unless a provider's generate()
+ * was still running shutdown_timeout_ms after the destroy began. Such a
+ * call is not waited for any longer: the destroy logs one error (the
+ * provider, the cells) through the world's logger and returns; the thread
+ * is detached and keeps only what it owns (a copy of the provider struct,
+ * the tile it was making), which it frees when generate() returns, without
+ * touching anything of the world's. What the host must keep until then,
+ * when the count is not 0: the provider's code, and everything generate()
+ * reads or writes through provider->user (for the whole process's life, if
+ * it may never return). The host's struct tw_tile_provider itself, the
+ * tileset it shares, the logger and the GL context may go at once. */
+uint32_t tw_world_destroy(struct tw_world *w);
 
 /* Switches the culling method. Each method keeps its own temporal state
  * (tile cache, CHC++ state), so methods may alternate frame by frame. */
@@ -365,14 +380,24 @@ int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float w,
 int tw_path_builtin_speed(const char *name, uint64_t seed, uint32_t frames, float speed, float w,
                           float d, struct tw_path *out);
 
+/* The most rows (frames) a path CSV may have, and the most bytes of one:
+ * ten million rows of about 100 bytes. */
+#define TW_PATH_MAX_ROWS 10000000u
+#define TW_PATH_MAX_CSV_BYTES (1ull << 30)
+
 /* Reads a path CSV (header line, then cell_i,cell_j,x,y,z,yaw,pitch per
  * row). Every row is checked when the file is loaded: cells are decimal
  * 64-bit integers, x and z within +-1e7 m, y within +-TW_TILES_MAX_COORD,
- * yaw within +-1e6 degrees (kept modulo 360), pitch in (-89.9, 89.9). Only
- * a regular file is read (a FIFO or a device is refused, never waited on).
- * On error returns a negative code and writes one line "FILE:LINE: reason"
- * into err (text from the file escaped, tiles.h tw_log_escape()). frames > 0
- * keeps only the first frames rows (fewer rows: an error). */
+ * yaw within +-1e6 degrees (kept modulo 360), pitch in (-89.9, 89.9); a
+ * line holds at most 1022 characters. Only a regular file is read (a FIFO
+ * or a device is refused, never waited on), of at most TW_PATH_MAX_CSV_BYTES
+ * (checked before reading) and TW_PATH_MAX_ROWS rows. The file is read a
+ * block at a time: the first bad row ends the reading, and frames > 0 stops
+ * it after the first frames rows (fewer rows: an error; frames may not
+ * exceed TW_PATH_MAX_ROWS). On error returns a negative code and writes one
+ * line "FILE:LINE: reason" into err (text from the file escaped, tiles.h
+ * tw_log_escape()), e.g. "walk.csv:3: field 6 (yaw) \"1e300\" is outside
+ * [-1e+06, 1e+06] degrees" or "walk.csv: no such file". */
 int tw_path_load_csv(const char *file, uint32_t frames, float w, float d,
                      struct tw_path *out, char *err, size_t err_size);
 /* The same from size bytes of CSV at text (only read during the call); name

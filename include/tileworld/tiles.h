@@ -81,6 +81,11 @@ void tw_log_stderr(void *user, enum tw_log_level level, const char *msg);
 const char *tw_log_escape(const char *text, char *out, size_t size);
 /* The same for n bytes that may hold NUL bytes (shown as \x00). */
 const char *tw_log_escape_bytes(const void *data, size_t n, char *out, size_t size);
+/* tw_log_escape(), and every backslash doubled (\\), so that the text can be
+ * told from the escapes in it: for quoting text such as a program's
+ * arguments, which may hold backslashes of their own. Escaping twice
+ * doubles the backslashes again. */
+const char *tw_log_escape_reversible(const char *text, char *out, size_t size);
 
 /* ---- boxes -------------------------------------------------------------- */
 

@@ -12,30 +12,42 @@
 
 #include "tools/cli.h"
 #include "tools/outfile.h"
+#include "tools/progress.h"
 #include "tools/tileworld/buildinfo.h"
 #include "tools/tileworld/charts.h"
 #include "tools/tileworld/outputs.h"
 #include "tools/tileworld/pareto.h"
 
+/* The run's progress line (tools/progress.h): done 0 starts it, before the
+ * first frame; the last frame finishes it (a run that stopped early is
+ * finished by the next start). stderr shows one progress line at a time, so
+ * its state is this one, not the run's. */
 static void progress(const struct tw_run *run, uint32_t done, uint32_t total, double mean_ms)
 {
-    if (run->quiet || !isatty(STDERR_FILENO))
+    static struct tw_progress line;
+    if (done == 0) {
+        tw_progress_finish(&line);
+        tw_progress_init(&line, run->out, total, "frames", 0, run->quiet);
         return;
-    const int width = 30;
-    const int filled = total ? (int)((uint64_t)done * width / total) : width;
-    fprintf(stderr, "\r%s [%.*s%*s] %u/%u frames, %.1f ms/frame", run->out, filled,
-            "##############################", width - filled, "", done, total, mean_ms);
+    }
+    char note[64];
+    snprintf(note, sizeof(note), "%.1f ms/frame", mean_ms);
+    tw_progress_update(&line, done, note);
     if (done == total)
-        fputc('\n', stderr);
-    fflush(stderr);
+        tw_progress_finish(&line);
 }
 
 /* Draws the charts of a bench run; gnuplot missing or failing is one
- * warning line, a file that cannot be written an error. */
-static int draw_charts(const struct tw_run *run, const struct tw_chart_sweep *sweep, char *err,
-                       size_t err_size)
+ * warning line, a file that cannot be written (or a full disk) an error.
+ * They plot GPU time on a real GPU, CPU time on a software renderer. */
+static int draw_charts(const struct tw_run *run, const struct tw_context *ctx,
+                       const struct tw_chart_sweep *sweep, char *err, size_t err_size)
 {
+    struct tw_context_info info;
+    tw_context_describe(ctx, &info);
     const struct tw_chart_run chart = {
+        .time = info.software ? TW_CHART_TIME_CPU : TW_CHART_TIME_GPU,
+        .context = info.kind,
         .dir = run->out,
         .tileset = run->tileset_name,
         .path = run->path_name,
@@ -131,6 +143,7 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     about->height = ws.height;
     about->seed = ws.selection.seed;
     about->verified = ws.verify;
+    about->bench = run->bench;
     about->verify_tolerance = tw_world_settings(world)->verify_tolerance;
     about->deterministic = ws.deterministic;
     about->mutate_query_shrink = ws.mutate_query_shrink;
@@ -144,6 +157,12 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     about->software = info.software;
     snprintf(about->build_type, sizeof(about->build_type), "%s", tw_build_type());
     snprintf(about->commit, sizeof(about->commit), "%s", tw_build_commit());
+    about->frames = run->path->count;
+    about->allow_missed = run->allow_missed;
+    for (uint32_t m = 0; m < run->method_count; m++)
+        about->conservative[run->methods[m]] =
+            tw_method_conservative(run->methods[m], tw_world_settings(world));
+    run->about = *about;
     /* What an earlier run left here would pass for this one's. */
     rc = tw_outputs_remove_stale(run->out, err, err_size);
     if (rc)
@@ -152,6 +171,7 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     if (rc)
         goto out;
     double total_ms = 0.0;
+    progress(run, 0, run->path->count, 0.0);
     for (uint32_t f = 0; f < run->path->count; f++) {
         /* Methods alternate frame by frame, so drift on a shared machine
          * hits them all alike. */
@@ -207,9 +227,13 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
         }
         progress(run, f + 1, run->path->count, total_ms / ((f + 1) * (double)run->method_count));
     }
-    rc = tw_report_close(&report, run->bench, run->figures, err, err_size);
+    rc = tw_report_close(&report, true, run->figures, err, err_size);
+    run->conservative_missed_pixels = 0;
+    for (uint32_t m = 0; m < run->method_count && run->about.verified; m++)
+        if (run->about.conservative[run->methods[m]])
+            run->conservative_missed_pixels += run->figures[run->methods[m]].missed_pixels_total;
     if (!rc && run->bench && !run->defer_charts)
-        rc = draw_charts(run, NULL, err, err_size);
+        rc = draw_charts(run, ctx, NULL, err, err_size);
 out:
     tw_report_abort(&report);
     free(split.clusters);
@@ -319,8 +343,10 @@ static int write_sweep_md(const struct tw_run *run, const char *param, const cha
     int rc = tw_outfile_open(&f, file, err, err_size);
     if (rc)
         return rc;
+    char tileset[600], path[600];
     tw_outfile_printf(&f, "# tileworld sweep of %s: %s, path %s, %ux%u, seed %llu, %u frames\n\n",
-                      param, run->tileset_name, run->path_name, run->world.width,
+                      param, tw_report_escape(run->tileset_name, true, tileset, sizeof(tileset)),
+                      tw_report_escape(run->path_name, true, path, sizeof(path)), run->world.width,
                       run->world.height, (unsigned long long)run->world.selection.seed,
                       run->path->count);
     if (run->world.mutate_query_shrink > 0.0f)
@@ -367,6 +393,8 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
     if (rc)
         return rc;
     memcpy(run->figures, base.figures, sizeof(run->figures));
+    run->about = base.about;
+    run->conservative_missed_pixels = base.conservative_missed_pixels;
     struct tw_method_figures (*figures)[TW_METHOD_COUNT] = calloc(count, sizeof(*figures));
     bool (*conservative)[TW_METHOD_COUNT] = calloc(count, sizeof(*conservative));
     struct tw_pareto_point *points = calloc((size_t)count * run->method_count, sizeof(*points));
@@ -412,6 +440,7 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
         }
         rc = tw_run_execute(&r, ctx, err, err_size);
         run->world_error = r.world_error;
+        run->conservative_missed_pixels += r.conservative_missed_pixels;
         tw_tileset_destroy(own);
         memcpy(figures[k], r.figures, sizeof(figures[k]));
         for (uint32_t m = 0; m < r.method_count && !rc; m++) {
@@ -450,7 +479,7 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
         const struct tw_chart_sweep sweep = {sweep_names[param], count, values,
                                              (const struct tw_method_figures(*)[TW_METHOD_COUNT])figures,
                                              points, npoints};
-        rc = draw_charts(run, &sweep, err, err_size);
+        rc = draw_charts(run, ctx, &sweep, err, err_size);
     }
     free(points);
     free(conservative);
@@ -861,8 +890,10 @@ int tw_run_scenarios(struct tw_run *run, struct tw_context *ctx, const char *nam
     if (rc)
         return rc;
     *all_held = true;
+    char tileset[600];
     tw_outfile_printf(&f, "# tileworld stability scenarios: %s, %ux%u, seed %llu\n\n",
-                      run->tileset_name, run->world.width, run->world.height,
+                      tw_report_escape(run->tileset_name, true, tileset, sizeof(tileset)),
+                      run->world.width, run->world.height,
                       (unsigned long long)run->world.selection.seed);
     if (run->world.mutate_query_shrink > 0.0f)
         tw_outfile_printf(&f, "**Testing only: every query box shrunk by %g of its size "

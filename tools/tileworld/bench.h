@@ -36,10 +36,15 @@ struct tw_run {
     bool split;                         /* --split: each frame's set drawn again (report.h) */
     bool defer_charts;                  /* a bench whose caller draws the charts (a sweep) */
     bool quiet;
+    bool allow_missed;                  /* --allow-missed: said in the verdict (report.h) */
     tw_run_frame_fn on_frame;
     void *on_frame_user;
     /* results */
     struct tw_method_figures figures[TW_METHOD_COUNT];
+    struct tw_report_about about;       /* what ran (of a sweep: its base run) */
+    /* Under --verify, pixels that conservative methods missed, over every
+     * run (a sweep's too). */
+    uint64_t conservative_missed_pixels;
     int world_error;                    /* tw_world_create()'s error when it failed, else 0 */
 };
 

@@ -4,42 +4,64 @@
 # runs it there. To change a chart and draw it again:
 #     cd DIR && gnuplot charts.gp
 #
+# Time: every chart plots the run's primary time per frame, `time` in
+# run.gp: the process's CPU time (cpu_ms, all threads), the figure that holds
+# on a shared machine and on a software renderer, or on a real GPU the GPU
+# time (gpu_ms; frames whose GPU time is not known are left out, never read
+# as 0). Wall time swings with the machine's load: it has charts of its own,
+# chart-frame-time-wall.png and chart-sweep-wall.png.
+#
 # The data (chart-data/), written by tileworld from the figures of the run;
 # every .dat file has a line of column names, so that columns are read by
 # name ('ms_frame', column('triangles')):
 #   run.gp             what the run was: run_title, methods, frames_per_method,
 #                      verified, sweep_param, sweep_values, sweep_unaffected,
-#                      pareto, split
+#                      pareto, split; the time (time, frame_time_column,
+#                      mean_time_column, time_name, time_note) and each
+#                      method's mean_time, mean_wall and time_frames; the
+#                      panels and axis ranges of the speed-accuracy and Pareto
+#                      charts, for which tileworld placed their labels
 #   frames-METHOD.dat  one row per frame of METHOD: the columns of frames.csv
 #                      but method (frame, ms_frame, ms_cull, ms_wait, triangles,
 #                      clusters, draws, queries, tiles_*, cache_bytes,
 #                      predict_fail, missed_pixels, missed_clusters,
-#                      overdraw_triangles, cpu_ms, depth_errors, and what
-#                      frames.csv gains: set_cpu_ms and the other set_*
-#                      columns of bench --split, 0 without it)
+#                      overdraw_triangles, cpu_ms, depth_errors, ..., the set_*
+#                      columns of bench --split (0 without it), gpu_ms (-1: not
+#                      known), gpu_ms_id)
 #   methods.dat        one row per method, in the order of `methods`: method,
-#                      frames, mean_ms, median_ms, p95_ms, p99_ms, max_ms,
+#                      frames, mean_ms, median_ms, p95_ms, p99_ms, max_ms (wall),
 #                      mean_triangles, mean_queries, mean_overdraw_triangles,
 #                      missed_pixels_total, frames_with_missed_pixels, mean_cpu_ms,
 #                      median_cpu_ms, p99_cpu_ms, depth_errors_total,
-#                      frames_with_depth_errors, missed_clusters_total
+#                      frames_with_depth_errors, missed_clusters_total,
+#                      mean_gpu_ms (NaN: none known), gpu_frames
 #   sweep-METHOD.dat   with --sweep: one row per value of sweep_param, by value:
 #                      value, then the columns of methods.dat but method
 #   pareto.dat         with --sweep under --verify (pareto = 1): one row per
-#                      method and value, by mean CPU time: method, value,
+#                      method and value, by time_ms: method, value,
 #                      mean_cpu_ms, missed_per_frame, depth_errors_per_frame,
-#                      conservative, front, front_depth (0 or 1), speedup
+#                      conservative, front, front_depth (0 or 1), speedup,
+#                      time_ms (the primary time), mean_gpu_ms
 #   pareto-front.dat, pareto-front-depth.dat: the rows of pareto.dat on the
-#                      front of CPU time against missed pixels, depth errors
+#                      front of the primary time against missed pixels, depth
+#                      errors
+#   labels-speed-accuracy-1.dat, -2.dat, labels-pareto-1.dat, -2.dat: the
+#                      point labels of each panel, placed apart by tileworld:
+#                      method, kind (1: a method's point, 2: a sweep value's),
+#                      x, y (the point), label_x, label_y (the label's centre),
+#                      anchor_x, anchor_y (where its leader line ends), moved
+#                      (1: drawn with a leader line), text
 #
 # A new chart is a block at the end: set the output to out('chart-NAME.png')
 # and plot columns by name; `for [i=1:n]` goes over the methods, line(i) is
-# method i's colour. tileworld renames every chart-*.png it finds drawn.
+# method i's colour. tileworld checks and renames every chart-*.png it finds
+# drawn.
 
 load 'chart-data/run.gp'
 
 # tileworld draws every chart under a temporary name (.chart-NAME.png.tmp)
-# and gives it its name once gnuplot has finished without an error.
+# and gives it its name once gnuplot has finished without an error and the
+# file is a whole PNG.
 out(name) = exists('tw_temporaries') ? '.'.name.'.tmp' : name
 
 # pngcairo draws antialiased text; the gd png terminal is the fallback.
@@ -78,6 +100,10 @@ human(v) = v >= 1e6 ? sprintf('%.2fM', v / 1e6) : v >= 1e4 ? sprintf('%.0fk', v 
 tic_label(v) = v >= 1e6 ? sprintf('%.0fM', v / 1e6) : v >= 1e4 ? sprintf('%.0fk', v / 1e3) : sprintf('%.0f', v)
 min(a, b) = a < b ? a : b
 max(a, b) = a > b ? a : b
+known_value(v) = v == v    # false for NaN
+
+# A frame's primary time: gpu_ms is -1 where it is not known, left out.
+frame_time(t) = t >= 0 ? t : NaN
 
 # Tics at 1, 2, 5 x 10^k inside [tic_lo, tic_hi] of a log axis (decades only
 # over more than four): gnuplot's decades alone read badly over one or two.
@@ -102,39 +128,45 @@ symlog_tics = "tic_list = \"'0' 1\"; \
     }; \
     eval sprintf('set %stics (%s)', tic_axis, tic_list)"
 
-# What every method did over the run, for keys, ranges and labels.
-array mean_ms[n]
+# Each method's range per frame of its primary time, wall time and
+# triangles (its means come from run.gp).
+array time_lo[n]
+array time_hi[n]
+array wall_lo[n]
+array wall_hi[n]
 array mean_triangles[n]
-array missed[n]
-array overdraw[n]
-array ms_lo[n]
-array ms_hi[n]
 array triangles_lo[n]
 array triangles_hi[n]
 do for [i = 1:n] {
+    time_lo[i] = NaN; time_hi[i] = NaN
+    if (time_frames[i] > 0) {
+        stats frames_file(i) using (frame_time(column(frame_time_column))) nooutput
+        time_lo[i] = STATS_min; time_hi[i] = STATS_max
+    }
     stats frames_file(i) using 'ms_frame' nooutput
-    mean_ms[i] = STATS_mean; ms_lo[i] = STATS_min; ms_hi[i] = STATS_max
+    wall_lo[i] = STATS_min; wall_hi[i] = STATS_max
     stats frames_file(i) using 'triangles' nooutput
     mean_triangles[i] = STATS_mean; triangles_lo[i] = STATS_min; triangles_hi[i] = STATS_max
-    stats frames_file(i) using 'missed_pixels' nooutput
-    missed[i] = STATS_sum
-    stats frames_file(i) using 'overdraw_triangles' nooutput
-    overdraw[i] = STATS_mean
 }
 
 heading(title) = title."\n".run_title.(frames_per_method > 0 ? sprintf(', %d frames per method', frames_per_method) : '')
 
-# ---- chart-frame-time.png, chart-triangles.png: one line per method --------------
-do for [chart = 1:2] {
+# ---- chart-frame-time.png, chart-triangles.png, chart-frame-time-wall.png ---------
+# One line per method: its primary time per frame, its triangles, its wall
+# time (the secondary view).
+do for [chart = 1:3] {
     reset
     triangles = chart == 2
-    name = triangles ? 'chart-triangles.png' : 'chart-frame-time.png'
+    wall = chart == 3
+    name = triangles ? 'chart-triangles.png' : wall ? 'chart-frame-time-wall.png' : 'chart-frame-time.png'
     lo = 1e300; hi = 0; frame_lo = 1e300; frame_hi = 0
     do for [i = 1:n] {
-        m = triangles ? mean_triangles[i] : mean_ms[i]
-        lo = min(lo, m); hi = max(hi, m)
-        frame_lo = min(frame_lo, triangles ? triangles_lo[i] : ms_lo[i])
-        frame_hi = max(frame_hi, triangles ? triangles_hi[i] : ms_hi[i])
+        m = triangles ? mean_triangles[i] : wall ? mean_wall[i] : mean_time[i]
+        if (known_value(m)) {
+            lo = min(lo, m); hi = max(hi, m)
+            frame_lo = min(frame_lo, triangles ? triangles_lo[i] : wall ? wall_lo[i] : time_lo[i])
+            frame_hi = max(frame_hi, triangles ? triangles_hi[i] : wall ? wall_hi[i] : time_hi[i])
+        }
     }
     # Only a spread of more than 10x hides the faster methods on a linear
     # axis; below that a linear axis compares better.
@@ -143,15 +175,16 @@ do for [chart = 1:2] {
     unit = triangles ? unit_name(hi) : 'ms'
     set terminal @png_term size 1000,600
     set output out(name)
-    set label 100 heading(triangles ? 'Triangles drawn per frame (lower is better)' \
-                                    : 'Frame time per frame (lower is better)') \
-        at screen 0.5, screen 0.955 center font ',13'
+    title = triangles ? 'Triangles drawn per frame (lower is better)' \
+          : wall ? 'Wall time per frame (lower is better), the secondary view: it swings with the machine''s load' \
+          : time_name.' per frame (lower is better): '.time_note
+    set label 100 heading(title) at screen 0.5, screen 0.955 center font ',13'
     # The key in rows of three between the heading and the plot, where it
     # hides no line.
     set key at graph 0.5, graph 1.01 bottom center horizontal maxcols 3 Left reverse samplen 3 width 1
     set tmargin 4.5 + (n + 2) / 3
     set xlabel 'frame'
-    set ylabel (triangles ? 'triangles drawn per frame' : 'frame time'). \
+    set ylabel (triangles ? 'triangles drawn per frame' : wall ? 'wall time per frame' : time_name.' per frame'). \
         (unit ne '' || log_y ? ' ('.unit.(unit ne '' && log_y ? ', ' : '').(log_y ? 'log scale' : '').')' : '')
     set grid xtics ytics lc rgb '#d8d8d8'
     set border 3
@@ -169,99 +202,94 @@ do for [chart = 1:2] {
     } else {
         set yrange [0:*]
     }
-    plot for [i = 1:n] frames_file(i) using 'frame':(column(triangles ? 'triangles' : 'ms_frame') / scale) \
-        with lines lt line(i) \
-        title method(i).(triangles ? ' (mean '.human(mean_triangles[i]).')' : sprintf(' (mean %.1f ms)', mean_ms[i]))
+    key_mean(i) = triangles ? ' (mean '.human(mean_triangles[i]).')' \
+        : known_value(wall ? mean_wall[i] : mean_time[i]) ? sprintf(' (mean %.1f ms)', wall ? mean_wall[i] : mean_time[i]) \
+        : ' (no '.time_name.' known)'
+    if (time eq 'gpu' && !triangles && !wall) {
+        # A gap where a frame's GPU time did not come back; a lone frame
+        # between two gaps is a dot.
+        plot for [i = 1:n] frames_file(i) using 'frame':(frame_time(column(frame_time_column))) \
+            with linespoints lt line(i) pt 7 ps 0.4 title method(i).key_mean(i)
+    } else {
+        plot for [i = 1:n] frames_file(i) \
+            using 'frame':(triangles ? column('triangles') / scale : wall ? column('ms_frame') : column(frame_time_column)) \
+            with lines lt line(i) title method(i).key_mean(i)
+    }
 }
+
+# The two panels of chart-speed-accuracy.png and chart-pareto.png, where
+# run.gp says (tileworld placed the labels for these margins and ranges).
+panel_margins = "set lmargin at screen panel_left[panel]; set rmargin at screen panel_right[panel]; \
+    set tmargin at screen panel_top; set bmargin at screen panel_bottom"
+# The labels of a panel, in label_file: the methods' names, the sweep
+# values' (smaller), and leader lines to those moved away from their points.
+# A macro (@label_elements), expanded where a block is read: label_file is
+# set before each plot. (A row of the other kind gets an empty text, not a
+# NaN place: gnuplot 5.4.4 crashes on labels that are all NaN.)
+label_text(k) = column('kind') == k ? strcol('text') : ''
+label_file = ''
+label_elements = ", \
+    label_file using 'label_x':'label_y':(label_text(1)):(line_of(strcol('method'))) \
+        with labels center font ',10' tc variable notitle, \
+    label_file using 'label_x':'label_y':(label_text(2)):(line_of(strcol('method'))) \
+        with labels center font ',8' tc variable notitle, \
+    label_file using (column('moved') > 0 ? column('x') : NaN):'y':(column('anchor_x') - column('x')): \
+        (column('anchor_y') - column('y')):(line_of(strcol('method'))) \
+        with vectors nohead lw 0.6 lc variable notitle"
 
 # ---- chart-speed-accuracy.png: one point per method (and per sweep value) --------
 reset
 sweep_shown(i) = sweep_param ne '' && !listed(sweep_unaffected, method(i))
-x_max = 0; missed_max = 0; overdraw_max = 0; overdraw_min = 1e300
-do for [i = 1:n] {
-    x_max = max(x_max, mean_ms[i]); missed_max = max(missed_max, missed[i])
-    overdraw_max = max(overdraw_max, overdraw[i])
-    if (overdraw[i] > 0) { overdraw_min = min(overdraw_min, overdraw[i]) }
-    if (sweep_shown(i)) {
-        stats sweep_file(i) using 'mean_ms' nooutput
-        x_max = max(x_max, STATS_max)
-        stats sweep_file(i) using 'missed_pixels_total' nooutput
-        missed_max = max(missed_max, STATS_max)
-        stats sweep_file(i) using 'mean_overdraw_triangles' nooutput
-        overdraw_max = max(overdraw_max, STATS_max)
-        if (STATS_min > 0) { overdraw_min = min(overdraw_min, STATS_min) }
-    }
-}
-# Labels are staggered above and below the points in the order of their x,
-# on two heights, so that four neighbours do not write over each other.
-array label_dy[n]
-do for [i = 1:n] {
-    rank = 0
-    do for [j = 1:n] { if (mean_ms[j] < mean_ms[i] || (mean_ms[j] == mean_ms[i] && j < i)) { rank = rank + 1 } }
-    label_dy[i] = word('1.2 -1.2 2.3 -2.3', rank % 4 + 1) + 0
-}
-# The sweep's points of each method it changes, joined, with labels (every
-# other one above, the others below, as neighbours often coincide), as
-# plot elements for the macro @sweep_plots (an iteration that turns out
-# empty would still open its file).
+# The sweep's points of each method it changes, joined, as plot elements
+# for the macro @sweep_plots (an iteration that turns out empty would still
+# open its file); their labels are in the panel's labels file.
 sweep_plots = ''
 do for [i = 1:n] {
     if (sweep_shown(i)) {
-        sweep_plots = sweep_plots.sprintf(", sweep_file(%d) using 'mean_ms':(y(column(y_column))) \
-            with linespoints lt line(%d) pt 6 ps 1.3 lw 1 dt 3 notitle, \
-            sweep_file(%d) every 2 using 'mean_ms':(y(column(y_column))):(sweep_label(%d)) \
-            with labels left offset char 0.9,0.6 font ',8' tc rgb colour(%d) notitle, \
-            sweep_file(%d) every 2::1 using 'mean_ms':(y(column(y_column))):(sweep_label(%d)) \
-            with labels left offset char 0.9,-0.7 font ',8' tc rgb colour(%d) notitle", \
-            i, i, i, i, i, i, i, i)
+        sweep_plots = sweep_plots.sprintf(", sweep_file(%d) using mean_time_column:(y(column(y_column))) \
+            with linespoints lt line(%d) pt 6 ps 1.3 lw 1 dt 3 notitle", i, i)
     }
 }
 any_sweep = sweep_plots ne ''
-# The first point of a method's sweep says whose it is; the line carries the
-# name to the others.
-sweep_label(i) = (strcol('value') eq word(sweep_values, 1) ? method(i).' ' : '').sweep_param.'='.strcol('value')
 
 set terminal @png_term size 1200,600
 set output out('chart-speed-accuracy.png')
-set multiplot layout 1,2 title "Speed against accuracy: one point per method, lower left is better\n".run_title font ',13'
+set multiplot title "Speed against accuracy: one point per method, lower left is better\n".run_title.'; '.time_name.': '.time_note font ',13'
 set grid xtics ytics lc rgb '#d8d8d8'
 set border 3
 set tics nomirror
-set key top right Left reverse samplen 1 spacing 1.1 box lc rgb '#bbbbbb' opaque
-set xlabel 'mean frame time (ms)'
-set xrange [0:(x_max > 0 ? x_max * 1.25 : 1)]
+set xlabel 'mean '.time_name.' per frame (ms)'
+set xrange [0:sa_x_hi]
 
 do for [panel = 1:2] {
     missed_panel = panel == 1
+    eval panel_margins
     unset label
     unset arrow
     if (missed_panel) {
+        # The methods' key under the left panel, where it hides no point.
+        set key at screen panel_left[1], screen 0.01 left bottom horizontal maxcols 5 Left reverse samplen 1 width 1
         # Missed pixels: 0 expected of a conservative method.
         set title 'Missed pixels (visible errors)' font ',12'
         set ylabel 'missed pixels, total over the run (log scale of 1 + value)'
-        log_y = 1
-        tic_hi = max(20, (missed_max + 1) * 8)
     } else {
-        # Overdraw, on a log axis too when vfc's dwarfs the rest.
         unset key
+        # Overdraw, on a log axis too when vfc's dwarfs the rest.
         set title 'Overdraw (wasted work)' font ',12'
-        log_y = overdraw_min < 1e300 && overdraw_max / overdraw_min > 10
-        tic_hi = max(20, (overdraw_max + 1) * 4)
     }
-    scale = 1
+    log_y = sa_y_log[panel]
+    scale = sa_y_scale[panel]
+    set yrange [sa_y_lo[panel]:sa_y_hi[panel]]
     if (log_y) {
-        tic_axis = 'y'
+        tic_axis = 'y'; tic_hi = sa_y_hi[panel]
         set logscale y
-        set yrange [tic_hi**(-1.0 / 9):tic_hi]
         eval symlog_tics
         if (!missed_panel) { set ylabel 'overdraw triangles per frame, mean (log scale of 1 + value)' }
     } else {
-        scale = unit_scale(overdraw_max)
         unset logscale y
         set ytics autofreq
         set format y '%g'
-        set yrange [0:(overdraw_max > 0 ? overdraw_max / scale * 1.15 : 1)]
-        set ylabel 'overdraw triangles per frame, mean'.(unit_name(overdraw_max) ne '' ? ' ('.unit_name(overdraw_max).')' : '')
+        set ylabel 'overdraw triangles per frame, mean'.(scale == 1e6 ? ' (millions)' : scale == 1e3 ? ' (thousands)' : '')
     }
     y(v) = log_y ? v + 1 : v / scale
     y_column = missed_panel ? 'missed_pixels_total' : 'mean_overdraw_triangles'
@@ -274,21 +302,16 @@ do for [panel = 1:2] {
     if (!verified) {
         set label 2 "accuracy not measured:\nrun bench with --verify" at graph 0.5, graph 0.6 center tc rgb '#b00000' font ',12'
     }
-    do for [i = 1:n] {
-        eval sprintf("set label %d '%s' at first %.10g, first %.10g center offset char 0,%.1f font ',10' tc rgb '%s' front", \
-                     9 + i, method(i), mean_ms[i], y(missed_panel ? missed[i] : overdraw[i]), \
-                     label_dy[i], colour(i))
-    }
+    label_file = sprintf('chart-data/labels-speed-accuracy-%d.dat', panel)
     plot for [i = 1:n] 'chart-data/methods.dat' every ::(i - 1)::(i - 1) \
-             using 'mean_ms':(y(column(y_column))) with points lt line(i) pt 7 ps 2 \
-             title (missed_panel ? method(i) : '') @sweep_plots, \
+             using mean_time_column:(y(column(y_column))) with points lt line(i) pt 7 ps 2 \
+             title (missed_panel ? method(i) : '') @sweep_plots @label_elements, \
          NaN with points lc rgb '#555555' pt 6 ps 1.3 title (missed_panel && any_sweep ? 'sweep settings' : '')
 }
 unset multiplot
 
-# ---- chart-sweep.png: mean frame time against the swept parameter -----------------
+# ---- chart-sweep.png, chart-sweep-wall.png: mean time against the swept parameter --
 if (sweep_param ne '') {
-    reset
     values = words(sweep_values)
     v_lo = 1e300; v_hi = -1e300; v_pos = 1e300; zero = 0
     do for [k = 1:values] {
@@ -301,91 +324,96 @@ if (sweep_param ne '') {
     # Sizes swept by doubling space evenly on a log axis.
     by_rank = zero && v_pos < 1e300 && v_hi / v_pos >= 50
     log_x = !by_rank && v_lo > 0 && v_hi / v_lo >= 50
-    ms_lo = 1e300; ms_hi = 0; any_unaffected = 0
-    do for [i = 1:n] {
-        stats sweep_file(i) using 'mean_ms' nooutput
-        ms_lo = min(ms_lo, STATS_min); ms_hi = max(ms_hi, STATS_max)
-        if (listed(sweep_unaffected, method(i))) { any_unaffected = 1 }
-    }
-    log_y = ms_lo > 0 && ms_hi / ms_lo > 10
-    set terminal @png_term size 1000,600
-    set output out('chart-sweep.png')
-    set title "Mean frame time against ".sweep_param." (lower is better)\n".run_title font ',13'
-    set grid xtics ytics lc rgb '#d8d8d8'
-    set border 3
-    set tics nomirror
-    set key outside right top vertical Left reverse samplen 2
-    set xlabel sweep_param.(by_rank ? ' (evenly spaced)' : '')
-    if (by_rank) {
-        set xrange [-0.5:values - 0.5]
-    } else {
-        if (log_x) {
-            set logscale x 2
-            set xrange [v_lo / 1.25:v_hi * 1.25]
-        } else {
-            margin = v_hi > v_lo ? (v_hi - v_lo) * 0.08 : 1
-            set xrange [v_lo - margin:v_hi + margin]
-        }
-    }
-    if (log_y) {
-        tic_axis = 'y'; tic_lo = ms_lo / 1.25; tic_hi = ms_hi * 1.25
-        set logscale y
-        set yrange [tic_lo:tic_hi]
-        eval log_tics
-        set ylabel 'mean frame time (ms, log scale)'
-    } else {
-        set yrange [0:*]
-        set ylabel 'mean frame time (ms)'
-    }
-    if (any_unaffected) {
-        set label 1 'unaffected: '.sweep_param.' changes nothing the method draws' at graph 0.01, graph 1.02 left font ',9' tc rgb '#6a6a6a'
-    }
     unaffected(i) = listed(sweep_unaffected, method(i))
-    if (by_rank) {
-        plot for [i = 1:n] sweep_file(i) using 0:'mean_ms':xtic(strcol('value')) \
-            with linespoints lt line(i) pt 7 ps 1.3 lw (unaffected(i) ? 1 : 2) \
-            title method(i).(unaffected(i) ? ' (unaffected)' : '')
-    } else {
-        plot for [i = 1:n] sweep_file(i) using 'value':'mean_ms' \
-            with linespoints lt line(i) pt 7 ps 1.3 lw (unaffected(i) ? 1 : 2) \
-            title method(i).(unaffected(i) ? ' (unaffected)' : '')
+    any_unaffected = 0
+    do for [i = 1:n] { if (unaffected(i)) { any_unaffected = 1 } }
+    do for [wall = 0:1] {
+        reset
+        column_name = wall ? 'mean_ms' : mean_time_column
+        what = wall ? 'wall time' : time_name
+        ms_lo = 1e300; ms_hi = 0
+        do for [i = 1:n] {
+            stats sweep_file(i) using (column(column_name)) nooutput
+            if (STATS_records > STATS_invalid) { ms_lo = min(ms_lo, STATS_min); ms_hi = max(ms_hi, STATS_max) }
+        }
+        log_y = ms_lo > 0 && ms_hi / ms_lo > 10
+        set terminal @png_term size 1000,600
+        set output out(wall ? 'chart-sweep-wall.png' : 'chart-sweep.png')
+        set title (wall ? "Mean wall time per frame against ".sweep_param." (lower is better), the secondary view:\n".\
+                          "it swings with the machine's load; ".time_name." is chart-sweep.png" \
+                        : "Mean ".time_name." per frame against ".sweep_param." (lower is better)\n".time_name.": ".time_note). \
+            "\n".run_title font ',13'
+        set grid xtics ytics lc rgb '#d8d8d8'
+        set border 3
+        set tics nomirror
+        set key outside right top vertical Left reverse samplen 2
+        set xlabel sweep_param.(by_rank ? ' (evenly spaced)' : '')
+        if (by_rank) {
+            set xrange [-0.5:values - 0.5]
+        } else {
+            if (log_x) {
+                set logscale x 2
+                set xrange [v_lo / 1.25:v_hi * 1.25]
+            } else {
+                margin = v_hi > v_lo ? (v_hi - v_lo) * 0.08 : 1
+                set xrange [v_lo - margin:v_hi + margin]
+            }
+        }
+        if (log_y) {
+            tic_axis = 'y'; tic_lo = ms_lo / 1.25; tic_hi = ms_hi * 1.25
+            set logscale y
+            set yrange [tic_lo:tic_hi]
+            eval log_tics
+            set ylabel 'mean '.what.' per frame (ms, log scale)'
+        } else {
+            set yrange [0:*]
+            set ylabel 'mean '.what.' per frame (ms)'
+        }
+        if (any_unaffected) {
+            set label 1 'unaffected: '.sweep_param.' changes nothing the method draws (its spread is noise)' \
+                at graph 0.01, graph 1.02 left font ',9' tc rgb '#6a6a6a'
+        }
+        if (by_rank) {
+            plot for [i = 1:n] sweep_file(i) using 0:(column(column_name)):xtic(strcol('value')) \
+                with linespoints lt line(i) pt 7 ps 1.3 lw (unaffected(i) ? 1 : 2) \
+                title method(i).(unaffected(i) ? ' (unaffected)' : '')
+        } else {
+            plot for [i = 1:n] sweep_file(i) using 'value':(column(column_name)) \
+                with linespoints lt line(i) pt 7 ps 1.3 lw (unaffected(i) ? 1 : 2) \
+                title method(i).(unaffected(i) ? ' (unaffected)' : '')
+        }
     }
 }
 
 # ---- chart-pareto.png: speed against accuracy over a sweep (--verify) -------------
-# One point per method and value: mean CPU time per frame against missed
+# One point per method and value: mean primary time per frame against missed
 # pixels per frame (left) and depth errors per frame (right); conservative
 # points (T = 0) filled squares, the others open circles; the points of the
 # Pareto front (no other point as fast with as few errors, and better in
-# one) ringed, named and joined by a black staircase. The oracles are drawn but never on a
-# front: they need the ID pass (the front itself comes from pareto.c).
+# one) ringed, named and joined by a black staircase. The oracles are drawn
+# but never on a front: they need the ID pass (the front itself comes from
+# pareto.c).
 if (pareto) {
     reset
-    stats 'chart-data/pareto.dat' using 'mean_cpu_ms' nooutput
-    cpu_lo = STATS_min; cpu_hi = STATS_max
-    stats 'chart-data/pareto.dat' using 'missed_per_frame' nooutput
-    missed_hi = STATS_max
-    stats 'chart-data/pareto.dat' using 'depth_errors_per_frame' nooutput
-    depth_hi = STATS_max
-    span = cpu_hi > cpu_lo ? cpu_hi - cpu_lo : max(cpu_hi, 1) * 0.1
     set terminal @png_term size 1200,600
     set output out('chart-pareto.png')
-    set multiplot layout 1,2 title "Speed against accuracy over the sweep of ".sweep_param. \
-        ": one point per method and value, lower left is better\n".run_title font ',13'
+    set multiplot title "Speed against accuracy over the sweep of ".sweep_param. \
+        ": one point per method and value, lower left is better\n".run_title.'; '.time_name.': '.time_note font ',13'
     set grid xtics ytics lc rgb '#d8d8d8'
     set border 3
     set tics nomirror
-    set xlabel 'mean CPU time per frame (ms, all threads)'
-    set xrange [max(0, cpu_lo - 0.15 * span):cpu_hi + 0.15 * span]
+    set xlabel 'mean '.time_name.' per frame (ms)'
+    set xrange [pa_x_lo:pa_x_hi]
     set logscale y
     tic_axis = 'y'
     mine(i) = strcol('method') eq method(i)
     do for [panel = 1:2] {
         depth_panel = panel == 2
+        eval panel_margins
         column_name = depth_panel ? 'depth_errors_per_frame' : 'missed_per_frame'
         front_file = depth_panel ? 'chart-data/pareto-front-depth.dat' : 'chart-data/pareto-front.dat'
-        tic_hi = max(20, ((depth_panel ? depth_hi : missed_hi) + 1) * 8)
-        set yrange [tic_hi**(-1.0 / 9):tic_hi]
+        tic_hi = pa_y_hi[panel]
+        set yrange [pa_y_lo[panel]:pa_y_hi[panel]]
         eval symlog_tics
         set title (depth_panel ? 'Depth errors (anything drawn wrong)' : 'Missed pixels (visible errors)') font ',12'
         set ylabel (depth_panel ? 'depth errors' : 'missed pixels').' per frame, mean (log scale of 1 + value)'
@@ -393,22 +421,18 @@ if (pareto) {
         set label 1 (depth_panel ? 'no depth error' : 'no pixel missed') at graph 0.99, first 1 right offset 0,-1 tc rgb '#6a6a6a' font ',9'
         # Keys under the panels, where they hide no point: the methods
         # under the left one, the marks under the right one.
-        set bmargin 6
         set key at graph 0.5, screen 0.01 center bottom horizontal maxcols 3 Left reverse samplen 1 width 1
+        label_file = sprintf('chart-data/labels-pareto-%d.dat', panel)
         plot for [i = 1:n] 'chart-data/pareto.dat' \
-                 using 'mean_cpu_ms':(mine(i) && column('conservative') > 0 ? column(column_name) + 1 : NaN) \
+                 using 'time_ms':(mine(i) && column('conservative') > 0 ? column(column_name) + 1 : NaN) \
                  with points lt line(i) pt 5 ps 1.4 title (depth_panel ? '' : method(i)), \
              for [i = 1:n] 'chart-data/pareto.dat' \
-                 using 'mean_cpu_ms':(mine(i) && column('conservative') == 0 ? column(column_name) + 1 : NaN) \
+                 using 'time_ms':(mine(i) && column('conservative') == 0 ? column(column_name) + 1 : NaN) \
                  with points lt line(i) pt 6 ps 1.4 lw 1.5 notitle, \
-             front_file using 'mean_cpu_ms':(column(column_name) + 1) with steps lc rgb '#000000' lw 1.5 \
+             front_file using 'time_ms':(column(column_name) + 1) with steps lc rgb '#000000' lw 1.5 \
                  notitle, \
-             front_file using 'mean_cpu_ms':(column(column_name) + 1) with points lc rgb '#000000' \
-                 pt 6 ps 2.6 lw 1.2 title (depth_panel ? 'Pareto front' : ''), \
-             front_file every 2 using 'mean_cpu_ms':(column(column_name) + 1):(strcol('method').' '.sweep_param.'='.strcol('value')) \
-                 with labels left offset char 0.8,0.7 font ',8' notitle, \
-             front_file every 2::1 using 'mean_cpu_ms':(column(column_name) + 1):(strcol('method').' '.sweep_param.'='.strcol('value')) \
-                 with labels left offset char 0.8,-0.7 font ',8' notitle, \
+             front_file using 'time_ms':(column(column_name) + 1) with points lc rgb '#000000' \
+                 pt 6 ps 2.6 lw 1.2 title (depth_panel ? 'Pareto front' : '') @label_elements, \
              NaN with points lc rgb '#555555' pt 5 ps 1.4 title (depth_panel ? 'conservative (T = 0)' : ''), \
              NaN with points lc rgb '#555555' pt 6 ps 1.4 title (depth_panel ? 'T > 0' : '')
         unset arrow
@@ -421,7 +445,8 @@ if (pareto) {
 # The frame's CPU time is the outlined bar; inside it, the part its set costs
 # when drawn again with no culling, and above that what finding the set
 # cost. A set that cost more than its frame (noise, or a frame that drew in
-# a cheaper order) stands out above the outline.
+# a cheaper order) stands out above the outline. CPU time whatever `time`
+# says: the redrawn set is timed on the CPU only.
 if (split) {
     reset
     array cpu_all[n]

@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <malloc.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -18,6 +19,7 @@
 #include "tools/cli.h"
 #include "tools/memtest-gp.h"   /* TW_MEMTEST_GP: tools/tileworld/memtest.gp, built in */
 #include "tools/outfile.h"
+#include "tools/progress.h"
 #include "tools/tileworld/charts.h"
 #include "tools/tileworld/outputs.h"
 #include "tools/tileworld/report.h"
@@ -41,6 +43,11 @@ static const char program[] = "tileworld";
 #define LATENCY_P99_BOUND 90.0
 /* Check 2: RSS flat in distance. */
 #define RSS_GROWTH_BOUND 1.05
+/* What one run may cost, refused before it starts: as many frames as walk's
+ * --frames allows (days of rendering on a CPU), and rows of memory.csv
+ * (about 250 bytes each). */
+#define MAX_FRAMES 10000000.0
+#define MAX_ROWS 1000000.0
 
 /* --allocator, and what came of it. */
 enum allocator {
@@ -75,28 +82,59 @@ struct options {
 static void usage(FILE *f)
 {
     fputs("usage: tileworld memtest [--tileset NAME|FILE.json] [--path straight|wander|FILE.csv]\n"
-          "                         [--distance KM] [--budget BYTES] [--workers N]\n"
-          "                         [--policy wait|skip] [--size WxH] [--every METRES]\n"
-          "                         [--out DIR] [--sweep budget=B1,B2,...] [--seed N] [--quiet]\n"
-          "                         [--method M] [--view-distance M] [--upload-budget BYTES]\n"
-          "                         [--start-cell I,J] [--repeat P] [--allocator tuned|default]\n"
+          "                         [--distance KM] [--every METRES] [--budget BYTES]\n"
+          "                         [--sweep budget=B1,B2,...] [--size WxH] [--workers N]\n"
+          "                         [--policy wait|skip] [--method M] [--view-distance M]\n"
+          "                         [--upload-budget BYTES] [--start-cell I,J] [--repeat P]\n"
+          "                         [--seed N] [--allocator tuned|default] [--out DIR] [--quiet]\n"
           "                         [--gl auto|egl|osmesa] [--gpu N]\n"
-          "Walks --distance km (default 5) of a long path (default straight; a CSV is repeated\n"
-          "end to end) through --tileset (default city-gen), frames at --size (default 320x180),\n"
-          "and every --every metres (default 100) records the tile cache's bytes, tiles, loads,\n"
-          "evictions, reloads, load latency, holes, process RSS and frame time into\n"
-          "DIR/memory.csv (--out, default out-memtest), then summary.json, summary.md and\n"
-          "charts. --budget BYTES (64M = 64 MiB; 0: none, the default) bounds the cache;\n"
-          "--sweep budget=16M,32M,64M runs once per budget into DIR/sweep-budget-VALUE/ and\n"
-          "writes DIR/sweep.csv and chart-sweep-budget.png. Exit status 3 when a check does\n"
-          "not hold: cache bytes within the budget (except where the view alone needs more),\n"
-          "RSS flat in distance, no leak, load latency bounded. --allocator tuned (the\n"
-          "default) fixes glibc's mmap threshold at 8 KiB and its arenas at 2, and returns\n"
-          "freed pages to the system after evictions (malloc_trim), as a\n"
-          "long-running host should; default leaves malloc as it is (freed tile memory then\n"
-          "stays with the allocator: memory.csv's heap_free_bytes).\n",
+          "Walks a long path through a tileset and records the tile cache's memory against\n"
+          "the distance travelled: every --every metres a row of DIR/memory.csv (the cache's\n"
+          "bytes, tiles, loads, evictions, reloads, load latency, holes, the process's RSS,\n"
+          "the frame time), then DIR/summary.json, DIR/summary.md and charts (with gnuplot).\n"
+          "Exit status 0 when every check held or was not applicable, 3 when one did not\n"
+          "(cache bytes within the budget except where the view alone needs more, RSS flat\n"
+          "in distance, no leak, load latency bounded), 2 for bad input, 1 for a failure.\n"
+          "--tileset NAME|FILE.json  what the world shows (default city-gen): the providers\n"
+          "                      city-gen and forest-gen, the built-in city, forest, hybrid,\n"
+          "                      or a manifest\n"
+          "--path straight|wander|FILE.csv  the walk (default straight: along one street;\n"
+          "                      wander turns at crossings, seeded by --seed; a CSV is\n"
+          "                      repeated end to end)\n"
+          "--distance KM         kilometres to walk, 0.001..10000 (default 5; about 2500\n"
+          "                      frames, tens of minutes on a CPU: the progress line says)\n"
+          "--every METRES        a row of memory.csv every METRES metres, 1..1000000\n"
+          "                      (default 100)\n"
+          "--budget BYTES        the tile cache's budget, CPU and GPU bytes, with an optional\n"
+          "                      binary suffix K, M, G (64M = 64 MiB); 0: none (the default)\n"
+          "--sweep budget=B1,B2,...  one run per budget into DIR/sweep-budget-VALUE/, and\n"
+          "                      DIR/sweep.csv and chart-sweep-budget.png (not with --budget)\n"
+          "--size WxH            image size, each side 16..8192 (default 320x180)\n"
+          "--workers N           threads generating tiles, 1..64 (default: cores - 1)\n"
+          "--policy wait|skip    a visible tile not ready: the frame waits for it (wait,\n"
+          "                      default) or draws without it, a hole (skip)\n"
+          "--method M            the culling method (default tilequery+chc)\n"
+          "--view-distance M     metres, 1..100000 (default 600)\n"
+          "--upload-budget BYTES per frame, bytes of finished tiles uploaded ahead of need\n"
+          "                      (default 32M)\n"
+          "--start-cell I,J      moves the whole path by that many cells (default 0,0)\n"
+          "--repeat P            the cells' selection repeats every P cells (default: none)\n"
+          "--seed N              seed of the generators, the selection and wander (default 1)\n"
+          "--allocator tuned|default  tuned (the default): glibc's mmap threshold fixed at\n"
+          "                      8 KiB and its arenas at 2, and freed pages returned to the\n"
+          "                      system after each frame that evicted tiles, as a\n"
+          "                      long-running host should; default: malloc left as it is\n"
+          "                      (freed tile memory then stays with the allocator:\n"
+          "                      memory.csv's heap_free_bytes)\n"
+          "--out DIR             output folder (default out-memtest)\n"
+          "--quiet               no progress line and no summary lines\n",
           f);
     fputs(tw_gl_usage, f);
+    fputs("Limits: at most 10000000 frames (distance over what the path moves a frame) and\n"
+          "1000000 rows of memory.csv, refused before the walk starts.\n"
+          "Progress (stderr): on a terminal one line rewritten in place; otherwise a line\n"
+          "every 10 s, or every TW_PROGRESS_INTERVAL_S seconds of the environment.\n",
+          f);
 }
 
 enum {
@@ -234,8 +272,10 @@ static void walk_init(const struct options *o, const struct tw_cli_world *shown,
     if (strcmp(name, "straight") == 0 || strcmp(name, "wander") == 0) {
         /* 2 m a frame (tw_path_builtin_speed); turns cost a little. */
         const double frames = ceil(o->distance_m / 2.0 * 1.05) + 16.0;
-        if (frames > 50e6)
-            tw_cli_fail(program, "--distance", "too long a walk (%.0f frames)", frames);
+        if (frames > MAX_FRAMES)
+            tw_cli_fail(program, "--distance", "%g km would take about %.0f frames, more than "
+                        "memtest's limit of %.0f: give a shorter --distance",
+                        o->distance_m / 1000.0, frames, MAX_FRAMES);
         const int err = tw_path_builtin_speed(name, o->cli.world.selection.seed, (uint32_t)frames,
                                               0.0f, w->footprint[0], w->footprint[1], &w->path);
         if (err) {
@@ -262,6 +302,19 @@ static void walk_init(const struct options *o, const struct tw_cli_world *shown,
         length += step_m(&w->path.keys[k - 1], &w->path.keys[k], w->footprint);
     if (!(length > 0.0))
         tw_cli_fail(program, "--path", "'%s' does not move the camera: no distance to cover", name);
+    /* Each repetition moves length metres in count frames (its first frame
+     * moves none): the frames are known before one is rendered. */
+    const double frames = ceil(o->distance_m / length) * (double)w->path.count;
+    if (frames > MAX_FRAMES)
+        tw_cli_fail(program, "--path", "'%s' moves %g m over its %u rows: %g km would take about "
+                    "%.0f frames, more than memtest's limit of %.0f; give a path that moves "
+                    "farther a row, or a shorter --distance", name, length, w->path.count,
+                    o->distance_m / 1000.0, frames, MAX_FRAMES);
+    const double rows = fmin(frames, floor(o->distance_m / o->every_m)) + 2.0;
+    if (rows > MAX_ROWS)
+        tw_cli_fail(program, "--every", "a row every %g m over %g km makes about %.0f rows of "
+                    "memory.csv, more than memtest's limit of %.0f; give a larger --every or a "
+                    "shorter --distance", o->every_m, o->distance_m / 1000.0, rows, MAX_ROWS);
 }
 
 /* ---- measuring ------------------------------------------------------------------ */
@@ -364,8 +417,10 @@ static int values_push(struct values *a, double x)
 enum verdict { HELD, FAILED, NOT_APPLICABLE };
 
 struct check {
+    char name[40];      /* a few words, for the last line */
     char what[200];
     char figure[400];
+    char why[160];      /* NOT_APPLICABLE: why, in a few words */
     enum verdict verdict;
 };
 
@@ -419,11 +474,15 @@ static const char memory_header[] =
     "tiles_cached,tiles_ready,loads_requested,loads_done,evictions,reloads,latency_median,"
     "latency_p99,holes,rss_bytes,ms_frame,cpu_ms,ms_frame_max,heap_used_bytes,heap_free_bytes,bytes_loading,tiles_loading\n";
 
-static void add_check(struct result *r, enum verdict v, const char *what, const char *figure)
+/* why: for NOT_APPLICABLE, why not (else NULL). */
+static void add_check(struct result *r, enum verdict v, const char *name, const char *what,
+                      const char *figure, const char *why)
 {
     struct check *c = &r->checks[r->check_count++];
+    snprintf(c->name, sizeof(c->name), "%s", name);
     snprintf(c->what, sizeof(c->what), "%s", what);
     snprintf(c->figure, sizeof(c->figure), "%s", figure);
+    snprintf(c->why, sizeof(c->why), "%s", why ? why : "");
     c->verdict = v;
 }
 
@@ -434,7 +493,8 @@ static void judge(struct result *r)
     /* 1. the budget */
     if (r->budget == 0) {
         snprintf(figure, sizeof(figure), "no --budget: peak %.1f MiB of cache", r->peak_total / MIB);
-        add_check(r, NOT_APPLICABLE, "cache bytes <= the budget on every frame", figure);
+        add_check(r, NOT_APPLICABLE, "within the budget", "cache bytes <= the budget on every "
+                  "frame", figure, "no --budget given");
     } else {
         snprintf(what, sizeof(what), "cache bytes <= the budget (%.1f MiB) on every frame, except "
                  "frames whose visible set alone needs more", r->budget / MIB);
@@ -445,22 +505,25 @@ static void judge(struct result *r)
         if (r->frames_over_other && n > 0 && (size_t)n < sizeof(figure))
             snprintf(figure + n, sizeof(figure) - (size_t)n, " (worst %.2f MiB over at frame %u)",
                      r->worst_over / MIB, r->worst_over_frame);
-        add_check(r, r->frames_over_other == 0 ? HELD : FAILED, what, figure);
+        add_check(r, r->frames_over_other == 0 ? HELD : FAILED, "within the budget", what, figure,
+                  NULL);
     }
     /* 2. RSS flat in distance */
     snprintf(what, sizeof(what), "RSS flat: peak over the last 10 %% of the distance <= %.2f x the "
              "peak over the first 10 %% (memory.csv's rows)", RSS_GROWTH_BOUND);
     const double growth = r->rss_first ? (double)r->rss_last / (double)r->rss_first : 0.0;
     snprintf(figure, sizeof(figure), "first 10 %%: %.1f MiB, last 10 %%: %.1f MiB (%+.1f %%); "
-             "malloc's heap at the end: %.1f MiB in use, %.1f MiB held free",
+             "the allocator's heap at the end: %.1f MiB in use, %.1f MiB held free",
              r->rss_first / MIB, r->rss_last / MIB, 100.0 * (growth - 1.0), r->heap_used / MIB,
              r->heap_free / MIB);
     if (r->rss_first_rows < 2 || r->rss_last_rows < 2) {
         snprintf(figure, sizeof(figure), "%u and %u rows in the first and the last 10 %%: --every "
                  "is too coarse for --distance to see a trend", r->rss_first_rows, r->rss_last_rows);
-        add_check(r, NOT_APPLICABLE, what, figure);
+        add_check(r, NOT_APPLICABLE, "RSS flat", what, figure, "too few rows of memory.csv "
+                  "for a trend: give a smaller --every or a longer --distance");
     } else {
-        add_check(r, r->rss_first && growth <= RSS_GROWTH_BOUND ? HELD : FAILED, what, figure);
+        add_check(r, r->rss_first && growth <= RSS_GROWTH_BOUND ? HELD : FAILED, "RSS flat", what,
+                  figure, NULL);
     }
     /* 3. no leak */
     const bool leak_free = r->accounting_mismatch_frames == 0 && r->live_tiles == r->event_tiles &&
@@ -468,49 +531,45 @@ static void judge(struct result *r)
                            r->totals_loads_done == r->loads_done &&
                            r->totals_evictions == r->tile_evictions &&
                            r->live_tiles + r->totals_evictions == r->totals_loads_done;
-    snprintf(figure, sizeof(figure), "at the end %u tiles, %llu bytes live; tile events say %u "
-             "tiles, %llu bytes (%llu ready - %llu evicted); %u frames where they differed",
+    snprintf(figure, sizeof(figure), "at the end %u tiles, %llu bytes live in the cache; loaded "
+             "less evicted: %u tiles, %llu bytes (%llu loaded - %llu evicted); %u frames where "
+             "they differed",
              r->live_tiles, (unsigned long long)r->live_bytes, r->event_tiles,
              (unsigned long long)r->event_bytes, (unsigned long long)r->loads_done,
              (unsigned long long)r->tile_evictions, r->accounting_mismatch_frames);
-    add_check(r, leak_free ? HELD : FAILED,
-              "no leak: the live tiles and bytes (tw_world_cache_totals) are what was loaded less "
-              "what was evicted, on every frame", figure);
+    add_check(r, leak_free ? HELD : FAILED, "no leak",
+              "no leak: the live tiles and bytes the cache reports are what was loaded less what "
+              "was evicted, on every frame", figure, NULL);
     /* 4. load latency */
     snprintf(what, sizeof(what), "load latency p99 <= %.0f frames (request to ready, at 2 m a "
              "frame)", LATENCY_P99_BOUND);
     if (r->lat_count == 0) {
-        snprintf(figure, sizeof(figure), "no tile was loaded (a prototype tileset): nothing to time");
-        add_check(r, NOT_APPLICABLE, what, figure);
+        snprintf(figure, sizeof(figure), "no tile was loaded: nothing to time");
+        add_check(r, NOT_APPLICABLE, "load latency", what, figure, "no tile was loaded in the "
+                  "walk: only providers such as city-gen load tiles");
     } else {
         snprintf(figure, sizeof(figure), "median %.0f, p99 %.0f, max %.0f frames over %u loads",
                  r->lat_median, r->lat_p99, r->lat_max, r->lat_count);
-        add_check(r, r->lat_p99 <= LATENCY_P99_BOUND ? HELD : FAILED, what, figure);
+        add_check(r, r->lat_p99 <= LATENCY_P99_BOUND ? HELD : FAILED, "load latency", what,
+                  figure, NULL);
     }
     r->all_held = true;
     for (uint32_t k = 0; k < r->check_count; k++)
         r->all_held &= r->checks[k].verdict != FAILED;
 }
 
-static void progress(const struct options *o, const char *dir, double distance_m, double mean_ms)
-{
-    if (o->cli.quiet || !isatty(STDERR_FILENO))
-        return;
-    const int width = 30;
-    const double share = distance_m < o->distance_m ? distance_m / o->distance_m : 1.0;
-    const int filled = (int)(share * width);
-    fprintf(stderr, "\r%s [%.*s%*s] %.2f/%.2f km, %.1f ms/frame", dir, filled,
-            "##############################", width - filled, "", distance_m / 1000.0,
-            o->distance_m / 1000.0, mean_ms);
-    if (share >= 1.0)
-        fputc('\n', stderr);
-    fflush(stderr);
-}
+/* What the progress line of the runs shows of this one. */
+struct run_progress {
+    struct tw_progress *line;
+    double done_before;         /* metres walked by the runs before this one */
+    char what[64];              /* "budget 16M, run 2 of 3; " in a sweep, else "" */
+};
 
 /* Walks the whole distance once with budget, writing dir/memory.csv. */
 static int walk_once(const struct options *o, const struct tw_cli_world *shown, struct walk *walk,
-                     struct tw_context *ctx, const char *dir, struct result *r, int *world_error,
-                     char *err, size_t err_size)
+                     struct tw_context *ctx, const char *dir, struct result *r,
+                     const struct run_progress *progress, int *world_error, char *err,
+                     size_t err_size)
 {
     struct tw_world *world = NULL;
     struct tw_cell_map *evicted = NULL;
@@ -704,8 +763,11 @@ static int walk_once(const struct options *o, const struct tw_cli_world *shown, 
             iv.latency.n = 0;
             while (next_record <= distance + 1e-3)
                 next_record += o->every_m;
-            progress(o, dir, distance, total_ms / (f + 1));
         }
+        char note[128];
+        snprintf(note, sizeof(note), "%s%.1f ms/frame", progress->what, total_ms / (f + 1));
+        tw_progress_update(progress->line, progress->done_before + fmin(distance, o->distance_m),
+                           note);
         if (done) {
             r->final_total = total;
             r->live_tiles = totals.tiles_ready;
@@ -892,7 +954,7 @@ static int write_run_summary(const struct options *o, const struct tw_cli_world 
                       "%.1f (%.1f) MiB |\n", r->heap_used / MIB, r->heap_free / MIB,
                       r->heap_free_peak / MIB);
     if (o->allocator == ALLOCATOR_TUNED)
-        tw_outfile_printf(&f, "| freed pages returned to the system (malloc_trim) | %u times, "
+        tw_outfile_printf(&f, "| freed pages returned to the system after evictions | %u times, "
                           "%.0f ms in all |\n", r->trims, r->trim_ms);
     tw_outfile_printf(&f, "| loads requested / done | %llu / %llu |\n",
                       (unsigned long long)r->loads_requested, (unsigned long long)r->loads_done);
@@ -1027,6 +1089,74 @@ static int draw_charts(const struct options *o, const struct tw_cli_world *shown
     return rc;
 }
 
+/* Appends printf text to out (size bytes, *len used), cut to fit. */
+#if defined(__GNUC__)
+__attribute__((format(printf, 4, 5)))
+#endif
+static void append(char *out, size_t size, size_t *len, const char *fmt, ...)
+{
+    if (*len + 1 >= size)
+        return;
+    va_list ap;
+    va_start(ap, fmt);
+    const int n = vsnprintf(out + *len, size - *len, fmt, ap);
+    va_end(ap);
+    if (n > 0)
+        *len = *len + (size_t)n < size ? *len + (size_t)n : size - 1;
+}
+
+/* The verdict over the runs, for the last line: how many checks held, which
+ * did not, which were not applicable and why. Every run has the same checks
+ * in the same order. */
+static void verdict_text(const struct result *results, uint32_t runs, char *out, size_t size)
+{
+    uint32_t held = 0, failed = 0, not_applicable = 0, total = 0;
+    for (uint32_t k = 0; k < runs; k++)
+        for (uint32_t c = 0; c < results[k].check_count; c++) {
+            const enum verdict v = results[k].checks[c].verdict;
+            held += v == HELD;
+            failed += v == FAILED;
+            not_applicable += v == NOT_APPLICABLE;
+            total++;
+        }
+    size_t len = 0;
+    out[0] = '\0';
+    if (failed)
+        append(out, size, &len, "SOME CHECKS DID NOT HOLD: ");
+    if (held == total)
+        append(out, size, &len, "all %u checks held", total);
+    else
+        append(out, size, &len, "%u of %u checks held", held, total);
+    if (runs > 1)
+        append(out, size, &len, " over %u runs", runs);
+    for (int pass = 0; pass < 2; pass++) {
+        const enum verdict want = pass == 0 ? FAILED : NOT_APPLICABLE;
+        const uint32_t count = pass == 0 ? failed : not_applicable;
+        if (count == 0)
+            continue;
+        append(out, size, &len, pass == 0 ? ", %u did not: " : ", %u not applicable: ", count);
+        bool first = true;
+        for (uint32_t c = 0; c < results[0].check_count; c++) {
+            uint32_t in = 0;
+            const struct check *example = NULL;
+            for (uint32_t k = 0; k < runs; k++)
+                if (c < results[k].check_count && results[k].checks[c].verdict == want) {
+                    in++;
+                    if (!example)
+                        example = &results[k].checks[c];
+                }
+            if (!in)
+                continue;
+            append(out, size, &len, "%s%s", first ? "" : "; ", example->name);
+            if (runs > 1)
+                append(out, size, &len, " in %u of %u runs", in, runs);
+            if (want == NOT_APPLICABLE)
+                append(out, size, &len, " (%s)", example->why);
+            first = false;
+        }
+    }
+}
+
 static void print_checks(const char *dir, const struct result *r)
 {
     printf("%s (budget %s):\n", dir, r->budget ? r->budget_text : "none");
@@ -1035,10 +1165,13 @@ static void print_checks(const char *dir, const struct result *r)
                r->checks[k].figure);
 }
 
-/* One run into dir: stale outputs removed, the walk, summaries, charts. */
+/* One run into dir: stale outputs removed, the walk, summaries, charts. The
+ * progress line is finished after the last run's walk, cleared after the
+ * others' (what a run prints goes on lines of its own). */
 static int memtest_run(const struct options *o, const struct tw_cli_world *shown,
                        struct walk *walk, struct tw_context *ctx, const char *dir,
-                       struct result *r, int *world_error, char *err, size_t err_size)
+                       struct result *r, const struct run_progress *progress, bool last,
+                       int *world_error, char *err, size_t err_size)
 {
     int rc = tw_outputs_remove_stale(dir, err, err_size);
     if (rc)
@@ -1048,9 +1181,13 @@ static int memtest_run(const struct options *o, const struct tw_cli_world *shown
         snprintf(err, err_size, "%s: cannot create the output folder: %s", dir, strerror(e));
         return TW_ERR_INVALID;
     }
-    rc = walk_once(o, shown, walk, ctx, dir, r, world_error, err, err_size);
+    rc = walk_once(o, shown, walk, ctx, dir, r, progress, world_error, err, err_size);
     if (rc)
         return rc;
+    if (last)
+        tw_progress_finish(progress->line);
+    else
+        tw_progress_clear(progress->line);
     judge(r);
     rc = write_run_summary(o, shown, dir, r, err, err_size);
     if (!rc)
@@ -1092,6 +1229,8 @@ int tw_memtest_main(int argc, char **argv)
     walk_init(&o, &shown, &walk);
 
     const uint32_t runs = o.sweep_count ? o.sweep_count : 1;
+    struct tw_progress line;
+    memset(&line, 0, sizeof(line));
     struct result *results = calloc(runs, sizeof(*results));
     struct tw_context *ctx = NULL;
     char msg[1400];
@@ -1112,13 +1251,17 @@ int tw_memtest_main(int argc, char **argv)
             err = TW_ERR_INVALID;
         }
     }
+    tw_progress_init(&line, o.out, o.distance_m * runs, "m", 0, o.cli.quiet);
     for (uint32_t k = 0; k < runs && !err; k++) {
         struct result *r = &results[k];
+        struct run_progress progress = {&line, o.distance_m * k, ""};
         char dir[1000];
         if (o.sweep_count) {
             r->budget = o.sweep[k];
             snprintf(r->budget_text, sizeof(r->budget_text), "%s", o.sweep_text[k]);
             snprintf(dir, sizeof(dir), "%s/sweep-budget-%s", o.out, o.sweep_text[k]);
+            snprintf(progress.what, sizeof(progress.what), "budget %s, run %u of %u; ",
+                     o.sweep_text[k], k + 1, runs);
         } else {
             r->budget = o.cli.world.cache_budget_bytes;
             if (r->budget && r->budget % (1u << 20) == 0)
@@ -1129,7 +1272,8 @@ int tw_memtest_main(int argc, char **argv)
                          (unsigned long long)r->budget);
             snprintf(dir, sizeof(dir), "%s", o.out);
         }
-        err = memtest_run(&o, &shown, &walk, ctx, dir, r, &world_error, msg, sizeof(msg));
+        err = memtest_run(&o, &shown, &walk, ctx, dir, r, &progress, k + 1 == runs, &world_error,
+                          msg, sizeof(msg));
     }
     if (!err && o.sweep_count) {
         err = write_sweep(&o, &shown, results, runs, msg, sizeof(msg));
@@ -1137,6 +1281,7 @@ int tw_memtest_main(int argc, char **argv)
             err = draw_charts(&o, &shown, o.out, 0, true, msg, sizeof(msg));
     }
     if (err) {
+        tw_progress_finish(&line);
         /* A world refused for the user's settings has said why in one line. */
         if (world_error) {
             if (o.cli.errors_logged == 0)
@@ -1151,9 +1296,11 @@ int tw_memtest_main(int argc, char **argv)
     bool all = true;
     for (uint32_t k = 0; k < runs; k++)
         all &= results[k].all_held;
-    if (!o.cli.quiet)
-        tw_cli_message(program, "wrote %s/summary.md: %s", o.out,
-                       all ? "everything that must hold held" : "SOME CHECKS DID NOT HOLD");
+    if (!o.cli.quiet) {
+        char verdict[1000];
+        verdict_text(results, runs, verdict, sizeof(verdict));
+        tw_cli_message(program, "wrote %s/summary.md: %s", o.out, verdict);
+    }
     status = all ? 0 : 3;
 out:
     tw_context_destroy(ctx);

@@ -1,5 +1,5 @@
 /*
- * tileworld memtest (DESIGN.md §13, issue 14): the tile cache's memory
+ * tileworld memtest (DESIGN.md §13): the tile cache's memory
  * against distance travelled. Walks a long path (straight, wander, or a path
  * CSV repeated) for --distance kilometres through a tileset or a provider,
  * under --budget, and every --every metres records the cache's bytes (CPU

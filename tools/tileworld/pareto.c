@@ -1,6 +1,7 @@
 /* Speed against accuracy over a sweep: points, Pareto fronts, sweep.md (pareto.h). */
 #include "tools/tileworld/pareto.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 
@@ -10,19 +11,23 @@ static bool dominates(double q_time, double q_error, double p_time, double p_err
     return q_time <= p_time && q_error <= p_error && (q_time < p_time || q_error < p_error);
 }
 
-/* Marks the points of out that no other (realisable) point dominates. */
-static void mark_front(struct tw_pareto_point *points, uint32_t n, bool depth)
+/* Marks the points of out that no other (realisable) point dominates, by
+ * time[k] (NULL: cpu_ms); a point of unknown time (NaN) is on no front and
+ * beats none. */
+static void mark_front(struct tw_pareto_point *points, uint32_t n, const double *time, bool depth)
 {
     for (uint32_t p = 0; p < n; p++) {
         struct tw_pareto_point *pp = &points[p];
-        bool beaten = tw_method_limit(pp->method);
+        const double p_time = time ? time[p] : pp->cpu_ms;
+        bool beaten = tw_method_limit(pp->method) || isnan(p_time);
         for (uint32_t q = 0; q < n && !beaten; q++) {
             const struct tw_pareto_point *qp = &points[q];
-            if (q == p || tw_method_limit(qp->method))
+            const double q_time = time ? time[q] : qp->cpu_ms;
+            if (q == p || tw_method_limit(qp->method) || isnan(q_time))
                 continue;
-            beaten = depth ? dominates(qp->cpu_ms, qp->depth_errors_per_frame, pp->cpu_ms,
+            beaten = depth ? dominates(q_time, qp->depth_errors_per_frame, p_time,
                                        pp->depth_errors_per_frame)
-                           : dominates(qp->cpu_ms, qp->missed_per_frame, pp->cpu_ms,
+                           : dominates(q_time, qp->missed_per_frame, p_time,
                                        pp->missed_per_frame);
         }
         if (depth)
@@ -57,8 +62,14 @@ void tw_pareto_points(const double *values, uint32_t count,
             };
         }
     const uint32_t n = count * method_count;
-    mark_front(out, n, false);
-    mark_front(out, n, true);
+    mark_front(out, n, NULL, false);
+    mark_front(out, n, NULL, true);
+}
+
+void tw_pareto_mark_fronts(struct tw_pareto_point *points, uint32_t n, const double *time)
+{
+    mark_front(points, n, time, false);
+    mark_front(points, n, time, true);
 }
 
 /* The points' indices by CPU time, then by method and value. */

@@ -7,7 +7,8 @@
  * front: it needs the ID pass to know what to draw, so no host can have it.
  *
  * bench --sweep writes sweep.md from these (the front named with its
- * speed-up and its error) and charts.h draws them as chart-pareto.png.
+ * speed-up and its error) and charts.h draws them as chart-pareto.png (on a
+ * real GPU by GPU time, tw_pareto_mark_fronts).
  */
 #ifndef TW_TOOLS_PARETO_H
 #define TW_TOOLS_PARETO_H
@@ -41,6 +42,11 @@ void tw_pareto_points(const double *values, uint32_t count,
                       const bool (*conservative)[TW_METHOD_COUNT], const enum tw_method *methods,
                       uint32_t method_count, const struct tw_method_figures *reference,
                       uint32_t reference_value_index, struct tw_pareto_point *out);
+
+/* Marks the fronts of n points again, each point's time being time[k]
+ * instead of its cpu_ms (the charts' GPU time on a real GPU); a point whose
+ * time is NaN (not known) is on no front and beats none. */
+void tw_pareto_mark_fronts(struct tw_pareto_point *points, uint32_t n, const double *time);
 
 /* Writes the sweep's points as markdown into o: one table row per point
  * (by CPU time), then the fronts named. param: the parameter's name;

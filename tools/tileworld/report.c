@@ -4,9 +4,12 @@
 #include <errno.h>
 #include <json-c/json.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+
+#include "tileworld/tiles.h"
 
 int tw_report_make_dirs(const char *dir)
 {
@@ -142,6 +145,7 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
             return tw_outfile_report(o, err, err_size);
     }
     struct tw_method_summary *m = &r->methods[st->method];
+    const bool first = m->frames == 0;
     if (m->frames == m->cap) {
         uint32_t cap = m->cap ? m->cap * 2 : 256;
         double *ms = realloc(m->ms, sizeof(*ms) * cap);
@@ -171,8 +175,10 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
     m->depth_errors_total += st->depth_errors;
     m->frames_with_depth_errors += st->depth_errors > 0;
     m->tiles_new_total += st->tiles_new;
-    if (st->cache_bytes > m->peak_cache_bytes)
-        m->peak_cache_bytes = st->cache_bytes;
+    if (st->cache_bytes > m->peak_instance_bytes)
+        m->peak_instance_bytes = st->cache_bytes;
+    if (st->bytes_cpu + st->bytes_gpu > r->peak_tile_cache_bytes)
+        r->peak_tile_cache_bytes = st->bytes_cpu + st->bytes_gpu;
     m->predict_fail += st->predict_fail;
     m->tiles_queried += st->tiles_queried;
     m->tiles_visible += st->tiles_visible;
@@ -189,6 +195,18 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
         m->set_ms += set->ms;
         m->set_triangles += (double)set->triangles;
         m->set_draws += set->draws;
+        /* A method's first frame compiles shader variants and makes every
+         * tile it draws; its set, drawn again, finds them ready (and is
+         * itself timed on its second drawing): not comparable. */
+        if (!first) {
+            const double d = st->cpu_ms - set->cpu_ms;
+            m->split_frames++;
+            m->split_frame_cpu_ms += st->cpu_ms;
+            m->split_set_cpu_ms += set->cpu_ms;
+            m->split_set_ms += set->ms;
+            m->split_diff += d;
+            m->split_diff_sq += d * d;
+        }
     }
     return TW_OK;
 }
@@ -285,8 +303,96 @@ static json_object *number_g(double v)
     return json_object_new_double_s(v, text);
 }
 
-/* --split: each method's CPU time parted into drawing its set and finding
- * it, against the oracle's frame (which draws the visible set). */
+const char *tw_report_escape(const char *text, bool markdown, char *out, size_t size)
+{
+    if (!out || size == 0)
+        return out;
+    char *plain = malloc(size);
+    if (!plain) {
+        out[0] = '\0';
+        return out;
+    }
+    tw_log_escape(text, plain, size);
+    if (!markdown) {
+        memcpy(out, plain, strlen(plain) + 1);
+        free(plain);
+        return out;
+    }
+    /* Entities for what would open a tag, a code span or a table cell;
+     * a backslash before the rest of Markdown's punctuation. */
+    size_t o = 0;
+    for (const char *c = plain; *c; c++) {
+        const char *piece = NULL;
+        char two[3] = {'\\', *c, '\0'};
+        switch (*c) {
+        case '|': piece = "&#124;"; break;
+        case '`': piece = "&#96;"; break;
+        case '<': piece = "&lt;"; break;
+        case '>': piece = "&gt;"; break;
+        case '&': piece = "&amp;"; break;
+        case '\\': case '*': case '_': case '[': case ']': case '#': case '~': case '!':
+            piece = two;
+            break;
+        default:
+            break;
+        }
+        const size_t len = piece ? strlen(piece) : 1;
+        if (o + len + 4 > size) {
+            memcpy(out + o, "...", 4);
+            free(plain);
+            return out;
+        }
+        if (piece)
+            memcpy(out + o, piece, len);
+        else
+            out[o] = *c;
+        o += len;
+    }
+    out[o] = '\0';
+    free(plain);
+    return out;
+}
+
+/* --split: the frames after the method's first, frame against set. */
+static void split_figures(const struct tw_method_summary *m, struct tw_split_figures *out)
+{
+    memset(out, 0, sizeof(*out));
+    const uint32_t n = m->split_frames;
+    out->frames = n;
+    if (n == 0)
+        return;
+    out->frame_cpu_ms = m->split_frame_cpu_ms / n;
+    out->set_cpu_ms = m->split_set_cpu_ms / n;
+    out->finding_cpu_ms = m->split_diff / n;
+    if (n < TW_SPLIT_MIN_FRAMES)
+        return;
+    const double var = (m->split_diff_sq - m->split_diff * m->split_diff / n) / (n - 1);
+    out->margin_cpu_ms = 2.0 * sqrt(var > 0.0 ? var / n : 0.0);
+    const double at_most = out->finding_cpu_ms + out->margin_cpu_ms;
+    if (out->finding_cpu_ms > out->margin_cpu_ms)
+        out->verdict = TW_SPLIT_MEASURED;
+    else if (at_most < 0.0)
+        out->verdict = TW_SPLIT_NOT_MEASURABLE;
+    else if (at_most >= out->frame_cpu_ms)
+        out->verdict = TW_SPLIT_TOO_NOISY;
+    else
+        out->verdict = TW_SPLIT_BOUNDED;
+}
+
+static const char *split_verdict_name(enum tw_split_verdict v)
+{
+    switch (v) {
+    case TW_SPLIT_MEASURED: return "measured";
+    case TW_SPLIT_BOUNDED: return "not told apart from nothing";
+    case TW_SPLIT_NOT_MEASURABLE: return "not measurable";
+    case TW_SPLIT_TOO_NOISY: return "too noisy to tell";
+    default: return "too few frames";
+    }
+}
+
+/* --split: each method's CPU time parted into drawing its set and the rest,
+ * over the frames where the two are comparable, against the oracle's frame
+ * (which draws the visible set). */
 static void write_split(struct tw_outfile *f, const struct tw_report *r, const struct row *rows,
                         int nrows, const struct row *oracle)
 {
@@ -296,30 +402,297 @@ static void write_split(struct tw_outfile *f, const struct tw_report *r, const s
     if (!any)
         return;
     tw_outfile_printf(f, "\n## Where the CPU time goes (--split)\n\n"
-                         "Each frame's set of clusters drawn again from its camera with no "
-                         "culling, tile by tile as the oracle draws its own (each tile's "
-                         "clusters in the frame's order), and finished: what drawing that set "
-                         "costs. The rest of the frame's "
-                         "CPU time is what finding it cost (queries, waits, traversal). A "
-                         "method that issues no query finds its set for next to nothing, and "
-                         "what it reads there bounds what these figures can tell: the redraw "
-                         "is one stretch of drawing, where a frame's queries flush the GPU's "
-                         "work every tile, and on llvmpipe a large set can cost more drawn in "
-                         "one stretch (see the README's known limits).\n\n"
-                         "| method | CPU ms | drawing its set, CPU ms | finding it, CPU ms | "
-                         "set / oracle's frame | triangles of the set | draws of the set |\n"
-                         "|---|---|---|---|---|---|---|\n");
+                         "After each frame its set of clusters was drawn again from its camera "
+                         "with no culling and no query, tile by tile as the oracle draws its "
+                         "own, and finished: what drawing that set costs. A method's first "
+                         "frame is left out (it compiles shader variants and makes every tile "
+                         "it draws, which its set, drawn again, finds ready); over the other "
+                         "frames the frame's mean CPU time is the set's plus the rest: finding "
+                         "the set (queries, waits, traversal) and the frame's tile bookkeeping. "
+                         "The rest is a difference of two noisy times: it is given when it "
+                         "exceeds twice its standard error (the margin), bounded when it does "
+                         "not, too noisy to tell when that bound is as large as the frame, and "
+                         "not measurable when the set drawn again cost more than its frame "
+                         "beyond that margin (on a software rasteriser a set drawn in one "
+                         "stretch can cost more than the same set drawn between queries, in "
+                         "pieces).\n\n"
+                         "| method | frames compared | frame, CPU ms | drawing its set, CPU ms | "
+                         "the rest (finding), CPU ms | set / oracle's frame | triangles of the "
+                         "set | draws of the set |\n"
+                         "|---|---|---|---|---|---|---|---|\n");
     for (int k = 0; k < nrows; k++) {
         const struct tw_method_summary *m = &r->methods[rows[k].method];
         if (m->set_frames == 0)
             continue;
-        const double n = m->set_frames, set = m->set_cpu_ms / n;
-        char so[32];
-        ratio(so, sizeof(so), set, oracle ? oracle->cpu_mean : 0.0);
-        tw_outfile_printf(f, "| %s | %.2f | %.2f | %.2f | %s | %.0f | %.0f |\n", rows[k].name,
-                          rows[k].cpu_mean, set, rows[k].cpu_mean - set, so,
+        struct tw_split_figures sp;
+        split_figures(m, &sp);
+        const double n = m->set_frames;
+        char so[32], drawing[96], finding[160];
+        ratio(so, sizeof(so), sp.set_cpu_ms, oracle ? oracle->cpu_mean : 0.0);
+        switch (sp.verdict) {
+        case TW_SPLIT_MEASURED:
+            snprintf(drawing, sizeof(drawing), "%.2f", sp.set_cpu_ms);
+            snprintf(finding, sizeof(finding), "%.2f (margin %.2f)", sp.finding_cpu_ms,
+                     sp.margin_cpu_ms);
+            break;
+        case TW_SPLIT_BOUNDED:
+            snprintf(drawing, sizeof(drawing), "at least %.2f",
+                     sp.frame_cpu_ms - (sp.finding_cpu_ms + sp.margin_cpu_ms));
+            snprintf(finding, sizeof(finding), "at most %.2f (not told apart from nothing)",
+                     sp.finding_cpu_ms + sp.margin_cpu_ms);
+            break;
+        case TW_SPLIT_NOT_MEASURABLE:
+            snprintf(drawing, sizeof(drawing), "not measurable");
+            snprintf(finding, sizeof(finding), "not measurable: its set drawn again cost "
+                     "%.2f, more than its frame beyond the margin of %.2f", sp.set_cpu_ms,
+                     sp.margin_cpu_ms);
+            break;
+        case TW_SPLIT_TOO_NOISY:
+            snprintf(drawing, sizeof(drawing), "too noisy to tell");
+            snprintf(finding, sizeof(finding), "too noisy to tell: the margin, %.2f, is as "
+                     "large as the frame", sp.margin_cpu_ms);
+            break;
+        default:
+            snprintf(drawing, sizeof(drawing), "not measured");
+            snprintf(finding, sizeof(finding), "not measured: fewer than %d frames after the "
+                     "first", TW_SPLIT_MIN_FRAMES);
+            break;
+        }
+        if (sp.verdict == TW_SPLIT_NONE)
+            snprintf(so, sizeof(so), "-");
+        tw_outfile_printf(f, "| %s | %u | %.2f | %s | %s | %s | %.0f | %.0f |\n", rows[k].name,
+                          sp.frames, sp.frame_cpu_ms, drawing, finding, so,
                           m->set_triangles / n, m->set_draws / n);
     }
+}
+
+/* ---- the verdict ----------------------------------------------------------------- */
+
+/* The figure methods are ranked by: CPU time on a software renderer (its
+ * GPU work is CPU work), the time to a finished frame on a GPU. */
+static double ranked_figure(const struct tw_method_figures *fg, bool software)
+{
+    return software ? fg->mean_cpu_ms : fg->mean_ms;
+}
+
+/* Appends to a verdict line (cut at its end). */
+static void add(char *line, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+static void add(char *line, const char *fmt, ...)
+{
+    const size_t n = strlen(line), size = sizeof(((struct tw_verdict *)0)->lines[0]);
+    if (n + 1 >= size)
+        return;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(line + n, size - n, fmt, ap);
+    va_end(ap);
+}
+
+/* " (0.135x vfc's, 1.33x the box oracle's)" for a figure a of a method
+ * against those of vfc and the box oracle (0: not in the run); short: " (0.135x, 1.33x)". */
+static void add_ratios(char *line, double a, double vfc, double box, bool short_form)
+{
+    if (vfc > 0.0 && box > 0.0)
+        add(line, short_form ? " (%.3gx, %.3gx)" : " (%.3gx vfc's, %.3gx the box oracle's)",
+            a / vfc, a / box);
+    else if (vfc > 0.0)
+        add(line, short_form ? " (%.3gx)" : " (%.3gx vfc's)", a / vfc);
+    else if (box > 0.0)
+        add(line, short_form ? " (%.3gx)" : " (%.3gx the box oracle's)", a / box);
+}
+
+bool tw_report_missed(const struct tw_report_about *about,
+                      const struct tw_method_figures figures[TW_METHOD_COUNT])
+{
+    if (!about->verified)
+        return false;
+    for (int k = 0; k < TW_METHOD_COUNT; k++)
+        if (figures[k].used && about->conservative[k] && figures[k].missed_pixels_total > 0)
+            return true;
+    return false;
+}
+
+void tw_report_verdict(const struct tw_report_about *about,
+                       const struct tw_method_figures figures[TW_METHOD_COUNT], bool bench,
+                       enum tw_verdict_form form, struct tw_verdict *out)
+{
+    memset(out, 0, sizeof(*out));
+    const bool md = form == TW_VERDICT_MARKDOWN;
+    const bool sw = about->software;
+    char tileset[300], path[300], renderer[300], context[64], build[64], commit[100];
+    tw_report_escape(about->tileset, md, tileset, sizeof(tileset));
+    tw_report_escape(about->path, md, path, sizeof(path));
+    tw_report_escape(known(about->gl_renderer), md, renderer, sizeof(renderer));
+    tw_report_escape(known(about->context), md, context, sizeof(context));
+    tw_report_escape(known(about->build_type), md, build, sizeof(build));
+    tw_report_escape(known(about->commit), md, commit, sizeof(commit));
+    int used = 0;
+    enum tw_method only = TW_METHOD_VFC;
+    for (int k = 0; k < TW_METHOD_COUNT; k++)
+        if (figures[k].used) {
+            used++;
+            only = (enum tw_method)k;
+        }
+    const struct tw_method_figures *vfc = &figures[TW_METHOD_VFC];
+    const struct tw_method_figures *box = &figures[TW_METHOD_BOX_ORACLE];
+    const char *metric = sw ? "CPU time" : "time to a finished frame (wall)";
+
+    /* What ran, where. */
+    char *line = out->lines[out->count++];
+    if (bench)
+        add(line, "tileworld bench of %d method%s", used, used == 1 ? "" : "s");
+    else
+        add(line, "tileworld walk with %s", tw_method_name(only));
+    add(line, ": tileset %s, path %s, %ux%u, %u frames, seed %llu; on %s through %s%s; %s "
+              "build of %s.", tileset, path, about->width, about->height, about->frames,
+        (unsigned long long)about->seed, renderer, context,
+        sw ? " (a software renderer: its GPU work is CPU time)" : " (a GPU)", build, commit);
+
+    /* How fast. */
+    line = out->lines[out->count++];
+    if (!bench || used == 1) {
+        const struct tw_method_figures *fg = &figures[only];
+        add(line, "%s: %.2f ms of CPU time a frame, %.2f ms to a finished frame (wall)",
+            tw_method_name(only), fg->mean_cpu_ms, fg->mean_ms);
+        if (fg->gpu_frames > 0)
+            add(line, ", %.2f ms of GPU time%s", fg->mean_gpu_ms,
+                sw ? " (the software rasteriser's work, counted in the CPU time too)" : "");
+        else
+            add(line, ", GPU time not known");
+        const bool reference = only == TW_METHOD_VFC || only == TW_METHOD_BOX_ORACLE;
+        add(line, ". Ratios to vfc and to the box oracle need them in the same run: tileworld "
+                  "bench --methods vfc,%s%sbox-oracle.",
+            reference ? "" : tw_method_name(only), reference ? "" : ",");
+    } else {
+        /* The conservative methods a renderer could use, by the figure. */
+        enum tw_method best = TW_METHOD_COUNT, next = TW_METHOD_COUNT;
+        for (int k = 0; k < TW_METHOD_COUNT; k++) {
+            const struct tw_method_figures *fg = &figures[k];
+            if (!fg->used || tw_method_limit((enum tw_method)k) || !about->conservative[k])
+                continue;
+            const double v = ranked_figure(fg, sw);
+            if (best == TW_METHOD_COUNT || v < ranked_figure(&figures[best], sw)) {
+                next = best;
+                best = (enum tw_method)k;
+            } else if (next == TW_METHOD_COUNT || v < ranked_figure(&figures[next], sw)) {
+                next = (enum tw_method)k;
+            }
+        }
+        if (best == TW_METHOD_COUNT) {
+            add(line, "No conservative method a renderer could use ran (see --methods and "
+                      "--threshold): none is ranked.");
+        } else {
+            const struct tw_method_figures *fg = &figures[best];
+            const double rv = vfc->used && best != TW_METHOD_VFC ? 1.0 : 0.0;
+            const double rb = box->used ? 1.0 : 0.0;
+            /* The ranked figure first, then the others. */
+            const double cpu[3] = {fg->mean_cpu_ms, rv * vfc->mean_cpu_ms, rb * box->mean_cpu_ms};
+            const double wall[3] = {fg->mean_ms, rv * vfc->mean_ms, rb * box->mean_ms};
+            add(line, "Fastest conservative method, by %s: %s, ", metric, tw_method_name(best));
+            for (int pass = 0; pass < 2; pass++) {
+                const bool cpu_pass = (pass == 0) == sw;
+                const double *v = cpu_pass ? cpu : wall;
+                add(line, cpu_pass ? "%s%.2f ms of CPU time a frame"
+                                   : "%s%.2f ms to a finished frame (wall)", pass ? "; " : "", v[0]);
+                add_ratios(line, v[0], v[1], v[2], pass > 0);
+            }
+            if (fg->gpu_frames > 0) {
+                add(line, "; %.2f ms of GPU time", fg->mean_gpu_ms);
+                add_ratios(line, fg->mean_gpu_ms, rv * (vfc->gpu_frames ? vfc->mean_gpu_ms : 0.0),
+                           rb * (box->gpu_frames ? box->mean_gpu_ms : 0.0), true);
+            } else {
+                add(line, "; GPU time not known");
+            }
+            add(line, ".");
+            if (next != TW_METHOD_COUNT) {
+                const double a = ranked_figure(fg, sw), b = ranked_figure(&figures[next], sw);
+                add(line, " The next fastest, %s, took %.2fx as much %s.", tw_method_name(next),
+                    a > 0.0 ? b / a : 0.0, sw ? "CPU time" : "wall time");
+            }
+            if (!vfc->used)
+                add(line, " (vfc was not in this run.)");
+            if (!box->used)
+                add(line, " (box-oracle, the floor of culling with boxes, was not in this run.)");
+        }
+        /* Every method against the references, by the same figure. */
+        if (vfc->used || box->used) {
+            line = out->lines[out->count++];
+            add(line, "%s per frame, as a multiple of %s%s%s:", sw ? "CPU time" : "Wall time",
+                vfc->used ? "vfc's" : "", vfc->used && box->used ? " / " : "",
+                box->used ? "the box oracle's" : "");
+            bool comma = false;
+            for (int k = 0; k < TW_METHOD_COUNT; k++) {
+                const struct tw_method_figures *fg = &figures[k];
+                if (!fg->used)
+                    continue;
+                const double v = ranked_figure(fg, sw);
+                const double a = ranked_figure(vfc, sw), b = ranked_figure(box, sw);
+                add(line, "%s %s ", comma ? "," : "", tw_method_name((enum tw_method)k));
+                if (vfc->used)
+                    add(line, "%.3g", a > 0.0 ? v / a : 0.0);
+                if (vfc->used && box->used)
+                    add(line, " / ");
+                if (box->used)
+                    add(line, "%.3g", b > 0.0 ? v / b : 0.0);
+                if (tw_method_limit((enum tw_method)k))
+                    add(line, " (a limit)");
+                else if (!about->conservative[k])
+                    add(line, " (approximate)");
+                comma = true;
+            }
+            add(line, ".");
+        }
+    }
+
+    /* How accurate. */
+    line = out->lines[out->count++];
+    if (!about->verified) {
+        add(line, "Accuracy not measured (add --verify).");
+    } else {
+        out->failed = tw_report_missed(about, figures);
+        if (out->failed) {
+            add(line, "%sFAILED: a conservative method missed pixels under --verify:",
+                md ? "**" : "");
+            bool comma = false;
+            for (int k = 0; k < TW_METHOD_COUNT; k++) {
+                const struct tw_method_figures *fg = &figures[k];
+                if (!fg->used || !about->conservative[k] || fg->missed_pixels_total == 0)
+                    continue;
+                add(line, "%s %s missed %llu pixels in %u of %u frames", comma ? "," : "",
+                    tw_method_name((enum tw_method)k),
+                    (unsigned long long)fg->missed_pixels_total, fg->frames_with_missed_pixels,
+                    fg->frames);
+                comma = true;
+            }
+            add(line, "; it must miss none. %s%s",
+                about->allow_missed ? "Accepted by --allow-missed (exit status 0)."
+                                    : "Exit status 3 (--allow-missed accepts it).",
+                md ? "**" : "");
+        } else {
+            if (used == 1)
+                add(line, "Accuracy (--verify, the oracle's ID pass on every frame): %s missed no "
+                          "pixel.", tw_method_name(only));
+            else
+                add(line, "Accuracy (--verify, the oracle's ID pass on every frame): no "
+                          "conservative method missed a pixel.");
+        }
+        for (int k = 0; k < TW_METHOD_COUNT; k++) {
+            const struct tw_method_figures *fg = &figures[k];
+            if (fg->used && !about->conservative[k])
+                add(line, " %s, approximate (--threshold), missed %llu pixels in %u of %u frames.",
+                    tw_method_name((enum tw_method)k),
+                    (unsigned long long)fg->missed_pixels_total, fg->frames_with_missed_pixels,
+                    fg->frames);
+        }
+    }
+    if (about->mutate_query_shrink > 0.0f)
+        add(line, " %sTesting only: every query box shrunk by %g of its size "
+                  "(--mutate-query-shrink), a deliberately broken culler.%s",
+            md ? "**" : "", about->mutate_query_shrink, md ? "**" : "");
 }
 
 /* With the box oracle in the run: each method against that floor. */
@@ -369,8 +742,10 @@ int tw_report_close(struct tw_report *r, bool markdown,
 
     struct row rows[TW_METHOD_COUNT];
     int nrows = 0;
-    if (figures)
-        memset(figures, 0, sizeof(struct tw_method_figures) * TW_METHOD_COUNT);
+    /* The figures are the verdict's too: kept here when the caller wants none. */
+    struct tw_method_figures own[TW_METHOD_COUNT];
+    struct tw_method_figures *figures_of = figures ? figures : own;
+    memset(figures_of, 0, sizeof(struct tw_method_figures) * TW_METHOD_COUNT);
     json_object *root = json_object_new_object();
     json_object *methods = json_object_new_object();
     for (int k = 0; k < TW_METHOD_COUNT; k++) {
@@ -389,13 +764,17 @@ int tw_report_close(struct tw_report *r, bool markdown,
         json_object_object_add(o, "p99_ms", number(row->p99, 3));
         json_object_object_add(o, "mean_triangles", number(row->triangles, 3));
         json_object_object_add(o, "mean_queries", number(row->queries, 3));
+        /* Accuracy not measured is null, never 0. */
+        const bool verified = r->about.verified;
         json_object_object_add(o, "missed_pixels_total",
-                               json_object_new_int64((int64_t)m->missed_pixels_total));
+                               verified ? json_object_new_int64((int64_t)m->missed_pixels_total)
+                                        : NULL);
         json_object_object_add(o, "frames_with_missed_pixels",
-                               json_object_new_int64(m->frames_with_missed_pixels));
+                               verified ? json_object_new_int64(m->frames_with_missed_pixels)
+                                        : NULL);
         json_object_object_add(o, "tiles_new_total", json_object_new_int64((int64_t)m->tiles_new_total));
-        json_object_object_add(o, "peak_cache_bytes",
-                               json_object_new_int64((int64_t)m->peak_cache_bytes));
+        json_object_object_add(o, "peak_instance_bytes",
+                               json_object_new_int64((int64_t)m->peak_instance_bytes));
         json_object_object_add(o, "predict_fail_rate",
                                number(m->tiles_queried ? (double)m->predict_fail /
                                                              (double)m->tiles_queried : 0.0, 6));
@@ -418,27 +797,45 @@ int tw_report_close(struct tw_report *r, bool markdown,
         json_object_object_add(o, "gpu_frames_unknown",
                                json_object_new_int64(m->frames - m->gpu_frames));
         json_object_object_add(o, "missed_clusters_total",
-                               json_object_new_int64((int64_t)m->missed_clusters_total));
+                               verified ? json_object_new_int64((int64_t)m->missed_clusters_total)
+                                        : NULL);
         json_object_object_add(o, "depth_errors_total",
-                               json_object_new_int64((int64_t)m->depth_errors_total));
+                               verified ? json_object_new_int64((int64_t)m->depth_errors_total)
+                                        : NULL);
         json_object_object_add(o, "frames_with_depth_errors",
-                               json_object_new_int64(m->frames_with_depth_errors));
+                               verified ? json_object_new_int64(m->frames_with_depth_errors)
+                                        : NULL);
+        struct tw_split_figures split;
+        split_figures(m, &split);
         if (m->set_frames > 0) {
-            /* --split: the frames' sets drawn again with no culling. */
+            /* --split: the frames' sets drawn again with no culling, over
+             * the frames compared (all but the method's first). */
             const double n = m->set_frames;
+            const bool given = split.verdict == TW_SPLIT_MEASURED;
             json_object *set = json_object_new_object();
-            json_object_object_add(set, "frames", json_object_new_int64(m->set_frames));
-            json_object_object_add(set, "mean_cpu_ms", number(m->set_cpu_ms / n, 3));
-            json_object_object_add(set, "mean_ms", number(m->set_ms / n, 3));
+            json_object_object_add(set, "frames", json_object_new_int64(split.frames));
+            json_object_object_add(set, "mean_frame_cpu_ms", number(split.frame_cpu_ms, 3));
+            json_object_object_add(set, "mean_cpu_ms", number(split.set_cpu_ms, 3));
+            json_object_object_add(set, "mean_ms", number(split.frames ? m->split_set_ms /
+                                                                          split.frames : 0.0, 3));
             json_object_object_add(set, "mean_triangles", number(m->set_triangles / n, 1));
             json_object_object_add(set, "mean_draws", number(m->set_draws / n, 1));
+            json_object_object_add(set, "finding", json_object_new_string(
+                                       split_verdict_name(split.verdict)));
             json_object_object_add(set, "mean_finding_cpu_ms",
-                                   number(row->cpu_mean - m->set_cpu_ms / n, 3));
+                                   given ? number(split.finding_cpu_ms, 3) : NULL);
+            json_object_object_add(set, "finding_at_most_cpu_ms",
+                                   split.verdict == TW_SPLIT_BOUNDED
+                                       ? number(split.finding_cpu_ms + split.margin_cpu_ms, 3)
+                                       : NULL);
+            json_object_object_add(set, "finding_margin_cpu_ms",
+                                   split.verdict != TW_SPLIT_NONE ? number(split.margin_cpu_ms, 3)
+                                                                  : NULL);
             json_object_object_add(o, "set", set);
         }
         json_object_object_add(methods, row->name, o);
-        if (figures) {
-            struct tw_method_figures *fg = &figures[k];
+        {
+            struct tw_method_figures *fg = &figures_of[k];
             fg->used = true;
             fg->frames = m->frames;
             fg->mean_ms = row->mean;
@@ -461,13 +858,23 @@ int tw_report_close(struct tw_report *r, bool markdown,
             fg->depth_errors_total = m->depth_errors_total;
             fg->frames_with_depth_errors = m->frames_with_depth_errors;
             fg->predict_fail_rate = m->tiles_queried ? (double)m->predict_fail / m->tiles_queried : 0.0;
-            fg->peak_cache_bytes = m->peak_cache_bytes;
+            fg->peak_instance_bytes = m->peak_instance_bytes;
+            fg->mean_gpu_ms = row->gpu_mean;
+            fg->gpu_frames = m->gpu_frames;
+            fg->split = split;
         }
     }
     json_object_object_add(root, "methods", methods);
     const struct tw_report_about *about = &r->about;
-    json_object_object_add(root, "tileset", json_object_new_string(about->tileset));
-    json_object_object_add(root, "path", json_object_new_string(about->path));
+    /* Names from input: valid UTF-8 with no control character (json-c
+     * writes bytes as they are). */
+    char text[1024];
+    json_object_object_add(root, "tileset", json_object_new_string(
+                               tw_report_escape(about->tileset, false, text, sizeof(text))));
+    json_object_object_add(root, "path", json_object_new_string(
+                               tw_report_escape(about->path, false, text, sizeof(text))));
+    json_object_object_add(root, "peak_tile_cache_bytes",
+                           json_object_new_int64((int64_t)r->peak_tile_cache_bytes));
     char size[64];
     snprintf(size, sizeof(size), "%ux%u", about->width, about->height);
     json_object_object_add(root, "size", json_object_new_string(size));
@@ -479,13 +886,19 @@ int tw_report_close(struct tw_report *r, bool markdown,
     if (about->mutate_query_shrink > 0.0f)
         json_object_object_add(root, "mutate_query_shrink", number_g(about->mutate_query_shrink));
     json_object *ran = json_object_new_object();
-    json_object_object_add(ran, "context", json_object_new_string(known(about->context)));
-    json_object_object_add(ran, "gl_vendor", json_object_new_string(known(about->gl_vendor)));
-    json_object_object_add(ran, "gl_renderer", json_object_new_string(known(about->gl_renderer)));
-    json_object_object_add(ran, "gl_version", json_object_new_string(known(about->gl_version)));
+    json_object_object_add(ran, "context", json_object_new_string(
+                               tw_report_escape(known(about->context), false, text, sizeof(text))));
+    json_object_object_add(ran, "gl_vendor", json_object_new_string(
+                               tw_report_escape(known(about->gl_vendor), false, text, sizeof(text))));
+    json_object_object_add(ran, "gl_renderer", json_object_new_string(
+                               tw_report_escape(known(about->gl_renderer), false, text, sizeof(text))));
+    json_object_object_add(ran, "gl_version", json_object_new_string(
+                               tw_report_escape(known(about->gl_version), false, text, sizeof(text))));
     json_object_object_add(ran, "software", json_object_new_boolean(about->software));
-    json_object_object_add(ran, "build_type", json_object_new_string(known(about->build_type)));
-    json_object_object_add(ran, "commit", json_object_new_string(known(about->commit)));
+    json_object_object_add(ran, "build_type", json_object_new_string(
+                               tw_report_escape(known(about->build_type), false, text, sizeof(text))));
+    json_object_object_add(ran, "commit", json_object_new_string(
+                               tw_report_escape(known(about->commit), false, text, sizeof(text))));
     json_object_object_add(root, "run", ran);
     char file[1100];
     snprintf(file, sizeof(file), "%s/summary.json", r->dir);
@@ -503,17 +916,33 @@ int tw_report_close(struct tw_report *r, bool markdown,
                 if (rows[k].method == TW_METHOD_VFC) vfc = &rows[k];
                 if (rows[k].method == TW_METHOD_ORACLE) oracle = &rows[k];
             }
-            tw_outfile_printf(&f, "# tileworld bench: %s, path %s, %ux%u, seed %llu\n\n",
-                              about->tileset, about->path, about->width, about->height,
+            /* The verdict first, then what ran, before any table. */
+            char tileset[600], path[600], vendor[300], version[300];
+            tw_outfile_printf(&f, "# tileworld %s: %s, path %s, %ux%u, seed %llu\n\n",
+                              about->bench ? "bench" : "walk", tw_report_escape(about->tileset, true, tileset, sizeof(tileset)),
+                              tw_report_escape(about->path, true, path, sizeof(path)),
+                              about->width, about->height, (unsigned long long)about->seed);
+            struct tw_verdict verdict;
+            tw_report_verdict(about, figures_of, about->bench, TW_VERDICT_MARKDOWN, &verdict);
+            /* Its first line says what ran: the line below says more. */
+            for (int k = 1; k < verdict.count; k++)
+                tw_outfile_printf(&f, "%s\n", verdict.lines[k]);
+            char renderer[600], context[100], build[100], commit[200];
+            tw_outfile_printf(&f, "\nRan on %s (%s, GL %s) through %s; %s build of %s; tileset "
+                                  "%s, path %s, %ux%u, %u frames, seed %llu.\n\n",
+                              tw_report_escape(known(about->gl_renderer), true, renderer,
+                                               sizeof(renderer)),
+                              tw_report_escape(known(about->gl_vendor), true, vendor,
+                                               sizeof(vendor)),
+                              tw_report_escape(known(about->gl_version), true, version,
+                                               sizeof(version)),
+                              tw_report_escape(known(about->context), true, context,
+                                               sizeof(context)),
+                              tw_report_escape(known(about->build_type), true, build,
+                                               sizeof(build)),
+                              tw_report_escape(known(about->commit), true, commit, sizeof(commit)),
+                              tileset, path, about->width, about->height, about->frames,
                               (unsigned long long)about->seed);
-            tw_outfile_printf(&f, "Ran on %s (%s, GL %s) through %s; %s build of %s.\n\n",
-                              known(about->gl_renderer), known(about->gl_vendor),
-                              known(about->gl_version), known(about->context),
-                              known(about->build_type), known(about->commit));
-            if (about->mutate_query_shrink > 0.0f)
-                tw_outfile_printf(&f, "**Testing only: every query box shrunk by %g of its size "
-                                      "(--mutate-query-shrink), a deliberately broken culler.**\n\n",
-                                  about->mutate_query_shrink);
             tw_outfile_printf(&f, "| method | frames | mean ms | median ms | p95 ms | p99 ms | "
                                   "mean CPU ms | p99 CPU ms | mean GPU ms | triangles | queries | "
                                   "missed pixels | depth errors | time / vfc | CPU / vfc | "
@@ -533,12 +962,18 @@ int tw_report_close(struct tw_report *r, bool markdown,
                     snprintf(gpu, sizeof(gpu), "%.2f", row->gpu_mean);
                 else
                     snprintf(gpu, sizeof(gpu), "-");
+                char missed[32] = "not measured", depth[32] = "not measured";
+                if (about->verified) {
+                    snprintf(missed, sizeof(missed), "%llu",
+                             (unsigned long long)m->missed_pixels_total);
+                    snprintf(depth, sizeof(depth), "%llu",
+                             (unsigned long long)m->depth_errors_total);
+                }
                 tw_outfile_printf(&f, "| %s | %u | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %s | "
-                                      "%.0f | %.1f | %llu | %llu | %s | %s | %s | %s | %s |\n",
+                                      "%.0f | %.1f | %s | %s | %s | %s | %s | %s | %s |\n",
                                   row->name, m->frames, row->mean, row->median, row->p95, row->p99,
                                   row->cpu_mean, row->cpu_p99, gpu, row->triangles, row->queries,
-                                  (unsigned long long)m->missed_pixels_total,
-                                  (unsigned long long)m->depth_errors_total, rv, cv, tv, ro, co);
+                                  missed, depth, rv, cv, tv, ro, co);
             }
             write_floor(&f, rows, nrows, oracle);
             write_split(&f, r, rows, nrows, oracle);
@@ -547,8 +982,7 @@ int tw_report_close(struct tw_report *r, bool markdown,
                                       "depth tolerance %g (relative eye distance).\n",
                                   about->verify_tolerance);
             else
-                tw_outfile_printf(&f, "\nAccuracy not measured (no --verify): missed pixels and "
-                                      "depth errors read 0.\n");
+                tw_outfile_printf(&f, "\nAccuracy not measured (no --verify).\n");
             tw_outfile_printf(&f, "CPU ms is the process's CPU time of a frame, all threads (the "
                                   "software rasteriser's too): the figure that holds on a busy "
                                   "machine.\n");

@@ -24,6 +24,32 @@ struct tw_report_set {
     uint32_t draws;
 };
 
+/* --split, a method's frames and their sets compared: over the frames after
+ * the method's first (which compiles shader variants and builds every tile
+ * the redraw then finds ready), the frame's mean CPU time is its set's
+ * (drawing) plus the rest (finding). The rest is told apart from nothing
+ * only when it exceeds twice its standard error; otherwise it is bounded
+ * (drawing then costs at least the frame less that bound), unless the bound
+ * exceeds the frame (too noisy to part), or the set drawn again cost more
+ * than the frame beyond that margin (not measurable for the method). */
+enum tw_split_verdict {
+    TW_SPLIT_NONE,            /* no --split, or fewer than TW_SPLIT_MIN_FRAMES compared */
+    TW_SPLIT_MEASURED,        /* finding = frame - set, above its margin */
+    TW_SPLIT_BOUNDED,         /* finding at most the margin above its mean */
+    TW_SPLIT_NOT_MEASURABLE,  /* the set drawn again cost more than the frame */
+    TW_SPLIT_TOO_NOISY,       /* the margin exceeds the frame: neither part told apart */
+};
+#define TW_SPLIT_MIN_FRAMES 3
+
+struct tw_split_figures {
+    enum tw_split_verdict verdict;
+    uint32_t frames;          /* frames compared */
+    double frame_cpu_ms;      /* their mean CPU time */
+    double set_cpu_ms;        /* their sets' mean CPU time, drawn again */
+    double finding_cpu_ms;    /* frame_cpu_ms - set_cpu_ms (may be negative: see verdict) */
+    double margin_cpu_ms;     /* twice the standard error of finding_cpu_ms */
+};
+
 /* Per-method accumulation of frame statistics. */
 struct tw_method_summary {
     bool used;
@@ -39,7 +65,7 @@ struct tw_method_summary {
     uint64_t depth_errors_total;
     uint32_t frames_with_depth_errors;
     uint64_t tiles_new_total;
-    uint64_t peak_cache_bytes;
+    uint64_t peak_instance_bytes;  /* this method's tile instances (frames.csv cache_bytes) */
     uint64_t predict_fail, tiles_queried;
     uint64_t tiles_visible;
     uint32_t max_tiles_visible;
@@ -49,6 +75,10 @@ struct tw_method_summary {
     double ms_max;
     uint32_t set_frames;      /* frames with a set drawn again (--split: every frame) */
     double set_cpu_ms, set_ms, set_triangles, set_draws;   /* their sums */
+    /* The frames compared for the split (all but the method's first): sums
+     * of their CPU time, their sets', and of the difference and its square. */
+    uint32_t split_frames;
+    double split_frame_cpu_ms, split_set_cpu_ms, split_set_ms, split_diff, split_diff_sq;
 };
 
 /* One method's figures over a run. */
@@ -66,7 +96,10 @@ struct tw_method_figures {
     uint64_t depth_errors_total;
     uint32_t frames_with_depth_errors;
     double predict_fail_rate;
-    uint64_t peak_cache_bytes;
+    uint64_t peak_instance_bytes;
+    double mean_gpu_ms;       /* over the frames whose GPU time came back; -1: none did */
+    uint32_t gpu_frames;      /* those frames */
+    struct tw_split_figures split;  /* --split */
 };
 
 /* What a run was, for the summaries. */
@@ -78,6 +111,7 @@ struct tw_report_about {
     /* How accuracy was measured: verify_tolerance is the run's resolved
      * one (with verified); the testing-only mutation is said in the
      * summaries, so that a mutated run never passes for a real one. */
+    bool bench;                 /* a bench run (else a walk): the summaries' title */
     bool verified;
     float verify_tolerance;
     bool deterministic;
@@ -91,6 +125,13 @@ struct tw_report_about {
     bool software;
     char build_type[32];
     char commit[64];
+    uint32_t frames;          /* of the path: each method's */
+    /* Which methods must never miss a visible pixel under the run's settings
+     * (tw_method_conservative()). */
+    bool conservative[TW_METHOD_COUNT];
+    /* --allow-missed: a conservative method's missed pixels are reported,
+     * not a failure. */
+    bool allow_missed;
 };
 
 struct tw_report {
@@ -100,6 +141,9 @@ struct tw_report {
     bool chart_data;
     struct tw_outfile chart_frames[TW_METHOD_COUNT];
     struct tw_method_summary methods[TW_METHOD_COUNT];
+    /* Every byte the world's tile cache held after a frame, CPU and GPU
+     * (frames.csv bytes_cpu + bytes_gpu): its peak over the run. */
+    uint64_t peak_tile_cache_bytes;
     struct tw_report_about about;  /* set before tw_report_open(), kept by it */
 };
 
@@ -122,6 +166,35 @@ int tw_report_close(struct tw_report *r, bool markdown,
 /* Frees and removes the unfinished files, writing no summary (after a
  * failure). */
 void tw_report_abort(struct tw_report *r);
+
+/* The verdict of a run: a few lines (at most TW_VERDICT_LINES) that say what
+ * ran, how fast each method was (for a bench: the fastest conservative
+ * method, and every method against vfc and the box oracle where they ran),
+ * what --verify found (or that accuracy was not measured) and on what
+ * renderer. failed tells whether a conservative method missed a pixel. */
+#define TW_VERDICT_LINES 6
+enum tw_verdict_form {
+    TW_VERDICT_TEXT,          /* a terminal's: input text escaped (tw_log_escape) */
+    TW_VERDICT_MARKDOWN,      /* summary.md's: escaped for Markdown as well */
+};
+struct tw_verdict {
+    char lines[TW_VERDICT_LINES][1024];
+    int count;
+    bool failed;
+};
+void tw_report_verdict(const struct tw_report_about *about,
+                       const struct tw_method_figures figures[TW_METHOD_COUNT], bool bench,
+                       enum tw_verdict_form form, struct tw_verdict *out);
+/* Whether a conservative method missed a pixel under --verify. */
+bool tw_report_missed(const struct tw_report_about *about,
+                      const struct tw_method_figures figures[TW_METHOD_COUNT]);
+
+/* Text from input (a tileset's or a path file's name: any bytes) made safe
+ * for a terminal, a report and JSON: valid UTF-8, no control character or
+ * bidirectional override (tw_log_escape()); with markdown, also no
+ * character that Markdown reads as syntax (| ` * _ [ ] # < > & \ ~).
+ * Writes at most size bytes into out (cut with "...") and returns out. */
+const char *tw_report_escape(const char *text, bool markdown, char *out, size_t size);
 
 /* Writes a JSON document (json-c's flags) as file, whole or not at all. */
 struct json_object;

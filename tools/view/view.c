@@ -722,9 +722,11 @@ static void draw_stats(struct viewer *v)
     memcpy(colors[n++], white, sizeof(white));
     if (!v->frozen) {
         snprintf(lines[n], sizeof(lines[n]),
-                 "tiles visible %u  queried %u  new %u  cached %u  cache %.2f MiB  mispredicted %u",
+                 "tiles visible %u  queried %u  new %u  cached %u  instances %.2f MiB  "
+                 "tile cache %.1f MiB  mispredicted %u",
                  st->tiles_visible, st->tiles_queried, st->tiles_new, st->tiles_cached,
-                 (double)st->cache_bytes / (1024.0 * 1024.0), st->predict_fail);
+                 (double)st->cache_bytes / (1024.0 * 1024.0),
+                 (double)(st->bytes_cpu + st->bytes_gpu) / (1024.0 * 1024.0), st->predict_fail);
         memcpy(colors[n++], white, sizeof(white));
     }
     snprintf(lines[n], sizeof(lines[n]), "cell %lld, %lld  at %.1f %.1f %.1f m  yaw %ld  pitch %ld",
