@@ -386,13 +386,10 @@ static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts, st
     gl->BindVertexArray(0);
     r->bound_vao = 0;
     b->bytes = (uint64_t)VERTEX_BYTES * vertices + sizeof(uint32_t) * indices;
-    /* Buffers without storage would draw nothing, silently. */
-    if (gl->GetError() == GL_OUT_OF_MEMORY) {
-        tw_log_printf(&r->log, TW_LOG_ERROR, "the OpenGL driver is out of memory for the "
-                      "buffers of tileset '%.48s' (%llu bytes)", ts->name,
-                      (unsigned long long)b->bytes);
+    /* Buffers without storage would draw nothing, silently: the driver's
+     * memory, said by the caller as any other (it knows what the tileset is). */
+    if (gl->GetError() == GL_OUT_OF_MEMORY)
         err = TW_ERR_NOMEM;
-    }
 out:
     free(interleaved);
     free(index_data);

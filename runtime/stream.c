@@ -125,6 +125,8 @@ struct tw_stream {
 
     tw_stream_event_fn on_event;
     void *event_user;
+    bool quiet_nomem;                    /* a refusal for lack of memory was logged: the
+                                            next ones are only counted */
     struct tw_stream_stats stats;
     struct tw_stream_totals totals;
 };
@@ -511,14 +513,29 @@ static int make_ready(struct tw_stream *s, uint32_t k)
                      tw_error_to_str(r.err));
     }
     if (r.err) {
-        tw_log_printf(s->set.log, TW_LOG_ERROR, "provider %s: cell (%lld, %lld): %s",
-                      s->p->name ? s->p->name : "", (long long)e->cell.i, (long long)e->cell.j,
-                      r.message);
+        /* Out of memory comes tile after tile: one line, the rest counted. */
+        if (r.err != TW_ERR_NOMEM || !s->quiet_nomem)
+            tw_log_printf(s->set.log, TW_LOG_ERROR, "provider %s: cell (%lld, %lld): %s%s",
+                          s->p->name ? s->p->name : "", (long long)e->cell.i,
+                          (long long)e->cell.j, r.message,
+                          r.err == TW_ERR_NOMEM ? " (further tiles refused for lack of memory "
+                                                  "are counted, not logged)" : "");
         free_result(&r);
-        e->rstate = R_REFUSED;
         s->stats.refused++;
         s->totals.refused++;
-        event(s, e->cell, TW_TILE_REFUSED, 0);
+        const struct tw_cell cell = e->cell;
+        if (r.err == TW_ERR_NOMEM) {
+            /* The machine's failure, not the cell's: nothing is kept, the
+             * cell is asked for again when it is next wanted, and a frame
+             * that waits for it fails (its image would lack the tile). */
+            s->quiet_nomem = true;
+            tw_cell_map_remove(s->by_cell, cell);
+            release_entry(s, k);
+            event(s, cell, TW_TILE_REFUSED, 0);
+            return TW_ERR_NOMEM;
+        }
+        e->rstate = R_REFUSED;
+        event(s, cell, TW_TILE_REFUSED, 0);
         return TW_OK;
     }
     e->ts = r.ts;
@@ -840,8 +857,9 @@ void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame)
                          tw_renderer_now_ms() - t0 >= s->set.upload_ms))
             break;
         const uint32_t k = s->to_upload[done++];
-        make_ready(s, k);
-        bytes += s->entries[k].bytes_cpu;
+        /* Out of memory drops the tile (asked for again when wanted). */
+        if (make_ready(s, k) == TW_OK)
+            bytes += s->entries[k].bytes_cpu;
     }
     if (done > 0 && done < s->to_upload_count)
         memmove(s->to_upload, s->to_upload + done,

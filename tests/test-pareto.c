@@ -1,8 +1,10 @@
 /* The Pareto fronts of a sweep (tools/tileworld/pareto.h) on figures made up
  * for the purpose, where the front is known: dominated points (slower and
  * no fewer errors; as fast with more errors) are off it, equal points both
- * on it, the oracle never; speed-ups against T=0 or the defaults; sweep.md
- * names the front. */
+ * on it, the oracle never; speed-ups against T=0 or the defaults; the
+ * fronts again by another time (tw_pareto_mark_fronts); sweep.md names the
+ * front. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -113,6 +115,25 @@ int main(void)
                      UINT32_MAX, points);
     CHECK(chc4->front && chc16->front && tq16->front);
     CHECK(chc4->speedup == 2.0);
+
+    /* The fronts again by another time (GPU time on a GPU): chc T=0 the
+     * fastest conservative point now, chc T=4 of unknown time (NaN) on no
+     * front and beating none; the oracles still on none. */
+    double time[VALUES * METHODS];
+    for (uint32_t k = 0; k < n; k++)
+        time[k] = points[k].cpu_ms;
+    for (uint32_t k = 0; k < n; k++) {
+        if (&points[k] == chc0)
+            time[k] = 0.5;
+        if (&points[k] == chc4)
+            time[k] = NAN;
+    }
+    tw_pareto_mark_fronts(points, n, time);
+    CHECK(chc0->front && chc0->front_depth && !chc4->front && !chc4->front_depth);
+    CHECK(!tq0->front && !tq0->front_depth);   /* slower than chc T=0, as few errors */
+    CHECK(!find(points, n, TW_METHOD_ORACLE, 0)->front);
+    tw_pareto_mark_fronts(points, n, NULL);     /* by cpu_ms again */
+    CHECK(!chc0->front && tq0->front && chc4->front);
 
     /* sweep.md names the front, each point with its speed-up and error. */
     char dir[] = "/tmp/test-pareto-XXXXXX";

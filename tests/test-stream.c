@@ -480,6 +480,63 @@ static void test_many_cells(struct tw_context *ctx)
     tw_world_destroy(w);
 }
 
+/* ---- a provider that runs out of memory ----------------------------------------------- */
+
+struct starved {
+    struct blocks blocks;
+    atomic_bool starving;        /* generate() answers TW_ERR_NOMEM */
+};
+
+static int generate_starved(void *user, struct tw_cell cell, struct tw_tileset *ts)
+{
+    struct starved *st = user;
+    if (atomic_load(&st->starving))
+        return TW_ERR_NOMEM;
+    return generate_block(&st->blocks, cell, ts);
+}
+
+/* Out of memory is the machine's failure, not the cell's: a frame that
+ * waits for such a tile fails with TW_ERR_NOMEM, it is said once, and the
+ * tile is made when memory is back (never left refused). */
+static void test_out_of_memory(struct tw_context *ctx)
+{
+    struct starved st = {.blocks = {.seed = 19, .too_tall_i = INT64_MIN}};
+    atomic_init(&st.starving, true);
+    struct tw_tile_provider p = block_provider(&st.blocks);
+    p.name = "starved";
+    p.generate = generate_starved;
+    p.user = &st;
+    const struct tw_tile_provider fed = block_provider(&st.blocks);
+    struct captured_log cap = {0}, fed_cap = {0};
+    struct tw_world *w = make_world(ctx, &p, 2, TW_STREAM_WAIT, 0, &cap);
+    struct tw_world *fresh = make_world(ctx, &fed, 2, TW_STREAM_WAIT, 0, &fed_cap);
+    uint8_t *a = malloc(W * H * 3), *b = malloc(W * H * 3);
+    CHECK(w && fresh && a && b);
+    if (w && fresh && a && b) {
+        const struct tw_camera cam = walk_camera(5);
+        CHECK(tw_world_frame(w, &cam, NULL) == TW_ERR_NOMEM);
+        CHECK(tw_world_frame(w, &cam, NULL) == TW_ERR_NOMEM);
+        CHECK_MSG(cap.errors == 1 && strstr(cap.last, "provider starved: cell (") &&
+                  strstr(cap.last, "out of memory"), "%u errors, \"%s\"", cap.errors, cap.last);
+        atomic_store(&st.starving, false);
+        struct tw_frame_stats stats;
+        CHECK(tw_world_frame(w, &cam, &stats) == TW_OK && stats.tiles_pending == 0);
+        CHECK(tw_world_read_rgb(w, a) == TW_OK);
+        CHECK(tw_world_frame(fresh, &cam, NULL) == TW_OK && tw_world_read_rgb(fresh, b) == TW_OK);
+        CHECK(memcmp(a, b, W * H * 3) == 0);
+        struct tw_cache_totals t;
+        CHECK(tw_world_cache_totals(w, &t) == TW_OK && t.refused >= 2);
+        CHECK(cap.errors == 1);
+        printf("out of memory: frames fail with it while it lasts (%llu tiles refused, one "
+               "line: \"%s\"), then show what a fresh world shows\n",
+               (unsigned long long)t.refused, cap.last);
+    }
+    tw_world_destroy(w);
+    tw_world_destroy(fresh);
+    free(a);
+    free(b);
+}
+
 /* ---- a provider that does not return until the test says so ---------------------------- */
 
 struct stuck {
@@ -688,6 +745,7 @@ int main(void)
     test_impure_selection(ctx);
     test_skip(ctx);
     test_many_cells(ctx);
+    test_out_of_memory(ctx);
     test_stuck_provider(ctx);
     tw_context_destroy(ctx);
     return check_summary("test-stream");

@@ -502,6 +502,42 @@ static int check_buffer_views(struct importer *im)
 static uint32_t load_uint(const uint8_t *p, int32_t comp);
 static const uint8_t *view_data(const struct tw_gltf_doc *d, int32_t view, int32_t offset);
 
+/* What the data checks learnt of an accessor: each is read once per import
+ * however many primitives use it. */
+enum {
+    FACT_POSITIONS_OK = 1,            /* finite and within bounds */
+    FACT_INDICES_READ = 2,            /* index_max and FACT_RESTART known */
+    FACT_RESTART = 4,                 /* holds its type's largest value */
+};
+
+struct accessor_facts {
+    uint8_t flags;
+    uint32_t index_max;
+};
+
+/* Charges the checks' reading of n more bytes of accessor data to what the
+ * input allows: overlapping accessors could otherwise make a buffer be
+ * read again for each (CHECK_BASE + CHECK_PER_BYTE bytes per byte of the
+ * file and its buffers). */
+#define CHECK_BASE (64ull << 20)
+#define CHECK_PER_BYTE 4ull
+
+static int charge_check(struct importer *im, int32_t acc, uint64_t n)
+{
+    const uint64_t allowed = CHECK_BASE + CHECK_PER_BYTE * im->bytes_read;
+    im->checked_bytes += n;
+    if (im->checked_bytes <= allowed)
+        return TW_OK;
+    char a[32], b[32];
+    return fail(im, TW_ERR_LIMIT,
+                "accessors[%d]: the meshes' accessors hold %s to check, more than the %s "
+                "allowed for %llu bytes of file and buffers (64 MiB + 4 bytes per byte): "
+                "accessors overlap",
+                acc, byte_size(im->checked_bytes, a, sizeof(a)), byte_size(allowed, b, sizeof(b)),
+                (unsigned long long)im->bytes_read);
+}
+
+
 static int check_accessors(struct importer *im)
 {
     const struct tw_gltf_doc *d = im->doc;
@@ -599,6 +635,9 @@ static int check_accessors(struct importer *im)
          * count, checked as they are read too). */
         const uint8_t *idx = view_data(d, a->sparse_indices_view, a->sparse_indices_offset);
         const uint64_t is = component_size(ic);
+        int err = charge_check(im, (int32_t)k, is * (uint64_t)a->sparse_count);
+        if (err)
+            return err;
         for (uint32_t e = 0; e < (uint32_t)a->sparse_count; e++) {
             const uint32_t target = load_uint(idx + e * is, ic);
             const uint32_t before = e ? load_uint(idx + (e - 1) * is, ic) : 0;
@@ -915,41 +954,6 @@ static int primitive_triangles(struct importer *im, uint32_t m, uint32_t k, uint
     return TW_OK;
 }
 
-/* What the data checks learnt of an accessor: each is read once per import
- * however many primitives use it. */
-enum {
-    FACT_POSITIONS_OK = 1,            /* finite and within bounds */
-    FACT_INDICES_READ = 2,            /* index_max and FACT_RESTART known */
-    FACT_RESTART = 4,                 /* holds its type's largest value */
-};
-
-struct accessor_facts {
-    uint8_t flags;
-    uint32_t index_max;
-};
-
-/* Charges the checks' reading of n more bytes of accessor data to what the
- * input allows: overlapping accessors could otherwise make a buffer be
- * read again for each (CHECK_BASE + CHECK_PER_BYTE bytes per byte of the
- * file and its buffers). */
-#define CHECK_BASE (64ull << 20)
-#define CHECK_PER_BYTE 4ull
-
-static int charge_check(struct importer *im, int32_t acc, uint64_t n)
-{
-    const uint64_t allowed = CHECK_BASE + CHECK_PER_BYTE * im->bytes_read;
-    im->checked_bytes += n;
-    if (im->checked_bytes <= allowed)
-        return TW_OK;
-    char a[32], b[32];
-    return fail(im, TW_ERR_LIMIT,
-                "accessors[%d]: the meshes' accessors hold %s to check, more than the %s "
-                "allowed for %llu bytes of file and buffers (64 MiB + 4 bytes per byte): "
-                "accessors overlap",
-                acc, byte_size(im->checked_bytes, a, sizeof(a)), byte_size(allowed, b, sizeof(b)),
-                (unsigned long long)im->bytes_read);
-}
-
 /* The largest value of an index component type, which glTF reserves
  * (primitive restart) and forbids in indices. */
 static uint32_t restart_value(int32_t comp)
@@ -1096,8 +1100,11 @@ static int check_primitive_data(struct importer *im, uint32_t m, uint32_t k)
                         "%u, the largest %s, which glTF reserves (primitive restart)",
                         m, k, p->indices, e, i, component_name(ia->component_type));
     }
-    return fail(im, TW_ERR_FORMAT, "meshes[%u].primitives[%u].indices: accessors[%d]: a bad index",
-                m, k, p->indices);
+    /* Not reached: read_index_facts() saw one of the values above. */
+    return fail(im, TW_ERR_FORMAT,
+                "meshes[%u].primitives[%u].indices: accessors[%d] holds an index not below the "
+                "vertex count %llu, or the restart value",
+                m, k, p->indices, (unsigned long long)nv);
 }
 
 static int check_mesh_data(struct importer *im)
@@ -3014,7 +3021,7 @@ int tw_gltf_import(const char *path, const struct tw_gltf_settings *settings,
                    const struct tw_log *log, struct tw_gltf_scene **out)
 {
     if (!out || !path) {
-        tw_log_printf(log, TW_LOG_ERROR, "gltf: import: %s is NULL (caller's bug)",
+        tw_log_printf(log, TW_LOG_ERROR, "glTF import: %s is NULL (caller's bug)",
                       out ? "path" : "out");
         return TW_ERR_INVALID;
     }

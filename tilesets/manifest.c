@@ -51,7 +51,14 @@
  * TW_TILES_MAX_CELLS_IN_VIEW cells, which needs tiles of at least about
  * 4.7 m. Memory is bounded by the file: at most MAX_MANIFEST_BYTES of text
  * and MAX_JSON_CONTAINERS objects and arrays (json-c costs about 700 bytes
- * each). */
+ * each). What the files cost together is bounded before it is spent: the
+ * glTF imports share one budget of bytes read (4 times the glTF
+ * max_file_bytes, so that a buffer named by many files is not read without
+ * end) and of decoded images (256 MiB; an image file named by several is
+ * decoded once), their geometry is at most 4 times max_file_bytes, and the
+ * triangles placed are counted from each file's count before placing: at
+ * most the glTF max_triangles in a prototype, PLACED_TRIANGLES_FACTOR times
+ * it in the tileset, and at most MAX_INSTANCES instances. */
 #include "tileworld/tilesets.h"
 
 #include <errno.h>

@@ -121,7 +121,10 @@ enum tw_stream_policy {
 enum tw_tile_event_kind {
     TW_TILE_READY = 0,      /* generated, built and uploaded: it can be drawn */
     TW_TILE_EVICTED,        /* it left the cache (budget, or invalidated) */
-    TW_TILE_REFUSED,        /* generate() failed, or the tile exceeded the provider's bound */
+    TW_TILE_REFUSED,        /* generate() failed, or the tile exceeded the provider's bound
+                               (the cell shows nothing until it is invalidated or has been
+                               out of sight); or memory ran out making or uploading it (it
+                               is asked for again when next wanted) */
 };
 
 struct tw_tile_event {
@@ -277,7 +280,10 @@ uint32_t tw_world_destroy(struct tw_world *w);
 int tw_world_set_method(struct tw_world *w, enum tw_method m);
 
 /* Renders one frame from cam with the current method and fills *stats
- * (may be NULL). Returns TW_ERR_INVALID for a camera with non-finite values.
+ * (may be NULL). Returns TW_ERR_INVALID for a camera with non-finite values,
+ * and TW_ERR_NOMEM where memory ran out, among others when a generated tile
+ * the frame waits for (policy wait) could not be made or uploaded for lack
+ * of it (logged once per world; later ones are only counted).
  * The frame's work is sent to the GPU (glFlush), not waited for: a host
  * that wants the time to a finished frame calls tw_world_finish() next
  * (stats->ms_frame is then that time). With settings.verify the frame is

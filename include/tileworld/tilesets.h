@@ -111,18 +111,31 @@ struct tw_gltf_scene {
  * says ('+' is a plus sign). Textures are not kept: a PNG base-colour
  * texture is sampled at each triangle's centroid (through its
  * KHR_texture_transform) and its primitive split into one material per
- * colour (a texture that cannot be read leaves the base colour, with a
- * warning). Every reference, accessor range, index and node transform is
- * checked, node hierarchies must be trees (no cycles, one parent per node).
- * Triangles (lists, strips or fans) are drawn; points and lines are skipped
- * with one warning. KHR_mesh_quantization is supported (integer positions,
- * normals and texture coordinates, dequantised by the node transforms); a
- * required extension that is not supported (Draco, meshopt) is refused by
- * name. Coordinates are bounded (tiles.h): node values and mesh-local
- * positions within +-TW_TILES_MAX_MESH_COORD, every placed mesh within
- * +-TW_TILES_MAX_COORD. Cost is bounded by the file: every check is linear,
- * and a document whose JSON would take more than 64 MiB + 32 bytes per byte
- * of JSON (estimated before parsing) is refused. settings may be NULL. On
+ * colour. An image is decoded once however many images, textures or
+ * materials name its bytes, and its size is read from its header first: one
+ * that would decode to more than 64 MiB, or take the import's decoded images
+ * beyond 256 MiB, is not decoded. A texture that cannot be used leaves the
+ * base colour, with a warning (eight at most, then one line counting the
+ * rest). Every reference, accessor range and alignment, index (below the
+ * vertex count, never the restart value), sparse index order and node
+ * transform is checked, node hierarchies must be trees (no cycles, one parent
+ * per node). Triangles (lists, strips or fans) are drawn; points and lines
+ * are skipped with one warning. The document must be glTF 2.x: asset.version
+ * "2.<minor>", and an asset.minVersion of at most "2.0". KHR_mesh_quantization
+ * is supported (integer positions, normals and texture coordinates,
+ * dequantised by the node transforms); a required extension that is not
+ * supported (Draco, meshopt, GPU instancing, any unknown name) is refused by
+ * name; required extensions that change only materials, lights or image
+ * formats are accepted. Coordinates are bounded (tiles.h): node values and
+ * mesh-local positions within +-TW_TILES_MAX_MESH_COORD, every placed mesh
+ * within +-TW_TILES_MAX_COORD. Cost is bounded by the input, checked before
+ * it is spent: every check is linear, and each accessor is read once; a
+ * document whose JSON would take more than 64 MiB + 32 bytes per byte of
+ * JSON (estimated before parsing), whose mesh accessors hold more than
+ * 64 MiB + 4 bytes per byte of file and buffers to check (accessors that
+ * overlap), or whose meshes would take more than 64 MiB + 32 bytes per byte
+ * of file and buffers to convert (accessors without a buffer view) is
+ * refused. settings may be NULL. On
  * bad input returns TW_ERR_FORMAT, TW_ERR_IO or TW_ERR_LIMIT and logs one
  * error line "<path>: <element>: <reason>" (text from the file escaped,
  * tiles.h tw_log_escape()), e.g.
@@ -170,7 +183,8 @@ void tw_gltf_placement(const float position[3], float yaw_degrees, float scale,
                        float out[12]);
 
 /* Tileset manifests: a JSON file that composes glTF files into prototypes.
- * The format is documented at the top of tilesets/manifest.c. */
+ * The format is documented at the top of tilesets/manifest.c (and in the
+ * README). */
 struct tw_manifest_settings {
     uint32_t max_cluster_triangles; /* 0: the manifest's, else 2048 */
     struct tw_gltf_settings gltf;   /* limits of each glTF file; zero: defaults */
@@ -182,9 +196,14 @@ struct tw_manifest_settings {
  * tileset whose per-frame cost is bounded (tiles.h: weights and scales in
  * [1e-6, 1e6], content within reach of its tile and at most
  * TW_TILES_MAX_SPAN footprints wide, at most TW_TILES_MAX_CELLS_IN_VIEW cells
- * in view at the default view distance). On bad input returns a negative
- * tw_error and logs one error line "<manifest>: <place, e.g.
- * prototypes[2].objects[0].gltf>: <reason>". The caller owns *out. */
+ * in view at the default view distance). Its glTF files are imported once
+ * each, and together they may read at most 4 times gltf.max_file_bytes and
+ * decode at most 256 MiB of images (an image file named by several is
+ * decoded once); a prototype may draw at most gltf.max_triangles triangles,
+ * the tileset's prototypes together 10 times that. On bad input returns a
+ * negative tw_error and logs one error line "<manifest>: <place, e.g.
+ * prototypes[2].objects[0].gltf>: <reason>" ("<manifest>: no such file" for
+ * a missing one). The caller owns *out. */
 int tw_tilesets_load_manifest(const char *path, const struct tw_log *log,
                               struct tw_tileset **out);
 /* The same with settings (NULL: defaults). */

@@ -44,7 +44,7 @@ static const char program[] = "tileworld";
 /* Check 2: RSS flat in distance. */
 #define RSS_GROWTH_BOUND 1.05
 /* What one run may cost, refused before it starts: as many frames as walk's
- * --frames allows (days of rendering on a CPU), and rows of memory.csv
+ * --frames allows (weeks of rendering on a CPU), and rows of memory.csv
  * (about 250 bytes each). */
 #define MAX_FRAMES 10000000.0
 #define MAX_ROWS 1000000.0
@@ -88,6 +88,7 @@ static void usage(FILE *f)
           "                         [--upload-budget BYTES] [--start-cell I,J] [--repeat P]\n"
           "                         [--seed N] [--allocator tuned|default] [--out DIR] [--quiet]\n"
           "                         [--gl auto|egl|osmesa] [--gpu N]\n"
+          "\n"
           "Walks a long path through a tileset and records the tile cache's memory against\n"
           "the distance travelled: every --every metres a row of DIR/memory.csv (the cache's\n"
           "bytes, tiles, loads, evictions, reloads, load latency, holes, the process's RSS,\n"
@@ -130,10 +131,12 @@ static void usage(FILE *f)
           "--quiet               no progress line and no summary lines\n",
           f);
     fputs(tw_gl_usage, f);
-    fputs("Limits: at most 10000000 frames (distance over what the path moves a frame) and\n"
-          "1000000 rows of memory.csv, refused before the walk starts.\n"
+    fputs("Options take their value as --opt VALUE or --opt=VALUE; unique prefixes work;\n"
+          "numbers are plain decimal digits.\n"
+          "Limits: at most 10000000 frames (the distance over what the path moves a frame)\n"
+          "and 1000000 rows of memory.csv, refused before the walk starts (exit status 2).\n"
           "Progress (stderr): on a terminal one line rewritten in place; otherwise a line\n"
-          "every 10 s, or every TW_PROGRESS_INTERVAL_S seconds of the environment.\n",
+          "every 10 s, or every TW_PROGRESS_INTERVAL_S seconds (environment; 0: every frame).\n",
           f);
 }
 

@@ -44,8 +44,9 @@ void tw_pareto_points(const double *values, uint32_t count,
                       uint32_t reference_value_index, struct tw_pareto_point *out);
 
 /* Marks the fronts of n points again, each point's time being time[k]
- * instead of its cpu_ms (the charts' GPU time on a real GPU); a point whose
- * time is NaN (not known) is on no front and beats none. */
+ * instead of its cpu_ms (the charts' GPU time on a real GPU; NULL: cpu_ms,
+ * as tw_pareto_points() does); a point whose time is NaN (not known) is on
+ * no front and beats none. */
 void tw_pareto_mark_fronts(struct tw_pareto_point *points, uint32_t n, const double *time);
 
 /* Writes the sweep's points as markdown into o: one table row per point
