@@ -426,8 +426,8 @@ static int stage_from_embree(struct stage *st, const void *root, uint32_t cluste
         const uint32_t c = leaf->cluster[0];
         if (c >= cluster_count || seen[c] || st->leaf_cluster_count == cluster_count) {
             tw_log_printf(log, TW_LOG_ERROR,
-                          "prototype '%s': the BVH builder (Embree) returned cluster %u %s", proto_name,
-                          c, c >= cluster_count ? "out of range" : "twice");
+                          "prototype '%s': the BVH builder (Embree) returned cluster %u %s",
+                          proto_name, c, c >= cluster_count ? "out of range" : "twice");
             ret = TW_ERR_EMBREE;
             goto out;
         }

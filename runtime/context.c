@@ -530,7 +530,7 @@ const char *tw_context_api_name(enum tw_context_api api)
 /* The least address space (RLIMIT_AS, `ulimit -v`) a context is tried in.
  * Measured at 640 x 360 on llvmpipe (2 cores): a context takes about 570 MiB
  * when nothing limits it, and a world about 60 MiB more plus 128 MiB of
- * reservations per BVH builder; no walk succeeded below about 780 MiB, and
+ * reservations per BVH builder; no walk succeeded below about 760 MiB, and
  * below 512 MiB the driver crashed (SIGSEGV) as often as it failed. A
  * driver that crashes cannot be recovered from: below this it is not
  * asked. */

@@ -276,9 +276,9 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
                                                      w->provider.footprint[1], w->s.view_distance);
         if (!(reach <= TW_TILES_MAX_CELLS_IN_VIEW)) {
             tw_log_printf(log, TW_LOG_ERROR,
-                          "cannot create the world: %s: a view distance of %g m over %g x %g m tiles "
-                          "reaches about %.3g cells, more than the limit of %u a frame may "
-                          "consider: shorten the view distance or use larger tiles",
+                          "cannot create the world: %s: a view distance of %g m over %g x %g "
+                          "m tiles reaches about %.3g cells, more than the limit of %u a frame "
+                          "may consider: shorten the view distance or use larger tiles",
                           w->provider.name ? w->provider.name : "the world",
                           (double)w->s.view_distance, (double)w->provider.footprint[0],
                           (double)w->provider.footprint[1], reach, TW_TILES_MAX_CELLS_IN_VIEW);

@@ -327,7 +327,12 @@ struct tw_tileset *tw_cli_load_tileset(const struct tw_cli *c, uint32_t cluster_
         }
         return ts;
     }
-    if (access(c->tileset, F_OK) != 0)
+    /* A name that looks like a file (a '/' or ".json" at its end) goes to
+     * the loader, which says "<path>: no such file" when it is missing. */
+    const size_t len = strlen(c->tileset);
+    const bool file_like = strchr(c->tileset, '/') ||
+                           (len > 5 && strcmp(c->tileset + len - 5, ".json") == 0);
+    if (!file_like && access(c->tileset, F_OK) != 0)
         tw_cli_fail(c->program, "--tileset", "unknown tileset '%s' (built-in: city, forest, hybrid; "
                     "providers: city-gen, forest-gen; or a manifest file)", c->tileset);
     /* A manifest: its loader logs one line naming the file, the place and the reason. */
@@ -431,7 +436,7 @@ static bool apply_common(struct tw_cli *c, int opt, const char *place, const cha
     case TW_CLI_OPT_TILESET: c->tileset = arg; break;
     case TW_CLI_OPT_SEED: ws->selection.seed = tw_cli_u64(p, place, arg, 0, UINT64_MAX); break;
     case TW_CLI_OPT_PATH: c->path = arg; break;
-    case TW_CLI_OPT_FRAMES: c->frames = (uint32_t)tw_cli_u64(p, place, arg, 1, 10000000); break;
+    case TW_CLI_OPT_FRAMES: c->frames = (uint32_t)tw_cli_u64(p, place, arg, 1, TW_PATH_MAX_ROWS); break;
     case TW_CLI_OPT_METHOD: ws->method = tw_cli_method(p, place, arg); break;
     case TW_CLI_OPT_SIZE: tw_cli_size(p, place, arg, &ws->width, &ws->height); break;
     case TW_CLI_OPT_START_CELL: tw_cli_cell(p, place, arg, &c->start_cell); break;

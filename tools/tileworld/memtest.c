@@ -1137,7 +1137,7 @@ static void verdict_text(const struct result *results, uint32_t runs, char *out,
         const uint32_t count = pass == 0 ? failed : not_applicable;
         if (count == 0)
             continue;
-        append(out, size, &len, pass == 0 ? ", %u did not: " : ", %u not applicable: ", count);
+        append(out, size, &len, pass == 0 ? "; %u did not: " : "; %u not applicable: ", count);
         bool first = true;
         for (uint32_t c = 0; c < results[0].check_count; c++) {
             uint32_t in = 0;
@@ -1150,7 +1150,7 @@ static void verdict_text(const struct result *results, uint32_t runs, char *out,
                 }
             if (!in)
                 continue;
-            append(out, size, &len, "%s%s", first ? "" : "; ", example->name);
+            append(out, size, &len, "%s%s", first ? "" : ", ", example->name);
             if (runs > 1)
                 append(out, size, &len, " in %u of %u runs", in, runs);
             if (want == NOT_APPLICABLE)
