@@ -22,19 +22,18 @@
  * first frame; the last frame finishes it (a run that stopped early is
  * finished by the next start). stderr shows one progress line at a time, so
  * its state is this one, not the run's. */
-static void progress(const struct tw_run *run, uint32_t done, uint32_t total, double mean_ms)
+static void progress(struct tw_progress *line, const struct tw_run *run, uint32_t done,
+                     uint32_t total, double mean_ms)
 {
-    static struct tw_progress line;
     if (done == 0) {
-        tw_progress_finish(&line);
-        tw_progress_init(&line, run->out, total, "frames", 0, run->quiet);
+        tw_progress_init(line, run->out, total, "frames", 0, run->quiet);
         return;
     }
     char note[64];
     snprintf(note, sizeof(note), "%.1f ms/frame", mean_ms);
-    tw_progress_update(&line, done, note);
+    tw_progress_update(line, done, note);
     if (done == total)
-        tw_progress_finish(&line);
+        tw_progress_finish(line);
 }
 
 /* Draws the charts of a bench run; gnuplot missing or failing is one
@@ -114,6 +113,7 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     uint8_t *rgb = NULL;
     struct tw_report report = {0};
     struct split_set split = {0};
+    struct tw_progress line = {0};
     int rc = TW_OK;
     struct tw_world_settings ws = run->world;
     ws.tileset = run->tileset;
@@ -171,7 +171,7 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     if (rc)
         goto out;
     double total_ms = 0.0;
-    progress(run, 0, run->path->count, 0.0);
+    progress(&line, run, 0, run->path->count, 0.0);
     for (uint32_t f = 0; f < run->path->count; f++) {
         /* Methods alternate frame by frame, so drift on a shared machine
          * hits them all alike. */
@@ -225,7 +225,8 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
             if (rc)
                 goto out;
         }
-        progress(run, f + 1, run->path->count, total_ms / ((f + 1) * (double)run->method_count));
+        progress(&line, run, f + 1, run->path->count,
+                 total_ms / ((f + 1) * (double)run->method_count));
     }
     rc = tw_report_close(&report, true, run->figures, err, err_size);
     run->conservative_missed_pixels = 0;
@@ -235,6 +236,7 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     if (!rc && run->bench && !run->defer_charts)
         rc = draw_charts(run, ctx, NULL, err, err_size);
 out:
+    tw_progress_finish(&line);  /* a failed run's line is cleared before its error */
     tw_report_abort(&report);
     free(split.clusters);
     free(rgb);

@@ -987,16 +987,16 @@ static int write_sweep(const struct options *o, const struct tw_cli_world *shown
         return rc;
     tw_outfile_printf(&csv, "budget_bytes,frames,distance_m,loads_done,tile_evictions,reloads,"
                             "peak_cache_bytes,final_cache_bytes,peak_rss_bytes,latency_p99,holes,"
-                            "mean_ms,p99_ms,all_held\n");
+                            "mean_ms,p99_ms,all_held,mean_cpu_ms\n");
     for (uint32_t k = 0; k < count; k++) {
         const struct result *r = &results[k];
-        tw_outfile_printf(&csv, "%llu,%u,%.1f,%llu,%llu,%llu,%llu,%llu,%llu,%.0f,%llu,%.3f,%.3f,%d\n",
+        tw_outfile_printf(&csv, "%llu,%u,%.1f,%llu,%llu,%llu,%llu,%llu,%llu,%.0f,%llu,%.3f,%.3f,%d,%.3f\n",
                           (unsigned long long)r->budget, r->frames, r->distance_m,
                           (unsigned long long)r->loads_done, (unsigned long long)r->tile_evictions,
                           (unsigned long long)r->reloads, (unsigned long long)r->peak_total,
                           (unsigned long long)r->final_total, (unsigned long long)r->peak_rss,
                           r->lat_p99, (unsigned long long)r->holes, r->mean_ms, r->p99_ms,
-                          r->all_held);
+                          r->all_held, r->mean_cpu_ms);
     }
     rc = tw_outfile_commit(&csv, err, err_size);
     if (rc)
