@@ -22,9 +22,19 @@
  * first frame; the last frame finishes it (a run that stopped early is
  * finished by the next start). stderr shows one progress line at a time, so
  * its state is this one, not the run's. */
+/* Frame done of a run of total frames: on the run's own line, or at
+ * progress_base on a line shared with other runs (done 0 starts an own line). */
 static void progress(struct tw_progress *line, const struct tw_run *run, uint32_t done,
                      uint32_t total, double mean_ms)
 {
+    if (run->progress) {
+        if (done > 0) {
+            char note[64];
+            snprintf(note, sizeof(note), "%.1f ms/frame", mean_ms);
+            tw_progress_update(run->progress, (double)run->progress_base + done, note);
+        }
+        return;
+    }
     if (done == 0) {
         tw_progress_init(line, run->out, total, "frames", 0, run->quiet);
         return;
@@ -236,7 +246,10 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     if (!rc && run->bench && !run->defer_charts)
         rc = draw_charts(run, ctx, NULL, err, err_size);
 out:
-    tw_progress_finish(&line);  /* a failed run's line is cleared before its error */
+    /* A failed run's line is ended before its error is printed. */
+    tw_progress_finish(&line);
+    if (rc && run->progress)
+        tw_progress_finish(run->progress);
     tw_report_abort(&report);
     free(split.clusters);
     free(rgb);
@@ -390,6 +403,12 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
      * the sweep's. */
     struct tw_run base = *run;
     base.defer_charts = true;
+    /* One progress line over the base run and every value's. */
+    struct tw_progress line;
+    tw_progress_init(&line, run->out, (double)(count + 1) * run->path->count, "frames", 0,
+                     run->quiet);
+    base.progress = &line;
+    base.progress_base = 0;
     rc = tw_run_execute(&base, ctx, err, err_size);
     run->world_error = base.world_error;
     if (rc)
@@ -404,6 +423,7 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
         free(figures);
         free(conservative);
         free(points);
+        tw_progress_finish(&line);
         snprintf(err, err_size, "out of memory");
         return TW_ERR_NOMEM;
     }
@@ -423,6 +443,8 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
         r.out = dir;
         r.bench = false;
         r.png_every = 0;
+        r.progress = &line;
+        r.progress_base = (k + 1) * run->path->count;
         struct tw_tileset *own = NULL;
         if (param == P_CLUSTER && !run->tileset) {
             snprintf(err, err_size, "--sweep: cluster_triangles needs a prototype tileset; '%s' is "
@@ -483,6 +505,7 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
                                              points, npoints};
         rc = draw_charts(run, ctx, &sweep, err, err_size);
     }
+    tw_progress_finish(&line);
     free(points);
     free(conservative);
     free(figures);

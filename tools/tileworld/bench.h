@@ -12,6 +12,7 @@
 #ifndef TW_TOOLS_BENCH_H
 #define TW_TOOLS_BENCH_H
 
+#include "tools/progress.h"
 #include "tools/tileworld/report.h"
 #include "tileworld/context.h"
 #include "tileworld/runtime.h"
@@ -36,6 +37,11 @@ struct tw_run {
     bool split;                         /* --split: each frame's set drawn again (report.h) */
     bool defer_charts;                  /* a bench whose caller draws the charts (a sweep) */
     bool quiet;
+    /* A progress line shared by several runs (a sweep's), borrowed: this
+     * run's frames count from progress_base on it. NULL: the run has a line
+     * of its own. */
+    struct tw_progress *progress;
+    uint32_t progress_base;
     bool allow_missed;                  /* --allow-missed: said in the verdict (report.h) */
     tw_run_frame_fn on_frame;
     void *on_frame_user;
