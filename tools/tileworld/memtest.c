@@ -107,7 +107,7 @@ static void usage(FILE *f)
           "--every METRES        a row of memory.csv every METRES metres, 1..1000000\n"
           "                      (default 100)\n"
           "--budget BYTES        the tile cache's budget, CPU and GPU bytes, with an optional\n"
-          "                      binary suffix K, M, G (64M = 64 MiB); 0: none (the default)\n"
+          "                      binary suffix K, M, G, T (64M = 64 MiB); 0: none (the default)\n"
           "--sweep budget=B1,B2,...  one run per budget into DIR/sweep-budget-VALUE/, and\n"
           "                      DIR/sweep.csv and chart-sweep-budget.png (not with --budget)\n"
           "--size WxH            image size, each side 16..8192 (default 320x180)\n"
