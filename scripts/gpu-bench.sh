@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The GPU benchmark suite (issue 28): every method over the standard scenes
+# The GPU benchmark suite: every method over the standard scenes
 # at 1920x1080, then a short --verify run per scene, within a wall-time
 # budget, summarised in OUT/gpu-bench.md. Runs from a pack made by
 # scripts/gpu-pack.sh on a machine that has a GPU driver and nothing else of

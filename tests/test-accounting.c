@@ -1,5 +1,5 @@
 /*
- * The tile cache's byte accounting (DESIGN §13, issue 14), headless GL, with
+ * The tile cache's byte accounting (DESIGN §13), headless GL, with
  * the built-in city-gen provider under a budget that forces evictions: the
  * bytes added and removed per tile add up exactly.
  *   - every READY event is a cell not already held, every EVICTED event

@@ -292,7 +292,7 @@ else
     bad "info --calibrate failed: $(cat "$tmp/err")"
 fi
 
-# ---- providers and the streaming options (issue 14) -----------------------------
+# ---- providers and the streaming options -----------------------------
 for a in "--budget 12X" "--budget -1" "--budget 1.5M" "--budget ''" "--budget 99999999999999999999" \
          "--budget 2000000T" "--budget 64m5" "--policy nope" "--policy" "--workers 0" "--workers 65" \
          "--workers x" "--upload-budget 0"; do

@@ -1,4 +1,4 @@
-/* Tests of glTF import and tileset manifests (tilesets.h, issue 7).
+/* Tests of glTF import and tileset manifests (tilesets.h).
  *
  * usage: test-gltf SHARED_DIR SOURCE_ROOT
  *
@@ -472,7 +472,7 @@ static void test_synthetic(void)
         int err;
         const char *want, *accessors, *primitive, *nodes, *scenes, *extra;
     } refused[] = {
-        /* Points and lines are not drawn (issue 11: skipped with a warning,
+        /* Points and lines are not drawn (skipped with a warning,
          * hostile.c tests the rest); alone, nothing is drawn. */
         {.what = "points", .err = TW_ERR_FORMAT,
          .want = "draws nothing",

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# scripts/gpu-bench.sh (issue 28): a --quick run of the built tileworld
+# scripts/gpu-bench.sh: a --quick run of the built tileworld
 # exits 0 and writes a row per scene and method; against a stand-in
 # tileworld (columns in another order, no gpu_ms), missed pixels of a method
 # other than the hzb ones and a failed bench make it exit 1 and say which;

@@ -1,5 +1,5 @@
-/* Hostile and broken input for glTF import, manifests and confined paths
- * (issue 11): no crash, no hang, bounded cost, one message per bad input
+/* Hostile and broken input for glTF import, manifests and confined paths:
+ * no crash, no hang, bounded cost, one message per bad input
  * naming the file, the place and the reason.
  *
  * usage: test-hostile SOURCE_ROOT

@@ -1,4 +1,4 @@
-/* Unit tests of the camera-path CSV reader (runtime/paths.c, issue 11):
+/* Unit tests of the camera-path CSV reader (runtime/paths.c):
  * every bad row is refused at load with one line "FILE:LINE: reason" that
  * says what is wrong with which field; special files are refused, never
  * waited on; text from the file reaches messages escaped. */

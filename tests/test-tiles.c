@@ -367,7 +367,7 @@ static void test_tile_cache(void)
     tw_tile_cache_destroy(NULL);
 }
 
-/* ---- issue 11: hostile input ------------------------------------------------ */
+/* ---- hostile input ------------------------------------------------ */
 
 static void capture_last(void *user, enum tw_log_level level, const char *msg)
 {
