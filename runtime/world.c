@@ -46,11 +46,6 @@ enum tw_method tw_method_resolve(enum tw_method m)
     return m == TW_METHOD_DEFAULT ? TW_METHOD_TILEQUERY_CHC : m;
 }
 
-bool tw_method_available(enum tw_method m)
-{
-    return (unsigned)m < TW_METHOD_COUNT;
-}
-
 bool tw_method_conservative(enum tw_method m, const struct tw_world_settings *s)
 {
     const uint32_t chc_t = s ? s->chc.threshold : 0;
@@ -406,11 +401,6 @@ int tw_world_set_method(struct tw_world *w, enum tw_method m)
     if (!w || (unsigned)m >= TW_METHOD_COUNT)
         return TW_ERR_INVALID;
     m = tw_method_resolve(m);
-    if (!tw_method_available(m)) {
-        tw_log_printf(&w->s.log, TW_LOG_ERROR, "method '%s' is not implemented yet",
-                      tw_method_name(m));
-        return TW_ERR_INVALID;
-    }
     struct method_state *ms = &w->methods[m];
     if (!ms->driver) {
         int err = create_driver(w, m, &ms->driver);

@@ -259,8 +259,6 @@ enum tw_method tw_cli_method(const char *program, const char *opt, const char *s
         char names[256];
         tw_cli_fail(program, opt, "unknown method '%s' (%s)", s, join(list, names, sizeof(names)));
     }
-    if (!tw_method_available(m))
-        tw_cli_fail(program, opt, "method '%s' is not implemented in this build yet", s);
     return m;
 }
 

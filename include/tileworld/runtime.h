@@ -56,8 +56,6 @@ const char *tw_method_name(enum tw_method m);
 int tw_method_from_name(const char *name, enum tw_method *out);
 /* TW_METHOD_DEFAULT resolved; every other value as it is. */
 enum tw_method tw_method_resolve(enum tw_method m);
-/* True if the method is implemented in this build. */
-bool tw_method_available(enum tw_method m);
 
 struct tw_world_settings;
 /* True if method m under settings s (NULL: the defaults) must never miss a

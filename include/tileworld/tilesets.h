@@ -1,6 +1,6 @@
 /*
- * tilesets: producers of tilesets (DESIGN.md §10): the procedural generators
- * and, later, glTF import and manifests. Everything here returns a finished
+ * tilesets: producers of tilesets (DESIGN.md §10): the procedural generators,
+ * the built-in providers, glTF import and manifests. Everything here returns a finished
  * struct tw_tileset (tiles/tiles.h) that the caller owns.
  */
 #ifndef TW_TILESETS_H
