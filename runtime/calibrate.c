@@ -23,8 +23,6 @@ void tw_calibrate_nominal(struct tw_calibration *out)
     out->draw_ms = 0.0125;
     out->triangle_ns = 115.0;
     out->draw_pixel_ns = 8.5;
-    out->query_scale = 1.0;
-    out->draw_scale = 1.0;
 }
 
 /* The focal length in pixels of a height-pixel image with fov_y. */
@@ -309,31 +307,6 @@ int tw_calibrate_measure(struct tw_renderer *r, const struct tw_tileset *ts,
     return TW_OK;
 }
 
-/* Solves the 3 x 3 system a x = b by Cramer's rule; false if singular. */
-static bool solve3(const double a[3][3], const double b[3], double x[3])
-{
-    const double det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
-                       a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
-                       a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
-    if (!(fabs(det) > 1e-12))
-        return false;
-    for (int c = 0; c < 3; c++) {
-        double m[3][3];
-        memcpy(m, a, sizeof(m));
-        for (int r = 0; r < 3; r++)
-            m[r][c] = b[r];
-        x[c] = (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
-                m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
-                m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])) / det;
-    }
-    return true;
-}
-
-static double clamp_scale(double s)
-{
-    return s < 0.1 ? 0.1 : s > 20.0 ? 20.0 : s;
-}
-
 /* A batched query's cost; a calibration given without it has the round
  * trip's. */
 static double batched_ms(const struct tw_calibration *cal)
@@ -343,57 +316,9 @@ static double batched_ms(const struct tw_calibration *cal)
                : cal->query_ms;
 }
 
-void tw_calibrate_refine(struct tw_calibrate_fit *fit, struct tw_calibration *cal, double cpu_ms,
-                         uint32_t queries, uint32_t query_boxes, uint32_t draws,
-                         uint64_t triangles)
-{
-    if (!cal->measured || !isfinite(cpu_ms) || cpu_ms < 0.0)
-        return;
-    /* Recent frames weigh more: about the last hundred count. */
-    const double decay = 0.99;
-    const double x[3] = {
-        1.0,
-        queries * batched_ms(cal) + (query_boxes > queries ? query_boxes - queries : 0) *
-                                      cal->query_box_ms,
-        draws * cal->draw_ms + (double)triangles * cal->triangle_ns * 1e-6,
-    };
-    for (int r = 0; r < 3; r++) {
-        for (int c = 0; c < 3; c++)
-            fit->s[r][c] = decay * fit->s[r][c] + x[r] * x[c];
-        fit->sy[r] = decay * fit->sy[r] + x[r] * cpu_ms;
-    }
-    fit->weight = decay * fit->weight + 1.0;
-    fit->query_weight = decay * fit->query_weight + (queries > 0);
-    fit->draw_weight = decay * fit->draw_weight + (draws > 0);
-    cal->frames++;
-    /* Both kinds of work must have been seen before the split between
-     * them can be told. */
-    if (fit->query_weight < 8.0 || fit->draw_weight < 8.0)
-        return;
-    /* A prior pulling each factor towards 1, as strong as a few frames. */
-    double a[3][3], b[3], sol[3];
-    memcpy(a, fit->s, sizeof(a));
-    memcpy(b, fit->sy, sizeof(b));
-    for (int k = 1; k < 3; k++) {
-        const double mu = 2.0 * fit->s[k][k] / fit->weight;
-        a[k][k] += mu;
-        b[k] += mu;
-    }
-    if (!solve3(a, b, sol))
-        return;
-    cal->query_scale = clamp_scale(sol[1]);
-    cal->draw_scale = clamp_scale(sol[2]);
-}
-
 void tw_calibrate_model(const struct tw_calibration *cal, uint32_t width, uint32_t height,
                         struct tw_cost_model *out)
 {
-    /* The refinement's scales are not applied: within one method's frames
-     * its queries and its draws rise and fall together, so the fit cannot
-     * tell them apart, and applied it drove the balance wrong (city/street
-     * tilequery+chc 1.39 of the oracle's CPU time without, 1.80 with: the
-     * fit priced a query at several times its batched cost, and CHC++
-     * stopped asking). */
     out->query = (float)batched_ms(cal);
     out->query_flush = (float)(cal->query_ms - batched_ms(cal));
     out->query_box = (float)cal->query_box_ms;

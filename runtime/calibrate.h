@@ -32,25 +32,7 @@ int tw_calibrate_measure(struct tw_renderer *r, const struct tw_tileset *ts,
                          uint32_t first_content, uint32_t width, uint32_t height, float fov_y,
                          struct tw_calibration *out);
 
-/* The refinement's running sums: a least-squares fit, recent frames
- * weighing more, of each frame's CPU time on its queries' and draws'
- * calibrated costs (and a constant). Zero-initialise. */
-struct tw_calibrate_fit {
-    double s[3][3];     /* decayed sums of x x^T, x = (1, query cost, draw cost) */
-    double sy[3];       /* decayed sums of x y */
-    double weight;      /* decayed frame count */
-    double query_weight, draw_weight;   /* decayed sums of frames with queries, with draws */
-};
-
-/* Adds one finished frame (its CPU time, its counts: queries, their boxes,
- * draws, triangles) and updates cal's scales. A calibration not measured is
- * left alone. */
-void tw_calibrate_refine(struct tw_calibrate_fit *fit, struct tw_calibration *cal, double cpu_ms,
-                         uint32_t queries, uint32_t query_boxes, uint32_t draws,
-                         uint64_t triangles);
-
-/* The model CHC++ decides with: cal's figures with their scales, for a
- * width x height image. */
+/* The model CHC++ decides with: cal's figures for a width x height image. */
 void tw_calibrate_model(const struct tw_calibration *cal, uint32_t width, uint32_t height,
                         struct tw_cost_model *out);
 

@@ -92,14 +92,12 @@ struct tw_world {
     struct tw_cull_driver *fixed_set;  /* tw_world_frame_fixed */
     struct tw_drawn_cluster *fixed_order;  /* its set, grouped tile by tile */
     size_t fixed_order_cap;
-    bool last_fixed;                   /* the last frame was tw_world_frame_fixed's */
     bool record_draws;
     struct tw_oracle oracle;
 
     struct tw_view last_view;
     bool has_view;
     struct tw_calibration calibration;  /* DESIGN §14: what queries and draws cost */
-    struct tw_calibrate_fit fit;        /* its refinement from finished frames */
     uint32_t calibration_first;         /* the shared tileset's first content */
     struct tw_debug_state debug;    /* untouched while debug.flags is 0 */
     struct tw_gputime gputime;      /* the frames' GPU time, read frames later */

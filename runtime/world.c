@@ -313,8 +313,6 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
         err = tw_calibrate_measure(w->renderer, ts, w->calibration_first, w->s.width, w->s.height,
                                    w->s.fov_y, &w->calibration);
     }
-    if (!(w->calibration.query_scale > 0.0))
-        w->calibration.query_scale = w->calibration.draw_scale = 1.0;
     if (!err && w->provider.generate) {
         const struct tw_stream_settings ss = {
             .provider = &w->provider,
@@ -652,7 +650,6 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
         return err;
     struct method_state *ms = &w->methods[w->method];
     struct tw_frame_stats st = {0};
-    w->last_fixed = false;
     st.frame = ++ms->frame;
     st.method = w->method;
     v.frame = st.frame;
@@ -782,18 +779,6 @@ int tw_world_finish(struct tw_world *w, struct tw_frame_stats *st)
         st->cpu_ms += tw_renderer_cpu_ms() - cpu0;
         /* After glFinish the timers are back: reading them waits no more. */
         tw_gputime_current(&w->gputime, &st->gpu_ms, &st->gpu_ms_id);
-        /* A finished frame's CPU time refines what queries and draws cost;
-         * not a fixed set's (no culling, no queries: not how a method
-         * draws), and not while tiles were being made: the workers' CPU
-         * time is in the process's, and the fit took it for the queries'
-         * (a city-gen walk then skipped twice the queries and drew twice
-         * the triangles). */
-        const bool workers_busy =
-            w->stream && (st->loads_done > 0 || tw_stream_loading_count(w->stream) > 0);
-        const struct tw_render_counters *rc = tw_renderer_counters(w->renderer);
-        if (!workers_busy && !w->last_fixed)
-            tw_calibrate_refine(&w->fit, &w->calibration, st->cpu_ms, rc->queries,
-                                rc->query_boxes, rc->draws, rc->triangles);
     }
     return TW_OK;
 }
@@ -869,7 +854,6 @@ static int frame_fixed(struct tw_world *w, const struct tw_camera *cam,
     v.frame = st.frame;
     w->last_view = v;
     w->has_view = true;
-    w->last_fixed = true;
     /* Drawn tile by tile (one run of draws each, as the oracle draws its
      * set), each tile's clusters in the order given. */
     err = tw_array_reserve((void **)&w->fixed_order, &w->fixed_order_cap, count,

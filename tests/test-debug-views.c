@@ -205,16 +205,12 @@ static void test_fixed(struct tw_context *ctx, const struct tw_tileset *ts)
     CHECK(tw_world_frame(w, &next, &st) == TW_OK);
     CHECK(st.frame == frame + 1);
 
-    /* A frame's finish refines the cost model; a fixed set's does not. */
-    const struct tw_calibration *cal = tw_world_calibration(w);
-    CHECK(cal->measured);
-    const uint32_t refined = cal->frames;
+    /* A fixed set's finish adds its time to the set's figures. */
     CHECK(tw_world_finish(w, &st) == TW_OK);
-    CHECK(cal->frames == refined + 1);
     CHECK(tw_world_frame_fixed(w, &same, set, n, &fixed) == TW_OK);
     const double cpu_drawn = fixed.cpu_ms;
     CHECK(tw_world_finish(w, &fixed) == TW_OK);
-    CHECK(cal->frames == refined + 1 && fixed.cpu_ms >= cpu_drawn);
+    CHECK(fixed.cpu_ms >= cpu_drawn);
 
     /* A cluster that names nothing is refused. */
     struct tw_drawn_cluster bad = set[0];

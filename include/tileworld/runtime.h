@@ -82,7 +82,7 @@ struct tw_camera {
  * work is CPU time; on a GPU it is what the CPU spends submitting and
  * waiting). Measured when a world is created, by timing queries of boxes
  * of known screen size and draws of clusters of known triangle counts, each
- * batch closed by glFinish; then refined from the frames drawn. */
+ * batch closed by glFinish. */
 struct tw_calibration {
     double query_ms;         /* one occlusion query of one box: issue, draw, read back */
     double query_batched_ms; /* the same query issued in a batch of them, all read at
@@ -95,17 +95,7 @@ struct tw_calibration {
     double draw_pixel_ns;    /* each pixel a drawn cluster's box covers, nanoseconds */
     double calibrate_ms;     /* CPU time the measurement took (0: not measured) */
     bool measured;           /* false: figures given in the settings, or the nominal
-                                ones of a deterministic world; neither is refined */
-    uint32_t frames;         /* frames that refined the scales below */
-    double query_scale;      /* refinement: the process CPU time of each finished frame
-                                (tw_world_finish) is regressed on its queries' (batched)
-                                and its draws' costs as calibrated; these are the fitted
-                                factors (running, recent frames weigh more; 1 until
-                                enough frames of both kinds), within [0.1, 20]: how far
-                                the frames depart from the figures above. Kept for a
-                                host to read, not applied to CHC++'s decisions
-                                (calibrate.c says why) */
-    double draw_scale;
+                                ones of a deterministic world */
 };
 
 /* What a frame does with a visible cell whose generated tile is not ready
@@ -170,9 +160,9 @@ struct tw_world_settings {
     struct tw_chc_settings chc;        /* chc.no_cost_model: CHC++ with unit query costs */
     struct tw_tilequery_settings tilequery;
     struct tw_bvh_settings bvh;
-    struct tw_calibration calibration; /* zeroed (query_ms 0): measured at creation and
-                                          refined (a deterministic world: the nominal
-                                          figures, fixed); else these figures, fixed */
+    struct tw_calibration calibration; /* zeroed (query_ms 0): measured at creation
+                                          (a deterministic world: the nominal figures);
+                                          else these figures */
     tw_gl_get_proc_fn get_proc;        /* loader of the current context; required */
     struct tw_log log;                 /* copied; zeroed: silent */
 };
@@ -300,9 +290,7 @@ int tw_world_frame(struct tw_world *w, const struct tw_camera *cam,
 /* Waits for the GPU to finish the last frame (glFinish) and adds the time
  * waited to stats->ms_frame and its CPU time to stats->cpu_ms (stats may be
  * NULL); fills stats->gpu_ms and gpu_ms_id from the frame's timers, now back
- * (a fixed set's frame has none: they stay unknown). A frame of
- * tw_world_frame() so finished, with stats, refines the cost model
- * (tw_calibration); one of tw_world_frame_fixed() does not. */
+ * (a fixed set's frame has none: they stay unknown). */
 int tw_world_finish(struct tw_world *w, struct tw_frame_stats *stats);
 
 /* What the cache holds, and what it did since the world was created. */
@@ -354,8 +342,7 @@ const struct tw_drawn_cluster *tw_world_drawn(const struct tw_world *w, size_t *
 const struct tw_world_settings *tw_world_settings(const struct tw_world *w);
 
 /* The cost figures the world decides with (DESIGN §14): as calibrated
- * when it was created, with the refinement of the frames since. Owned by
- * the world; valid until it is destroyed. */
+ * when it was created. Owned by the world; valid until it is destroyed. */
 const struct tw_calibration *tw_world_calibration(const struct tw_world *w);
 
 /* The BVH of prototype p (built when the world was created). */

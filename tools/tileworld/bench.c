@@ -99,8 +99,7 @@ static int copy_set(struct tw_world *world, struct split_set *s)
 }
 
 /* --split: draws the copied set again from the frame's camera, with no
- * culling, and finishes it, timed as the frame was (a fixed set's frame
- * does not refine the cost model). */
+ * culling, and finishes it, timed as the frame was. */
 static int draw_set(struct tw_world *world, const struct tw_camera *cam,
                     const struct split_set *s, struct tw_report_set *out)
 {
