@@ -12,6 +12,7 @@
  */
 #include "tileworld/bvh.h"
 #include "tiles/array.h"
+#include "tiles/clock.h"
 
 #include <assert.h>
 #include <math.h>
@@ -19,7 +20,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include <embree3/rtcore.h>
 
@@ -40,13 +40,6 @@ struct tw_bvh_builder {
 };
 
 /* ---- small helpers ---------------------------------------------------------- */
-
-static double now_ms(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
-}
 
 static bool box_is_valid(const struct tw_box *b)
 {
@@ -861,7 +854,7 @@ static int build(struct tw_bvh_builder *b, const struct tw_prototype *proto,
     if (!proto)
         return TW_ERR_INVALID;
     const struct tw_log *log = b ? &b->log : NULL;
-    const double start = now_ms();
+    const double start = tw_clock_monotonic_ms();
     ret = check_prototype(proto, log);
     if (ret < 0)
         goto out;
@@ -874,7 +867,7 @@ static int build(struct tw_bvh_builder *b, const struct tw_prototype *proto,
     ret = flatten(&st, proto, &s, log, out);
     if (ret < 0)
         goto out;
-    (*out)->build_ms = now_ms() - start;
+    (*out)->build_ms = tw_clock_monotonic_ms() - start;
 
 out:
     if (ret == TW_ERR_NOMEM)
@@ -907,7 +900,7 @@ void tw_bvh_destroy(struct tw_bvh *bvh)
     if (!bvh)
         return;
     if (bvh->packed) {
-        free(bvh);
+        tw_pack_free(bvh, bvh->bytes); /* one block (tw_bvh_pack) */
         return;
     }
     free(bvh->nodes);

@@ -21,10 +21,11 @@
  *            phase 1 did not
  */
 #include "cull/cull-private.h"
+#include "tiles/clock.h"
+#include "tiles/neighbours.h"
 
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 struct tw_cull_driver {
     struct tw_cull_driver_settings s;
@@ -324,12 +325,9 @@ static struct tw_chc_node_state *resolve_tag(void *user, uint64_t tag, const str
  * are wanted soon (DESIGN §12: prefetch when a neighbour is queried). */
 static void prefetch_neighbours(struct frame *fr, struct tw_cell cell)
 {
-    static const int8_t di[8] = {1, -1, 0, 0, 1, 1, -1, -1};
-    static const int8_t dj[8] = {0, 0, 1, -1, 1, -1, 1, -1};
     const struct tw_cull_grid *g = fr->g;
     for (uint32_t k = 0; k < fr->d->s.tilequery.neighbours; k++) {
-        const struct tw_cell c = {(int64_t)((uint64_t)cell.i + (uint64_t)(int64_t)di[k]),
-                                  (int64_t)((uint64_t)cell.j + (uint64_t)(int64_t)dj[k])};
+        const struct tw_cell c = tw_cell_neighbour(cell, k);
         float off[3];
         tw_tiles_cell_offset(c, fr->v->cell, g->footprint[0], g->footprint[1], off);
         const float dist = tw_cull_box_distance(fr->v, &g->common_box, off);
@@ -433,13 +431,6 @@ static int frame_given(struct frame *fr)
 #define HZ_DREW1 4u         /* phase 1 drew some of its clusters */
 #define HZ_TESTED 8u        /* phase 2 decided on it */
 #define HZ_SHIFT 4
-
-static double now_ms(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
-}
 
 static int compare_cells(const void *a, const void *b)
 {
@@ -549,13 +540,13 @@ static void hz_pyramid(struct frame *fr, bool drawn)
     float *depth = tw_hzb_depth_buffer(h, w, hh);
     if (!depth)
         return;     /* out of memory: no pyramid, nothing culled */
-    const double t0 = now_ms();
+    const double t0 = tw_clock_monotonic_ms();
     if (!be->read_depth(be->ctx, depth, &w, &hh, &reversed))
         return;
-    const double t1 = now_ms();
+    const double t1 = tw_clock_monotonic_ms();
     tw_hzb_build(h, reversed);
     fr->st->ms_hzb_read += t1 - t0;
-    fr->st->ms_hzb_build += now_ms() - t1;
+    fr->st->ms_hzb_build += tw_clock_monotonic_ms() - t1;
 }
 
 /* Phase 2's verdict on a cell in view: free (visible without a test: the
@@ -651,8 +642,6 @@ static void hz_queue(struct frame *fr, struct tw_cell cell, float distance)
  * the pyramid answers at once. */
 static void hz_propagate(struct frame *fr, struct tw_cull_cells *cells)
 {
-    static const int8_t di[8] = {1, -1, 0, 0, 1, 1, -1, -1};
-    static const int8_t dj[8] = {0, 0, 1, -1, 1, -1, 1, -1};
     struct tw_cull_driver *d = fr->d;
     const struct tw_cull_grid *g = fr->g;
     struct tw_cull_cell start;
@@ -681,8 +670,7 @@ static void hz_propagate(struct frame *fr, struct tw_cull_cells *cells)
             prefetch_neighbours(fr, c.cell);
         hz_visit(fr, c.cell, c.distance, off, hz_verdict(fr, c.cell));
         for (uint32_t k = 0; k < d->s.tilequery.neighbours && !fr->err; k++) {
-            const struct tw_cell nc = {(int64_t)((uint64_t)c.cell.i + (uint64_t)(int64_t)di[k]),
-                                       (int64_t)((uint64_t)c.cell.j + (uint64_t)(int64_t)dj[k])};
+            const struct tw_cell nc = tw_cell_neighbour(c.cell, k);
             float noff[3], dist;
             if (hz_reached(fr, nc) || !hz_in_view(fr, nc, noff, &dist))
                 continue;

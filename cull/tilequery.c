@@ -1,5 +1,7 @@
 /* Tile-query propagation with pending and postponed queues (DESIGN §4). */
 #include "tileworld/cull.h"
+#include "tiles/array.h"
+#include "tiles/neighbours.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -68,21 +70,6 @@ void tw_tilequery_destroy(struct tw_tilequery *tq)
     free(tq);
 }
 
-static int grow(void **array, uint32_t *cap, uint32_t need, size_t elem)
-{
-    if (need <= *cap)
-        return TW_OK;
-    uint32_t n = *cap ? *cap : 64;
-    while (n < need)
-        n *= 2;
-    void *p = realloc(*array, (size_t)n * elem);
-    if (!p)
-        return TW_ERR_NOMEM;
-    *array = p;
-    *cap = n;
-    return TW_OK;
-}
-
 static bool prune_old(void *user, struct tw_cell cell, uint64_t value)
 {
     (void)cell;
@@ -133,19 +120,16 @@ static bool in_view(const struct frame_ctx *fc, struct tw_cell cell, float *dist
 /* Step 3: query the neighbours of a rendered cell, nearest first. */
 static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell)
 {
-    static const int8_t di[8] = {1, -1, 0, 0, 1, 1, -1, -1};
-    static const int8_t dj[8] = {0, 0, 1, -1, 1, -1, 1, -1};
     struct tw_tilequery *tq = fc->tq;
     const uint64_t f = fc->v->frame;
     struct {
         struct tw_cell cell;
         float distance;
         bool known;
-    } todo[8];
+    } todo[TW_CELL_NEIGHBOURS];
     uint32_t n = 0;
     for (uint32_t k = 0; k < tq->s.neighbours; k++) {
-        const struct tw_cell c = {(int64_t)((uint64_t)cell.i + (uint64_t)(int64_t)di[k]),
-                                  (int64_t)((uint64_t)cell.j + (uint64_t)(int64_t)dj[k])};
+        const struct tw_cell c = tw_cell_neighbour(cell, k);
         const uint64_t *q = tw_cell_map_find(tq->queried, c);
         if (q && *q == f)
             continue;
@@ -169,7 +153,8 @@ static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell)
     }
     if (n == 0)
         return;
-    if (grow((void **)&tq->queue, &tq->queue_cap, tq->tail + n, sizeof(*tq->queue))) {
+    if (tw_array_reserve_u32((void **)&tq->queue, &tq->queue_cap, tq->tail + n, sizeof(*tq->queue),
+                             64)) {
         fc->err = TW_ERR_NOMEM;
         return;
     }
@@ -282,8 +267,8 @@ int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
         }
         if (p.predicted && !be->ready(be->ctx, p.query)) {
             /* Trust last frame: render now, read the answer at the end. */
-            if (grow((void **)&tq->postponed, &tq->postponed_cap, tq->postponed_count + 1,
-                     sizeof(*tq->postponed))) {
+            if (tw_array_reserve_u32((void **)&tq->postponed, &tq->postponed_cap,
+                                     tq->postponed_count + 1, sizeof(*tq->postponed), 64)) {
                 fc.err = TW_ERR_NOMEM;
                 break;
             }
@@ -307,7 +292,8 @@ int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
                 continue;
             st.predict_fail++;
         } else {
-            if (grow((void **)&tq->stale, &tq->stale_cap, tq->stale_count + 1, sizeof(*tq->stale))) {
+            if (tw_array_reserve_u32((void **)&tq->stale, &tq->stale_cap, tq->stale_count + 1,
+                                     sizeof(*tq->stale), 64)) {
                 fc.err = TW_ERR_NOMEM;
                 break;
             }

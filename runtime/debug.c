@@ -154,19 +154,6 @@ static int collect_cells(struct tw_world *w, const struct method_state *ms, cons
     return err;
 }
 
-/* Room for n entries of size elem in *array. */
-static int reserve(void **array, size_t *cap, size_t n, size_t elem)
-{
-    if (n <= *cap)
-        return TW_OK;
-    void *p = realloc(*array, n * elem);
-    if (!p)
-        return TW_ERR_NOMEM;
-    *array = p;
-    *cap = n;
-    return TW_OK;
-}
-
 /* Every node on the way from a drawn cluster's leaf to the root, once per
  * tile (a run of drawn clusters of one cell and content). */
 static int collect_nodes(struct tw_world *w)
@@ -183,9 +170,10 @@ static int collect_nodes(struct tw_world *w)
             const struct tw_prototype *proto = tw_renderer_content(w->renderer, d[k].prototype, &bvh);
             if (!proto || !bvh)
                 return TW_ERR_STATE;
-            if (reserve((void **)&dbg->leaf_of, &dbg->leaf_cap, proto->cluster_count + 1,
-                        sizeof(*dbg->leaf_of)) ||
-                reserve((void **)&dbg->marked, &dbg->marked_cap, bvh->node_count + 1, 1))
+            if (tw_array_reserve((void **)&dbg->leaf_of, &dbg->leaf_cap,
+                                 (size_t)proto->cluster_count + 1, sizeof(*dbg->leaf_of), 64) ||
+                tw_array_reserve((void **)&dbg->marked, &dbg->marked_cap,
+                                 (size_t)bvh->node_count + 1, 1, 64))
                 return TW_ERR_NOMEM;
             memset(dbg->marked, 0, bvh->node_count);
             for (uint32_t c = 0; c < proto->cluster_count; c++)

@@ -1,6 +1,7 @@
 /* The renderer and the GL query backend (renderer.h). */
 #include "runtime/renderer.h"
 #include "tiles/array.h"
+#include "tiles/clock.h"
 
 #include <assert.h>
 #include <math.h>
@@ -113,13 +114,6 @@ struct tw_renderer {
     size_t query_box_count, query_box_cap;
     uint32_t *query_record;
 };
-
-double tw_renderer_now_ms(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
-}
 
 double tw_renderer_cpu_ms(void)
 {
@@ -1003,7 +997,7 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
     struct tw_renderer *r = ctx;
     if (count == 0)
         return;
-    const double t0 = tw_renderer_now_ms();
+    const double t0 = tw_clock_monotonic_ms();
     const struct tw_gl *gl = &r->gl;
     enter_draw_mode(r);
     const struct tw_prototype *proto;
@@ -1045,7 +1039,7 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
         }
     }
     r->counters.clusters += count;
-    r->counters.ms_backend += tw_renderer_now_ms() - t0;
+    r->counters.ms_backend += tw_clock_monotonic_ms() - t0;
 }
 
 /* Debugging: keeps the boxes of query handle, view-relative, until the
@@ -1087,7 +1081,7 @@ static uint32_t no_query(struct tw_renderer *r, double t0)
     if (r->counters.query_failures++ == 0)
         tw_log_printf(&r->log, TW_LOG_ERROR,
                       "out of memory for occlusion queries: boxes are taken as visible");
-    r->counters.ms_backend += tw_renderer_now_ms() - t0;
+    r->counters.ms_backend += tw_clock_monotonic_ms() - t0;
     return TW_QUERY_VISIBLE;
 }
 
@@ -1095,7 +1089,7 @@ static uint32_t backend_issue(void *ctx, const struct tw_box *boxes, uint32_t co
                               const float offset[3])
 {
     struct tw_renderer *r = ctx;
-    const double t0 = tw_renderer_now_ms();
+    const double t0 = tw_clock_monotonic_ms();
     const struct tw_gl *gl = &r->gl;
     uint32_t handle;
     if (r->free_count > 0) {
@@ -1167,7 +1161,7 @@ static uint32_t backend_issue(void *ctx, const struct tw_box *boxes, uint32_t co
     if (r->recording_queries)
         record_query(r, handle, boxes, count, offset);
     r->counters.queries++;
-    r->counters.ms_backend += tw_renderer_now_ms() - t0;
+    r->counters.ms_backend += tw_clock_monotonic_ms() - t0;
     return handle;
 }
 
@@ -1188,7 +1182,7 @@ static uint32_t backend_wait(void *ctx, uint32_t query)
     struct tw_renderer *r = ctx;
     if (query == TW_QUERY_VISIBLE)
         return UINT32_MAX;
-    const double t0 = tw_renderer_now_ms();
+    const double t0 = tw_clock_monotonic_ms();
     GLuint result = 0, available = 0;
     r->gl.GetQueryObjectuiv(r->queries[query - 1], GL_QUERY_RESULT_AVAILABLE, &available);
     r->counters.blocking_reads += available == 0;
@@ -1201,7 +1195,7 @@ static uint32_t backend_wait(void *ctx, uint32_t query)
             r->query_boxes[k].result = result > 0;
         r->query_record[query - 1] = 0;
     }
-    const double dt = tw_renderer_now_ms() - t0;
+    const double dt = tw_clock_monotonic_ms() - t0;
     r->counters.ms_wait += dt;
     r->counters.ms_backend += dt;
     return result;
@@ -1214,9 +1208,9 @@ static uint32_t backend_wait(void *ctx, uint32_t query)
 static void backend_flush(void *ctx)
 {
     struct tw_renderer *r = ctx;
-    const double t0 = tw_renderer_now_ms();
+    const double t0 = tw_clock_monotonic_ms();
     r->gl.Flush();
-    const double dt = tw_renderer_now_ms() - t0;
+    const double dt = tw_clock_monotonic_ms() - t0;
     r->counters.ms_wait += dt;
     r->counters.ms_backend += dt;
 }
@@ -1232,9 +1226,9 @@ static bool backend_read_depth(void *ctx, float *depth, uint32_t *width, uint32_
     *reversed = r->reversed_z;
     if (!depth)
         return true;
-    const double t0 = tw_renderer_now_ms();
+    const double t0 = tw_clock_monotonic_ms();
     tw_renderer_read_depth(r, depth);
-    const double dt = tw_renderer_now_ms() - t0;
+    const double dt = tw_clock_monotonic_ms() - t0;
     r->counters.ms_wait += dt;
     r->counters.ms_backend += dt;
     return true;

@@ -97,8 +97,6 @@ void tw_renderer_read_depth(struct tw_renderer *r, float *depth);
 /* Reads the colour buffer as RGB8, top row first. */
 int tw_renderer_read_rgb(struct tw_renderer *r, uint8_t *rgb);
 
-/* Monotonic time in milliseconds. */
-double tw_renderer_now_ms(void);
 /* CPU time of the process, every thread, in milliseconds. */
 double tw_renderer_cpu_ms(void);
 

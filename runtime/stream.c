@@ -22,6 +22,8 @@
  * owns and ends without touching the stream again.
  */
 #include "runtime/stream.h"
+#include "tiles/array.h"
+#include "tiles/clock.h"
 
 #include <errno.h>
 #include <math.h>
@@ -130,21 +132,6 @@ struct tw_stream {
     struct tw_stream_stats stats;
     struct tw_stream_totals totals;
 };
-
-static int grow_u32(uint32_t **a, uint32_t *cap, uint32_t need)
-{
-    if (need <= *cap)
-        return TW_OK;
-    uint32_t n = *cap ? *cap : 64;
-    while (n < need)
-        n *= 2;
-    uint32_t *p = realloc(*a, sizeof(*p) * n);
-    if (!p)
-        return TW_ERR_NOMEM;
-    *a = p;
-    *cap = n;
-    return TW_OK;
-}
 
 /* ---- the job ------------------------------------------------------------------------ */
 
@@ -318,7 +305,8 @@ static void finish_job(struct tw_stream *s, uint32_t index, struct job_result *r
     struct entry *e = &s->entries[index];
     e->result = *r;
     e->jstate = J_DONE;
-    if (grow_u32(&s->finished, &s->finished_cap, s->finished_count + 1) == TW_OK) {
+    if (tw_array_reserve_u32((void **)&s->finished, &s->finished_cap, s->finished_count + 1,
+                             sizeof(*s->finished), 64) == TW_OK) {
         s->finished[s->finished_count++] = index;
     } else {
         /* Out of memory to file it: the entry is collected when it is
@@ -467,7 +455,8 @@ static struct entry *request(struct tw_stream *s, struct tw_cell cell, float dis
     e->priority = distance;
     e->seq = s->seq++;
     e->jstate = J_QUEUED;
-    if (grow_u32(&s->heap, &s->heap_cap, s->heap_count + 1) == TW_OK) {
+    if (tw_array_reserve_u32((void **)&s->heap, &s->heap_cap, s->heap_count + 1, sizeof(*s->heap),
+                             64) == TW_OK) {
         s->heap[s->heap_count] = *index;
         sift_up(s, s->heap_count++);
         pthread_cond_signal(&s->pool->work);
@@ -504,7 +493,7 @@ static int make_ready(struct tw_stream *s, uint32_t k)
     e->jstate = J_NONE;
     pthread_mutex_unlock(&s->pool->lock);
     s->loading--;
-    const double t0 = tw_renderer_now_ms();
+    const double t0 = tw_clock_monotonic_ms();
     if (!r.err) {
         const struct tw_bvh *bvhs[1] = {r.bvh};
         r.err = tw_renderer_upload(s->renderer, r.ts, bvhs, &e->content, &e->bytes_gpu);
@@ -552,7 +541,7 @@ static int make_ready(struct tw_stream *s, uint32_t k)
         s->totals.reloads++;
         tw_cell_map_remove(s->evicted, e->cell);
     }
-    s->stats.ms_upload += tw_renderer_now_ms() - t0;
+    s->stats.ms_upload += tw_clock_monotonic_ms() - t0;
     const struct tw_tile_event ev = {e->cell, TW_TILE_READY, e->bytes_cpu + e->bytes_gpu,
                                      (uint32_t)(s->frame - e->request_frame), e->reload};
     if (s->on_event)
@@ -566,7 +555,8 @@ static void collect(struct tw_stream *s)
 {
     pthread_mutex_lock(&s->pool->lock);
     uint32_t n = s->finished_count;
-    if (grow_u32(&s->to_upload, &s->to_upload_cap, s->to_upload_count + n) != TW_OK)
+    if (tw_array_reserve_u32((void **)&s->to_upload, &s->to_upload_cap, s->to_upload_count + n,
+                             sizeof(*s->to_upload), 64) != TW_OK)
         n = 0;      /* collected another frame */
     for (uint32_t k = 0; k < n; k++) {
         const uint32_t index = s->finished[k];
@@ -850,11 +840,11 @@ void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame)
         }
     }
     uint64_t bytes = 0;
-    const double t0 = tw_renderer_now_ms();
+    const double t0 = tw_clock_monotonic_ms();
     uint32_t done = 0;
     while (done < s->to_upload_count) {
         if (done > 0 && (bytes >= s->set.upload_bytes ||
-                         tw_renderer_now_ms() - t0 >= s->set.upload_ms))
+                         tw_clock_monotonic_ms() - t0 >= s->set.upload_ms))
             break;
         const uint32_t k = s->to_upload[done++];
         /* Out of memory drops the tile (asked for again when wanted). */
@@ -923,7 +913,7 @@ void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame)
  * has started it, else waits for the worker. */
 static int complete_now(struct tw_stream *s, uint32_t k)
 {
-    const double t0 = tw_renderer_now_ms();
+    const double t0 = tw_clock_monotonic_ms();
     s->stats.waits++;
     pthread_mutex_lock(&s->pool->lock);
     struct entry *e = &s->entries[k];
@@ -953,7 +943,7 @@ static int complete_now(struct tw_stream *s, uint32_t k)
             break;
         }
     const int err = make_ready(s, k);
-    s->stats.ms_wait += tw_renderer_now_ms() - t0;
+    s->stats.ms_wait += tw_clock_monotonic_ms() - t0;
     return err;
 }
 

@@ -6,6 +6,7 @@
  */
 #include "runtime/world-private.h"
 #include "tiles/array.h"
+#include "tiles/clock.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -668,7 +669,7 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     tw_gputime_late(&w->gputime, w->method, &st.gpu_late_frame, &st.gpu_late_ms);
     st.gpu_ms = -1.0;
     st.gpu_ms_id = oracle || verify ? -1.0 : 0.0;
-    double t0 = tw_renderer_now_ms(), cpu0 = tw_renderer_cpu_ms();
+    double t0 = tw_clock_monotonic_ms(), cpu0 = tw_renderer_cpu_ms();
     if (!oracle)
         tw_gputime_mark(&w->gputime, TW_GPUTIME_FRAME_BEGIN);
     if (w->stream)
@@ -676,7 +677,7 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     if (oracle) {
         /* The ID pass (and the box test) is an oracle's knowledge, not its
          * work: untimed. */
-        const double ts0 = tw_renderer_now_ms(), cs0 = tw_renderer_cpu_ms();
+        const double ts0 = tw_clock_monotonic_ms(), cs0 = tw_renderer_cpu_ms();
         const bool box = w->method == TW_METHOD_BOX_ORACLE;
         tw_gputime_mark(&w->gputime, TW_GPUTIME_ID_BEGIN);
         err = tw_oracle_pass(w, &v);
@@ -687,7 +688,7 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
         tw_gputime_mark(&w->gputime, TW_GPUTIME_ID_END);
         tw_cull_driver_give(ms->driver, box ? w->oracle.box_visible : w->oracle.visible,
                             box ? w->oracle.box_visible_count : w->oracle.visible_count);
-        t0 += tw_renderer_now_ms() - ts0;
+        t0 += tw_clock_monotonic_ms() - ts0;
         cpu0 += tw_renderer_cpu_ms() - cs0;
         tw_gputime_mark(&w->gputime, TW_GPUTIME_FRAME_BEGIN);
     }
@@ -698,7 +699,7 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     const struct tw_query_backend be = tw_renderer_backend(w->renderer);
     struct tw_cull_frame_stats cs = {0};
     err = tw_cull_driver_frame(ms->driver, &v, &w->grid, &be, &w->cells, &cs);
-    const double t1 = tw_renderer_now_ms();
+    const double t1 = tw_clock_monotonic_ms();
     tw_gputime_mark(&w->gputime, TW_GPUTIME_FRAME_END);
     tw_renderer_end_frame(w->renderer);
     st.tiles_queried = cs.tiles_queried;
@@ -720,14 +721,14 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     st.ms_cull = (t1 - t0) - tw_renderer_counters(w->renderer)->ms_backend;
     if (st.ms_cull < 0.0)
         st.ms_cull = 0.0;
-    st.ms_frame = tw_renderer_now_ms() - t0;
+    st.ms_frame = tw_clock_monotonic_ms() - t0;
     st.cpu_ms = tw_renderer_cpu_ms() - cpu0;
 
     if (verify) {
         /* The frame's time ends where the GPU is done with it; the ID pass
          * after it is not the method's work. */
         tw_renderer_finish(w->renderer);
-        st.ms_frame = tw_renderer_now_ms() - t0;
+        st.ms_frame = tw_clock_monotonic_ms() - t0;
         st.cpu_ms = tw_renderer_cpu_ms() - cpu0;
         if (!oracle) {
             tw_gputime_mark(&w->gputime, TW_GPUTIME_ID_BEGIN);
@@ -772,10 +773,10 @@ int tw_world_finish(struct tw_world *w, struct tw_frame_stats *st)
 {
     if (!w)
         return TW_ERR_INVALID;
-    const double t0 = tw_renderer_now_ms(), cpu0 = tw_renderer_cpu_ms();
+    const double t0 = tw_clock_monotonic_ms(), cpu0 = tw_renderer_cpu_ms();
     tw_renderer_finish(w->renderer);
     if (st) {
-        st->ms_frame += tw_renderer_now_ms() - t0;
+        st->ms_frame += tw_clock_monotonic_ms() - t0;
         st->cpu_ms += tw_renderer_cpu_ms() - cpu0;
         /* After glFinish the timers are back: reading them waits no more. */
         tw_gputime_current(&w->gputime, &st->gpu_ms, &st->gpu_ms_id);
@@ -866,7 +867,7 @@ static int frame_fixed(struct tw_world *w, const struct tw_camera *cam,
         return err;
     tw_renderer_record_draws(w->renderer, false);
     tw_renderer_record_queries(w->renderer, false);
-    const double t0 = tw_renderer_now_ms(), cpu0 = tw_renderer_cpu_ms();
+    const double t0 = tw_clock_monotonic_ms(), cpu0 = tw_renderer_cpu_ms();
     tw_renderer_begin_frame(w->renderer, &v);
     const struct tw_query_backend be = tw_renderer_backend(w->renderer);
     struct tw_cull_frame_stats cs = {0};
@@ -878,7 +879,7 @@ static int frame_fixed(struct tw_world *w, const struct tw_camera *cam,
         return err;
     collect_counters(w, &st);
     st.tiles_visible = cs.tiles_visible;
-    st.ms_frame = tw_renderer_now_ms() - t0;
+    st.ms_frame = tw_clock_monotonic_ms() - t0;
     st.cpu_ms = tw_renderer_cpu_ms() - cpu0;
     st.ms_wait = 0.0;
     st.queries = 0;

@@ -2,10 +2,11 @@
 # tileworld memtest, slow suite: 10 km of city-gen at a tiny size
 # under a small budget (48M: more than most frames draw, less than the walk
 # would prefetch); exit status 0 (every check held) and every check in
-# summary.json with its verdict. Measured with tiles packed (one block each
-# for a tile's tileset and BVH): RSS +1.1, -0.5, +1.2 and +0.2 % in four
-# runs (last 10 % against the first; the bound is 5 %), about 500 loads of
-# which 49-55 reloads, latency p99 2-3 frames.
+# summary.json with its verdict. malloc keeps glibc's own settings; a
+# tile's packed blocks of 64 KiB or more are the library's own mappings.
+# Measured so, one run: RSS +0.1 % (last 10 % against 40-50 % of the
+# distance; the bound is 5 %), rising over the first 2 km while the cache
+# fills and the heap settles, flat after.
 set -u
 tw=${1:?usage: test-memtest-slow.sh PATH/TO/tileworld}
 . "$(dirname "$0")/test-lib.sh"

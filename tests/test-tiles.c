@@ -1,10 +1,14 @@
 /* Unit tests of tiles/: grid math, coordinates, selection, the tileset model. */
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include "tileworld/tiles.h"
+#include "tiles/pages.h"
 #include "tests/check.h"
 
 static uint64_t rng_state = 0x1234567;
@@ -597,6 +601,88 @@ out:
     tw_tileset_destroy(b);
 }
 
+/* Packed blocks of 64 KiB or more are anonymous mappings of their own, whole
+ * pages, unmapped when freed (so a freed tile's memory goes back to the
+ * system whatever malloc keeps); smaller ones are malloc's. msync() answers
+ * ENOMEM for a range that is not mapped. */
+static void test_pack_pages(void)
+{
+    const long page_size = sysconf(_SC_PAGESIZE);
+    CHECK(page_size > 0);
+    const size_t page = page_size > 0 ? (size_t)page_size : 4096u;
+    const size_t sizes[] = {1, 4096, TW_PAGES_MAP_MIN - 1, TW_PAGES_MAP_MIN,
+                            TW_PAGES_MAP_MIN + 1, 3 * TW_PAGES_MAP_MIN + 17};
+    for (size_t k = 0; k < sizeof(sizes) / sizeof(sizes[0]); k++) {
+        const size_t n = sizes[k];
+        unsigned char *block = tw_pages_alloc(n);
+        CHECK_MSG(block && (uintptr_t)block % 16 == 0, "a block of %zu bytes", n);
+        if (!block)
+            continue;
+        memset(block, 0xa5, n);
+        CHECK(block[0] == 0xa5 && block[n - 1] == 0xa5);
+        const bool mapped = n >= TW_PAGES_MAP_MIN;
+        CHECK_MSG(!mapped || (uintptr_t)block % page == 0, "%zu bytes: not page-aligned", n);
+        const size_t length = (n + page - 1) / page * page;
+        if (mapped)
+            CHECK(msync(block, length, MS_ASYNC) == 0);
+        tw_pages_free(block, n);
+        if (mapped) {
+            errno = 0;
+            CHECK_MSG(msync(block, length, MS_ASYNC) == -1 && errno == ENOMEM,
+                      "%zu bytes: still mapped after tw_pages_free()", n);
+        }
+    }
+    tw_pages_free(NULL, 0);
+    tw_pages_free(NULL, TW_PAGES_MAP_MIN);
+
+    /* A tileset whose block is mapped: the same content, destroyed by unmapping. */
+    enum { GRID = 64 };   /* 64 x 64 vertices: about 100 KiB of positions and normals */
+    float *pos = malloc(sizeof(float) * 3 * GRID * GRID);
+    uint32_t *idx = malloc(sizeof(uint32_t) * 6 * (GRID - 1) * (GRID - 1));
+    struct tw_tileset *ts = NULL;
+    CHECK(pos && idx && tw_tileset_create("big", 100.0f, 100.0f, &ts) == TW_OK);
+    if (!pos || !idx || !ts)
+        goto out;
+    for (uint32_t j = 0; j < GRID; j++)
+        for (uint32_t i = 0; i < GRID; i++) {
+            float *v = &pos[3 * (j * GRID + i)];
+            v[0] = (float)i;
+            v[1] = (float)((i * 7 + j * 3) % 5) * 0.25f;
+            v[2] = (float)j;
+        }
+    uint32_t t = 0;
+    for (uint32_t j = 0; j + 1 < GRID; j++)
+        for (uint32_t i = 0; i + 1 < GRID; i++) {
+            const uint32_t a = j * GRID + i;
+            const uint32_t quad[6] = {a, a + GRID, a + 1, a + 1, a + GRID, a + GRID + 1};
+            memcpy(&idx[6 * t++], quad, sizeof(quad));
+        }
+    const float grey[4] = {0.5f, 0.5f, 0.5f, 1};
+    CHECK(tw_tileset_add_mesh(ts, pos, NULL, GRID * GRID, idx, 2 * t) == 0 &&
+          tw_tileset_add_material(ts, grey) == 0 && tw_tileset_add_prototype(ts, "p", 1.0f) == 0 &&
+          tw_tileset_add_instance(ts, 0, 0, 0, NULL) == 0 && tw_tileset_finish(ts, 256) == TW_OK);
+    const uint32_t triangles = ts->finished ? ts->prototypes[0].triangle_count : 0;
+    CHECK(tw_tileset_pack(&ts) == TW_OK);
+    const uint64_t bytes = tw_tileset_bytes(ts);
+    CHECK_MSG(bytes >= TW_PAGES_MAP_MIN && (uintptr_t)ts % page == 0,
+              "a packed tileset of %llu bytes, at %p", (unsigned long long)bytes, (void *)ts);
+    CHECK(ts->prototypes[0].triangle_count == triangles && triangles == 2 * t &&
+          ts->meshes[0].vertex_count == GRID * GRID &&
+          memcmp(ts->meshes[0].positions, pos, sizeof(float) * 3 * GRID * GRID) == 0);
+    /* Packed again: a new mapping, the old one unmapped. */
+    void *old = ts;
+    const size_t old_length = ((size_t)bytes + page - 1) / page * page;
+    CHECK(tw_tileset_pack(&ts) == TW_OK && (void *)ts != old);
+    errno = 0;
+    CHECK(msync(old, old_length, MS_ASYNC) == -1 && errno == ENOMEM);
+    CHECK(ts->meshes[0].vertex_count == GRID * GRID &&
+          memcmp(ts->meshes[0].positions, pos, sizeof(float) * 3 * GRID * GRID) == 0);
+out:
+    tw_tileset_destroy(ts);
+    free(pos);
+    free(idx);
+}
+
 /* Classes 1 and 3: the builder refuses out-of-range content, the cell math
  * never converts an out-of-range value to an integer. */
 static void test_limits(void)
@@ -683,5 +769,6 @@ int main(void)
     test_tileset_builder();
     test_triangles_without_area();
     test_pack();
+    test_pack_pages();
     return check_summary("test-tiles");
 }

@@ -7,12 +7,14 @@
 #ifndef TW_TILES_ARRAY_H
 #define TW_TILES_ARRAY_H
 
+#include <assert.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "tileworld/tiles.h"
+#include "tiles/pages.h"
 
 /* Grows *array, of *cap elements of elem bytes, to hold at least need: the
  * capacity (first, at least 1, when it is 0) doubles until it does; it never shrinks.
@@ -83,20 +85,35 @@ static inline void *tw_pack_take(struct tw_pack_cursor *c, const void *from, siz
     return c->base + at;
 }
 
-/* Lays from out in one new block: layout(from, c) takes the pieces (and
- * returns the new structure when c->base is set), run once to size the
- * block and once to fill it. Returns the new structure, or NULL when out of
- * memory (from untouched). */
+/* Lays from out in one new block of tw_pages_alloc() (whole pages of its
+ * own from TW_PAGES_MAP_MIN bytes on, so that freeing a long-lived block
+ * returns its pages whatever malloc keeps): layout(from, c) takes the
+ * pieces, the new structure first (the block is then that structure's
+ * pointer), and returns the new structure when c->base is set; it is run
+ * once to size the block and once to fill it. Returns the new structure, or
+ * NULL when out of memory (from untouched). The block's size is the
+ * cursor's used after the second run, which layout records in the structure;
+ * free the block with tw_pack_free() and that size. */
 typedef void *(*tw_pack_layout_fn)(const void *from, struct tw_pack_cursor *c);
 static inline void *tw_pack_block(const void *from, tw_pack_layout_fn layout)
 {
     struct tw_pack_cursor c = {NULL, 0};
     layout(from, &c);
-    c.base = malloc(c.used);
+    const size_t bytes = c.used;
+    c.base = tw_pages_alloc(bytes);
     if (!c.base)
         return NULL;
     c.used = 0;
-    return layout(from, &c);
+    void *out = layout(from, &c);
+    assert(out == (void *)c.base && c.used == bytes);
+    return out;
+}
+
+/* Frees a block of tw_pack_block(), of bytes bytes (the size layout
+ * recorded); NULL is ignored. */
+static inline void tw_pack_free(void *block, size_t bytes)
+{
+    tw_pages_free(block, bytes);
 }
 
 #endif

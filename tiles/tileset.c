@@ -34,7 +34,7 @@ void tw_tileset_destroy(struct tw_tileset *ts)
     if (!ts)
         return;
     if (ts->packed_bytes) {
-        free(ts); /* one block (tw_tileset_pack) */
+        tw_pack_free(ts, ts->packed_bytes); /* one block (tw_tileset_pack) */
         return;
     }
     for (uint32_t k = 0; k < ts->mesh_count; k++) {

@@ -3043,28 +3043,7 @@ int tw_gltf_import(const char *path, const struct tw_gltf_settings *settings,
     return err;
 }
 
-/* ---- summary and tilesets -------------------------------------------------------- */
-
-void tw_gltf_print_summary(const struct tw_gltf_scene *scene, FILE *f)
-{
-    if (!scene || !f)
-        return;
-    char shown[512];
-    fprintf(f, "%s\n", tw_log_escape(scene->source ? scene->source : "(glTF scene)", shown,
-                                     sizeof(shown)));
-    fprintf(f, "  meshes      %u (%u primitives)\n", scene->mesh_count, scene->primitive_count);
-    fprintf(f, "  instances   %u\n", scene->instance_count);
-    fprintf(f, "  materials   %u\n", scene->material_count);
-    fprintf(f, "  vertices    %llu\n", (unsigned long long)scene->vertex_count);
-    fprintf(f, "  triangles   %llu drawn, %llu in meshes\n",
-            (unsigned long long)scene->triangle_count,
-            (unsigned long long)scene->unique_triangles);
-    const struct tw_box *b = &scene->bounds;
-    fprintf(f, "  bounds      [%.3f, %.3f, %.3f] .. [%.3f, %.3f, %.3f]\n", b->min[0], b->min[1],
-            b->min[2], b->max[0], b->max[1], b->max[2]);
-    fprintf(f, "  size        %.3f x %.3f x %.3f\n", b->max[0] - b->min[0],
-            b->max[1] - b->min[1], b->max[2] - b->min[2]);
-}
+/* ---- tilesets -------------------------------------------------------------------- */
 
 int tw_gltf_bind(const struct tw_gltf_scene *scene, struct tw_tileset *ts,
                  struct tw_gltf_binding *out)

@@ -8,7 +8,6 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include <stdio.h>
 
 #include "tileworld/tiles.h"
 
@@ -153,10 +152,6 @@ int tw_gltf_import_memory(const void *data, size_t size, const char *name,
 
 /* Frees an imported scene; accepts NULL. */
 void tw_gltf_scene_destroy(struct tw_gltf_scene *scene);
-
-/* Writes what `tileworld import` shows: meshes, primitives, instances,
- * materials, vertices, triangles (drawn and unique) and the bounds. */
-void tw_gltf_print_summary(const struct tw_gltf_scene *scene, FILE *f);
 
 /* Where a scene's data went in a tileset: primitive p is tileset mesh
  * first_mesh + p, scene material m is tileset material first_material + m. */

