@@ -14,6 +14,7 @@
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include "tools/outfile.h"
 #include "tools/charts-gp.h"   /* TW_CHARTS_GP: tools/tileworld/charts.gp, built in */
@@ -815,16 +816,6 @@ static int write_run(const struct chart_data *d, const struct geometry *g, char 
 
 /* ---- the PNGs gnuplot drew ---------------------------------------------------------------- */
 
-static uint32_t crc_update(uint32_t crc, const unsigned char *p, size_t n)
-{
-    for (size_t k = 0; k < n; k++) {
-        crc ^= p[k];
-        for (int b = 0; b < 8; b++)
-            crc = crc & 1u ? 0xedb88320u ^ (crc >> 1) : crc >> 1;
-    }
-    return crc;
-}
-
 static uint32_t be32(const unsigned char *p)
 {
     return (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3];
@@ -869,7 +860,8 @@ static void png_fault(const unsigned char *data, size_t size, char *why, size_t 
             snprintf(why, why_size, "its first chunk is %s, not IHDR", type);
             return;
         }
-        const uint32_t crc = crc_update(0xffffffffu, data + at + 4, (size_t)length + 4) ^ 0xffffffffu;
+        /* A chunk's CRC covers its type and data (zlib's crc32, as PNG's). */
+        const uint32_t crc = (uint32_t)crc32(0L, data + at + 4, (uInt)length + 4);
         if (crc != be32(data + at + 8 + length)) {
             snprintf(why, why_size, "chunk %s at byte %zu has a bad CRC", type, at);
             return;

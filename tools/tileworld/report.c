@@ -307,17 +307,14 @@ const char *tw_report_escape(const char *text, bool markdown, char *out, size_t 
 {
     if (!out || size == 0)
         return out;
+    if (!markdown)
+        return tw_log_escape(text, out, size);
     char *plain = malloc(size);
     if (!plain) {
         out[0] = '\0';
         return out;
     }
     tw_log_escape(text, plain, size);
-    if (!markdown) {
-        memcpy(out, plain, strlen(plain) + 1);
-        free(plain);
-        return out;
-    }
     /* Entities for what would open a tag, a code span or a table cell;
      * a backslash before the rest of Markdown's punctuation. */
     size_t o = 0;
