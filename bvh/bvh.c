@@ -10,9 +10,10 @@
  * boxes and triangle counts, and computes the tight-box lists. The stage
  * leaf array becomes tw_bvh.cluster_order as is.
  */
-#include "tileworld/bvh.h"
+#include "bvh/bvh.h"
 #include "tiles/array.h"
 #include "tiles/clock.h"
+#include "tiles/tiles-internal.h"
 
 #include <assert.h>
 #include <math.h>

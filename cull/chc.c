@@ -22,7 +22,7 @@
  * tw_chc_traverse_async() suspended where they would have blocked; resuming
  * one swaps its set in.
  */
-#include "tileworld/cull.h"
+#include "cull/cull.h"
 #include "cull/cull-private.h"
 
 #include <assert.h>

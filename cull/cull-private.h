@@ -14,7 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "tileworld/cull.h"
+#include "cull/cull.h"
 #include "tiles/array.h"
 
 /* Grows *p to hold at least need elements of size elem (tiles/array.h's

@@ -22,6 +22,7 @@
  */
 #include "cull/cull-private.h"
 #include "tiles/clock.h"
+#include "tiles/tiles-internal.h"
 #include "tiles/neighbours.h"
 
 #include <stdlib.h>

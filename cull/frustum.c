@@ -1,5 +1,6 @@
 /* Frusta, the view, cell enumeration and per-tile frustum culling (cull.h). */
 #include "cull/cull-private.h"
+#include "tiles/tiles-internal.h"
 
 #include <math.h>
 #include <stdlib.h>

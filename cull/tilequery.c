@@ -1,6 +1,7 @@
 /* Tile-query propagation with pending and postponed queues (DESIGN §4). */
-#include "tileworld/cull.h"
+#include "cull/cull.h"
 #include "tiles/array.h"
+#include "tiles/tiles-internal.h"
 #include "tiles/neighbours.h"
 
 #include <stdlib.h>

@@ -1,5 +1,6 @@
 /* The cost calibration (calibrate.h, DESIGN §14). */
 #include "runtime/calibrate.h"
+#include "tiles/tiles-internal.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -1,15 +1,13 @@
 /*
  * The cost calibration of DESIGN §14: what a query, a draw call and a
  * triangle cost on the GPU a world draws with, measured when the world is
- * created; the frames it finishes fit how far they depart from it (kept in
- * tw_calibration for a host to read, not applied). Private to runtime/.
+ * created. Private to runtime/.
  */
 #ifndef TW_RUNTIME_CALIBRATE_H
 #define TW_RUNTIME_CALIBRATE_H
 
 #include "runtime/renderer.h"
-#include "tileworld/cull.h"
-#include "tileworld/runtime.h"
+#include "runtime/runtime-internal.h"
 
 /* Figures for a world whose counts must not depend on timing
  * (tw_world_settings.deterministic): llvmpipe's, measured on two cores. */

@@ -1,5 +1,6 @@
 /* The headless contexts (context.h): EGL (device or surfaceless platform)
  * and OSMesa, each library loaded when first asked for. */
+#include "tiles/tiles-internal.h"
 #include "tileworld/context.h"
 
 #include <EGL/egl.h>

@@ -2,6 +2,7 @@
  * tile-query state, BVH nodes of what was drawn, query boxes. */
 #include "runtime/world-private.h"
 #include "tiles/array.h"
+#include "tiles/tiles-internal.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -1,5 +1,6 @@
 /* Loading the GL entry points (gl.h). */
 #include "runtime/gl.h"
+#include "tiles/tiles-internal.h"
 
 #include <string.h>
 

@@ -6,6 +6,7 @@
  */
 #include "runtime/world-private.h"
 #include "tiles/array.h"
+#include "tiles/tiles-internal.h"
 
 #include <math.h>
 #include <stdint.h>

@@ -1,4 +1,6 @@
 /* Camera paths: the built-in ones and path CSV files (runtime.h). */
+#include "runtime/runtime-internal.h"
+#include "tiles/tiles-internal.h"
 #include "tileworld/runtime.h"
 
 #include <errno.h>
@@ -178,14 +180,8 @@ static int path_spin(uint64_t seed, struct tw_camera *keys, uint32_t frames, flo
     return err;
 }
 
-int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float w, float d,
-                    struct tw_path *out)
-{
-    return tw_path_builtin_speed(name, seed, frames, 0.0f, w, d, out);
-}
-
-int tw_path_builtin_speed(const char *name, uint64_t seed, uint32_t frames, float speed, float w,
-                          float d, struct tw_path *out)
+int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float speed, float w,
+                    float d, struct tw_path *out)
 {
     if (!name || !out || frames == 0 || !(w > 0.0f) || !(d > 0.0f) ||
         !(speed >= 0.0f && speed <= 1000.0f))

@@ -2,6 +2,7 @@
 #include "runtime/renderer.h"
 #include "tiles/array.h"
 #include "tiles/clock.h"
+#include "tiles/tiles-internal.h"
 
 #include <assert.h>
 #include <math.h>

@@ -7,6 +7,7 @@
 #ifndef TW_RUNTIME_RENDERER_H
 #define TW_RUNTIME_RENDERER_H
 
+#include "cull/cull.h"
 #include "runtime/gl.h"
 #include "tileworld/runtime.h"
 

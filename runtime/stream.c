@@ -24,6 +24,7 @@
 #include "runtime/stream.h"
 #include "tiles/array.h"
 #include "tiles/clock.h"
+#include "tiles/tiles-internal.h"
 
 #include <errno.h>
 #include <math.h>

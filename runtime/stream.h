@@ -12,7 +12,7 @@
 #define TW_RUNTIME_STREAM_H
 
 #include "runtime/renderer.h"
-#include "tileworld/cull.h"
+#include "cull/cull.h"
 #include "tileworld/runtime.h"
 
 struct tw_stream_settings {

@@ -10,7 +10,9 @@
 #include "runtime/gputime.h"
 #include "runtime/renderer.h"
 #include "runtime/stream.h"
-#include "tileworld/cull.h"
+#include "cull/cull.h"
+#include "runtime/runtime-internal.h"
+#include "tiles/tiles-internal.h"
 #include "tileworld/runtime.h"
 
 #define TW_ORACLE_BLOCK 8
@@ -68,6 +70,7 @@ struct tw_debug_state {
 
 struct tw_world {
     struct tw_world_settings s;
+    struct tw_world_tuning t;      /* the methods' parameters (runtime/internal.h) */
     struct tw_renderer *renderer;
     /* What the world shows: the host's provider, or one made of the fixed
      * tileset and its selection. */

@@ -7,6 +7,7 @@
 #include "runtime/world-private.h"
 #include "tiles/array.h"
 #include "tiles/clock.h"
+#include "tiles/tiles-internal.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -47,10 +48,10 @@ enum tw_method tw_method_resolve(enum tw_method m)
     return m == TW_METHOD_DEFAULT ? TW_METHOD_TILEQUERY_CHC : m;
 }
 
-bool tw_method_conservative(enum tw_method m, const struct tw_world_settings *s)
+bool tw_method_conservative(enum tw_method m, const struct tw_world_tuning *t)
 {
-    const uint32_t chc_t = s ? s->chc.threshold : 0;
-    const uint32_t tq_t = s ? s->tilequery.threshold : 0;
+    const uint32_t chc_t = t ? t->chc.threshold : 0;
+    const uint32_t tq_t = t ? t->tilequery.threshold : 0;
     switch (tw_method_resolve(m)) {
     case TW_METHOD_VFC:
     case TW_METHOD_ORACLE:
@@ -103,9 +104,15 @@ void tw_world_default_settings(struct tw_world_settings *s)
         s->shutdown_timeout_ms = 5000;
     if (!(s->verify_tolerance > 0.0f))
         s->verify_tolerance = TW_VERIFY_TOLERANCE;
-    tw_chc_default_settings(&s->chc);
-    tw_tilequery_default_settings(&s->tilequery);
-    tw_bvh_default_settings(&s->bvh);
+}
+
+void tw_world_default_tuning(struct tw_world_tuning *t)
+{
+    if (!t)
+        return;
+    tw_chc_default_settings(&t->chc);
+    tw_tilequery_default_settings(&t->tilequery);
+    tw_bvh_default_settings(&t->bvh);
 }
 
 /* The driver of method m (the oracles' timed parts draw a given set). */
@@ -124,9 +131,9 @@ static int create_driver(const struct tw_world *w, enum tw_method m, struct tw_c
     const struct tw_cull_driver_settings ds = {
         .method = drivers[m],
         .evict_after_frames = w->s.evict_after_frames,
-        .chc = w->s.chc,
-        .tilequery = w->s.tilequery,
-        .hzb_mutate_shrink = w->s.mutate_query_shrink,
+        .chc = w->t.chc,
+        .tilequery = w->t.tilequery,
+        .hzb_mutate_shrink = w->t.mutate_query_shrink,
     };
     return tw_cull_driver_create(&ds, out);
 }
@@ -221,8 +228,6 @@ static const char *out_of_range(const struct tw_world_settings *s)
         return "the method is unknown";
     if (!(s->verify_tolerance >= 0.0f && s->verify_tolerance < 1.0f))
         return "the verify tolerance is not in [0, 1)";
-    if (!(s->mutate_query_shrink >= 0.0f && s->mutate_query_shrink < 1.0f))
-        return "the query shrink is not in [0, 1)";
     if ((unsigned)s->policy > TW_STREAM_SKIP)
         return "the stream policy is unknown";
     if (s->workers > 256)
@@ -234,9 +239,19 @@ static const char *out_of_range(const struct tw_world_settings *s)
 
 int tw_world_create(const struct tw_world_settings *settings, struct tw_world **out)
 {
+    return tw_world_create_tuned(settings, NULL, out);
+}
+
+int tw_world_create_tuned(const struct tw_world_settings *settings,
+                          const struct tw_world_tuning *tuning, struct tw_world **out)
+{
     if (!settings || !out)
         return TW_ERR_INVALID;
     const struct tw_log *log = &settings->log;
+    if (tuning && !(tuning->mutate_query_shrink >= 0.0f && tuning->mutate_query_shrink < 1.0f)) {
+        tw_log_printf(log, TW_LOG_ERROR, "cannot create the world: the query shrink is not in [0, 1)");
+        return TW_ERR_INVALID;
+    }
     if (settings->provider && settings->tileset) {
         tw_log_printf(log, TW_LOG_ERROR, "cannot create the world: its settings give both a "
                       "tileset and a provider (one of them, not both)");
@@ -264,6 +279,9 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
     }
     w->s = *settings;
     tw_world_default_settings(&w->s);
+    if (tuning)
+        w->t = *tuning;
+    tw_world_default_tuning(&w->t);
     int err = resolve_provider(w);
     /* Every frame's cost is bounded: tile-query propagation may visit every
      * cell within reach, so the reach must stay within the per-frame limit. */
@@ -293,7 +311,7 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
         struct tw_bvh_builder *builder = NULL;
         err = w->bvhs ? tw_bvh_builder_create(&w->s.log, &builder) : TW_ERR_NOMEM;
         for (uint32_t p = 0; p < ts->prototype_count && !err; p++)
-            err = tw_bvh_build(builder, &ts->prototypes[p], &w->s.bvh, &w->bvhs[p]);
+            err = tw_bvh_build(builder, &ts->prototypes[p], &w->t.bvh, &w->bvhs[p]);
         tw_bvh_builder_destroy(builder);
         uint32_t first = 0;
         if (!err)
@@ -305,8 +323,8 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
         w->calibration_first = first;
     }
     /* What queries and draws cost here (DESIGN §14). */
-    if (!err && w->s.calibration.query_ms > 0.0) {
-        w->calibration = w->s.calibration;
+    if (!err && w->t.calibration.query_ms > 0.0) {
+        w->calibration = w->t.calibration;
         w->calibration.measured = false;
     } else if (!err && w->s.deterministic) {
         tw_calibrate_nominal(&w->calibration);
@@ -317,7 +335,7 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
     if (!err && w->provider.generate) {
         const struct tw_stream_settings ss = {
             .provider = &w->provider,
-            .bvh = w->s.bvh,
+            .bvh = w->t.bvh,
             .workers = w->s.workers,
             .policy = w->s.policy,
             .upload_bytes = w->s.upload_budget_bytes,
@@ -342,8 +360,8 @@ int tw_world_create(const struct tw_world_settings *settings, struct tw_world **
     };
     tw_renderer_set_tile_query_box(w->renderer, &w->grid.common_box);
     tw_renderer_set_deterministic(w->renderer, w->s.deterministic);
-    tw_renderer_set_count_samples(w->renderer, w->s.chc.threshold > 0 || w->s.tilequery.threshold > 0);
-    tw_renderer_set_mutation(w->renderer, w->s.mutate_query_shrink);
+    tw_renderer_set_count_samples(w->renderer, w->t.chc.threshold > 0 || w->t.tilequery.threshold > 0);
+    tw_renderer_set_mutation(w->renderer, w->t.mutate_query_shrink);
     tw_gputime_init(&w->gputime, tw_renderer_gl(w->renderer));
     const struct tw_cull_driver_settings given = {.method = TW_CULL_GIVEN};
     err = tw_oracle_init(w);
@@ -815,14 +833,29 @@ const struct tw_drawn_cluster *tw_world_drawn(const struct tw_world *w, size_t *
     return tw_renderer_drawn(w->renderer, count);
 }
 
-int tw_world_last_view(const struct tw_world *w, struct tw_view *out)
+int tw_world_last_view(const struct tw_world *w, struct tw_world_view *out)
 {
     if (!w || !out)
         return TW_ERR_INVALID;
     if (!w->has_view)
         return TW_ERR_STATE;
-    *out = w->last_view;
+    const struct tw_view *v = &w->last_view;
+    *out = (struct tw_world_view){
+        .cell = v->cell,
+        .near_plane = v->near_plane,
+        .far_plane = v->far_plane,
+        .frame = v->frame,
+    };
+    memcpy(out->eye, v->eye, sizeof(out->eye));
+    memcpy(out->view, v->view, sizeof(out->view));
+    memcpy(out->proj, v->proj, sizeof(out->proj));
+    memcpy(out->proj_rz, v->proj_rz, sizeof(out->proj_rz));
     return TW_OK;
+}
+
+const struct tw_world_tuning *tw_world_tuning(const struct tw_world *w)
+{
+    return w ? &w->t : NULL;
 }
 
 bool tw_world_reversed_z(const struct tw_world *w)

@@ -18,8 +18,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "tileworld/bvh.h"
-#include "tileworld/cull.h"
+#include "bvh/bvh.h"
+#include "cull/cull.h"
 #include "tileworld/tilesets.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
@@ -317,6 +317,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 
 #ifndef TW_LIBFUZZER
 #include "tests/fuzz-driver.h"
+#include "tiles/tiles-internal.h"
 
 int main(int argc, char **argv)
 {

@@ -104,6 +104,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 
 #ifndef TW_LIBFUZZER
 #include "tests/fuzz-driver.h"
+#include "tiles/tiles-internal.h"
 
 struct counts {
     unsigned imported_memory, imported_path;

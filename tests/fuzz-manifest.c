@@ -33,6 +33,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 
 #ifndef TW_LIBFUZZER
 #include "tests/fuzz-driver.h"
+#include "tiles/tiles-internal.h"
 
 static void run_input(void *user, const char *path, const uint8_t *data, size_t size)
 {

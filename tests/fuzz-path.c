@@ -12,6 +12,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "runtime/runtime-internal.h"
 #include "tileworld/runtime.h"
 
 /* The input as a file, the same for every input (made on first use). */

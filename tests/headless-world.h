@@ -10,6 +10,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "runtime/runtime-internal.h"
 #include "tileworld/context.h"
 #include "tileworld/runtime.h"
 #include "tileworld/tilesets.h"

@@ -17,6 +17,7 @@
 #include <string.h>
 
 #include "tests/check.h"
+#include "tiles/tiles-internal.h"
 #include "tileworld/context.h"
 #include "tileworld/runtime.h"
 #include "tileworld/tilesets.h"
@@ -34,7 +35,7 @@ int main(void)
     CHECK(tw_tilesets_provider_create("city-gen", 5, 0, NULL, &gen) == TW_OK);
     const struct tw_tile_provider *p = tw_tilesets_provider_get(gen);
     struct tw_path path = {0};
-    CHECK(p && tw_path_builtin_speed("straight", 5, FORWARD, 0.0f, p->footprint[0],
+    CHECK(p && tw_path_builtin("straight", 5, FORWARD, 0.0f, p->footprint[0],
                                      p->footprint[1], &path) == TW_OK);
     const uint64_t budget = 24u << 20;
     struct tw_world_settings s = {0};

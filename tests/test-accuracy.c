@@ -22,6 +22,7 @@
 
 #include "tests/check.h"
 #include "tests/headless-world.h"
+#include "tiles/tiles-internal.h"
 
 enum { W = 160, H = 90 };
 
@@ -37,7 +38,7 @@ static struct tw_world_settings base_settings(struct tw_context *ctx, const stru
 static bool load_path(const char *name, uint32_t frames, const struct tw_tileset *ts,
                       struct tw_path *path)
 {
-    const int rc = tw_path_builtin(name, 3, frames, ts->footprint[0], ts->footprint[1], path);
+    const int rc = tw_path_builtin(name, 3, frames, 0.0f, ts->footprint[0], ts->footprint[1], path);
     CHECK(rc == TW_OK);
     return rc == TW_OK;
 }
@@ -109,7 +110,7 @@ static void walk(struct tw_context *ctx, const struct tw_tileset *ts, const char
                         "%llu depth errors\n", ts->name, path_name, f,
                         tw_method_name(methods[m]), (unsigned long long)st->missed_pixels,
                         st->missed_clusters, (unsigned long long)st->depth_errors);
-            CHECK(tw_method_conservative(methods[m], &s));
+            CHECK(tw_method_conservative(methods[m], tw_world_tuning(w)));
             CHECK(st->missed_pixels == 0 && st->missed_clusters == 0);
             CHECK(st->depth_errors == 0);
             if (methods[m] == TW_METHOD_ORACLE)
@@ -236,9 +237,9 @@ static void mutated_walk(struct tw_context *ctx, const struct tw_tileset *ts, fl
     if (!load_path("street", frames, ts, &path))
         return;
     struct tw_world_settings s = base_settings(ctx, ts);
-    s.mutate_query_shrink = shrink;
+    const struct tw_world_tuning t = {.mutate_query_shrink = shrink};
     struct tw_world *w = NULL;
-    CHECK(tw_world_create(&s, &w) == TW_OK);
+    CHECK(tw_world_create_tuned(&s, &t, &w) == TW_OK);
     const enum tw_method methods[] = {TW_METHOD_CHC, TW_METHOD_TILEQUERY_CHC};
     for (uint32_t f = 0; w && f < path.count; f++)
         for (size_t m = 0; m < 2; m++) {

@@ -9,9 +9,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "tileworld/bvh.h"
+#include "bvh/bvh.h"
 #include "tileworld/tilesets.h"
 #include "tests/check.h"
+#include "tiles/tiles-internal.h"
 
 /* ---- hand-made prototypes ------------------------------------------------ */
 

@@ -14,7 +14,7 @@
  * y in [0, 1], z in [10 + 2k, 11 + 2k], in front of an eye at (0, 0.5, 0)
  * looking along +z, so leaf order is front-to-back order.
  */
-#include "tileworld/cull.h"
+#include "cull/cull.h"
 
 #include <math.h>
 #include <stdarg.h>

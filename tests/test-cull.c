@@ -3,8 +3,9 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "tileworld/cull.h"
+#include "cull/cull.h"
 #include "tests/check.h"
+#include "tiles/tiles-internal.h"
 
 static struct tw_box box(float x0, float y0, float z0, float x1, float y1, float z1)
 {

@@ -9,6 +9,7 @@
 #include "tests/check.h"
 #include "tests/headless-world.h"
 #include "tests/image-diff.h"
+#include "tiles/tiles-internal.h"
 
 enum { W = 320, H = 180, FRAMES = 8 };
 

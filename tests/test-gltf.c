@@ -25,6 +25,7 @@
 #include "tests/base64.h"
 #include "tests/captured-log.h"
 #include "tests/check.h"
+#include "tiles/tiles-internal.h"
 
 #if defined(__SANITIZE_ADDRESS__)
 #define UNDER_ASAN 1

@@ -10,7 +10,9 @@
 #include <string.h>
 
 #include "runtime/gl.h"
+#include "runtime/runtime-internal.h"
 #include "tests/check.h"
+#include "tiles/tiles-internal.h"
 #include "tileworld/context.h"
 #include "tileworld/runtime.h"
 #include "tileworld/tilesets.h"
@@ -195,11 +197,10 @@ static void run_counting_world(struct tw_context *ctx, const struct tw_tileset *
     s.width = W;
     s.height = H;
     s.get_proc = tw_context_get_proc(ctx);
-    s.chc.threshold = 2;
-    s.tilequery.threshold = 2;
+    const struct tw_world_tuning t = {.chc.threshold = 2, .tilequery.threshold = 2};
     struct tw_world *w = NULL;
     CHECK(gl->GetError() == GL_NO_ERROR);
-    CHECK(tw_world_create(&s, &w) == TW_OK);
+    CHECK(tw_world_create_tuned(&s, &t, &w) == TW_OK);
     if (!w)
         return;
     CHECK(tw_world_calibration(w)->measured);

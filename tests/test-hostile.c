@@ -29,6 +29,7 @@
 #include "tests/base64.h"
 #include "tests/check.h"
 #include "tests/watchdog.h"
+#include "tiles/tiles-internal.h"
 
 #if defined(__SANITIZE_ADDRESS__)
 #define UNDER_ASAN 1

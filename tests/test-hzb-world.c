@@ -11,15 +11,16 @@
 #include "tests/check.h"
 #include "tests/drawn-set.h"
 #include "tests/headless-world.h"
+#include "tiles/tiles-internal.h"
 
 static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tileset *ts,
                                    uint32_t w, uint32_t h, float shrink)
 {
     struct tw_world_settings s = world_settings(ctx, ts, w, h, 3, 450.0f);
     s.verify = true;
-    s.mutate_query_shrink = shrink;
+    const struct tw_world_tuning t = {.mutate_query_shrink = shrink};
     struct tw_world *world = NULL;
-    CHECK(tw_world_create(&s, &world) == TW_OK);
+    CHECK(tw_world_create_tuned(&s, &t, &world) == TW_OK);
     if (world)
         tw_world_record_draws(world, true);
     return world;
@@ -115,7 +116,7 @@ static void test_walk(struct tw_context *ctx, const char *tileset, const char *p
         return;
     }
     struct tw_path path;
-    CHECK(tw_path_builtin(path_name, 3, last, ts->footprint[0], ts->footprint[1], &path) == TW_OK);
+    CHECK(tw_path_builtin(path_name, 3, last, 0.0f, ts->footprint[0], ts->footprint[1], &path) == TW_OK);
     struct tw_world *w = make_world(ctx, ts, 161, 91, 0.0f);
     struct totals t = {0};
     char what[64];

@@ -11,9 +11,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "tileworld/bvh.h"
-#include "tileworld/cull.h"
+#include "bvh/bvh.h"
+#include "cull/cull.h"
 #include "tests/check.h"
+#include "tiles/tiles-internal.h"
 
 /* ---- depth buffers ------------------------------------------------------------------ */
 

@@ -18,6 +18,7 @@
 #include "tests/captured-log.h"
 #include "tests/check.h"
 #include "tests/tileset-checks.h"
+#include "tiles/tiles-internal.h"
 
 static const uint64_t seed = 1;
 

@@ -8,6 +8,7 @@
 #include "tests/drawn-set.h"
 #include "tests/headless-world.h"
 #include "tests/image-diff.h"
+#include "tiles/tiles-internal.h"
 
 enum { W = 320, H = 180 };
 

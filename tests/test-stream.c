@@ -24,6 +24,7 @@
 
 #include "tests/captured-log.h"
 #include "tests/check.h"
+#include "tiles/tiles-internal.h"
 #include "tileworld/context.h"
 #include "tileworld/runtime.h"
 #include "tileworld/tilesets.h"

@@ -8,15 +8,18 @@
 #    API: every symbol they export is declared in include/tileworld/*.h, and
 #    every function and object declared there is exported by one of them
 #    (else a host gets a link error), by one only, functions as code and
-#    objects as data.
+#    objects as data;
+#  - the public API is the pinned list PINNED (tests/public-api.txt): a
+#    function added to or removed from the headers is a change to that file
+#    too, seen in review.
 #
-# usage: test-symbols.sh INCLUDE_DIR PUBLIC_API_SH RUNTIME_ARCHIVE... -- [LIBTILEWORLD_SO LIBTILEWORLD_HEADLESS_SO]
+# usage: test-symbols.sh INCLUDE_DIR PUBLIC_API_SH PINNED RUNTIME_ARCHIVE... -- [LIBTILEWORLD_SO LIBTILEWORLD_HEADLESS_SO]
 # (no shared libraries in a -Ddefault_library=static build: then only the
 # archives are checked)
 # environment: NM, CC (commands, may hold arguments)
 set -u
-inc=$1 public_api=$2
-shift 2
+inc=$1 public_api=$2 pinned=$3
+shift 3
 archives=()
 while [ $# -gt 0 ] && [ "$1" != -- ]; do archives+=("$1"); shift; done
 shift
@@ -74,6 +77,10 @@ fi
 n_api=$(wc -l <"$tmp/api")
 [ "$n_api" -ge 50 ] || fail "only $n_api declarations found in $inc/tileworld: the extraction is broken"
 grep -q '^func tw_world_create$' "$tmp/api" || fail "tw_world_create not found among the declarations"
+if ! diff -u "$pinned" "$tmp/api" >"$tmp/pin.diff"; then
+    fail "the public API differs from the pinned list $pinned (- pinned, + declared):"
+    sed -n '3,$p' "$tmp/pin.diff"
+fi
 
 exports "$world_so" >"$tmp/world" || fail "nm -D cannot read $world_so"
 exports "$headless_so" >"$tmp/headless" || fail "nm -D cannot read $headless_so"

@@ -10,8 +10,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "tileworld/cull.h"
+#include "cull/cull.h"
 #include "tests/check.h"
+#include "tiles/tiles-internal.h"
 
 enum { MAX_QUERIES = 100000, MAX_LOG = 4096 };
 

@@ -10,6 +10,7 @@
 #include "tileworld/tiles.h"
 #include "tiles/pages.h"
 #include "tests/check.h"
+#include "tiles/tiles-internal.h"
 
 static uint64_t rng_state = 0x1234567;
 

@@ -11,6 +11,7 @@
 #include "tests/captured-log.h"
 #include "tests/check.h"
 #include "tests/tileset-checks.h"
+#include "tiles/tiles-internal.h"
 
 static double now_seconds(void)
 {

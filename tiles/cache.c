@@ -1,6 +1,7 @@
 /* The cell map and the tile cache (tiles.h). */
 #include "tileworld/tiles.h"
 #include "tiles/array.h"
+#include "tiles/tiles-internal.h"
 
 #include <stdint.h>
 #include <stdlib.h>

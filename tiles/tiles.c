@@ -1,4 +1,5 @@
 /* Errors, logging, boxes, grid math and selection (tiles.h). */
+#include "tiles/tiles-internal.h"
 #include "tileworld/tiles.h"
 
 #include <float.h>

@@ -1,6 +1,7 @@
 /* The tileset model: builder, cluster split, boxes (tiles.h). */
 #include "tileworld/tiles.h"
 #include "tiles/array.h"
+#include "tiles/tiles-internal.h"
 
 #include <float.h>
 #include <math.h>

@@ -1,4 +1,5 @@
 /* The registry of built-in tilesets (tilesets.h). */
+#include "tiles/tiles-internal.h"
 #include "tilesets/procedural.h"
 #include "tileworld/tilesets.h"
 

@@ -10,6 +10,7 @@
  *
  * Thread safety: generate() reads the provider, which nothing writes after
  * creation, and keeps its generator on the heap of the call. */
+#include "tiles/tiles-internal.h"
 #include "tilesets/mesh-builder.h"
 #include "tilesets/procedural.h"
 #include "tilesets/tilesets-private.h"

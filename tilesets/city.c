@@ -12,6 +12,7 @@
 #include "tilesets/procedural.h"
 #include "tilesets/tilesets-private.h"
 #include "tiles/array.h"
+#include "tiles/tiles-internal.h"
 
 #include <math.h>
 #include <stdio.h>

@@ -17,6 +17,7 @@
  * (a generated tile can only instance its own meshes). The templates are never written after
  * creation, so generate() may run on any number of threads; its generator
  * lives on the heap of the call. */
+#include "tiles/tiles-internal.h"
 #include "tilesets/mesh-builder.h"
 #include "tilesets/procedural.h"
 #include "tilesets/tilesets-private.h"

@@ -11,6 +11,7 @@
  * the settings' limits, checked before anything is allocated. The first
  * problem found ends the import with one message naming the file, the
  * element and the reason. */
+#include "tiles/tiles-internal.h"
 #include "tileworld/tilesets.h"
 
 #include <errno.h>

@@ -5,6 +5,7 @@
  * city blocks and the parks, and a wooded block is the city's streets round
  * a stand of the forest's generator that fills the lot area (canopies
  * included), so streets run along every tile border in every prototype. */
+#include "tiles/tiles-internal.h"
 #include "tilesets/procedural.h"
 #include "tilesets/tilesets-private.h"
 

@@ -59,6 +59,7 @@
  * triangles placed are counted from each file's count before placing: at
  * most the glTF max_triangles in a prototype, PLACED_TRIANGLES_FACTOR times
  * it in the tileset, and at most MAX_INSTANCES instances. */
+#include "tiles/tiles-internal.h"
 #include "tileworld/tilesets.h"
 
 #include <errno.h>

@@ -1,4 +1,5 @@
 /* What the procedural generators share (procedural.h). */
+#include "tiles/tiles-internal.h"
 #include "tilesets/procedural.h"
 
 #include <math.h>

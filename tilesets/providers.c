@@ -1,6 +1,7 @@
 /* The registry of built-in tile providers (tilesets.h, DESIGN.md §12):
  * names, creation by name, and what every provider shares. The generators
  * are city-gen.c and forest-gen.c. */
+#include "tiles/tiles-internal.h"
 #include "tilesets/procedural.h"
 #include "tilesets/tilesets-private.h"
 

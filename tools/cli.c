@@ -4,6 +4,7 @@
  * out. */
 #define _XOPEN_SOURCE 700
 
+#include "tiles/tiles-internal.h"
 #include "tools/cli.h"
 
 #include <errno.h>
@@ -391,7 +392,7 @@ void tw_cli_load_path(const struct tw_cli *c, const char *name, uint32_t frames,
     for (const char *const *n = tw_path_builtin_names; *n; n++)
         builtin |= strcmp(*n, name) == 0;
     if (builtin) {
-        const int err = tw_path_builtin(name, c->world.selection.seed, frames, w, d, p);
+        const int err = tw_path_builtin(name, c->world.selection.seed, frames, 0.0f, w, d, p);
         if (err) {
             tw_cli_message(c->program, "--path %s: %s", name, tw_error_to_str(err));
             exit(1);

@@ -22,6 +22,8 @@
 #include <stdio.h>
 #include <stdnoreturn.h>
 
+#include "runtime/runtime-internal.h"
+#include "tiles/tiles-internal.h"
 #include "tileworld/runtime.h"
 #include "tileworld/tilesets.h"
 
@@ -70,6 +72,7 @@ struct tw_cli {
     const char *program;             /* "tileworld", for messages; borrowed */
     struct tw_world_settings world;  /* seed, repeat, method, size, view distance, workers,
                                       * policy, budgets, and what a program's own options add */
+    struct tw_world_tuning tuning;   /* the methods' parameters and measurement switches */
     const char *tileset;             /* a built-in name or a manifest file; borrowed from argv */
     const char *path;                /* a built-in path or a CSV file; NULL: none given */
     uint32_t frames;                 /* 0: the path's length */

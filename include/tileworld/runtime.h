@@ -18,8 +18,6 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "tileworld/bvh.h"
-#include "tileworld/cull.h"
 #include "tileworld/tiles.h"
 
 #ifdef __cplusplus
@@ -54,19 +52,6 @@ const char *tw_method_name(enum tw_method m);
 /* Parses a method name (not "default"); returns TW_ERR_INVALID for an
  * unknown one. */
 int tw_method_from_name(const char *name, enum tw_method *out);
-/* TW_METHOD_DEFAULT resolved; every other value as it is. */
-enum tw_method tw_method_resolve(enum tw_method m);
-
-struct tw_world_settings;
-/* True if method m under settings s (NULL: the defaults) must never miss a
- * visible pixel: every method, unless its occlusion queries cull below a
- * visibility threshold T > 0 (contribution culling, DESIGN §7). */
-bool tw_method_conservative(enum tw_method m, const struct tw_world_settings *s);
-/* True for the limits, oracle and box-oracle: they know the frame's
- * visibility from an untimed ID-buffer pass, so they are what the methods
- * are measured against, never a method a renderer could use. */
-bool tw_method_limit(enum tw_method m);
-
 /* ---- the world ------------------------------------------------------------------ */
 
 /* A camera: a world position (cell + local offset, DESIGN §3) and angles in
@@ -75,27 +60,6 @@ struct tw_camera {
     struct tw_world_pos pos;
     float yaw;
     float pitch;
-};
-
-/* What work costs on the GPU a world draws with (DESIGN §14), in
- * milliseconds of process CPU time (on a software rasteriser every thread's
- * work is CPU time; on a GPU it is what the CPU spends submitting and
- * waiting). Measured when a world is created, by timing queries of boxes
- * of known screen size and draws of clusters of known triangle counts, each
- * batch closed by glFinish. */
-struct tw_calibration {
-    double query_ms;         /* one occlusion query of one box: issue, draw, read back */
-    double query_batched_ms; /* the same query issued in a batch of them, all read at
-                                its end (0: query_ms) */
-    double query_box_ms;     /* each further box of a query (an instance more) */
-    double query_pixel_ns;   /* each pixel its boxes cover, nanoseconds */
-    double draw_ms;          /* one draw call (one cluster); the draw figures are of a
-                                hidden cluster, every fragment failing the depth test */
-    double triangle_ns;      /* each triangle drawn, nanoseconds */
-    double draw_pixel_ns;    /* each pixel a drawn cluster's box covers, nanoseconds */
-    double calibrate_ms;     /* CPU time the measurement took (0: not measured) */
-    bool measured;           /* false: figures given in the settings, or the nominal
-                                ones of a deterministic world */
 };
 
 /* What a frame does with a visible cell whose generated tile is not ready
@@ -150,19 +114,10 @@ struct tw_world_settings {
     float verify_tolerance;            /* relative depth difference that --verify takes for
                                           a real one (DESIGN §8); default
                                           TW_VERIFY_TOLERANCE */
-    float mutate_query_shrink;         /* testing only: every query box shrunk by this
-                                          fraction of its size, a deliberately broken
-                                          culler that the accuracy checks must catch */
     bool deterministic;                /* no query result counts as ready before it is
                                           waited on: a run's counts then do not depend
                                           on the GPU's timing (tests, comparisons);
                                           slower, as latency is no longer hidden */
-    struct tw_chc_settings chc;        /* chc.no_cost_model: CHC++ with unit query costs */
-    struct tw_tilequery_settings tilequery;
-    struct tw_bvh_settings bvh;
-    struct tw_calibration calibration; /* zeroed (query_ms 0): measured at creation
-                                          (a deterministic world: the nominal figures);
-                                          else these figures */
     tw_gl_get_proc_fn get_proc;        /* loader of the current context; required */
     struct tw_log log;                 /* copied; zeroed: silent */
 };
@@ -320,7 +275,16 @@ int tw_world_invalidate_rect(struct tw_world *w, struct tw_cell lo, struct tw_ce
  * proj_rz (reversed depth, which the world's own images use when
  * tw_world_reversed_z()), so that a host can draw its own things over a
  * frame: place them at (their cell - view.cell) * footprint + local. */
-int tw_world_last_view(const struct tw_world *w, struct tw_view *out);
+struct tw_world_view {
+    struct tw_cell cell;        /* the camera's cell: origin of the frame's coordinates */
+    float eye[3];               /* the camera, view-relative metres */
+    float view[16];             /* column-major, view-relative world -> eye space */
+    float proj[16];             /* eye -> clip, GL depth (z in [-w, w]) */
+    float proj_rz[16];          /* eye -> clip, reversed depth (z in [0, w], near -> w) */
+    float near_plane, far_plane;/* metres */
+    uint64_t frame;             /* the frame's number, from 1 */
+};
+int tw_world_last_view(const struct tw_world *w, struct tw_world_view *out);
 /* True when the world renders with reversed float depth (glClipControl). */
 bool tw_world_reversed_z(const struct tw_world *w);
 
@@ -328,11 +292,9 @@ bool tw_world_reversed_z(const struct tw_world *w);
  * (width * height * 3 bytes, owned by the caller). */
 int tw_world_read_rgb(struct tw_world *w, uint8_t *rgb);
 
-/* struct tw_drawn_cluster (cull.h): which tile, which cluster of its
- * prototype. */
-
-/* Turns on or off the recording of every cluster drawn in a frame (for the
- * accuracy oracle and tests; off by default: it costs time). */
+/* Turns on or off the recording of every cluster drawn in a frame (off by
+ * default: it costs time). A host that draws with an engine of its own
+ * reads the set here. */
 void tw_world_record_draws(struct tw_world *w, bool on);
 /* The clusters drawn by the last frame, in draw order, while recording is
  * on. The array belongs to the world and lives until the next frame. */
@@ -340,13 +302,6 @@ const struct tw_drawn_cluster *tw_world_drawn(const struct tw_world *w, size_t *
 
 /* The world's resolved settings. */
 const struct tw_world_settings *tw_world_settings(const struct tw_world *w);
-
-/* The cost figures the world decides with (DESIGN §14): as calibrated
- * when it was created. Owned by the world; valid until it is destroyed. */
-const struct tw_calibration *tw_world_calibration(const struct tw_world *w);
-
-/* The BVH of prototype p (built when the world was created). */
-const struct tw_bvh *tw_world_bvh(const struct tw_world *w, uint32_t p);
 
 /* ---- camera paths (DESIGN §9, §10) ------------------------------------------------ */
 
@@ -361,15 +316,13 @@ extern const char *const tw_path_builtin_names[];
 
 /* Generates frames keys of the built-in path name for a tileset with
  * footprint w x d (streets run along the tile borders), deterministic for
- * seed. Returns TW_ERR_INVALID for an unknown name. */
-int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float w,
-                    float d, struct tw_path *out);
-/* The same at speed metres per frame (0: the path's own: 1 for street,
+ * seed, at speed metres per frame (0: the path's own: 1 for street,
  * teleport and spin, 0.8 for forest, 1 rising to 4 for flyover, 2 for the
  * memory test's long paths straight (along one street) and wander (through
- * the streets, turning at crossings)). */
-int tw_path_builtin_speed(const char *name, uint64_t seed, uint32_t frames, float speed, float w,
-                          float d, struct tw_path *out);
+ * the streets, turning at crossings)). Returns TW_ERR_INVALID for an
+ * unknown name. */
+int tw_path_builtin(const char *name, uint64_t seed, uint32_t frames, float speed, float w,
+                    float d, struct tw_path *out);
 
 /* The most rows (frames) a path CSV may have, and the most bytes of one:
  * ten million rows of about 100 bytes. */
@@ -395,9 +348,6 @@ int tw_path_load_csv(const char *file, uint32_t frames, float w, float d,
  * is the file name used in messages. */
 int tw_path_parse_csv(const char *text, size_t size, const char *name, uint32_t frames,
                       float w, float d, struct tw_path *out, char *err, size_t err_size);
-
-/* Moves every key by (di, dj) cells; TW_ERR_INVALID on int64 overflow. */
-int tw_path_translate(struct tw_path *p, int64_t di, int64_t dj);
 
 void tw_path_finish(struct tw_path *p);
 
@@ -437,10 +387,6 @@ struct tw_debug_box {
     bool tile_query;            /* queries: a tile query (the common box) */
 };
 
-/* Short name of a kind ("visible", "leaf", ...), and its colour (straight RGBA). */
-const char *tw_debug_kind_name(enum tw_debug_kind kind);
-void tw_debug_kind_color(enum tw_debug_kind kind, float rgba[4]);
-
 /* Chooses the debug views that tw_world_frame() records (mask of TW_DEBUG_*;
  * 0, the default, records nothing). Recording is done after the timed part
  * of the frame, except that TW_DEBUG_CELLS and TW_DEBUG_NODES record draws
@@ -456,19 +402,6 @@ const struct tw_debug_box *tw_world_debug_boxes(const struct tw_world *w, size_t
  * the last frame's image, seen from its camera and coloured by kind. Not
  * timed; boxes is only read during the call. */
 int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, size_t count);
-
-/* Renders one frame from cam that draws exactly clusters, with no culling
- * and no queries (a frozen culled set, looked at from elsewhere; or a
- * method's set drawn again, to tell what drawing it cost from what finding
- * it did: tileworld bench --split). The set is drawn tile by tile, as the
- * oracle draws its own: tiles in the order they first appear in it, each
- * tile's clusters in their order in it. Fills the drawing fields of *stats
- * (may be NULL), ms_frame and cpu_ms as tw_world_frame() does
- * (tw_world_finish() adds the GPU's end; the GPU-time fields read unknown:
- * no timers); leaves every method's temporal state and the cost model alone. clusters is only read during the call. */
-int tw_world_frame_fixed(struct tw_world *w, const struct tw_camera *cam,
-                         const struct tw_drawn_cluster *clusters, size_t count,
-                         struct tw_frame_stats *stats);
 
 /* Copies the last frame's image into GL framebuffer target of the current
  * context (0: the window's), scaled to width x height. */

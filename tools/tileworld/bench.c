@@ -1,4 +1,5 @@
 /* Runs, sweeps and stability scenarios of the tileworld command (bench.h). */
+#include "tiles/tiles-internal.h"
 #include "tools/tileworld/bench.h"
 
 #include <errno.h>
@@ -129,7 +130,7 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     ws.provider = run->provider;
     ws.method = run->methods[0];
     ws.get_proc = tw_context_get_proc(ctx);
-    rc = tw_world_create(&ws, &world);
+    rc = tw_world_create_tuned(&ws, &run->tuning, &world);
     run->world_error = rc;
     if (rc) {
         snprintf(err, err_size, "cannot create the world: %s", tw_error_to_str(rc));
@@ -155,7 +156,7 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     about->bench = run->bench;
     about->verify_tolerance = tw_world_settings(world)->verify_tolerance;
     about->deterministic = ws.deterministic;
-    about->mutate_query_shrink = ws.mutate_query_shrink;
+    about->mutate_query_shrink = run->tuning.mutate_query_shrink;
     struct tw_context_info info;
     tw_context_describe(ctx, &info);
     snprintf(about->context, sizeof(about->context), "%s", info.kind ? info.kind : "");
@@ -170,7 +171,7 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     about->allow_missed = run->allow_missed;
     for (uint32_t m = 0; m < run->method_count; m++)
         about->conservative[run->methods[m]] =
-            tw_method_conservative(run->methods[m], tw_world_settings(world));
+            tw_method_conservative(run->methods[m], tw_world_tuning(world));
     run->about = *about;
     /* What an earlier run left here would pass for this one's. */
     rc = tw_outputs_remove_stale(run->out, err, err_size);
@@ -363,9 +364,9 @@ static int write_sweep_md(const struct tw_run *run, const char *param, const cha
                       tw_report_escape(run->path_name, true, path, sizeof(path)), run->world.width,
                       run->world.height, (unsigned long long)run->world.selection.seed,
                       run->path->count);
-    if (run->world.mutate_query_shrink > 0.0f)
+    if (run->tuning.mutate_query_shrink > 0.0f)
         tw_outfile_printf(&f, "**Testing only: every query box shrunk by %g of its size "
-                              "(--mutate-query-shrink).**\n\n", run->world.mutate_query_shrink);
+                              "(--mutate-query-shrink).**\n\n", run->tuning.mutate_query_shrink);
     tw_outfile_printf(&f, "One row per method and value, by mean CPU time per frame (process CPU "
                           "time, all threads); speed-up is the mean CPU time at %s over this "
                           "one's; one folder sweep-%s-VALUE/ per value.\n\n", reference, param);
@@ -373,18 +374,18 @@ static int write_sweep_md(const struct tw_run *run, const char *param, const cha
     return tw_outfile_commit(&f, err, err_size);
 }
 
-static void apply_sweep(struct tw_world_settings *ws, enum sweep_param p, double v)
+static void apply_sweep(struct tw_world_settings *ws, struct tw_world_tuning *wt, enum sweep_param p, double v)
 {
     switch (p) {
-    case P_NAV: ws->chc.assumed_visible = (uint32_t)v; break;
-    case P_B: ws->chc.batch_size = (uint32_t)v; break;
+    case P_NAV: wt->chc.assumed_visible = (uint32_t)v; break;
+    case P_B: wt->chc.batch_size = (uint32_t)v; break;
     case P_T:
-        ws->chc.threshold = (uint32_t)v;
-        ws->tilequery.threshold = (uint32_t)v;
+        wt->chc.threshold = (uint32_t)v;
+        wt->tilequery.threshold = (uint32_t)v;
         break;
     case P_EVICT: ws->evict_after_frames = (uint32_t)v; break;
     case P_DISTANCE: ws->view_distance = (float)v; break;
-    case P_NEIGHBOURS: ws->tilequery.neighbours = (uint32_t)v; break;
+    case P_NEIGHBOURS: wt->tilequery.neighbours = (uint32_t)v; break;
     default: break;
     }
 }
@@ -459,7 +460,7 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
             }
             r.tileset = own;
         } else {
-            apply_sweep(&r.world, param, values[k]);
+            apply_sweep(&r.world, &r.tuning, param, values[k]);
         }
         rc = tw_run_execute(&r, ctx, err, err_size);
         run->world_error = r.world_error;
@@ -469,7 +470,7 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
         for (uint32_t m = 0; m < r.method_count && !rc; m++) {
             const enum tw_method me = r.methods[m];
             const struct tw_method_figures *fg = &r.figures[me];
-            conservative[k][me] = tw_method_conservative(me, &r.world);
+            conservative[k][me] = tw_method_conservative(me, &r.tuning);
             tw_outfile_printf(&csv, "%s,%s,%g,%.3f,%.3f,%.3f,%.1f,%.2f,%llu,%.1f,%.3f,%.3f,%.3f,%u,"
                               "%llu,%llu,%d\n",
                               tw_method_name(me), sweep_names[param], values[k],
@@ -639,7 +640,7 @@ static void check_no_missed(struct scenario_result *r, const struct tw_run *run)
     uint32_t checked = 0;
     for (uint32_t m = 0; m < run->method_count; m++) {
         const enum tw_method me = run->methods[m];
-        if (!tw_method_conservative(me, &run->world))
+        if (!tw_method_conservative(me, &run->tuning))
             continue;
         const struct tw_method_figures *fg = &run->figures[me];
         struct check *c = add_check(r);
@@ -757,7 +758,7 @@ static int run_one_scenario(struct tw_run *base, struct tw_context *ctx, const c
 
     if (strcmp(name, "teleport") == 0 || strcmp(name, "spin") == 0) {
         res->breaks = "temporal coherence";
-        rc = tw_path_builtin(name, run.world.selection.seed, frames ? frames : 150, w, d, &path);
+        rc = tw_path_builtin(name, run.world.selection.seed, frames ? frames : 150, 0.0f, w, d, &path);
     } else if (strcmp(name, "inside-building") == 0) {
         res->breaks = "query boxes clipped by the near plane";
         /* The largest instance of the prototype at cell (0, 0): a building. */
@@ -784,10 +785,10 @@ static int run_one_scenario(struct tw_run *base, struct tw_context *ctx, const c
         rc = path_turning(&path, name, frames ? frames : 72, at, -5.0f, w, d);
     } else if (strcmp(name, "grazing") == 0) {
         res->breaks = "little occlusion: propagation reaches the view distance";
-        rc = tw_path_builtin("flyover", run.world.selection.seed, frames ? frames : 240, w, d, &path);
+        rc = tw_path_builtin("flyover", run.world.selection.seed, frames ? frames : 240, 0.0f, w, d, &path);
     } else if (strcmp(name, "far-origin") == 0) {
         res->breaks = "float precision";
-        rc = tw_path_builtin("street", run.world.selection.seed, frames ? frames : 60, w, d, &path);
+        rc = tw_path_builtin("street", run.world.selection.seed, frames ? frames : 60, 0.0f, w, d, &path);
         run.world.selection.repeat = 4;
     } else if (strcmp(name, "no-occluders") == 0) {
         res->breaks = "propagation to the horizon";
@@ -796,7 +797,7 @@ static int run_one_scenario(struct tw_run *base, struct tw_context *ctx, const c
                 lowest = k;
         run.world.selection.fn = lowest_prototype;
         run.world.selection.user = &lowest;
-        rc = tw_path_builtin("street", run.world.selection.seed, frames ? frames : 100, w, d, &path);
+        rc = tw_path_builtin("street", run.world.selection.seed, frames ? frames : 100, 0.0f, w, d, &path);
     } else {
         snprintf(err, err_size, "--scenario: unknown scenario '%s'", name);
         return TW_ERR_INVALID;
@@ -919,10 +920,10 @@ int tw_run_scenarios(struct tw_run *run, struct tw_context *ctx, const char *nam
                       tw_report_escape(run->tileset_name, true, tileset, sizeof(tileset)),
                       run->world.width, run->world.height,
                       (unsigned long long)run->world.selection.seed);
-    if (run->world.mutate_query_shrink > 0.0f)
+    if (run->tuning.mutate_query_shrink > 0.0f)
         tw_outfile_printf(&f, "**Testing only: every query box shrunk by %g of its size "
                               "(--mutate-query-shrink), a deliberately broken culler.**\n\n",
-                          run->world.mutate_query_shrink);
+                          run->tuning.mutate_query_shrink);
     tw_outfile_printf(&f, "Frames per scenario%s:", run->scenario_frames ? " (--frames)" : "");
     for (uint32_t k = 0; k < count; k++)
         tw_outfile_printf(&f, "%s %s %u", k ? "," : "", results[k].name, results[k].frames);

@@ -14,6 +14,7 @@
 
 #include "tools/progress.h"
 #include "tools/tileworld/report.h"
+#include "runtime/runtime-internal.h"
 #include "tileworld/context.h"
 #include "tileworld/runtime.h"
 
@@ -28,6 +29,7 @@ struct tw_run {
     const struct tw_path *path;         /* borrowed */
     const char *path_name;
     struct tw_world_settings world;     /* tileset and get_proc are filled in by tw_run_execute */
+    struct tw_world_tuning tuning;
     enum tw_method methods[TW_METHOD_COUNT];
     uint32_t method_count;
     const char *out;                    /* output folder */

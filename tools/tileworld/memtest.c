@@ -1,4 +1,5 @@
 /* tileworld memtest: memory against distance travelled (memtest.h). */
+#include "tiles/tiles-internal.h"
 #include "tools/tileworld/memtest.h"
 
 #include <errno.h>
@@ -247,7 +248,7 @@ static void walk_init(const struct options *o, const struct tw_cli_world *shown,
             tw_cli_fail(program, "--distance", "%g km would take about %.0f frames, more than "
                         "memtest's limit of %.0f: give a shorter --distance",
                         o->distance_m / 1000.0, frames, MAX_FRAMES);
-        const int err = tw_path_builtin_speed(name, o->cli.world.selection.seed, (uint32_t)frames,
+        const int err = tw_path_builtin(name, o->cli.world.selection.seed, (uint32_t)frames,
                                               0.0f, w->footprint[0], w->footprint[1], &w->path);
         if (err) {
             tw_cli_message(program, "--path %s: %s", name, tw_error_to_str(err));
@@ -520,7 +521,7 @@ static int walk_once(const struct options *o, const struct tw_cli_world *shown, 
     ws.cache_budget_bytes = r->budget;
     ws.get_proc = tw_context_get_proc(ctx);
     ws.log = (struct tw_log){tw_cli_log, (void *)&o->cli};
-    rc = tw_world_create(&ws, &world);
+    rc = tw_world_create_tuned(&ws, &o->cli.tuning, &world);
     if (rc) {
         *world_error = rc;
         snprintf(err, err_size, "cannot create the world: %s", tw_error_to_str(rc));

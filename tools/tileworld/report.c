@@ -1,4 +1,5 @@
 /* frames.csv, the per-method chart data, summary.json and summary.md (report.h). */
+#include "tiles/tiles-internal.h"
 #include "tools/tileworld/report.h"
 
 #include <errno.h>

@@ -9,6 +9,8 @@
 
 #include <stdio.h>
 
+#include "runtime/runtime-internal.h"
+#include "tiles/tiles-internal.h"
 #include "tileworld/runtime.h"
 #include "tools/outfile.h"
 

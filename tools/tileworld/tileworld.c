@@ -15,6 +15,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "tiles/tiles-internal.h"
 #include "tools/tileworld/bench.h"
 #include "tools/tileworld/buildinfo.h"
 #include "tools/tileworld/glcontext.h"
@@ -261,6 +262,7 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
 {
     struct options *o = user;
     struct tw_world_settings *ws = &o->cli.world;
+    struct tw_world_tuning *wt = &o->cli.tuning;
     if (tw_gl_option(&o->gl, opt, name, v))
         return;
     switch (opt) {
@@ -293,21 +295,21 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
         break;
     }
     case OPT_NEIGHBOURS:
-        ws->tilequery.neighbours = (uint32_t)tw_cli_u64(program, name, v, 4, 8);
-        if (ws->tilequery.neighbours != 4 && ws->tilequery.neighbours != 8)
+        wt->tilequery.neighbours = (uint32_t)tw_cli_u64(program, name, v, 4, 8);
+        if (wt->tilequery.neighbours != 4 && wt->tilequery.neighbours != 8)
             tw_cli_fail(program, name, "'%s' is neither 4 nor 8", v);
         break;
     case OPT_EVICT_AFTER:
         ws->evict_after_frames = (uint32_t)tw_cli_u64(program, name, v, 1, 1000000);
         break;
-    case OPT_CHC_BATCH: ws->chc.batch_size = (uint32_t)tw_cli_u64(program, name, v, 1, 100000); break;
+    case OPT_CHC_BATCH: wt->chc.batch_size = (uint32_t)tw_cli_u64(program, name, v, 1, 100000); break;
     case OPT_CHC_SUSPEND:
-        ws->chc.suspended_passes = (uint32_t)tw_cli_u64(program, name, v, 1, TW_CHC_MAX_SUSPENDED);
+        wt->chc.suspended_passes = (uint32_t)tw_cli_u64(program, name, v, 1, TW_CHC_MAX_SUSPENDED);
         break;
-    case OPT_CHC_NAV: ws->chc.assumed_visible = (uint32_t)tw_cli_u64(program, name, v, 1, 1000); break;
+    case OPT_CHC_NAV: wt->chc.assumed_visible = (uint32_t)tw_cli_u64(program, name, v, 1, 1000); break;
     case OPT_THRESHOLD:
-        ws->chc.threshold = (uint32_t)tw_cli_u64(program, name, v, 0, 1000000);
-        ws->tilequery.threshold = ws->chc.threshold;
+        wt->chc.threshold = (uint32_t)tw_cli_u64(program, name, v, 0, 1000000);
+        wt->tilequery.threshold = wt->chc.threshold;
         break;
     case OPT_DETERMINISTIC: ws->deterministic = true; break;
     case OPT_VERIFY_TOLERANCE:
@@ -319,11 +321,11 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
     case OPT_CALIBRATE: o->calibrate = true; break;
     case OPT_SPLIT: o->split = true; break;
     case OPT_ALLOW_MISSED: o->allow_missed = true; break;
-    case OPT_NO_COST_MODEL: ws->chc.no_cost_model = true; break;
-    case OPT_FIRST_SIGHT_DRAWS: ws->chc.first_sight_draws = true; break;
+    case OPT_NO_COST_MODEL: wt->chc.no_cost_model = true; break;
+    case OPT_FIRST_SIGHT_DRAWS: wt->chc.first_sight_draws = true; break;
     case OPT_MUTATE_QUERY_SHRINK:
-        ws->mutate_query_shrink = tw_cli_float(program, name, v, 0.0f, 1.0f);
-        if (ws->mutate_query_shrink >= 1.0f)
+        wt->mutate_query_shrink = tw_cli_float(program, name, v, 0.0f, 1.0f);
+        if (wt->mutate_query_shrink >= 1.0f)
             tw_cli_fail(program, name, "'%s' is not below 1", v);
         break;
     default:
@@ -433,6 +435,7 @@ static int run(const struct options *o, bool bench)
     r.quiet = o->cli.quiet;
     r.allow_missed = o->allow_missed;
     r.world = o->cli.world;
+    r.tuning = o->cli.tuning;
     r.world.log = log;
     if (!bench) {
         r.methods[0] = o->cli.world.method;
@@ -551,7 +554,7 @@ static int print_calibration(const struct options *o, const struct tw_cli_world 
     ws.get_proc = tw_context_get_proc(ctx);
     ws.log = *log;
     struct tw_world *w = NULL;
-    err = tw_world_create(&ws, &w);
+    err = tw_world_create_tuned(&ws, &o->cli.tuning, &w);
     if (err) {
         tw_cli_message(program, "cannot create the world: %s", tw_error_to_str(err));
         tw_context_destroy(ctx);

@@ -23,6 +23,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "tiles/tiles-internal.h"
 #include "tools/cli.h"
 #include "tools/outfile.h"
 #include "tileworld/runtime.h"
@@ -1010,7 +1011,7 @@ int main(int argc, char **argv)
     tw_cli_world_apply(&v.shown, &ws);
     ws.get_proc = glfw_get_proc;
     ws.log = log;
-    int err = tw_world_create(&ws, &v.world);
+    int err = tw_world_create_tuned(&ws, &o->cli.tuning, &v.world);
     if (err) {
         /* The library has said why in one line; bad settings are the user's. */
         if (v.opt.cli.errors_logged == 0)

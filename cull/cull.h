@@ -18,7 +18,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "tileworld/bvh.h"
+#include "bvh/bvh.h"
+#include "tiles/tiles-internal.h"
 #include "tileworld/tiles.h"
 
 #ifdef __cplusplus
@@ -602,12 +603,6 @@ int tw_cull_cells_of_frame(struct tw_cull_cells *c, const struct tw_view *v,
                            const struct tw_cull_grid *g);
 void tw_cull_cells_finish(struct tw_cull_cells *c);
 
-/* One cluster of one tile: what a frame drew, or a set to draw. */
-struct tw_drawn_cluster {
-    struct tw_cell cell;
-    uint32_t prototype;                 /* the tile's content (struct tw_cull_tile) */
-    uint32_t cluster;
-};
 
 enum tw_cull_method {
     TW_CULL_VFC = 0,        /* every cluster in the frustum of every cell in view */

@@ -9,6 +9,7 @@
 
 #include <stdint.h>
 
+#include "tiles/tiles-internal.h"
 #include "tileworld/tiles.h"
 
 #ifdef __cplusplus

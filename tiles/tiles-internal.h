@@ -1,0 +1,219 @@
+/*
+ * What the library's modules share of tiles/ beyond the public tiles.h:
+ * formatted logging and escaping, box arithmetic, cell arithmetic, the
+ * per-frame limits, packing a finished tileset, selection, the cell map and
+ * the tile cache. Not installed; tools/ and tests/ reach it through the
+ * module libraries.
+ */
+#ifndef TW_TILES_TILES_INTERNAL_H
+#define TW_TILES_TILES_INTERNAL_H
+
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "tileworld/tiles.h"
+
+/* ---- logging ------------------------------------------------------------ */
+
+/* Formats a message and hands it to the logger (no-op for a zeroed one). */
+void tw_log_printf(const struct tw_log *log, enum tw_log_level level,
+                   const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+void tw_log_vprintf(const struct tw_log *log, enum tw_log_level level,
+                    const char *fmt, va_list ap);
+
+/* Escapes text taken from an input file (a name, a key, a URI) so that a
+ * message stays one line of plain text on a terminal: newline, carriage
+ * return and tab become \n, \r and \t, other C0 controls, DEL and bytes that
+ * are not valid UTF-8 become \xHH, the C1 controls and the bidirectional
+ * overrides (U+202A..U+202E, U+2066..U+2069) become \uHHHH. Everything else
+ * (printable ASCII, backslash included, and valid UTF-8) is kept, so that
+ * escaping escaped text changes nothing. Writes at most size bytes into out
+ * (NUL-terminated; "..." ends a cut) and returns out. tw_log_vprintf()
+ * applies it to every message, so that a logger never sees a control
+ * character; escaping the pieces where they are quoted as well keeps a
+ * message's own quotes meaningful. */
+const char *tw_log_escape(const char *text, char *out, size_t size);
+/* The same for n bytes that may hold NUL bytes (shown as \x00). */
+const char *tw_log_escape_bytes(const void *data, size_t n, char *out, size_t size);
+/* tw_log_escape(), and every backslash doubled (\\), so that the text can be
+ * told from the escapes in it: for quoting text such as a program's
+ * arguments, which may hold backslashes of their own. Escaping twice
+ * doubles the backslashes again. */
+const char *tw_log_escape_reversible(const char *text, char *out, size_t size);
+
+/* ---- boxes -------------------------------------------------------------- */
+
+struct tw_box tw_box_empty(void);
+bool tw_box_is_empty(const struct tw_box *b);
+void tw_box_add_point(struct tw_box *b, const float p[3]);
+void tw_box_add_box(struct tw_box *b, const struct tw_box *o);
+/* Box of the eight corners of b under the affine 3x4 row-major transform m. */
+struct tw_box tw_box_transform(const struct tw_box *b, const float m[12]);
+float tw_box_surface_area(const struct tw_box *b);
+/* Squared distance from p to the nearest point of b (0 inside). */
+float tw_box_distance2(const struct tw_box *b, const float p[3]);
+
+/* ---- cells --------------------------------------------------------------- */
+
+/* Floor division and the matching non-negative modulo, exact for all
+ * int64_t a and b > 0. */
+int64_t tw_tiles_floor_div(int64_t a, int64_t b);
+int64_t tw_tiles_floor_mod(int64_t a, int64_t b);
+
+/* The same for a local offset in double (as read from a file): the cells
+ * are split off in double, so that a large offset keeps its precision, and
+ * the remainder is rounded to float. Returns TW_ERR_INVALID (out unchanged)
+ * if an offset or the footprint is not finite, or the cell would overflow. */
+int tw_tiles_normalize_double(struct tw_cell cell, const double local[3], float w, float d,
+                              struct tw_world_pos *out);
+
+/* The position of cell's origin relative to origin's origin, in metres:
+ * ((cell.i - origin.i) * w, 0, (cell.j - origin.j) * d). The difference is
+ * taken in int64_t, scaled in double and only then rounded to float, so it is
+ * exact-ish for nearby cells wherever they lie. */
+void tw_tiles_cell_offset(struct tw_cell cell, struct tw_cell origin, float w,
+                          float d, float out[3]);
+
+/* ---- limits -------------------------------------------------------------- */
+
+/* The most cells one frame may consider (the cell scan of cull/ checks at
+ * most this many, and reports when it had to stop): 256 x 256 cells. */
+#define TW_TILES_MAX_CELLS_IN_VIEW 65536u
+/* The view distance a tileset is checked against when it is loaded (the
+ * runtime's default), metres. */
+#define TW_TILES_REFERENCE_VIEW_DISTANCE 600.0f
+
+/* An upper bound on the cells a frame with view distance view_distance
+ * must consider on a grid of footprint w x d whose common box is
+ * common_box: (2 R + box extent) / footprint + 2 cells along each axis,
+ * multiplied, in double (never overflows: +inf for a zero footprint). A
+ * tileset, or a view distance, whose bound exceeds TW_TILES_MAX_CELLS_IN_VIEW
+ * costs more per frame than the runtime allows. */
+double tw_tiles_cells_in_reach(const struct tw_box *common_box, float w, float d,
+                               float view_distance);
+
+/* ---- tilesets ------------------------------------------------------------ */
+
+/* Moves a finished tileset, its struct and every array it owns, into one
+ * allocation, and replaces *ts with it (the old pointer is freed; pointers
+ * into the old arrays are invalid). A tileset that lives long among
+ * short-lived allocations (a streamed tile) otherwise leaves its dozens of
+ * small arrays scattered over the heap, and the holes between them, when it
+ * is freed, are pages the allocator cannot return; one block is returned
+ * whole. tw_tileset_destroy() frees it as before; tw_tileset_bytes() is then
+ * the block's size. TW_ERR_INVALID on an unfinished tileset; on
+ * TW_ERR_NOMEM *ts is unchanged and still valid. */
+int tw_tileset_pack(struct tw_tileset **ts);
+
+/* Bytes of a vertex in the renderer's buffers: its position in floats (12),
+ * its normal in 10-bit integers (4), its RGBA colour in bytes (4). */
+#define TW_TILESET_GPU_VERTEX_BYTES 20u
+
+/* Sum of all mesh data bytes, merged meshes included, at
+ * TW_TILESET_GPU_VERTEX_BYTES a vertex and 12 a triangle: what the renderer
+ * uploads once. */
+uint64_t tw_tileset_geometry_bytes(const struct tw_tileset *ts);
+
+/* The prototype shown at cell: a seeded hash of the (periodic) cell, mapped
+ * through the prototypes' weights, or the host callback's answer as it is
+ * (which may be out of range: a world takes that for an error). ts must be
+ * finished. */
+uint32_t tw_tiles_select(const struct tw_tileset *ts,
+                         const struct tw_selection *sel, struct tw_cell cell);
+
+/* ---- a hash map from cells to 64-bit values -------------------------------------- */
+
+/* Open addressing with linear probing; grows, never shrinks (its size follows
+ * the peak number of cells held, not how far the camera travelled). */
+struct tw_cell_map;
+
+int tw_cell_map_create(struct tw_cell_map **out);
+void tw_cell_map_destroy(struct tw_cell_map *m);
+/* The value stored for cell, or NULL. The pointer is valid until the next
+ * insert or remove. */
+uint64_t *tw_cell_map_find(const struct tw_cell_map *m, struct tw_cell cell);
+/* Inserts or overwrites. */
+int tw_cell_map_set(struct tw_cell_map *m, struct tw_cell cell, uint64_t value);
+/* Removes cell; returns whether it was there. */
+bool tw_cell_map_remove(struct tw_cell_map *m, struct tw_cell cell);
+void tw_cell_map_clear(struct tw_cell_map *m);
+size_t tw_cell_map_count(const struct tw_cell_map *m);
+/* Heap bytes held. */
+size_t tw_cell_map_bytes(const struct tw_cell_map *m);
+/* Calls fn for every entry; fn returns true to remove the entry. */
+void tw_cell_map_filter(struct tw_cell_map *m,
+                        bool (*fn)(void *user, struct tw_cell cell, uint64_t value),
+                        void *user);
+
+/* ---- the tile cache (DESIGN §1, tile instances) --------------------------------- */
+
+/* Names a tile instance across frames. Eviction frees the instance and
+ * bumps its slot's generation, so a kept handle reads as stale, never as
+ * another tile. The zero handle is never valid. */
+struct tw_tile_handle {
+    uint32_t slot;
+    uint32_t generation;
+};
+
+/* What the cache knows of an instance. */
+struct tw_tile_info {
+    struct tw_cell cell;
+    uint32_t prototype;
+    uint64_t created_frame;
+    uint64_t visible_frame;   /* last frame it was found visible */
+    size_t state_bytes;
+};
+
+/* Tile instances: created the first time a cell is found visible, kept while
+ * it keeps being visible, evicted once it has not been visible for more than
+ * evict_after frames. An instance owns a zeroed block of per-view state
+ * (its culling state, e.g. CHC++ per-node visibility), never geometry. */
+struct tw_tile_cache;
+
+int tw_tile_cache_create(uint32_t evict_after, struct tw_tile_cache **out);
+/* Frees every instance; accepts NULL. */
+void tw_tile_cache_destroy(struct tw_tile_cache *c);
+
+/* Finds the instance at cell; false if there is none. */
+bool tw_tile_cache_find(const struct tw_tile_cache *c, struct tw_cell cell,
+                        struct tw_tile_handle *out);
+/* Finds the instance at cell or creates it with state_bytes zeroed bytes of
+ * state, and marks it visible at frame. *created tells which happened. An
+ * instance made for other content (another prototype, another state size)
+ * is dropped and made afresh (*created is true; its old handles go stale). */
+int tw_tile_cache_acquire(struct tw_tile_cache *c, struct tw_cell cell, uint32_t prototype,
+                          size_t state_bytes, uint64_t frame, struct tw_tile_handle *out,
+                          bool *created);
+/* The instance's state block, or NULL if the handle is stale. Valid until
+ * the instance is evicted. */
+void *tw_tile_cache_state(const struct tw_tile_cache *c, struct tw_tile_handle h);
+/* The instance's description, or NULL if the handle is stale. */
+const struct tw_tile_info *tw_tile_cache_info(const struct tw_tile_cache *c,
+                                              struct tw_tile_handle h);
+bool tw_tile_cache_alive(const struct tw_tile_cache *c, struct tw_tile_handle h);
+/* Packs a handle into 64 bits and back (e.g. as a CHC++ tile tag). */
+uint64_t tw_tile_handle_pack(struct tw_tile_handle h);
+struct tw_tile_handle tw_tile_handle_unpack(uint64_t packed);
+
+/* Evicts every instance not visible since frame - evict_after; returns how
+ * many went. */
+uint32_t tw_tile_cache_evict(struct tw_tile_cache *c, uint64_t frame);
+/* Evicts the instance at cell, if there is one; returns whether there was. */
+bool tw_tile_cache_remove(struct tw_tile_cache *c, struct tw_cell cell);
+/* Evicts every instance of a cell in [lo, hi] (inclusive); returns how many. */
+uint32_t tw_tile_cache_remove_rect(struct tw_tile_cache *c, struct tw_cell lo, struct tw_cell hi);
+/* Evicts the instance least recently visible before frame (a byte budget's
+ * choice), adding its state bytes to *bytes (may be NULL); returns false
+ * when every instance was visible at frame or later. */
+bool tw_tile_cache_evict_oldest(struct tw_tile_cache *c, uint64_t frame, uint64_t *bytes);
+uint32_t tw_tile_cache_count(const struct tw_tile_cache *c);
+/* Exact heap bytes held by the cache: its tables and every state block. */
+uint64_t tw_tile_cache_bytes(const struct tw_tile_cache *c);
+
+#endif
