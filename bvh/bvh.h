@@ -61,13 +61,11 @@ struct tw_bvh {
  * builder may build many BVHs, one at a time. */
 struct tw_bvh_builder;
 
-/* log is copied; it may be NULL. */
-int tw_bvh_builder_create(const struct tw_log *log, struct tw_bvh_builder **out);
-/* The same with the number of threads Embree builds with (0: every core). A
- * pool of workers each building one BVH at a time gives each its own
- * builder with threads = 1. */
-int tw_bvh_builder_create_ex(const struct tw_log *log, uint32_t threads,
-                             struct tw_bvh_builder **out);
+/* log is copied; it may be NULL. threads: how many Embree builds with (0:
+ * every core); a pool of workers each building one BVH at a time gives
+ * each its own builder with threads = 1. */
+int tw_bvh_builder_create(const struct tw_log *log, uint32_t threads,
+                          struct tw_bvh_builder **out);
 void tw_bvh_builder_destroy(struct tw_bvh_builder *b);
 
 /* Builds the BVH of proto's clusters (settings NULL: defaults). The caller

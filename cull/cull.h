@@ -10,6 +10,10 @@
  * The GPU is reached only through struct tw_query_backend, so that every
  * algorithm runs against OpenGL (runtime/) and against a deterministic fake
  * in unit tests.
+ *
+ * This header is what runtime/ sees: the view, the backend, the settings
+ * and the method drivers. The engines the methods are made of (CHC++, the
+ * depth pyramid, tile-query propagation) are in cull-private.h.
  */
 #ifndef TW_CULL_H
 #define TW_CULL_H
@@ -205,7 +209,7 @@ struct tw_query_backend {
 uint32_t tw_cull_vfc_tile(const struct tw_view *v, const struct tw_prototype *proto,
                           const float offset[3], uint32_t *out);
 
-/* ---- CHC++ inside one tile (DESIGN §7) --------------------------------------- */
+/* ---- CHC++ inside a tile (DESIGN §7): its settings and costs ------------------- */
 
 #define TW_CHC_MAX_SUSPENDED 4u
 struct tw_chc_settings {
@@ -244,237 +248,7 @@ struct tw_cost_model {
 /* Fills in the defaults of every zero field that has one. */
 void tw_chc_default_settings(struct tw_chc_settings *s);
 
-/* Per-view state of one tile instance: one entry per BVH node. Lives in the
- * tile cache (its bytes are the instance's cost), zeroed by the cache. */
-struct tw_chc_node_state {
-    uint64_t visible_frame;     /* last frame found visible (0: never) */
-    uint64_t next_query_frame;  /* a visible leaf is re-queried from this frame on */
-    uint32_t invisible_frames;  /* frames in a row found invisible */
-    uint32_t pending_query;     /* non-zero while a query on this node is in flight */
-};
-
-/* Bytes of per-node state a tile instance with this BVH needs. */
-size_t tw_chc_state_bytes(const struct tw_bvh *bvh);
-
-/* Initialises state for a tile seen for the first time at frame: every node
- * visible in the previous frame and due for a query, so that the first
- * traversal draws everything in the frustum and queries the leaves once
- * (no query round trip per level). */
-void tw_chc_state_init(struct tw_chc_node_state *state, const struct tw_bvh *bvh,
-                       uint64_t frame);
-
-/* Counters of the current frame, summed over tiles. */
-struct tw_chc_stats {
-    uint32_t queries;           /* occlusion queries issued */
-    uint32_t multiqueries;      /* of which covering more than one node */
-    uint32_t nodes_queried;
-    uint32_t requeries;         /* single queries re-issued after a failed multiquery */
-    uint32_t clusters_drawn;
-    uint32_t waits;             /* blocking waits */
-    uint32_t queries_skipped;   /* queries the cost model found not worth issuing: a
-                                   previously hidden node drawn without a query (cheaper
-                                   than a query weighted by the chance that it is hidden),
-                                   or a visible leaf's re-query that could not pay */
-    uint32_t suspended;         /* passes suspended rather than blocked (tw_chc_traverse_async) */
-};
-
-/* One tile to traverse. */
-struct tw_chc_tile {
-    struct tw_cell cell;
-    uint32_t content;                 /* handed to be->draw */
-    const struct tw_prototype *proto;
-    const struct tw_bvh *bvh;
-    struct tw_chc_node_state *state;  /* bvh->node_count entries */
-    float offset[3];                  /* view-relative placement of the tile */
-    uint64_t tag;                     /* the caller's name for this tile instance
-                                         (e.g. a tile-cache handle), given back
-                                         with deferred V-query results */
-};
-
-/* The CHC++ traversal engine: queues and scratch space, reused every frame
- * (no allocation per frame once warm). Holds queries across frames. */
-struct tw_chc;
-
-int tw_chc_create(const struct tw_chc_settings *settings, struct tw_chc **out);
-/* Frees the engine; queries still in flight are abandoned without reading
- * (the caller destroys the backend's context afterwards). Accepts NULL. */
-void tw_chc_destroy(struct tw_chc *chc);
-
-/* Resolves the tile state of a deferred V-query: returns the state array of
- * the tile instance named by tag, or NULL if it no longer exists. */
-typedef struct tw_chc_node_state *(*tw_chc_resolve_fn)(void *user, uint64_t tag,
-                                                       const struct tw_bvh **bvh);
-
-/* Starts frame v->frame: reads the V-queries left in flight at the end of the
- * previous frame and applies them as that frame's results. */
-void tw_chc_begin_frame(struct tw_chc *chc, const struct tw_view *v,
-                        const struct tw_query_backend *be,
-                        tw_chc_resolve_fn resolve, void *resolve_user);
-
-/* Runs CHC++ over one tile to completion: everything found visible is drawn
- * through be->draw, front to back, before it returns; V-queries still in
- * flight are kept for tw_chc_begin_frame() of the next frame. */
-void tw_chc_traverse(struct tw_chc *chc, const struct tw_view *v,
-                     const struct tw_query_backend *be,
-                     const struct tw_chc_tile *tile);
-
-/* The same, except that where the pass would block on an I-query with
- * nothing left to traverse it is suspended instead (up to
- * settings.suspended_passes at a time, the oldest finished when one more
- * would start), so that the GPU gets the next tiles' work rather than
- * waiting: with more than one, a frame's blocking reads are then those of
- * its last tiles, but a farther tile's queries may be answered before a
- * nearer tile has drawn what would hide them (more overdraw); with one, the
- * next tile's pass starts only when the last one is done, and what runs in
- * between (the tile queries) overlaps the wait. A suspended pass is resumed by later calls and
- * finished by tw_chc_finish(), which the caller must call before the frame
- * ends and before tile, its BVH or its state may change or go. Tiles then
- * draw out of front-to-back order where a pass waits; conservative all the
- * same (a query counts what is drawn before it, and more drawn can only
- * hide more). */
-void tw_chc_traverse_async(struct tw_chc *chc, const struct tw_view *v,
-                           const struct tw_query_backend *be,
-                           const struct tw_chc_tile *tile);
-/* Runs every suspended pass to its end, oldest first. */
-void tw_chc_finish(struct tw_chc *chc);
-
-/* This frame's counters (reset by tw_chc_begin_frame). */
-const struct tw_chc_stats *tw_chc_stats(const struct tw_chc *chc);
-
-/* The costs the next traversals decide with (copied; NULL or a zeroed
- * model: none, every query one unit). With a model:
- *   - a previously invisible node whose drawing costs less than its query
- *     weighted by the chance p(i) that it stays hidden (p C_draw < C_query,
- *     pixels left out: a hidden node's pixels are tested either way) is
- *     drawn without a query (a leaf) or opened (an interior node: its
- *     children decide for themselves); it is not marked visible, as
- *     nothing was learnt, so that its parent can still be found hidden and
- *     be culled whole by one query;
- *   - a visible leaf due for a re-query is re-queried only when that can
- *     pay: when n_av + 1 frames of drawing its parent's subtree (which a
- *     hidden answer may let be culled whole), weighted by the measured
- *     chance that a re-query finds its leaf hidden (over about the last
- *     thousand answers, from a prior of one half), cost more than the
- *     query; else it stays visible, due again in n_av frames, except one
- *     in sixteen, issued all the same so that the chance stays measured;
- *   - multiquery groups grow while the cost they save, in milliseconds,
- *     does not fall behind what they cost.
- * Both decisions only ever draw more: never one that hides a node. */
-void tw_chc_set_costs(struct tw_chc *chc, const struct tw_cost_model *costs);
-
-/* Heap bytes held by the engine. */
-size_t tw_chc_bytes(const struct tw_chc *chc);
-
-/* ---- HZB: a hierarchical depth buffer (DESIGN §6, after Greene, Kass, Miller 1993) -- */
-
-/* The depth pyramid of one frame and the per-tile traversals of the two
- * HZB methods. Level 0 is the depth buffer as read back (width x height);
- * level k + 1 is ceil(w_k / 2) x ceil(h_k / 2), each texel the *farthest*
- * depth of the up to 2 x 2 texels of level k it covers (at an odd edge
- * only the texels that exist), so that texel (x, y) of level k bounds the
- * depth of every pixel in [x 2^k, (x + 1) 2^k) x [y 2^k, (y + 1) 2^k)
- * clipped to the buffer. A box is hidden when the *nearest* depth of its
- * query box (tw_cull_query_box: the margin of a hardware query) lies
- * farther than the farthest depth of every texel that its screen
- * rectangle, rounded outwards by a pixel, touches, tested at the finest
- * level where that rectangle spans at most TW_HZB_SPAN texels along each
- * axis. A box that reaches the near plane is never hidden. Scratch space
- * is kept across frames: no allocation per frame once warm. */
-struct tw_hzb;
-
-#define TW_HZB_SPAN 8
-
-int tw_hzb_create(struct tw_hzb **out);
-/* Accepts NULL. */
-void tw_hzb_destroy(struct tw_hzb *h);
-
-/* Room for a width x height depth buffer (level 0), to be filled by the
- * caller, bottom row first, then turned into a pyramid by tw_hzb_build().
- * Returns NULL when out of memory or for a zero size. The pyramid reads as
- * empty (every box visible) until tw_hzb_build(). The buffer belongs to h
- * and lives until the next call or tw_hzb_destroy(). */
-float *tw_hzb_depth_buffer(struct tw_hzb *h, uint32_t width, uint32_t height);
-/* Builds the pyramid over the buffer's window depths; reversed: near = 1,
- * far = 0 (float depth with glClipControl), else near = 0, far = 1. The
- * buffer's contents are used up (it becomes level 0). */
-void tw_hzb_build(struct tw_hzb *h, bool reversed);
-/* No pyramid: every box reads as visible until the next build. */
-void tw_hzb_clear(struct tw_hzb *h);
-/* True if the pyramid holds a built depth buffer. */
-bool tw_hzb_built(const struct tw_hzb *h);
-/* Levels of the built pyramid (0 when none). */
-uint32_t tw_hzb_levels(const struct tw_hzb *h);
-
-/* False only if box b moved by offset (view-relative) is certainly hidden
- * behind the depth the pyramid was built from, seen with view v (whose
- * viewport is the depth buffer's size, and whose matrices match the depth
- * convention: view_proj_rz for reversed depth, view_proj else). */
-bool tw_hzb_visible(const struct tw_hzb *h, const struct tw_view *v, const struct tw_box *b,
-                    const float offset[3]);
-
-/* Testing only: every tested box shrunk by this fraction of its size about
- * its centre before the test (a deliberately broken culler that the
- * accuracy checks must catch); 0 (the default) tests boxes as they are. */
-void tw_hzb_set_mutation(struct tw_hzb *h, float shrink_fraction);
-
-/* Per-view state of one tile instance: one entry per BVH node. Lives in the
- * tile cache, zeroed by the cache (0: never visible, never drawn). */
-struct tw_hzb_node_state {
-    uint64_t visible_frame;     /* last frame found visible: a leaf whose box passed, and
-                                   its ancestors (0: never) */
-    uint64_t drawn_frame;       /* leaf: last frame its clusters were drawn */
-};
-
-/* Bytes of per-node state a tile instance with this BVH needs. */
-size_t tw_hzb_state_bytes(const struct tw_bvh *bvh);
-
-/* One tile to traverse (as struct tw_chc_tile). */
-struct tw_hzb_tile {
-    struct tw_cell cell;
-    uint32_t content;                   /* handed to be->draw */
-    const struct tw_prototype *proto;
-    const struct tw_bvh *bvh;
-    struct tw_hzb_node_state *state;    /* bvh->node_count entries */
-    float offset[3];                    /* view-relative placement of the tile */
-};
-
-/* Counters since tw_hzb_begin_frame(), summed over tiles. */
-struct tw_hzb_stats {
-    uint32_t boxes_tested;      /* node boxes tested against the pyramid */
-    uint32_t boxes_hidden;      /* of which found hidden (their subtrees skipped) */
-    uint32_t clusters_drawn;
-};
-
-/* Starts a frame: resets the counters. */
-void tw_hzb_begin_frame(struct tw_hzb *h);
-const struct tw_hzb_stats *tw_hzb_stats(const struct tw_hzb *h);
-
-/* Phase 1 of frame v->frame: draws, front to back in one call of be->draw,
- * the clusters of the tile's leaves found visible in frame v->frame - 1
- * that lie in the frustum within the view distance, and marks them drawn
- * in this frame. Returns how many clusters were drawn. */
-uint32_t tw_hzb_draw_last_visible(struct tw_hzb *h, const struct tw_view *v,
-                                  const struct tw_query_backend *be,
-                                  const struct tw_hzb_tile *t);
-/* Phase 2: traverses the tile's BVH front to back from the root, testing
- * each node in the frustum within the view distance against the pyramid
- * and skipping the subtrees of hidden ones; a visible leaf is marked
- * visible in this frame (with its ancestors) and, unless phase 1 drew it,
- * drawn (one call of be->draw). Returns how many clusters it drew. */
-uint32_t tw_hzb_traverse(struct tw_hzb *h, const struct tw_view *v,
-                         const struct tw_query_backend *be, const struct tw_hzb_tile *t);
-
-/* After phase 2, with the pyramid rebuilt from the frame's final depth:
- * decides again which of the tile's leaves drawn in this frame are visible
- * (their boxes tested against it, front to back, hidden subtrees skipped),
- * so that the next frame's phase 1 draws those only. Returns whether a node
- * of the tile is still visible. */
-bool tw_hzb_retest(struct tw_hzb *h, const struct tw_view *v, const struct tw_hzb_tile *t);
-
-/* Heap bytes held: the pyramid and the scratch space. */
-size_t tw_hzb_bytes(const struct tw_hzb *h);
-
-/* ---- tile-query propagation (DESIGN §4) ------------------------------------------- */
+/* ---- tile-query propagation (DESIGN §4): its settings ---------------------------- */
 
 struct tw_tilequery_settings {
     uint32_t neighbours;        /* 4 (edge neighbours) or 8 (and diagonals); default 4 */
@@ -483,45 +257,9 @@ struct tw_tilequery_settings {
 
 void tw_tilequery_default_settings(struct tw_tilequery_settings *s);
 
-/* Counters of one frame. */
-struct tw_tilequery_stats {
-    uint32_t tiles_queried;     /* cells whose common box was queried */
-    uint32_t tiles_visible;     /* cells rendered */
-    uint32_t tiles_free;        /* cells found visible without a query (near-plane rule, start) */
-    uint32_t postponed;         /* cells rendered on last frame's word, result pending */
-    uint32_t predict_fail;      /* predictions that a read result contradicted: visible last
-                                   frame and found hidden, or considered last frame, found
-                                   hidden then, and visible now; a cell with no verdict in
-                                   the previous frame has no prediction to fail */
-    uint32_t waits;             /* blocking waits on tile queries */
-};
-
-/* Renders the tile at cell, placed at offset (view-relative), with the local
- * method, before its neighbours are queried. */
-typedef void (*tw_tilequery_render_fn)(void *user, struct tw_cell cell, const float offset[3]);
-
 /* The propagation engine: the pending and postponed queues, which cells
  * were visible last frame, scratch space. No allocation per frame once warm. */
 struct tw_tilequery;
-
-int tw_tilequery_create(const struct tw_tilequery_settings *s, struct tw_tilequery **out);
-/* Accepts NULL. Queries still in flight are abandoned unread. */
-void tw_tilequery_destroy(struct tw_tilequery *tq);
-
-/* Runs one frame (v->frame, increasing by one each call): spreads visibility
- * from the camera across the grid of footprint w x d, front to back,
- * querying common_box (tile-local) placed at each candidate cell, and calls
- * render for every cell found visible. */
-int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
-                       const struct tw_query_backend *be, const struct tw_box *common_box,
-                       float w, float d, tw_tilequery_render_fn render, void *user,
-                       struct tw_tilequery_stats *stats);
-
-/* True if cell was found visible in frame (only the last two frames are kept). */
-bool tw_tilequery_was_visible(const struct tw_tilequery *tq, struct tw_cell cell, uint64_t frame);
-
-/* Heap bytes held. */
-size_t tw_tilequery_bytes(const struct tw_tilequery *tq);
 
 /* ---- the method drivers: one frame over the grid, top-down ------------------------ */
 
@@ -602,7 +340,6 @@ struct tw_cull_cells {
 int tw_cull_cells_of_frame(struct tw_cull_cells *c, const struct tw_view *v,
                            const struct tw_cull_grid *g);
 void tw_cull_cells_finish(struct tw_cull_cells *c);
-
 
 enum tw_cull_method {
     TW_CULL_VFC = 0,        /* every cluster in the frustum of every cell in view */

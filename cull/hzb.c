@@ -1,5 +1,5 @@
 /*
- * HZB (cull.h): a depth pyramid built on the CPU from the depth buffer read
+ * HZB (cull-private.h): a depth pyramid built on the CPU from the depth buffer read
  * back after phase 1, boxes tested against it, and the two per-tile
  * traversals of the two-phase methods (DESIGN §6; Greene, Kass, Miller 1993
  * for the pyramid, niagara and Nanite for the two phases).
@@ -270,7 +270,7 @@ const struct tw_hzb_stats *tw_hzb_stats(const struct tw_hzb *h)
 
 /* Room for a traversal of t: every node pushed at most once, every cluster
  * drawn at most once. */
-static bool reserve_tile(struct tw_hzb *h, const struct tw_hzb_tile *t)
+static bool reserve_tile(struct tw_hzb *h, const struct tw_cull_instance *t)
 {
     size_t clusters = t->bvh->cluster_count;
     if (t->proto && t->proto->cluster_count > clusters)
@@ -284,7 +284,7 @@ static bool reserve_tile(struct tw_hzb *h, const struct tw_hzb_tile *t)
 
 /* Queues node unless it lies outside the frustum or beyond the view
  * distance (neither drawn nor tested, as CHC++ does). */
-static void push_node(struct tw_hzb *h, const struct tw_view *v, const struct tw_hzb_tile *t,
+static void push_node(struct tw_hzb *h, const struct tw_view *v, const struct tw_cull_instance *t,
                       uint32_t node)
 {
     const struct tw_box *b = &t->bvh->nodes[node].box;
@@ -301,7 +301,7 @@ static bool is_leaf(const struct tw_bvh_node *n)
     return n->child[0] == TW_BVH_NONE;
 }
 
-static void queue_leaf(struct tw_hzb *h, const struct tw_hzb_tile *t, uint32_t node)
+static void queue_leaf(struct tw_hzb *h, const struct tw_cull_instance *t, uint32_t node)
 {
     const struct tw_bvh_node *n = &t->bvh->nodes[node];
     for (uint32_t k = 0; k < n->cluster_count; k++)
@@ -309,7 +309,7 @@ static void queue_leaf(struct tw_hzb *h, const struct tw_hzb_tile *t, uint32_t n
 }
 
 static uint32_t flush_render(struct tw_hzb *h, const struct tw_query_backend *be,
-                             const struct tw_hzb_tile *t)
+                             const struct tw_cull_instance *t)
 {
     const uint32_t n = (uint32_t)h->render_count;
     if (n > 0)
@@ -328,18 +328,21 @@ static void pull_up(struct tw_hzb_node_state *state, const struct tw_bvh_node *n
     }
 }
 
-static bool tile_valid(const struct tw_hzb_tile *t)
+static bool tile_valid(const struct tw_cull_instance *t)
 {
     return t && t->bvh && t->state && t->bvh->node_count > 0;
 }
 
 uint32_t tw_hzb_draw_last_visible(struct tw_hzb *h, const struct tw_view *v,
                                   const struct tw_query_backend *be,
-                                  const struct tw_hzb_tile *t)
+                                  const struct tw_cull_instance *t)
 {
+    if (!tile_valid(t))
+        return 0;
+    struct tw_hzb_node_state *state = t->state;
     const uint64_t f = v->frame;
     /* visible_frame 0 means never: there is no frame 0 to have been seen in. */
-    if (!tile_valid(t) || f < 2 || t->state[0].visible_frame + 1 != f)
+    if (f < 2 || state[0].visible_frame + 1 != f)
         return 0;
     if (!reserve_tile(h, t))
         return 0;   /* out of memory: phase 2 tests and draws the tile instead */
@@ -349,12 +352,12 @@ uint32_t tw_hzb_draw_last_visible(struct tw_hzb *h, const struct tw_view *v,
         const uint32_t node = tw_distance_pop(h->heap, &h->heap_count);
         if (is_leaf(&nodes[node])) {
             queue_leaf(h, t, node);
-            t->state[node].drawn_frame = f;
+            state[node].drawn_frame = f;
             continue;
         }
         for (int c = 0; c < 2; c++) {
             const uint32_t child = nodes[node].child[c];
-            if (child != TW_BVH_NONE && t->state[child].visible_frame + 1 == f)
+            if (child != TW_BVH_NONE && state[child].visible_frame + 1 == f)
                 push_node(h, v, t, child);
         }
     }
@@ -365,18 +368,19 @@ uint32_t tw_hzb_draw_last_visible(struct tw_hzb *h, const struct tw_view *v,
  * phase 1 drew it). Conservative, slow, never taken once warm. */
 static uint32_t traverse_everything(struct tw_hzb *h, const struct tw_view *v,
                                     const struct tw_query_backend *be,
-                                    const struct tw_hzb_tile *t)
+                                    const struct tw_cull_instance *t)
 {
+    struct tw_hzb_node_state *state = t->state;
     uint32_t drawn = 0;
     for (uint32_t i = 0; i < t->bvh->node_count; i++) {
         const struct tw_bvh_node *n = &t->bvh->nodes[i];
         if (!is_leaf(n) || !(tw_cull_box_distance(v, &n->box, t->offset) <= v->view_distance) ||
             tw_cull_frustum_box(&v->frustum, &n->box, t->offset) == TW_CULL_OUTSIDE)
             continue;
-        pull_up(t->state, t->bvh->nodes, i, v->frame);
-        if (t->state[i].drawn_frame == v->frame || n->cluster_count == 0)
+        pull_up(state, t->bvh->nodes, i, v->frame);
+        if (state[i].drawn_frame == v->frame || n->cluster_count == 0)
             continue;
-        t->state[i].drawn_frame = v->frame;
+        state[i].drawn_frame = v->frame;
         be->draw(be->ctx, t->cell, t->content, t->offset,
                  &t->bvh->cluster_order[n->first_cluster], n->cluster_count);
         drawn += n->cluster_count;
@@ -386,12 +390,13 @@ static uint32_t traverse_everything(struct tw_hzb *h, const struct tw_view *v,
 }
 
 uint32_t tw_hzb_traverse(struct tw_hzb *h, const struct tw_view *v,
-                         const struct tw_query_backend *be, const struct tw_hzb_tile *t)
+                         const struct tw_query_backend *be, const struct tw_cull_instance *t)
 {
     if (!tile_valid(t))
         return 0;
     if (!reserve_tile(h, t))
         return traverse_everything(h, v, be, t);
+    struct tw_hzb_node_state *state = t->state;
     const uint64_t f = v->frame;
     const struct tw_bvh_node *nodes = t->bvh->nodes;
     push_node(h, v, t, 0);
@@ -408,37 +413,38 @@ uint32_t tw_hzb_traverse(struct tw_hzb *h, const struct tw_view *v,
                 push_node(h, v, t, nodes[node].child[1]);
             continue;
         }
-        pull_up(t->state, nodes, node, f);
-        if (t->state[node].drawn_frame != f) {
-            t->state[node].drawn_frame = f;
+        pull_up(state, nodes, node, f);
+        if (state[node].drawn_frame != f) {
+            state[node].drawn_frame = f;
             queue_leaf(h, t, node);
         }
     }
     return flush_render(h, be, t);
 }
 
-bool tw_hzb_retest(struct tw_hzb *h, const struct tw_view *v, const struct tw_hzb_tile *t)
+bool tw_hzb_retest(struct tw_hzb *h, const struct tw_view *v, const struct tw_cull_instance *t)
 {
     if (!tile_valid(t))
         return false;
+    struct tw_hzb_node_state *state = t->state;
     const uint64_t f = v->frame;
     const struct tw_bvh_node *nodes = t->bvh->nodes;
     for (uint32_t n = 0; n < t->bvh->node_count; n++)
-        if (t->state[n].visible_frame == f)
-            t->state[n].visible_frame = 0;
+        if (state[n].visible_frame == f)
+            state[n].visible_frame = 0;
     if (!reserve_tile(h, t)) {
         /* Out of memory: every leaf drawn keeps its mark. */
         for (uint32_t n = 0; n < t->bvh->node_count; n++)
-            if (is_leaf(&nodes[n]) && t->state[n].drawn_frame == f)
-                pull_up(t->state, nodes, n, f);
-        return t->state[0].visible_frame == f;
+            if (is_leaf(&nodes[n]) && state[n].drawn_frame == f)
+                pull_up(state, nodes, n, f);
+        return state[0].visible_frame == f;
     }
     push_node(h, v, t, 0);
     while (h->heap_count > 0) {
         const uint32_t node = tw_distance_pop(h->heap, &h->heap_count);
         const bool leaf = is_leaf(&nodes[node]);
         /* A leaf not drawn was hidden by a part of this depth already. */
-        if (leaf && t->state[node].drawn_frame != f)
+        if (leaf && state[node].drawn_frame != f)
             continue;
         h->stats.boxes_tested++;
         if (!tw_hzb_visible(h, v, &nodes[node].box, t->offset)) {
@@ -446,12 +452,12 @@ bool tw_hzb_retest(struct tw_hzb *h, const struct tw_view *v, const struct tw_hz
             continue;
         }
         if (leaf) {
-            pull_up(t->state, nodes, node, f);
+            pull_up(state, nodes, node, f);
             continue;
         }
         push_node(h, v, t, nodes[node].child[0]);
         if (nodes[node].child[1] != TW_BVH_NONE)
             push_node(h, v, t, nodes[node].child[1]);
     }
-    return t->state[0].visible_frame == f;
+    return state[0].visible_frame == f;
 }

@@ -1,5 +1,5 @@
 /* Tile-query propagation with pending and postponed queues (DESIGN §4). */
-#include "cull/cull.h"
+#include "cull/cull-private.h"
 #include "tiles/array.h"
 #include "tiles/tiles-internal.h"
 #include "tiles/neighbours.h"

@@ -1,5 +1,7 @@
 /* Debug views of the world (runtime.h "debugging and the viewer"): cells by
- * tile-query state, BVH nodes of what was drawn, query boxes. */
+ * tile-query state, BVH nodes of what was drawn, query boxes; and their
+ * drawing over the frame's image. */
+#include "runtime/renderer-private.h"
 #include "runtime/world-private.h"
 #include "tiles/array.h"
 #include "tiles/tiles-internal.h"
@@ -234,6 +236,72 @@ int tw_debug_collect(struct tw_world *w, const struct method_state *ms, const st
     return err;
 }
 
+/* Draws boxes over the frame's image with v's camera, after the frame (not
+ * timed, not counted): translucent faces, depth-tested without depth
+ * writes, when fill; else edges line_px wide, hidden parts faint. Between
+ * the renderer's enter and leave. */
+static void draw_boxes(struct tw_renderer *r, const struct tw_view *v,
+                       const struct tw_renderer_debug_box *boxes, size_t count, bool fill,
+                       float line_px)
+{
+    if (count == 0)
+        return;
+    const struct tw_gl *gl = &r->gl;
+    const float *view_proj = r->reversed_z ? v->view_proj_rz : v->view_proj;
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+    gl->Viewport(0, 0, (GLsizei)r->width, (GLsizei)r->height);
+    gl->BindVertexArray(r->box_vao);
+    r->bound_vao = r->box_vao;
+    gl->ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    gl->DepthMask(GL_FALSE);
+    gl->Enable(GL_BLEND);
+    gl->BlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+    gl->DepthFunc(r->reversed_z ? GL_GEQUAL : GL_LEQUAL);
+    if (fill) {
+        /* Faces are wound inwards: culling front faces keeps the outside. */
+        gl->UseProgram(r->programs.fill.program);
+        gl->UniformMatrix4fv(r->programs.fill.view_proj, 1, GL_FALSE, view_proj);
+        gl->Enable(GL_CULL_FACE);
+        gl->CullFace(GL_FRONT);
+        gl->Enable(GL_DEPTH_TEST);
+        for (size_t k = 0; k < count; k++) {
+            gl->Uniform3fv(r->programs.fill.min, 1, boxes[k].min);
+            gl->Uniform3fv(r->programs.fill.max, 1, boxes[k].max);
+            gl->Uniform4fv(r->programs.fill.color, 1, boxes[k].color);
+            gl->DrawElements(GL_TRIANGLES, 36, GL_UNSIGNED_BYTE, (const void *)0);
+        }
+    } else {
+        gl->UseProgram(r->programs.line.program);
+        gl->UniformMatrix4fv(r->programs.line.view_proj, 1, GL_FALSE, view_proj);
+        gl->Disable(GL_CULL_FACE);
+        /* Hidden edges faint (x-ray), then visible edges at full strength. */
+        for (int pass = 0; pass < 2; pass++) {
+            if (pass == 0)
+                gl->Disable(GL_DEPTH_TEST);
+            else
+                gl->Enable(GL_DEPTH_TEST);
+            const float viewport[3] = {(float)r->width, (float)r->height,
+                                       pass == 0 ? line_px * 0.75f : line_px};
+            gl->Uniform3fv(r->programs.line.viewport, 1, viewport);
+            for (size_t k = 0; k < count; k++) {
+                float color[4];
+                memcpy(color, boxes[k].color, sizeof(color));
+                if (pass == 0)
+                    color[3] *= 0.25f;
+                gl->Uniform3fv(r->programs.line.min, 1, boxes[k].min);
+                gl->Uniform3fv(r->programs.line.max, 1, boxes[k].max);
+                gl->Uniform4fv(r->programs.line.color, 1, color);
+                gl->DrawElements(GL_LINES, 24, GL_UNSIGNED_BYTE, (const void *)36);
+            }
+        }
+    }
+    gl->Disable(GL_BLEND);
+    gl->Enable(GL_DEPTH_TEST);
+    gl->DepthMask(GL_TRUE);
+    gl->CullFace(GL_BACK);
+    r->mode = TW_RENDERER_MODE_NONE;
+}
+
 int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, size_t count)
 {
     if (!w || (count && !boxes))
@@ -288,8 +356,7 @@ int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, si
             }
         }
         tw_renderer_enter(w->renderer);
-        tw_renderer_draw_debug(w->renderer, v, w->debug.draw, n, layers[layer].fill,
-                               layers[layer].line_px);
+        draw_boxes(w->renderer, v, w->debug.draw, n, layers[layer].fill, layers[layer].line_px);
         tw_renderer_leave(w->renderer);
     }
     return TW_OK;

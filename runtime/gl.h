@@ -1,7 +1,8 @@
 /*
- * A table of the OpenGL entry points the runtime uses, loaded through a
- * context's get-proc function. The runtime never links gl* symbols directly,
- * so the OSMesa (headless) and libGL (window) paths cannot collide.
+ * A table of the OpenGL entry points the runtime and the viewer use, loaded
+ * through a context's get-proc function. The runtime never links gl*
+ * symbols directly, so the OSMesa (headless) and libGL (window) paths
+ * cannot collide.
  */
 #ifndef TW_RUNTIME_GL_H
 #define TW_RUNTIME_GL_H
@@ -18,6 +19,7 @@
     X(PFNGLCLEARCOLORPROC, ClearColor) \
     X(PFNGLCLEARDEPTHPROC, ClearDepth) \
     X(PFNGLVIEWPORTPROC, Viewport) \
+    X(PFNGLSCISSORPROC, Scissor) \
     X(PFNGLENABLEPROC, Enable) \
     X(PFNGLDISABLEPROC, Disable) \
     X(PFNGLDEPTHFUNCPROC, DepthFunc) \
@@ -57,6 +59,7 @@
     X(PFNGLUNIFORM3FVPROC, Uniform3fv) \
     X(PFNGLUNIFORM4FVPROC, Uniform4fv) \
     X(PFNGLUNIFORMMATRIX4FVPROC, UniformMatrix4fv) \
+    X(PFNGLDRAWARRAYSPROC, DrawArrays) \
     X(PFNGLDRAWELEMENTSPROC, DrawElements) \
     X(PFNGLDRAWELEMENTSBASEVERTEXPROC, DrawElementsBaseVertex) \
     X(PFNGLDRAWELEMENTSINSTANCEDPROC, DrawElementsInstanced) \

@@ -1,8 +1,9 @@
 /*
- * The renderer: the tileset's meshes uploaded once into one vertex and one
- * index buffer, clusters drawn per instance transform, query boxes, the
- * offscreen framebuffer, and the GL implementation of struct
- * tw_query_backend (DESIGN §5). Private to runtime/.
+ * The renderer: tilesets' meshes uploaded into GL buffers (gpu-store.c),
+ * the GL implementation of struct tw_query_backend that draws clusters
+ * per instance transform and queries boxes (query-backend.c, DESIGN §5),
+ * the oracle's object-ID pass (id-pass.c), the offscreen framebuffer and
+ * the host's GL state (renderer.c). Private to runtime/.
  */
 #ifndef TW_RUNTIME_RENDERER_H
 #define TW_RUNTIME_RENDERER_H
@@ -45,8 +46,6 @@ void tw_renderer_release(struct tw_renderer *r, uint32_t first_content);
  * NULL for a content that is not live. */
 const struct tw_prototype *tw_renderer_content(const struct tw_renderer *r, uint32_t content,
                                                const struct tw_bvh **bvh);
-/* Bytes of every GL buffer of uploaded tilesets. */
-uint64_t tw_renderer_gpu_bytes(const struct tw_renderer *r);
 void tw_renderer_destroy(struct tw_renderer *r);
 
 /* The renderer's GL entry points, for the world's other GL objects (its
@@ -88,7 +87,7 @@ const struct tw_drawn_cluster *tw_renderer_drawn(const struct tw_renderer *r, si
  * counters. */
 #define TW_RENDERER_NO_ID UINT32_MAX
 void tw_renderer_id_begin(struct tw_renderer *r, const struct tw_view *v);
-void tw_renderer_id_draw(struct tw_renderer *r, uint32_t prototype, const float offset[3],
+void tw_renderer_id_draw(struct tw_renderer *r, uint32_t content, const float offset[3],
                          const uint32_t *clusters, uint32_t count, uint32_t first_id);
 void tw_renderer_id_read(struct tw_renderer *r, uint32_t *ids, float *depth);
 /* Reads the frame's window depth, width * height floats, bottom row first
@@ -137,19 +136,12 @@ void tw_renderer_set_tile_query_box(struct tw_renderer *r, const struct tw_box *
 void tw_renderer_record_queries(struct tw_renderer *r, bool on);
 const struct tw_renderer_query_box *tw_renderer_queries(const struct tw_renderer *r, size_t *count);
 
-/* A box to draw for debugging: view-relative corners, a straight RGBA colour. */
+/* A box that tw_world_draw_debug draws (debug.c): view-relative corners,
+ * a straight RGBA colour. */
 struct tw_renderer_debug_box {
     float min[3], max[3];
     float color[4];
 };
-
-/* Draws boxes over the frame's image with v's camera, after the frame (not
- * timed, not counted): translucent faces, depth-tested without depth
- * writes, when fill; else edges line_px wide, hidden parts faint. boxes is
- * only read during the call. */
-void tw_renderer_draw_debug(struct tw_renderer *r, const struct tw_view *v,
-                            const struct tw_renderer_debug_box *boxes, size_t count, bool fill,
-                            float line_px);
 
 /* Copies the colour image into GL framebuffer target (0: a window's),
  * scaled to width x height. */

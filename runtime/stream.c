@@ -1,375 +1,23 @@
 /*
- * Tile streaming (stream.h, DESIGN §12-§13).
+ * Tile streaming (stream.h, DESIGN §12-§13): the entries of the cells with
+ * tiles of their own, their uploads to the sink, the cache and its budget.
+ * The worker pool is workers.c; what both share is stream-private.h.
  *
- * Every cell with a tile of its own has an entry. What the render thread
- * alone reads and writes (whether the tile is ready, its GL content, its
- * bytes, when it was wanted and drawn) lives beside what the workers touch
- * (the job: queued, running, done, and its result), which only ever changes
- * under the stream's one lock. Workers never see an entry's address: the
- * entry array may grow while they work, so they name entries by index.
- *
- * A job is a pure function of its cell: generate into a fresh tileset,
- * finish it, check it against the provider's bound, build its BVH. Under
- * policy wait the render thread runs a job itself when no worker has
+ * Under policy wait the render thread runs a job itself when no worker has
  * started it yet, so a frame never waits behind less urgent work.
- *
- * A job runs on what its worker owns (a copy of the provider, its own BVH
- * builder, the result on its stack), so that a worker stuck in the
- * provider's generate() can be left behind when the stream is destroyed:
- * the lock and the conditions live in a block of their own (struct pool)
- * that the last of the stream and such workers frees, and a worker that
- * comes back to find itself left behind drops its result, frees what it
- * owns and ends without touching the stream again.
  */
-#include "runtime/stream.h"
+#include "runtime/stream-private.h"
 #include "tiles/array.h"
 #include "tiles/clock.h"
 #include "tiles/tiles-internal.h"
 
 #include <errno.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
-
-enum render_state { R_FREE = 0, R_LOADING, R_READY, R_REFUSED };
-enum job_state { J_NONE = 0, J_QUEUED, J_RUNNING, J_DONE };
-
-struct job_result {
-    struct tw_tileset *ts;
-    struct tw_bvh *bvh;
-    uint64_t bytes_cpu;          /* what ts and bvh cost (0 on failure) */
-    int err;
-    char message[256];
-};
-
-struct entry {
-    /* Render thread only. */
-    struct tw_cell cell;
-    enum render_state rstate;
-    uint32_t key;
-    uint32_t content;            /* R_READY: the renderer's content */
-    uint64_t bytes_cpu, bytes_gpu;
-    uint64_t request_frame, wanted_frame, drawn_frame;
-    struct tw_tileset *ts;       /* R_READY: owned */
-    struct tw_bvh *bvh;
-    uint32_t next_free;
-    bool reload;                 /* this cell's tile had been evicted before */
-    /* Under the lock. */
-    enum job_state jstate;
-    bool discard;                /* invalidated or cancelled while running: drop the result */
-    float priority;
-    uint64_t seq;
-    struct job_result result;
-};
-
-/* What the workers share with the stream (see the top of the file). */
-struct pool {
-    pthread_mutex_t lock;
-    pthread_cond_t work;                 /* a job was queued, or quit */
-    pthread_cond_t done;                 /* a job finished, or a worker stopped
-                                            (CLOCK_MONOTONIC, for the wait at destroy) */
-    bool quit;
-    uint32_t refs;                       /* the stream's, and one per worker thread */
-};
-
-struct worker {
-    struct tw_stream *s;                 /* (lock) NULL once left behind */
-    struct pool *pool;
-    struct tw_tile_provider provider;    /* a copy: the world's may be gone when a job
-                                            left behind comes back */
-    struct tw_bvh_settings bvh;
-    pthread_t thread;
-    bool started;
-    /* Under the lock. */
-    bool busy;                           /* running a job on cell */
-    struct tw_cell cell;
-    bool stopped;                        /* out of its loop: can be joined */
-    bool left_behind;                    /* the stream is gone: the thread owns this */
-    /* The worker's own. */
-    struct tw_bvh_builder *builder;
-    char message[256];                   /* what the builder logged last */
-};
-
-struct tw_stream {
-    struct tw_stream_settings set;
-    const struct tw_tile_provider *p;
-    struct tw_renderer *renderer;
-    uint64_t frame;
-
-    /* Entries: render thread, except their job fields (lock). The array is
-     * reallocated only under the lock. */
-    struct entry *entries;
-    uint32_t entry_count, entry_cap, free_head;
-    struct tw_cell_map *by_cell;         /* cell -> entry */
-    struct tw_cell_map *generations;     /* cell -> times invalidated (only cells ever invalidated) */
-    struct tw_cell_map *evicted;         /* cells whose tile was evicted: a later load is a reload */
-    uint32_t ready, loading;
-    uint64_t bytes_cpu, bytes_gpu;
-
-    /* Jobs (under pool->lock). */
-    struct pool *pool;
-    uint32_t *heap;                      /* queued entries, by priority then seq */
-    uint32_t heap_count, heap_cap;
-    uint32_t *finished;                  /* entries whose job is done, not yet collected */
-    uint32_t finished_count, finished_cap;
-    uint64_t seq;
-
-    /* Done, collected, waiting for their upload (render thread). */
-    uint32_t *to_upload;
-    uint32_t to_upload_count, to_upload_cap;
-
-    struct worker **workers;             /* NULL where one was left behind */
-    uint32_t worker_count;
-    struct worker inline_worker;         /* the render thread's own builder */
-
-    tw_stream_event_fn on_event;
-    void *event_user;
-    bool quiet_nomem;                    /* a refusal for lack of memory was logged: the
-                                            next ones are only counted */
-    struct tw_stream_stats stats;
-    struct tw_stream_totals totals;
-};
-
-/* ---- the job ------------------------------------------------------------------------ */
-
-static void capture_log(void *user, enum tw_log_level level, const char *msg)
-{
-    struct worker *wk = user;
-    if (level <= TW_LOG_WARN && wk->message[0] == '\0')
-        snprintf(wk->message, sizeof(wk->message), "%s", msg);
-}
-
-static bool box_inside(const struct tw_box *b, const struct tw_box *bound)
-{
-    /* A hair of slack: a tile built to touch its bound exactly must not be
-     * refused for the rounding of a transform. */
-    for (int a = 0; a < 3; a++) {
-        const float e = 1e-4f * fmaxf(1.0f, fabsf(bound->max[a] - bound->min[a]));
-        if (b->min[a] < bound->min[a] - e || b->max[a] > bound->max[a] + e)
-            return false;
-    }
-    return true;
-}
-
-static void fail(struct job_result *r, int err, const char *fmt, ...)
-{
-    r->err = err;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(r->message, sizeof(r->message), fmt, ap);
-    va_end(ap);
-}
-
-/* Makes the tile of cell. Any thread; touches nothing but what wk owns
- * (the stream may be gone by the time generate() returns). */
-static void run_job(struct worker *wk, struct tw_cell cell, struct job_result *r)
-{
-    const struct tw_tile_provider *p = &wk->provider;
-    memset(r, 0, sizeof(*r));
-    wk->message[0] = '\0';
-    char name[64];
-    snprintf(name, sizeof(name), "%lld,%lld", (long long)cell.i, (long long)cell.j);
-    int err = tw_tileset_create(name, p->footprint[0], p->footprint[1], &r->ts);
-    if (err) {
-        fail(r, err, "cannot make a tileset: %s", tw_error_to_str(err));
-        return;
-    }
-    err = p->generate(p->user, cell, r->ts);
-    if (err) {
-        fail(r, err, "the provider could not make it: %s", tw_error_to_str(err));
-        goto out;
-    }
-    if (r->ts->prototype_count != 1) {
-        fail(r, TW_ERR_INVALID, "the provider made %u prototypes for it (one is needed)",
-             r->ts->prototype_count);
-        goto out;
-    }
-    err = tw_tileset_finish(r->ts, p->max_cluster_triangles ? p->max_cluster_triangles : 2048);
-    if (err) {
-        fail(r, err, "the generated tile cannot be finished: %s", tw_error_to_str(err));
-        goto out;
-    }
-    const struct tw_box *b = &r->ts->prototypes[0].box;
-    if (!box_inside(b, &p->bound)) {
-        fail(r, TW_ERR_LIMIT,
-             "the tile's box [%g %g %g]-[%g %g %g] exceeds the provider's bound "
-             "[%g %g %g]-[%g %g %g]",
-             b->min[0], b->min[1], b->min[2], b->max[0], b->max[1], b->max[2], p->bound.min[0],
-             p->bound.min[1], p->bound.min[2], p->bound.max[0], p->bound.max[1], p->bound.max[2]);
-        goto out;
-    }
-    /* The tile lives long among the short-lived allocations that made it:
-     * one block each for its tileset and its BVH, so that its eviction
-     * returns whole pages (without: the heap kept 5-10 MiB of holes over
-     * 10 km). Out of memory here leaves both as they are, still valid. */
-    (void)tw_tileset_pack(&r->ts);
-    err = tw_bvh_build(wk->builder, &r->ts->prototypes[0], &wk->bvh, &r->bvh);
-    if (err) {
-        fail(r, err, "its BVH cannot be built: %s", wk->message[0] ? wk->message
-                                                                  : tw_error_to_str(err));
-        goto out;
-    }
-    (void)tw_bvh_pack(&r->bvh);
-    r->bytes_cpu = tw_tileset_bytes(r->ts) + r->bvh->bytes;
-    return;
-out:
-    tw_bvh_destroy(r->bvh);
-    r->bvh = NULL;
-    tw_tileset_destroy(r->ts);
-    r->ts = NULL;
-}
-
-static void free_result(struct job_result *r)
-{
-    tw_bvh_destroy(r->bvh);
-    tw_tileset_destroy(r->ts);
-    r->bvh = NULL;
-    r->ts = NULL;
-    r->bytes_cpu = 0;
-}
-
-/* ---- the job heap (lock held) ------------------------------------------------------- */
-
-static bool before(const struct tw_stream *s, uint32_t a, uint32_t b)
-{
-    const struct entry *x = &s->entries[a], *y = &s->entries[b];
-    if (x->priority != y->priority)
-        return x->priority < y->priority;
-    return x->seq < y->seq;
-}
-
-static void sift_down(struct tw_stream *s, uint32_t k)
-{
-    for (;;) {
-        uint32_t m = k;
-        const uint32_t l = 2 * k + 1, r = l + 1;
-        if (l < s->heap_count && before(s, s->heap[l], s->heap[m]))
-            m = l;
-        if (r < s->heap_count && before(s, s->heap[r], s->heap[m]))
-            m = r;
-        if (m == k)
-            return;
-        const uint32_t t = s->heap[k];
-        s->heap[k] = s->heap[m];
-        s->heap[m] = t;
-        k = m;
-    }
-}
-
-static void sift_up(struct tw_stream *s, uint32_t k)
-{
-    while (k > 0) {
-        const uint32_t parent = (k - 1) / 2;
-        if (!before(s, s->heap[k], s->heap[parent]))
-            return;
-        const uint32_t t = s->heap[k];
-        s->heap[k] = s->heap[parent];
-        s->heap[parent] = t;
-        k = parent;
-    }
-}
-
-/* Keeps only queued entries, and restores the order after priorities changed. */
-static void rebuild_heap(struct tw_stream *s)
-{
-    uint32_t n = 0;
-    for (uint32_t k = 0; k < s->heap_count; k++)
-        if (s->entries[s->heap[k]].jstate == J_QUEUED)
-            s->heap[n++] = s->heap[k];
-    /* An entry queued twice (queued, taken, queued again) keeps one place. */
-    s->heap_count = n;
-    for (uint32_t k = s->heap_count / 2; k-- > 0;)
-        sift_down(s, k);
-}
-
-/* The next queued entry, or UINT32_MAX. Entries taken by the render thread
- * stay in the heap until popped (lazy deletion). */
-static uint32_t pop_job(struct tw_stream *s)
-{
-    while (s->heap_count > 0) {
-        const uint32_t top = s->heap[0];
-        s->heap[0] = s->heap[--s->heap_count];
-        sift_down(s, 0);
-        if (s->entries[top].jstate == J_QUEUED)
-            return top;
-    }
-    return UINT32_MAX;
-}
-
-/* Files a finished job's result (lock held). */
-static void finish_job(struct tw_stream *s, uint32_t index, struct job_result *r)
-{
-    struct entry *e = &s->entries[index];
-    e->result = *r;
-    e->jstate = J_DONE;
-    if (tw_array_reserve_u32((void **)&s->finished, &s->finished_cap, s->finished_count + 1,
-                             sizeof(*s->finished), 64) == TW_OK) {
-        s->finished[s->finished_count++] = index;
-    } else {
-        /* Out of memory to file it: the entry is collected when it is
-         * waited on or invalidated; never lost. */
-    }
-    pthread_cond_broadcast(&s->pool->done);
-}
-
-static void pool_unref(struct pool *pool)
-{
-    pthread_mutex_lock(&pool->lock);
-    const bool last = --pool->refs == 0;
-    pthread_mutex_unlock(&pool->lock);
-    if (!last)
-        return;
-    pthread_cond_destroy(&pool->work);
-    pthread_cond_destroy(&pool->done);
-    pthread_mutex_destroy(&pool->lock);
-    free(pool);
-}
-
-static void *worker_main(void *arg)
-{
-    struct worker *wk = arg;
-    struct pool *pool = wk->pool;
-    pthread_mutex_lock(&pool->lock);
-    for (;;) {
-        uint32_t index = UINT32_MAX;
-        /* quit is set before any worker is left behind: wk->s is valid here. */
-        while (!pool->quit && (index = pop_job(wk->s)) == UINT32_MAX)
-            pthread_cond_wait(&pool->work, &pool->lock);
-        if (pool->quit)
-            break;
-        struct entry *e = &wk->s->entries[index];
-        e->jstate = J_RUNNING;
-        const struct tw_cell cell = e->cell;
-        wk->cell = cell;
-        wk->busy = true;
-        pthread_mutex_unlock(&pool->lock);
-        struct job_result r;
-        run_job(wk, cell, &r);
-        pthread_mutex_lock(&pool->lock);
-        wk->busy = false;
-        if (wk->left_behind) {
-            free_result(&r);
-            break;
-        }
-        finish_job(wk->s, index, &r);
-    }
-    const bool left_behind = wk->left_behind;
-    wk->stopped = true;
-    pthread_cond_broadcast(&pool->done);
-    pthread_mutex_unlock(&pool->lock);
-    if (left_behind) {
-        /* Detached by tw_stream_destroy(): what is left is this thread's. */
-        tw_bvh_builder_destroy(wk->builder);
-        free(wk);
-    }
-    /* Otherwise joined by tw_stream_destroy(), which frees wk. */
-    pool_unref(pool);
-    return NULL;
-}
 
 /* ---- entries (render thread) ----------------------------------------------------------- */
 
@@ -456,14 +104,7 @@ static struct entry *request(struct tw_stream *s, struct tw_cell cell, float dis
     e->priority = distance;
     e->seq = s->seq++;
     e->jstate = J_QUEUED;
-    if (tw_array_reserve_u32((void **)&s->heap, &s->heap_cap, s->heap_count + 1, sizeof(*s->heap),
-                             64) == TW_OK) {
-        s->heap[s->heap_count] = *index;
-        sift_up(s, s->heap_count++);
-        pthread_cond_signal(&s->pool->work);
-    }
-    /* Without room in the heap the job stays queued for the render thread
-     * to run when the tile is needed. */
+    (void)tw_stream_jobs_push(s, *index);
     pthread_mutex_unlock(&s->pool->lock);
     return e;
 }
@@ -471,7 +112,7 @@ static struct entry *request(struct tw_stream *s, struct tw_cell cell, float dis
 /* Frees what a ready tile holds. */
 static void drop_ready(struct tw_stream *s, struct entry *e)
 {
-    tw_renderer_release(s->renderer, e->content);
+    s->set.sink.release(s->set.sink.user, e->content);
     tw_bvh_destroy(e->bvh);
     tw_tileset_destroy(e->ts);
     e->bvh = NULL;
@@ -496,8 +137,7 @@ static int make_ready(struct tw_stream *s, uint32_t k)
     s->loading--;
     const double t0 = tw_clock_monotonic_ms();
     if (!r.err) {
-        const struct tw_bvh *bvhs[1] = {r.bvh};
-        r.err = tw_renderer_upload(s->renderer, r.ts, bvhs, &e->content, &e->bytes_gpu);
+        r.err = s->set.sink.upload(s->set.sink.user, r.ts, r.bvh, &e->content, &e->bytes_gpu);
         if (r.err)
             snprintf(r.message, sizeof(r.message), "cannot upload it: %s",
                      tw_error_to_str(r.err));
@@ -510,7 +150,7 @@ static int make_ready(struct tw_stream *s, uint32_t k)
                           (long long)e->cell.j, r.message,
                           r.err == TW_ERR_NOMEM ? " (further tiles refused for lack of memory "
                                                   "are counted, not logged)" : "");
-        free_result(&r);
+        tw_stream_job_free(&r);
         s->stats.refused++;
         s->totals.refused++;
         const struct tw_cell cell = e->cell;
@@ -563,7 +203,7 @@ static void collect(struct tw_stream *s)
         const uint32_t index = s->finished[k];
         struct entry *e = &s->entries[index];
         if (e->discard) {
-            free_result(&e->result);
+            tw_stream_job_free(&e->result);
             e->jstate = J_NONE;
             e->discard = false;
             e->next_free = s->free_head;
@@ -603,7 +243,7 @@ static void drop_entry(struct tw_stream *s, uint32_t k)
         for (uint32_t q = 0; q < s->finished_count && !later; q++)
             later = s->finished[q] == k;
         if (!later)
-            free_result(&e->result);
+            tw_stream_job_free(&e->result);
     }
     if (later)
         e->discard = true;
@@ -623,32 +263,15 @@ static void drop_entry(struct tw_stream *s, uint32_t k)
 
 /* ---- the API ---------------------------------------------------------------------------- */
 
-static int pool_create(struct pool **out)
+int tw_stream_create(const struct tw_stream_settings *set, struct tw_stream **out)
 {
-    struct pool *pool = calloc(1, sizeof(*pool));
-    if (!pool)
-        return TW_ERR_NOMEM;
-    pthread_condattr_t attr;
-    pthread_condattr_init(&attr);
-    pthread_condattr_setclock(&attr, CLOCK_MONOTONIC);
-    pthread_mutex_init(&pool->lock, NULL);
-    pthread_cond_init(&pool->work, NULL);
-    pthread_cond_init(&pool->done, &attr);
-    pthread_condattr_destroy(&attr);
-    pool->refs = 1;
-    *out = pool;
-    return TW_OK;
-}
-
-int tw_stream_create(const struct tw_stream_settings *set, struct tw_renderer *r,
-                     struct tw_stream **out)
-{
+    if (!set->sink.upload || !set->sink.release)
+        return TW_ERR_INVALID;
     struct tw_stream *s = calloc(1, sizeof(*s));
     if (!s)
         return TW_ERR_NOMEM;
     s->set = *set;
     s->p = set->provider;
-    s->renderer = r;
     s->free_head = UINT32_MAX;
     if (s->set.cancel_after == 0)
         s->set.cancel_after = 2;
@@ -656,53 +279,13 @@ int tw_stream_create(const struct tw_stream_settings *set, struct tw_renderer *r
         s->set.evict_after = 60;
     if (s->set.stop_ms == 0)
         s->set.stop_ms = TW_STREAM_STOP_MS;
-    int err = pool_create(&s->pool);
-    if (err) {
-        free(s);
-        return err;
-    }
-    err = tw_cell_map_create(&s->by_cell);
+    int err = tw_cell_map_create(&s->by_cell);
     if (!err)
         err = tw_cell_map_create(&s->generations);
     if (!err)
         err = tw_cell_map_create(&s->evicted);
-    s->inline_worker.s = s;
-    s->inline_worker.pool = s->pool;
-    s->inline_worker.provider = *s->p;
-    s->inline_worker.bvh = s->set.bvh;
     if (!err)
-        err = tw_bvh_builder_create_ex(&(struct tw_log){capture_log, &s->inline_worker}, 0,
-                                       &s->inline_worker.builder);
-    if (!err && set->workers > 0) {
-        s->workers = calloc(set->workers, sizeof(*s->workers));
-        if (!s->workers)
-            err = TW_ERR_NOMEM;
-    }
-    for (uint32_t k = 0; !err && k < set->workers; k++) {
-        struct worker *wk = calloc(1, sizeof(*wk));
-        if (!wk) {
-            err = TW_ERR_NOMEM;
-            break;
-        }
-        s->workers[k] = wk;
-        s->worker_count = k + 1;
-        *wk = s->inline_worker;
-        wk->builder = NULL;
-        /* One build thread each: the pool is the parallelism. */
-        err = tw_bvh_builder_create_ex(&(struct tw_log){capture_log, wk}, 1, &wk->builder);
-        if (err)
-            break;
-        pthread_mutex_lock(&s->pool->lock);
-        s->pool->refs++;
-        pthread_mutex_unlock(&s->pool->lock);
-        if (pthread_create(&wk->thread, NULL, worker_main, wk) != 0) {
-            pool_unref(s->pool);
-            tw_log_printf(set->log, TW_LOG_ERROR, "cannot start tile worker thread %u", k);
-            err = TW_ERR_NOMEM;
-            break;
-        }
-        wk->started = true;
-    }
+        err = tw_stream_workers_start(s);
     if (err) {
         tw_stream_destroy(s);
         return err;
@@ -711,60 +294,12 @@ int tw_stream_create(const struct tw_stream_settings *set, struct tw_renderer *r
     return TW_OK;
 }
 
-/* Stops the workers: waits up to stop_ms for those in a job, then leaves
- * the ones still in it behind (detached, owning their worker record).
- * Returns how many were left behind; their cells in *cells. */
-static uint32_t stop_workers(struct tw_stream *s, char *cells, size_t cells_size)
-{
-    struct pool *pool = s->pool;
-    struct timespec deadline;
-    clock_gettime(CLOCK_MONOTONIC, &deadline);
-    deadline.tv_sec += (time_t)(s->set.stop_ms / 1000u);
-    deadline.tv_nsec += (long)(s->set.stop_ms % 1000u) * 1000000L;
-    if (deadline.tv_nsec >= 1000000000L) {
-        deadline.tv_sec++;
-        deadline.tv_nsec -= 1000000000L;
-    }
-    uint32_t left = 0;
-    size_t at = 0;
-    cells[0] = '\0';
-    pthread_mutex_lock(&pool->lock);
-    pool->quit = true;
-    pthread_cond_broadcast(&pool->work);
-    for (bool timed_out = false;;) {
-        bool running = false;
-        for (uint32_t k = 0; k < s->worker_count && !running; k++)
-            running = s->workers[k] && s->workers[k]->started && !s->workers[k]->stopped;
-        if (!running || timed_out)
-            break;
-        timed_out = pthread_cond_timedwait(&pool->done, &pool->lock, &deadline) == ETIMEDOUT;
-    }
-    for (uint32_t k = 0; k < s->worker_count; k++) {
-        struct worker *wk = s->workers[k];
-        if (!wk || !wk->started || wk->stopped)
-            continue;
-        /* From here the thread owns wk; it takes the lock before it looks
-         * at anything, so it cannot free wk before this loop is done. */
-        wk->left_behind = true;
-        wk->s = NULL;
-        pthread_detach(wk->thread);
-        s->workers[k] = NULL;
-        if (wk->busy && at + 48 < cells_size)
-            at += (size_t)snprintf(cells + at, cells_size - at, "%s(%lld, %lld)",
-                                   left ? ", " : "", (long long)wk->cell.i,
-                                   (long long)wk->cell.j);
-        left++;
-    }
-    pthread_mutex_unlock(&pool->lock);
-    return left;
-}
-
 uint32_t tw_stream_destroy(struct tw_stream *s)
 {
     if (!s)
         return 0;
     char cells[256];
-    const uint32_t left = stop_workers(s, cells, sizeof(cells));
+    const uint32_t left = s->pool ? tw_stream_workers_stop(s, cells, sizeof(cells)) : 0;
     if (left > 0)
         tw_log_printf(s->set.log, TW_LOG_ERROR,
                       "provider %s: gave up after %.1f s waiting for %u tile worker%s still "
@@ -774,22 +309,11 @@ uint32_t tw_stream_destroy(struct tw_stream *s)
                       s->p->name ? s->p->name : "(unnamed)", (double)s->set.stop_ms / 1000.0,
                       left, left == 1 ? "" : "s", cells[0] ? " (cells " : "", cells,
                       cells[0] ? ")" : "");
-    for (uint32_t k = 0; k < s->worker_count; k++) {
-        struct worker *wk = s->workers[k];
-        if (!wk)
-            continue;
-        if (wk->started)
-            pthread_join(wk->thread, NULL);
-        tw_bvh_builder_destroy(wk->builder);
-        free(wk);
-    }
-    free(s->workers);
-    tw_bvh_builder_destroy(s->inline_worker.builder);
     for (uint32_t k = 0; k < s->entry_count; k++) {
         struct entry *e = &s->entries[k];
         if (e->rstate == R_READY)
             drop_ready(s, e);
-        free_result(&e->result);
+        tw_stream_job_free(&e->result);
     }
     free(s->entries);
     free(s->heap);
@@ -798,7 +322,8 @@ uint32_t tw_stream_destroy(struct tw_stream *s)
     tw_cell_map_destroy(s->by_cell);
     tw_cell_map_destroy(s->generations);
     tw_cell_map_destroy(s->evicted);
-    pool_unref(s->pool);
+    if (s->pool)
+        tw_stream_pool_unref(s->pool);
     free(s);
     return left;
 }
@@ -875,7 +400,7 @@ void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame)
         release_entry(s, k);
     }
     if (reorder)
-        rebuild_heap(s);
+        tw_stream_jobs_rebuild(s);
     pthread_mutex_unlock(&s->pool->lock);
 
     /* Tiles unseen for evict_after frames retire, as tile instances do;
@@ -923,7 +448,7 @@ static int complete_now(struct tw_stream *s, uint32_t k)
         const struct tw_cell cell = e->cell;
         pthread_mutex_unlock(&s->pool->lock);
         struct job_result r;
-        run_job(&s->inline_worker, cell, &r);
+        tw_stream_job_run(&s->inline_worker, cell, &r);
         pthread_mutex_lock(&s->pool->lock);
         e = &s->entries[k];
         e->result = r;

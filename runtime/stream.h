@@ -2,7 +2,9 @@
  * Tile streaming (DESIGN §12, §13): the tiles a provider makes for cells of
  * their own, generated, finished and given a BVH on a pool of worker
  * threads, uploaded on the render thread under a per-frame budget, held in
- * a byte-budgeted cache. Private to runtime/.
+ * a byte-budgeted cache. Private to runtime/. The stream knows no GL: a
+ * finished tile goes to a sink (the world's GPU store), which gives back
+ * the number the tile is drawn by.
  *
  * Threads: one render thread owns the stream and calls every function here;
  * workers only run provider->generate(), tw_tileset_finish() and the BVH
@@ -11,12 +13,24 @@
 #ifndef TW_RUNTIME_STREAM_H
 #define TW_RUNTIME_STREAM_H
 
-#include "runtime/renderer.h"
+#include "bvh/bvh.h"
 #include "cull/cull.h"
 #include "tileworld/runtime.h"
 
+/* Where finished tiles go, on the render thread. upload() takes a finished
+ * one-prototype tileset and its BVH (both stay the stream's) and returns
+ * the content number it is drawn by and the GPU bytes it holds, or an
+ * error (the tile is then refused); release() frees what upload() made. */
+struct tw_tile_sink {
+    int (*upload)(void *user, const struct tw_tileset *ts, const struct tw_bvh *bvh,
+                  uint32_t *content, uint64_t *bytes_gpu);
+    void (*release)(void *user, uint32_t content);
+    void *user;
+};
+
 struct tw_stream_settings {
     const struct tw_tile_provider *provider;   /* borrowed */
+    struct tw_tile_sink sink;
     struct tw_bvh_settings bvh;
     uint32_t workers;                /* threads; 0: none, every tile is made on the render thread */
     enum tw_stream_policy policy;
@@ -59,8 +73,7 @@ struct tw_stream;
 /* The default of tw_stream_settings.stop_ms. */
 #define TW_STREAM_STOP_MS 5000u
 
-int tw_stream_create(const struct tw_stream_settings *s, struct tw_renderer *r,
-                     struct tw_stream **out);
+int tw_stream_create(const struct tw_stream_settings *s, struct tw_stream **out);
 /* Stops the workers, frees every tile (GL buffers too: between enter and
  * leave). A worker still in a job after stop_ms is left behind: logged,
  * detached, and from then on it touches only what it owns (its copy of

@@ -237,6 +237,19 @@ static const char *out_of_range(const struct tw_world_settings *s)
     return NULL;
 }
 
+/* The stream's tile sink: the renderer's GPU store. */
+static int sink_upload(void *user, const struct tw_tileset *ts, const struct tw_bvh *bvh,
+                       uint32_t *content, uint64_t *bytes_gpu)
+{
+    const struct tw_bvh *bvhs[1] = {bvh};
+    return tw_renderer_upload(user, ts, bvhs, content, bytes_gpu);
+}
+
+static void sink_release(void *user, uint32_t content)
+{
+    tw_renderer_release(user, content);
+}
+
 int tw_world_create(const struct tw_world_settings *settings, struct tw_world **out)
 {
     return tw_world_create_tuned(settings, NULL, out);
@@ -309,7 +322,7 @@ int tw_world_create_tuned(const struct tw_world_settings *settings,
         w->shared_count = ts->prototype_count;
         w->bvhs = calloc(ts->prototype_count, sizeof(*w->bvhs));
         struct tw_bvh_builder *builder = NULL;
-        err = w->bvhs ? tw_bvh_builder_create(&w->s.log, &builder) : TW_ERR_NOMEM;
+        err = w->bvhs ? tw_bvh_builder_create(&w->s.log, 0, &builder) : TW_ERR_NOMEM;
         for (uint32_t p = 0; p < ts->prototype_count && !err; p++)
             err = tw_bvh_build(builder, &ts->prototypes[p], &w->t.bvh, &w->bvhs[p]);
         tw_bvh_builder_destroy(builder);
@@ -335,6 +348,7 @@ int tw_world_create_tuned(const struct tw_world_settings *settings,
     if (!err && w->provider.generate) {
         const struct tw_stream_settings ss = {
             .provider = &w->provider,
+            .sink = {sink_upload, sink_release, w->renderer},
             .bvh = w->t.bvh,
             .workers = w->s.workers,
             .policy = w->s.policy,
@@ -346,7 +360,7 @@ int tw_world_create_tuned(const struct tw_world_settings *settings,
             .stop_ms = w->s.shutdown_timeout_ms,
             .log = &w->s.log,
         };
-        err = tw_stream_create(&ss, w->renderer, &w->stream);
+        err = tw_stream_create(&ss, &w->stream);
         if (!err)
             tw_stream_set_events(w->stream, stream_event, w);
     }

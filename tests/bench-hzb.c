@@ -24,7 +24,7 @@
 #include <time.h>
 
 #include "tileworld/context.h"
-#include "cull/cull.h"
+#include "cull/cull-private.h"
 
 #define GL_FUNCS(X) \
     X(PFNGLGETERRORPROC, GetError) X(PFNGLGENFRAMEBUFFERSPROC, GenFramebuffers) \

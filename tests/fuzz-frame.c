@@ -253,7 +253,7 @@ out:
 static struct tw_bvh_builder *builder(void)
 {
     static struct tw_bvh_builder *b;
-    if (!b && tw_bvh_builder_create(NULL, &b))
+    if (!b && tw_bvh_builder_create(NULL, 0, &b))
         abort();
     return b;
 }

@@ -529,7 +529,7 @@ int main(void)
     struct log_capture cap = {0};
     struct tw_log log = {capture, &cap};
     struct tw_bvh_builder *b = NULL;
-    int r = tw_bvh_builder_create(&log, &b);
+    int r = tw_bvh_builder_create(&log, 0, &b);
     if (r != TW_OK) {
         fprintf(stderr, "test-bvh: cannot create a builder: %s (%s)\n", tw_error_to_str(r),
                 cap.last);

@@ -14,7 +14,7 @@
  * y in [0, 1], z in [10 + 2k, 11 + 2k], in front of an eye at (0, 0.5, 0)
  * looking along +z, so leaf order is front-to-back order.
  */
-#include "cull/cull.h"
+#include "cull/cull-private.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -389,7 +389,7 @@ struct world {
     struct tw_query_backend be;
     struct tree *tree;
     struct tw_chc_node_state state[MAX_TILES][MAX_NODES];
-    struct tw_chc_tile tile[MAX_TILES];   /* tile t at cell (0, t) */
+    struct tw_cull_instance tile[MAX_TILES];  /* tile t at cell (0, t) */
     uint32_t tile_count;
     float eye[3];
     float yaw;
@@ -434,7 +434,7 @@ static struct world *world_create(struct tree *t, const struct tw_chc_settings *
                                       fake_flush, NULL};
     w->tree = t;
     w->tile_count = 1;
-    w->tile[0] = (struct tw_chc_tile){
+    w->tile[0] = (struct tw_cull_instance){
         .cell = {0, 0}, .content = 3, .proto = &t->proto, .bvh = &t->bvh,
         .state = w->state[0], .offset = {0, 0, 0}, .tag = TAG_A,
     };

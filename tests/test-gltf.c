@@ -26,6 +26,7 @@
 #include "tests/captured-log.h"
 #include "tests/check.h"
 #include "tiles/tiles-internal.h"
+#include "tilesets/tilesets-private.h"
 
 #if defined(__SANITIZE_ADDRESS__)
 #define UNDER_ASAN 1
@@ -786,7 +787,7 @@ static int load_manifest_text(const char *dir, const char *text, struct captured
     const struct tw_log log = {capture, cap};
     cap->errors = 0;
     cap->last[0] = '\0';
-    const int err = tw_tilesets_load_manifest(path, &log, ts);
+    const int err = tw_tilesets_load_manifest(path, NULL, &log, ts);
     free(path);
     return err;
 }
@@ -1023,9 +1024,9 @@ static void test_manifests(void)
 
     struct captured_log cap2 = {"", 0};
     const struct tw_log log = {capture, &cap2};
-    err = tw_tilesets_load_manifest("/nonexistent/x.json", &log, &ts);
+    err = tw_tilesets_load_manifest("/nonexistent/x.json", NULL, &log, &ts);
     CHECK_MSG(err == TW_ERR_IO && cap2.errors == 1 && ts == NULL, "missing manifest");
-    err = tw_tilesets_load_manifest(tmp_root, &log, &ts);
+    err = tw_tilesets_load_manifest(tmp_root, NULL, &log, &ts);
     CHECK_MSG(err != 0 && ts == NULL, "a folder as a manifest");
 
     free(link);
@@ -1277,7 +1278,7 @@ static void test_shipped(const char *relative, uint32_t min_prototypes)
     struct captured_log cap = {"", 0};
     const struct tw_log log = {capture, &cap};
     struct tw_tileset *ts = NULL;
-    const int err = tw_tilesets_load_manifest(path, &log, &ts);
+    const int err = tw_tilesets_load_manifest(path, NULL, &log, &ts);
     CHECK_MSG(err == 0, "%s: %s", relative, cap.last);
     if (!err) {
         CHECK_MSG(ts->prototype_count >= min_prototypes, "%s: %u prototypes", relative,

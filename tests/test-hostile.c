@@ -622,7 +622,7 @@ static int load_manifest(const char *text, struct log_capture *cap, struct tw_ti
     write_file(path, text, strlen(text));
     const struct tw_log log = new_log(cap);
     *ts = NULL;
-    const int err = tw_tilesets_load_manifest(path, &log, ts);
+    const int err = tw_tilesets_load_manifest(path, NULL, &log, ts);
     free(path);
     return err;
 }
@@ -739,7 +739,7 @@ static void test_manifests(void)
     struct log_capture cap;
     const struct tw_log log = new_log(&cap);
     struct tw_tileset *ts = NULL;
-    int err = tw_tilesets_load_manifest(fifo, &log, &ts);
+    int err = tw_tilesets_load_manifest(fifo, NULL, &log, &ts);
     watchdog_disarm();
     char *want = format("%s: is not a regular file (a FIFO)", fifo);
     CHECK_MSG(err == TW_ERR_IO && ts == NULL && strcmp(cap.error, want) == 0, "FIFO manifest: %s",
@@ -748,7 +748,7 @@ static void test_manifests(void)
     unlink(fifo);
     free(fifo);
     /* ... and so is /dev/zero. */
-    err = tw_tilesets_load_manifest("/dev/zero", &log, &ts);
+    err = tw_tilesets_load_manifest("/dev/zero", NULL, &log, &ts);
     CHECK_MSG(err == TW_ERR_IO && strstr(cap.error, "/dev/zero: is not a regular file (a device)"),
               "/dev/zero: %s", cap.error);
     free(road);
@@ -1344,7 +1344,7 @@ static int load_manifest_in(const char *folder, const char *text,
     write_file(path, text, strlen(text));
     const struct tw_log log = new_log(cap);
     *ts = NULL;
-    const int err = tw_tilesets_load_manifest_ex(path, settings, &log, ts);
+    const int err = tw_tilesets_load_manifest(path, settings, &log, ts);
     free(path);
     return err;
 }
@@ -1498,7 +1498,7 @@ static void test_manifest_cost(void)
     /* A manifest that does not exist. */
     char *missing = format("%s/missing.json", folder);
     const struct tw_log log = new_log(&cap);
-    err = tw_tilesets_load_manifest(missing, &log, &ts);
+    err = tw_tilesets_load_manifest(missing, NULL, &log, &ts);
     char *want = format("%s: no such file", missing);
     CHECK_MSG(err == TW_ERR_IO && strcmp(cap.error, want) == 0, "missing manifest: \"%s\"",
               cap.error);

@@ -12,7 +12,7 @@
 #include <string.h>
 
 #include "bvh/bvh.h"
-#include "cull/cull.h"
+#include "cull/cull-private.h"
 #include "tests/check.h"
 #include "tiles/tiles-internal.h"
 
@@ -502,8 +502,8 @@ static void test_traversal(void)
     const struct tw_query_backend be = fake_backend(fk);
     struct tw_view v = view_for(&fk->depth);
     /* The eye at (10, 0.5, 0) tile-local: the tile placed at offset (-10, -0.5, 0). */
-    struct tw_hzb_tile t = {.cell = {0, 0}, .content = 0, .proto = &ts->prototypes[0],
-                            .bvh = bvh, .state = state, .offset = {-10.0f, -0.5f, 0.0f}};
+    struct tw_cull_instance t = {.cell = {0, 0}, .content = 0, .proto = &ts->prototypes[0],
+                                 .bvh = bvh, .state = state, .offset = {-10.0f, -0.5f, 0.0f}};
     /* Frame 1: a wall at 6 m covers the screen; the pyramid hides every cube
      * behind it, the three before it (the one at 5-6 m touches it) are drawn. */
     fill(&fk->depth, window_depth(&v, true, 6.0));

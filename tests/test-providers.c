@@ -19,6 +19,7 @@
 #include "tests/check.h"
 #include "tests/tileset-checks.h"
 #include "tiles/tiles-internal.h"
+#include "tilesets/tilesets-private.h"
 
 static const uint64_t seed = 1;
 
@@ -263,6 +264,11 @@ static void test_registry(void)
                   !tw_tilesets_is_provider("") && !tw_tilesets_is_provider(NULL) &&
                   !tw_tilesets_is_provider("city-gen2"),
               "is_provider takes a non-provider");
+    /* The names arrays list the registry's entries of each kind. */
+    for (const char *const *n = tw_tilesets_provider_names; *n; n++)
+        CHECK_MSG(tw_tilesets_is_provider(*n), "provider name \"%s\" is not a provider", *n);
+    for (const char *const *n = tw_tilesets_builtin_names; *n; n++)
+        CHECK_MSG(!tw_tilesets_is_provider(*n), "built-in tileset \"%s\" is a provider", *n);
 
     struct captured_log captured = {0};
     const struct tw_log log = {capture, &captured};

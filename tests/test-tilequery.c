@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cull/cull.h"
+#include "cull/cull-private.h"
 #include "tests/check.h"
 #include "tiles/tiles-internal.h"
 

@@ -12,6 +12,7 @@
 #include "tests/check.h"
 #include "tests/tileset-checks.h"
 #include "tiles/tiles-internal.h"
+#include "tilesets/tilesets-private.h"
 
 static double now_seconds(void)
 {

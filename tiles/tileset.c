@@ -9,6 +9,26 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* A tileset with what its builder keeps to itself: the capacities of its
+ * arrays and, once packed, the size of its one block. The public struct is
+ * first, so that a struct tw_tileset pointer is a pointer to this. */
+struct tileset {
+    struct tw_tileset ts;
+    uint32_t material_cap, mesh_cap, prototype_cap, part_cap;
+    uint32_t *instance_cap;       /* per prototype, prototype_cap of them; NULL once packed */
+    uint64_t packed_bytes;        /* the size of the block tw_tileset_pack() made; 0: not one */
+};
+
+static struct tileset *impl(struct tw_tileset *ts)
+{
+    return (struct tileset *)ts;
+}
+
+static const struct tileset *impl_const(const struct tw_tileset *ts)
+{
+    return (const struct tileset *)ts;
+}
+
 static int grow(void **array, uint32_t *cap, uint32_t need, size_t elem)
 {
     return tw_array_reserve_u32(array, cap, need, elem, 8);
@@ -18,9 +38,10 @@ int tw_tileset_create(const char *name, float w, float d, struct tw_tileset **ou
 {
     if (!out || !isfinite(w) || !isfinite(d) || !(w > 0.0f) || !(d > 0.0f))
         return TW_ERR_INVALID;
-    struct tw_tileset *ts = calloc(1, sizeof(*ts));
-    if (!ts)
+    struct tileset *t = calloc(1, sizeof(*t));
+    if (!t)
         return TW_ERR_NOMEM;
+    struct tw_tileset *ts = &t->ts;
     if (name)
         strncpy(ts->name, name, sizeof(ts->name) - 1);
     ts->footprint[0] = w;
@@ -34,8 +55,9 @@ void tw_tileset_destroy(struct tw_tileset *ts)
 {
     if (!ts)
         return;
-    if (ts->packed_bytes) {
-        tw_pack_free(ts, ts->packed_bytes); /* one block (tw_tileset_pack) */
+    struct tileset *t = impl(ts);
+    if (t->packed_bytes) {
+        tw_pack_free(t, t->packed_bytes); /* one block (tw_tileset_pack) */
         return;
     }
     for (uint32_t k = 0; k < ts->mesh_count; k++) {
@@ -52,7 +74,8 @@ void tw_tileset_destroy(struct tw_tileset *ts)
     free(ts->parts);
     free(ts->materials);
     free(ts->prototypes);
-    free(ts);
+    free(t->instance_cap);
+    free(t);
 }
 
 int tw_tileset_add_material(struct tw_tileset *ts, const float rgba[4])
@@ -62,7 +85,7 @@ int tw_tileset_add_material(struct tw_tileset *ts, const float rgba[4])
     for (int k = 0; k < 4; k++)
         if (!isfinite(rgba[k]))
             return TW_ERR_INVALID;
-    int err = grow((void **)&ts->materials, &ts->material_cap, ts->material_count + 1,
+    int err = grow((void **)&ts->materials, &impl(ts)->material_cap, ts->material_count + 1,
                    sizeof(*ts->materials));
     if (err)
         return err;
@@ -115,7 +138,7 @@ int tw_tileset_add_mesh(struct tw_tileset *ts, const float *positions,
     for (uint64_t k = 0; k < 3ull * triangle_count; k++)
         if (indices[k] >= vertex_count)
             return TW_ERR_INVALID;
-    int err = grow((void **)&ts->meshes, &ts->mesh_cap, ts->mesh_count + 1, sizeof(*ts->meshes));
+    int err = grow((void **)&ts->meshes, &impl(ts)->mesh_cap, ts->mesh_count + 1, sizeof(*ts->meshes));
     if (err)
         return err;
     struct tw_mesh m = {0};
@@ -149,10 +172,22 @@ int tw_tileset_add_prototype(struct tw_tileset *ts, const char *name, float weig
 {
     if (!ts || ts->finished || !isfinite(weight) || !(weight > 0.0f))
         return TW_ERR_INVALID;
-    int err = grow((void **)&ts->prototypes, &ts->prototype_cap, ts->prototype_count + 1,
+    struct tileset *t = impl(ts);
+    const uint32_t had = t->prototype_cap;
+    int err = grow((void **)&ts->prototypes, &t->prototype_cap, ts->prototype_count + 1,
                    sizeof(*ts->prototypes));
+    if (!err && t->prototype_cap != had) {
+        uint32_t *caps = realloc(t->instance_cap, sizeof(*caps) * t->prototype_cap);
+        if (caps) {
+            t->instance_cap = caps;
+            memset(caps + had, 0, sizeof(*caps) * (t->prototype_cap - had));
+        } else {
+            err = TW_ERR_NOMEM;     /* the prototypes' array grew: harmless */
+        }
+    }
     if (err)
         return err;
+    t->instance_cap[ts->prototype_count] = 0;
     struct tw_prototype *p = &ts->prototypes[ts->prototype_count];
     memset(p, 0, sizeof(*p));
     if (name)
@@ -184,7 +219,7 @@ int tw_tileset_add_instance(struct tw_tileset *ts, uint32_t proto, uint32_t mesh
         if (!(placed.min[k] >= -TW_TILES_MAX_COORD) || !(placed.max[k] <= TW_TILES_MAX_COORD))
             return TW_ERR_LIMIT;
     struct tw_prototype *p = &ts->prototypes[proto];
-    int err = grow((void **)&p->instances, &p->instance_cap, p->instance_count + 1,
+    int err = grow((void **)&p->instances, &impl(ts)->instance_cap[proto], p->instance_count + 1,
                    sizeof(*p->instances));
     if (err)
         return err;
@@ -534,7 +569,7 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
             return err;
     }
     for (uint32_t k = 0; k < ts->mesh_count; k++) {
-        err = split_mesh(ts, k, max_cluster_triangles, &ts->part_cap);
+        err = split_mesh(ts, k, max_cluster_triangles, &impl(ts)->part_cap);
         if (err)
             return err;
     }
@@ -598,7 +633,7 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles)
 static void *pack_into(const void *from, struct tw_pack_cursor *c)
 {
     const struct tw_tileset *ts = from;
-    struct tw_tileset *out = tw_pack_take(c, ts, sizeof(*ts));
+    struct tileset *out = tw_pack_take(c, impl_const(ts), sizeof(*out));
     struct tw_material *materials =
         tw_pack_take(c, ts->materials, sizeof(*ts->materials) * ts->material_count);
     struct tw_mesh *meshes = tw_pack_take(c, ts->meshes, sizeof(*ts->meshes) * ts->mesh_count);
@@ -627,22 +662,22 @@ static void *pack_into(const void *from, struct tw_pack_cursor *c)
             tw_pack_take(c, pr->clusters, sizeof(*pr->clusters) * pr->cluster_count);
         if (protos) {
             protos[p].instances = inst;
-            protos[p].instance_cap = pr->instance_count;
             protos[p].clusters = cl;
         }
     }
-    if (out) {
-        out->materials = materials;
-        out->material_cap = ts->material_count;
-        out->meshes = meshes;
-        out->mesh_cap = ts->mesh_count;
-        out->parts = parts;
-        out->part_cap = ts->part_count;
-        out->prototypes = protos;
-        out->prototype_cap = ts->prototype_count;
-        out->packed_bytes = c->used;
-    }
-    return out;
+    if (!out)
+        return NULL;
+    out->ts.materials = materials;
+    out->material_cap = ts->material_count;
+    out->ts.meshes = meshes;
+    out->mesh_cap = ts->mesh_count;
+    out->ts.parts = parts;
+    out->part_cap = ts->part_count;
+    out->ts.prototypes = protos;
+    out->prototype_cap = ts->prototype_count;
+    out->instance_cap = NULL;
+    out->packed_bytes = c->used;
+    return &out->ts;
 }
 
 int tw_tileset_pack(struct tw_tileset **ts)
@@ -670,18 +705,20 @@ uint64_t tw_tileset_bytes(const struct tw_tileset *ts)
 {
     if (!ts)
         return 0;
-    if (ts->packed_bytes)
-        return ts->packed_bytes;
-    uint64_t bytes = sizeof(*ts) + (uint64_t)sizeof(*ts->materials) * ts->material_cap +
-                     (uint64_t)sizeof(*ts->meshes) * ts->mesh_cap +
-                     (uint64_t)sizeof(*ts->parts) * ts->part_cap +
-                     (uint64_t)sizeof(*ts->prototypes) * ts->prototype_cap;
+    const struct tileset *t = impl_const(ts);
+    if (t->packed_bytes)
+        return t->packed_bytes;
+    uint64_t bytes = sizeof(*t) + (uint64_t)sizeof(*ts->materials) * t->material_cap +
+                     (uint64_t)sizeof(*ts->meshes) * t->mesh_cap +
+                     (uint64_t)sizeof(*ts->parts) * t->part_cap +
+                     (uint64_t)(sizeof(*ts->prototypes) + sizeof(*t->instance_cap)) *
+                         t->prototype_cap;
     for (uint32_t k = 0; k < ts->mesh_count; k++)
         bytes += (uint64_t)ts->meshes[k].vertex_count * (6u * sizeof(float) +
                                                          (ts->meshes[k].colors ? 4u : 0u)) +
                  (uint64_t)ts->meshes[k].triangle_count * 3u * sizeof(uint32_t);
     for (uint32_t p = 0; p < ts->prototype_count; p++)
-        bytes += (uint64_t)sizeof(struct tw_instance) * ts->prototypes[p].instance_cap +
+        bytes += (uint64_t)sizeof(struct tw_instance) * t->instance_cap[p] +
                  (uint64_t)sizeof(struct tw_cluster) * ts->prototypes[p].cluster_count;
     return bytes;
 }

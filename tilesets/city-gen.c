@@ -2,7 +2,7 @@
  * (tilesets.h, DESIGN.md §10, §12).
  *
  * A cell's tile is what one prototype of the city tileset is: the city's
- * block generator (city.c) fills a tileset of one prototype with the
+ * block generator (city-layout.c) fills a tileset of one prototype with the
  * streets along every border and one block, its kind drawn in the shares
  * that selection gives the city's default prototypes, and its stream (the
  * footprints, heights, facades and lot layout) from the cell's hash. So

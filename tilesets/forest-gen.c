@@ -3,8 +3,8 @@
  *
  * A cell's tile is what one prototype of the forest tileset is: the floor,
  * the trail along every border and one stand over the whole tile, made by
- * the forest's stand generator (forest.c). From the cell's hash come the
- * stand's kind (in the shares that selection gives the forest's default
+ * the forest's stand generator (forest-layout.c). From the cell's hash come
+ * the stand's kind (in the shares that selection gives the forest's default
  * prototypes), its species mix (the kind's, each weight varied and now and
  * then one species brought forward), its tree count and every placement.
  * The tree count is scaled by the kind's expected triangles per tree over

@@ -1,6 +1,6 @@
 /*
  * A first pass over a glTF document's JSON text, before tinygltf parses it
- * (private to tilesets/, used by gltf.c). It allocates nothing but what it
+ * (private to tilesets/, used by gltf-import.c and gltf-io.c). It allocates nothing but what it
  * returns, recurses at most max_depth levels, and gives what the importer
  * must know before it lets tinygltf loose:
  *

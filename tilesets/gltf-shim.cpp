@@ -1,6 +1,6 @@
 // The tinygltf shim (gltf-shim.h): the project's only C++. It parses with
 // tinygltf, copies the raw document into plain C structs and catches every
-// exception; all validation happens in C, in gltf.c.
+// exception; all validation happens in C, in gltf-*.c.
 //
 // tinygltf is compiled here (Debian ships the header) without image decoding,
 // without image writing, without external images and without its own file
@@ -106,7 +106,7 @@ bool write_whole_file(std::string *err, const std::string &,
 }
 
 // Images are never decoded here. The bytes of a data: URI are kept as they
-// are (gltf.c decodes them); bufferView images are left in their view, whose
+// are (gltf-io.c decodes them); bufferView images are left in their view, whose
 // range tinygltf has not checked, so their bytes are not touched.
 bool keep_image(tinygltf::Image *image, const int, std::string *, std::string *, int, int,
                 const unsigned char *bytes, int size, void *)

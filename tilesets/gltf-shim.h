@@ -1,8 +1,8 @@
 /*
- * The C face of the tinygltf shim, private to tilesets/ (gltf.c is its only
- * user). tinygltf parses a glTF 2.0 document; the shim hands back its raw
+ * The C face of the tinygltf shim, private to tilesets/ (the importer,
+ * gltf-*.c, is its only user). tinygltf parses a glTF 2.0 document; the shim hands back its raw
  * content as plain C data and nothing else: it validates nothing beyond what
- * tinygltf itself refuses, so that every check lives in C (gltf.c).
+ * tinygltf itself refuses, so that every check lives in C (gltf-*.c).
  *
  * Every C++ exception (std::bad_alloc included) is caught inside the shim and
  * becomes an error code; nothing throws across this header. No global state:

@@ -1,5 +1,6 @@
-/* The hybrid tileset (tilesets.h, DESIGN.md §10): city blocks mixed with
- * parks and wooded blocks.
+/* The hybrid tileset (tilesets-private.h; a host gets it through
+ * tw_tilesets_builtin(), DESIGN.md §10): city blocks mixed with parks and
+ * wooded blocks.
  *
  * Nothing here generates geometry: the city's block generator builds the
  * city blocks and the parks, and a wooded block is the city's streets round

@@ -1,9 +1,10 @@
 /*
  * Private to tilesets/: what the procedural generators (city, forest,
- * hybrid and the providers over them) share beyond the mesh builder: the
- * subdivided icosahedron of their blobs, the checks of their callers'
- * arguments and settings, and the hand-over of a generated tileset. Not
- * installed, not public API.
+ * hybrid and the providers over them) share beyond the mesh builder and
+ * the shapes: the checks of their callers' arguments and settings, and the
+ * hand-over of a generated tileset. procedural.c also holds what every
+ * built-in provider shares (tilesets-private.h). Not installed, not public
+ * API.
  */
 #ifndef TW_TILESETS_PROCEDURAL_H
 #define TW_TILESETS_PROCEDURAL_H
@@ -13,15 +14,11 @@
 
 #include "tileworld/tiles.h"
 
-/* One triangle of a subdivided icosahedron: corners v, points on its
- * faces (not normalised), and their distances len from its centre, so
- * that v[k] / len[k] lies on the unit sphere. */
-typedef void (*tw_icosphere_triangle_fn)(void *user, const float v[3][3], const float len[3]);
-
-/* Calls triangle(user, ...) for each of the 20 n^2 triangles of an
- * icosahedron with every face split into n x n, face by face, always in
- * the same order. */
-void tw_icosphere_each(uint32_t n, tw_icosphere_triangle_fn triangle, void *user);
+/* x clamped to [lo, hi]. */
+static inline float tw_clampf(float x, float lo, float hi)
+{
+    return x < lo ? lo : x > hi ? hi : x;
+}
 
 /* False, with a message naming who ("city", "forest-gen", ...), when a
  * caller's out pointer is NULL: the caller's bug. */

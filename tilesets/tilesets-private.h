@@ -1,11 +1,13 @@
 /*
  * tilesets-private.h: generator internals shared between the tilesets'
- * translation units. Not public API: nothing outside tilesets/ includes it.
+ * translation units, and the library-internal functions that the
+ * programs (tools/) and the tests call. Not public API, not installed.
  *
- * The hybrid tileset (hybrid.c) is made of the city's blocks (city.c) and
- * the forest's stands (forest.c). Both generators keep their state in an
- * opaque object that adds its materials and shared meshes to a tileset the
- * caller created, and then adds one block or stand to a prototype per call.
+ * The hybrid tileset (hybrid.c) is made of the city's blocks (city-layout.c)
+ * and the forest's stands (forest-layout.c). Both generators keep their
+ * state in an opaque object that adds its materials and shared meshes to a
+ * tileset the caller created, and then adds one block or stand to a
+ * prototype per call.
  * The tileset stays owned by the caller; the generator objects borrow it:
  * it must outlive every call on them but destroy, which never touches it.
  */
@@ -17,7 +19,7 @@
 
 #include "tileworld/tilesets.h"
 
-/* ---- the city's block generator (city.c) ---------------------------------------- */
+/* ---- the city's block generator (city.c, city-layout.c) ------------------------- */
 
 /* Validates in (NULL: all defaults) and fills every field of out, defaults
  * resolved. Messages name who ("city", "hybrid") as the generator the
@@ -67,7 +69,7 @@ int tw_city_blocks_add_streets(struct tw_city_blocks *blocks, uint32_t proto,
 void tw_city_blocks_lot_area(const struct tw_city_blocks *blocks, float area[4],
                              float *ground_y);
 
-/* ---- the forest's stand generator (forest.c) -------------------------------------- */
+/* ---- the forest's stand generator (forest.c, forest-layout.c) --------------------- */
 
 /* Validates in (NULL: all defaults) and fills every field of out; messages
  * name who. */
@@ -176,7 +178,7 @@ int tw_forest_stands_add_varied(struct tw_forest_stands *stands, uint32_t proto,
  * placements use. A bound from the generator's own limits. */
 float tw_forest_stands_max_top(const struct tw_forest_stands *stands);
 
-/* ---- built-in tile providers (providers.c, city-gen.c, forest-gen.c) ------------- */
+/* ---- built-in tile providers (procedural.c, city-gen.c, forest-gen.c) ------------ */
 
 /* What every built-in provider starts with; provider.user points to the
  * object itself. */
@@ -199,7 +201,57 @@ void tw_provider_init(struct tw_tile_provider *p, const char *name, float footpr
 int tw_provider_check_tile(const struct tw_tile_provider *provider, const struct tw_log *log,
                            struct tw_cell cell, const struct tw_tileset *ts);
 
-/* ---- glTF import from an open file (gltf.c) ---------------------------------------------- */
+/* city-gen with settings (NULL: the city's defaults; prototypes is ignored):
+ * each cell one city block as tw_tilesets_city() makes them, its kind
+ * (dense, tallest, low-rise, park, in the shares of the city's default
+ * prototypes), footprints, heights, facades and lot layout drawn from
+ * tw_tiles_hash(seed, i, j). bound: x, z over the footprint, y from 0 to
+ * max_height + 0.25 m. The caller owns *out (tw_tilesets_provider_create()). */
+int tw_tilesets_provider_create_city(uint64_t seed, const struct tw_city_settings *settings,
+                                     const struct tw_log *log,
+                                     struct tw_tilesets_provider **out);
+
+/* forest-gen with settings (NULL: the forest's defaults; prototypes is
+ * ignored): each cell one stand over the whole tile, its kind (in the
+ * shares of the forest's default prototypes), species mix, tree count and
+ * placement drawn from the cell's hash; its trees, rocks and undergrowth
+ * from one of a few template sets drawn from seed (copied into the cell's
+ * tileset). The floor and the trail along every border as in
+ * tw_tilesets_forest(). bound: x, z over the footprint, y from 0 to the
+ * tallest template mesh times the largest scale a placement uses. */
+int tw_tilesets_provider_create_forest(uint64_t seed, const struct tw_forest_settings *settings,
+                                       const struct tw_log *log,
+                                       struct tw_tilesets_provider **out);
+
+/* Whether name is one of tw_tilesets_provider_names (false for NULL):
+ * registry.c's table. */
+bool tw_tilesets_is_provider(const char *name);
+
+/* ---- the hybrid tileset (hybrid.c) ---------------------------------------------- */
+
+/* Settings of the hybrid city. Zero-initialisable: zero fields take the
+ * defaults of tw_tilesets_hybrid_default_settings(). */
+struct tw_hybrid_settings {
+    uint32_t prototypes;        /* default 12, at least 8 */
+    float footprint;            /* as the city's; default 80 */
+    float street_width;         /* as the city's; default 14 */
+    float max_height;           /* as the city's; default 90 */
+    float green_share;          /* share of prototypes that are parks or wooded
+                                 * blocks; default 0.4, in (0, 1) */
+    uint32_t max_cluster_triangles; /* default 2048 */
+};
+
+void tw_tilesets_hybrid_default_settings(struct tw_hybrid_settings *s);
+
+/* Generates the hybrid tileset for seed: the city's blocks (built by the
+ * city's generator) mixed with parks and wooded blocks (the forest's stands
+ * inside the block). Streets run along every tile border in every
+ * prototype, as in the city. Deterministic; settings may be NULL. The
+ * caller owns *out. A host gets it through tw_tilesets_builtin("hybrid"). */
+int tw_tilesets_hybrid(uint64_t seed, const struct tw_hybrid_settings *settings,
+                       const struct tw_log *log, struct tw_tileset **out);
+
+/* ---- glTF import from an open file (gltf-import.c) ---------------------------------------------- */
 
 /* What several imports share (a manifest's): the bytes they may read and
  * decode together, and the external images they decoded, by file identity,
@@ -214,7 +266,7 @@ struct tw_gltf_shared {
     uint64_t max_decoded_bytes;     /* 0: TW_GLTF_MAX_DECODED_BYTES */
     uint64_t bytes_read;            /* so far */
     uint64_t decoded_bytes;         /* so far */
-    struct tw_gltf_image_cache *images; /* gltf.c's */
+    struct tw_gltf_image_cache *images; /* gltf-io.c's */
 };
 
 /* Frees what the imports left in shared (their decoded images); the scenes
@@ -231,5 +283,12 @@ void tw_gltf_shared_finish(struct tw_gltf_shared *shared);
 int tw_gltf_import_fd(int fd, int dir_fd, const char *name,
                       const struct tw_gltf_settings *settings, struct tw_gltf_shared *shared,
                       const struct tw_log *log, struct tw_gltf_scene **out);
+
+/* The placement "scale uniformly by scale, turn by yaw_degrees about +y
+ * (0 keeps +z, 90 turns +z towards +x, as camera yaw in DESIGN.md §9), then
+ * move to position" (NULL: the origin) as a row-major 3x4 transform, for
+ * tw_gltf_place(). */
+void tw_gltf_placement(const float position[3], float yaw_degrees, float scale,
+                       float out[12]);
 
 #endif

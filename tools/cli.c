@@ -5,6 +5,7 @@
 #define _XOPEN_SOURCE 700
 
 #include "tiles/tiles-internal.h"
+#include "tilesets/tilesets-private.h"
 #include "tools/cli.h"
 
 #include <errno.h>
@@ -336,7 +337,7 @@ struct tw_tileset *tw_cli_load_tileset(const struct tw_cli *c, uint32_t cluster_
                     "providers: city-gen, forest-gen; or a manifest file)", c->tileset);
     /* A manifest: its loader logs one line naming the file, the place and the reason. */
     const struct tw_manifest_settings ms = {.max_cluster_triangles = cluster_triangles};
-    const int err = tw_tilesets_load_manifest_ex(c->tileset, &ms, log, &ts);
+    const int err = tw_tilesets_load_manifest(c->tileset, &ms, log, &ts);
     if (err)
         exit(err == TW_ERR_NOMEM ? 1 : TW_CLI_EXIT_USAGE);
     return ts;

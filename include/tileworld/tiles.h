@@ -170,7 +170,6 @@ struct tw_prototype {
     uint32_t cluster_count;
     uint64_t triangle_count;
     struct tw_box box;            /* tile-local */
-    uint32_t instance_cap;        /* private */
 };
 
 /* A tileset: built with the calls below, then frozen by tw_tileset_finish().
@@ -194,9 +193,6 @@ struct tw_tileset {
                                      fewer triangles are merged (0: the default,
                                      TW_TILESET_MERGE_TRIANGLES; 1: none is) */
     bool finished;
-
-    uint32_t material_cap, mesh_cap, prototype_cap, part_cap; /* private */
-    uint64_t packed_bytes;        /* private: the size of the block tw_tileset_pack() made */
 };
 
 /* Creates an empty tileset with footprint w x d metres (both > 0 and finite).

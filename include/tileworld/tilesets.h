@@ -35,12 +35,17 @@ void tw_tilesets_city_default_settings(struct tw_city_settings *s);
 int tw_tilesets_city(uint64_t seed, const struct tw_city_settings *settings,
                      const struct tw_log *log, struct tw_tileset **out);
 
-/* Names of the built-in tilesets, NULL-terminated. */
+/* Names of the built-in tilesets, NULL-terminated: "city", "forest",
+ * "hybrid". */
 extern const char *const tw_tilesets_builtin_names[];
 
-/* Builds the built-in tileset called name ("city", ...) with default
- * settings but max_cluster_triangles (0: the generator's default). Returns
- * TW_ERR_INVALID for an unknown name. */
+/* Builds the built-in tileset called name with default settings but
+ * max_cluster_triangles (0: the generator's default): "city"
+ * (tw_tilesets_city()), "forest" (tw_tilesets_forest()) or "hybrid", the
+ * city's blocks mixed with parks and wooded blocks (the forest's stands
+ * inside the block), streets along every tile border as in the city;
+ * deterministic like them. Returns TW_ERR_INVALID, with a message, for an
+ * unknown name. The caller owns *out. */
 int tw_tilesets_builtin(const char *name, uint64_t seed,
                         uint32_t max_cluster_triangles,
                         const struct tw_log *log, struct tw_tileset **out);
@@ -171,12 +176,6 @@ int tw_gltf_bind(const struct tw_gltf_scene *scene, struct tw_tileset *ts,
 int tw_gltf_place(const struct tw_gltf_scene *scene, const struct tw_gltf_binding *binding,
                   struct tw_tileset *ts, uint32_t proto, const float placement[12]);
 
-/* The placement "scale uniformly by scale, turn by yaw_degrees about +y
- * (0 keeps +z, 90 turns +z towards +x, as camera yaw in DESIGN.md §9), then
- * move to position" as a row-major 3x4 transform. */
-void tw_gltf_placement(const float position[3], float yaw_degrees, float scale,
-                       float out[12]);
-
 /* Tileset manifests: a JSON file that composes glTF files into prototypes.
  * The format is documented at the top of tilesets/manifest.c (and in the
  * README). */
@@ -187,23 +186,20 @@ struct tw_manifest_settings {
 
 /* Loads the manifest at path (a regular file: a FIFO is refused, never
  * waited on) and every glTF file it names (paths relative to the manifest's
- * folder, which they may not leave: opened beneath it) into a finished
- * tileset whose per-frame cost is bounded (tiles.h: weights and scales in
- * [1e-6, 1e6], content within reach of its tile and at most
- * TW_TILES_MAX_SPAN footprints wide, at most TW_TILES_MAX_CELLS_IN_VIEW cells
- * in view at the default view distance). Its glTF files are imported once
- * each, and together they may read at most 4 times gltf.max_file_bytes and
- * decode at most 256 MiB of images (an image file named by several is
- * decoded once); a prototype may draw at most gltf.max_triangles triangles,
- * the tileset's prototypes together 10 times that. On bad input returns a
- * negative tw_error and logs one error line "<manifest>: <place, e.g.
- * prototypes[2].objects[0].gltf>: <reason>" ("<manifest>: no such file" for
- * a missing one). The caller owns *out. */
-int tw_tilesets_load_manifest(const char *path, const struct tw_log *log,
-                              struct tw_tileset **out);
-/* The same with settings (NULL: defaults). */
-int tw_tilesets_load_manifest_ex(const char *path, const struct tw_manifest_settings *settings,
-                                 const struct tw_log *log, struct tw_tileset **out);
+ * folder, which they may not leave: opened beneath it), with settings (NULL:
+ * defaults), into a finished tileset whose per-frame cost is bounded
+ * (tiles.h: weights and scales in [1e-6, 1e6], content within reach of its
+ * tile and at most TW_TILES_MAX_SPAN footprints wide, at most
+ * TW_TILES_MAX_CELLS_IN_VIEW cells in view at the default view distance).
+ * Its glTF files are imported once each, and together they may read at
+ * most 4 times gltf.max_file_bytes and decode at most 256 MiB of images (an
+ * image file named by several is decoded once); a prototype may draw at most
+ * gltf.max_triangles triangles, the tileset's prototypes together 10 times
+ * that. On bad input returns a negative tw_error and logs one error line
+ * "<manifest>: <place, e.g. prototypes[2].objects[0].gltf>: <reason>"
+ * ("<manifest>: no such file" for a missing one). The caller owns *out. */
+int tw_tilesets_load_manifest(const char *path, const struct tw_manifest_settings *settings,
+                              const struct tw_log *log, struct tw_tileset **out);
 /* The same from size bytes of JSON at text; name is used in messages and
  * default names, base_dir is the folder that file names resolve in. */
 int tw_tilesets_parse_manifest(const char *text, size_t size, const char *name,
@@ -211,7 +207,7 @@ int tw_tilesets_parse_manifest(const char *text, size_t size, const char *name,
                                const struct tw_manifest_settings *settings,
                                const struct tw_log *log, struct tw_tileset **out);
 
-/* ---- forest and hybrid ---- */
+/* ---- forest ---- */
 
 /* Settings of the procedural forest. Zero-initialisable: zero fields take
  * the defaults of tw_tilesets_forest_default_settings(). */
@@ -239,28 +235,6 @@ void tw_tilesets_forest_default_settings(struct tw_forest_settings *s);
 int tw_tilesets_forest(uint64_t seed, const struct tw_forest_settings *settings,
                        const struct tw_log *log, struct tw_tileset **out);
 
-/* Settings of the hybrid city. Zero-initialisable: zero fields take the
- * defaults of tw_tilesets_hybrid_default_settings(). */
-struct tw_hybrid_settings {
-    uint32_t prototypes;        /* default 12, at least 8 */
-    float footprint;            /* as the city's; default 80 */
-    float street_width;         /* as the city's; default 14 */
-    float max_height;           /* as the city's; default 90 */
-    float green_share;          /* share of prototypes that are parks or wooded
-                                 * blocks; default 0.4, in (0, 1) */
-    uint32_t max_cluster_triangles; /* default 2048 */
-};
-
-void tw_tilesets_hybrid_default_settings(struct tw_hybrid_settings *s);
-
-/* Generates the hybrid tileset for seed: the city's blocks (built by the
- * city's generator) mixed with parks and wooded blocks (the forest's stands
- * inside the block). Streets run along every tile border in every
- * prototype, as in the city. Deterministic; settings may be NULL. The
- * caller owns *out. */
-int tw_tilesets_hybrid(uint64_t seed, const struct tw_hybrid_settings *settings,
-                       const struct tw_log *log, struct tw_tileset **out);
-
 /* ---- tile providers: city-gen and forest-gen (DESIGN.md §12) ---- */
 
 /* A built-in tile provider: every cell's content generated from the cell's
@@ -274,12 +248,16 @@ struct tw_tilesets_provider;
 /* Names of the built-in providers, NULL-terminated: "city-gen", "forest-gen". */
 extern const char *const tw_tilesets_provider_names[];
 
-/* Whether name is one of tw_tilesets_provider_names (false for NULL). */
-bool tw_tilesets_is_provider(const char *name);
-
 /* Creates the built-in provider called name for seed, with default settings
- * but max_cluster_triangles (0: 2048). Returns TW_ERR_INVALID, with a
- * message, for an unknown name. The caller owns *out and must keep it
+ * but max_cluster_triangles (0: 2048). city-gen: each cell one city block
+ * as tw_tilesets_city() makes them, its kind (dense, tallest, low-rise,
+ * park, in the shares of the city's default prototypes), footprints,
+ * heights, facades and lot layout drawn from tw_tiles_hash(seed, i, j).
+ * forest-gen: each cell one stand over the whole tile, its kind, species
+ * mix, tree count and placement drawn from the cell's hash, with the floor
+ * and the trail along every border of tw_tilesets_forest(). Returns
+ * TW_ERR_INVALID, with a message, for a name not in
+ * tw_tilesets_provider_names. The caller owns *out and must keep it
  * until every world using its tw_tile_provider is gone. log (may be NULL)
  * is copied: its callback must outlive the provider and may be called from
  * generate(), on a worker thread, when a world hands it a wrong tileset
@@ -288,28 +266,6 @@ int tw_tilesets_provider_create(const char *name, uint64_t seed,
                                 uint32_t max_cluster_triangles,
                                 const struct tw_log *log,
                                 struct tw_tilesets_provider **out);
-
-/* city-gen with settings (NULL: the city's defaults; prototypes is ignored):
- * each cell one city block as tw_tilesets_city() makes them, its kind
- * (dense, tallest, low-rise, park, in the shares of the city's default
- * prototypes), footprints, heights, facades and lot layout drawn from
- * tw_tiles_hash(seed, i, j). bound: x, z over the footprint, y from 0 to
- * max_height + 0.25 m. */
-int tw_tilesets_provider_create_city(uint64_t seed, const struct tw_city_settings *settings,
-                                     const struct tw_log *log,
-                                     struct tw_tilesets_provider **out);
-
-/* forest-gen with settings (NULL: the forest's defaults; prototypes is
- * ignored): each cell one stand over the whole tile, its kind (in the
- * shares of the forest's default prototypes), species mix, tree count and
- * placement drawn from the cell's hash; its trees, rocks and undergrowth
- * from one of a few template sets drawn from seed (copied into the cell's
- * tileset). The floor and the trail along every border as in
- * tw_tilesets_forest(). bound: x, z over the footprint, y from 0 to the
- * tallest template mesh times the largest scale a placement uses. */
-int tw_tilesets_provider_create_forest(uint64_t seed, const struct tw_forest_settings *settings,
-                                       const struct tw_log *log,
-                                       struct tw_tilesets_provider **out);
 
 /* The provider to hand to a world: borrowed from p, valid until p is
  * destroyed. Its generate() may run on any number of threads at once (it

@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include "tiles/tiles-internal.h"
+#include "tilesets/tilesets-private.h"
 #include "tools/tileworld/bench.h"
 #include "tools/tileworld/buildinfo.h"
 #include "tools/tileworld/glcontext.h"
@@ -632,7 +633,7 @@ static int info(const struct options *o)
     }
     struct tw_tileset *ts = shown.tileset;
     struct tw_bvh_builder *b = NULL;
-    int err = tw_bvh_builder_create(&log, &b);
+    int err = tw_bvh_builder_create(&log, 0, &b);
     if (err) {
         tw_tileset_destroy(ts);
         fprintf(stderr, "tileworld: cannot start Embree: %s\n", tw_error_to_str(err));

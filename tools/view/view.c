@@ -12,7 +12,6 @@
  */
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
-#include <GL/glcorearb.h>
 #include <stb/stb_easy_font.h>
 
 #include <errno.h>
@@ -23,6 +22,8 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "runtime/gl.h"
+#include "runtime/programs.h"
 #include "tiles/tiles-internal.h"
 #include "tools/cli.h"
 #include "tools/outfile.h"
@@ -150,51 +151,8 @@ static void parse_options(int argc, char **argv, struct options *o)
 
 /* ---- the overlay: text (stb_easy_font) and flat shapes as triangles ------------ */
 
-/* The viewer's own GL entry points, from glfwGetProcAddress: the runtime's
- * table is private to the library. */
-#define VIEW_GL_FUNCTIONS(X) \
-    X(PFNGLGETERRORPROC, GetError) \
-    X(PFNGLVIEWPORTPROC, Viewport) \
-    X(PFNGLENABLEPROC, Enable) \
-    X(PFNGLDISABLEPROC, Disable) \
-    X(PFNGLCOLORMASKPROC, ColorMask) \
-    X(PFNGLBLENDFUNCPROC, BlendFunc) \
-    X(PFNGLSCISSORPROC, Scissor) \
-    X(PFNGLREADPIXELSPROC, ReadPixels) \
-    X(PFNGLREADBUFFERPROC, ReadBuffer) \
-    X(PFNGLPIXELSTOREIPROC, PixelStorei) \
-    X(PFNGLBINDFRAMEBUFFERPROC, BindFramebuffer) \
-    X(PFNGLGENBUFFERSPROC, GenBuffers) \
-    X(PFNGLDELETEBUFFERSPROC, DeleteBuffers) \
-    X(PFNGLBINDBUFFERPROC, BindBuffer) \
-    X(PFNGLBUFFERDATAPROC, BufferData) \
-    X(PFNGLGENVERTEXARRAYSPROC, GenVertexArrays) \
-    X(PFNGLDELETEVERTEXARRAYSPROC, DeleteVertexArrays) \
-    X(PFNGLBINDVERTEXARRAYPROC, BindVertexArray) \
-    X(PFNGLENABLEVERTEXATTRIBARRAYPROC, EnableVertexAttribArray) \
-    X(PFNGLVERTEXATTRIBPOINTERPROC, VertexAttribPointer) \
-    X(PFNGLCREATESHADERPROC, CreateShader) \
-    X(PFNGLSHADERSOURCEPROC, ShaderSource) \
-    X(PFNGLCOMPILESHADERPROC, CompileShader) \
-    X(PFNGLGETSHADERIVPROC, GetShaderiv) \
-    X(PFNGLGETSHADERINFOLOGPROC, GetShaderInfoLog) \
-    X(PFNGLDELETESHADERPROC, DeleteShader) \
-    X(PFNGLCREATEPROGRAMPROC, CreateProgram) \
-    X(PFNGLATTACHSHADERPROC, AttachShader) \
-    X(PFNGLLINKPROGRAMPROC, LinkProgram) \
-    X(PFNGLGETPROGRAMIVPROC, GetProgramiv) \
-    X(PFNGLDELETEPROGRAMPROC, DeleteProgram) \
-    X(PFNGLUSEPROGRAMPROC, UseProgram) \
-    X(PFNGLGETUNIFORMLOCATIONPROC, GetUniformLocation) \
-    X(PFNGLUNIFORM2FVPROC, Uniform2fv) \
-    X(PFNGLDRAWARRAYSPROC, DrawArrays)
-
-struct view_gl {
-#define VIEW_GL_MEMBER(type, name) type name;
-    VIEW_GL_FUNCTIONS(VIEW_GL_MEMBER)
-#undef VIEW_GL_MEMBER
-};
-
+/* The library's GL loader (runtime/gl.h) takes the window's entry points
+ * from glfwGetProcAddress, so that they are libGL's. */
 static void *glfw_get_proc(const char *name)
 {
     /* Function pointer to data pointer, which POSIX allows. */
@@ -202,22 +160,6 @@ static void *glfw_get_proc(const char *name)
     void *p;
     memcpy(&p, &f, sizeof(p));
     return p;
-}
-
-static int view_gl_load(struct view_gl *vg)
-{
-#define VIEW_GL_LOAD(type, name) \
-    do { \
-        void *p = glfw_get_proc("gl" #name); \
-        if (!p) { \
-            fprintf(stderr, "tileworld view: OpenGL entry point gl%s is missing\n", #name); \
-            return TW_ERR_GL; \
-        } \
-        memcpy(&vg->name, &p, sizeof(p)); \
-    } while (0);
-    VIEW_GL_FUNCTIONS(VIEW_GL_LOAD)
-#undef VIEW_GL_LOAD
-    return TW_OK;
 }
 
 static const char *const overlay_vs =
@@ -246,7 +188,7 @@ enum {
 };
 
 struct overlay {
-    struct view_gl gl;
+    struct tw_gl gl;
     GLuint program, vao, vbo;
     GLint u_screen;
     float *verts;
@@ -259,45 +201,16 @@ struct overlay {
     float quads[TEXT_MAX * 300 / sizeof(float)];
 };
 
-static GLuint overlay_shader(const struct view_gl *gl, GLenum type, const char *src)
+static int overlay_init(struct overlay *o, const struct tw_log *log)
 {
-    GLuint s = gl->CreateShader(type);
-    gl->ShaderSource(s, 1, &src, NULL);
-    gl->CompileShader(s);
-    GLint ok = 0;
-    gl->GetShaderiv(s, GL_COMPILE_STATUS, &ok);
-    if (!ok) {
-        char msg[1024] = "";
-        gl->GetShaderInfoLog(s, sizeof(msg), NULL, msg);
-        fprintf(stderr, "tileworld view: overlay shader failed to compile (a bug): %s\n", msg);
-        gl->DeleteShader(s);
-        return 0;
-    }
-    return s;
-}
-
-static int overlay_init(struct overlay *o)
-{
-    int err = view_gl_load(&o->gl);
+    int err = tw_gl_load(&o->gl, glfw_get_proc, log);
     if (err)
         return err;
-    const struct view_gl *gl = &o->gl;
-    GLuint vs = overlay_shader(gl, GL_VERTEX_SHADER, overlay_vs);
-    GLuint fs = overlay_shader(gl, GL_FRAGMENT_SHADER, overlay_fs);
-    if (!vs || !fs)
-        return TW_ERR_GL;
-    o->program = gl->CreateProgram();
-    gl->AttachShader(o->program, vs);
-    gl->AttachShader(o->program, fs);
-    gl->LinkProgram(o->program);
-    gl->DeleteShader(vs);
-    gl->DeleteShader(fs);
-    GLint ok = 0;
-    gl->GetProgramiv(o->program, GL_LINK_STATUS, &ok);
-    if (!ok) {
-        fprintf(stderr, "tileworld view: overlay shader failed to link (a bug)\n");
-        return TW_ERR_GL;
-    }
+    const struct tw_gl *gl = &o->gl;
+    bool out_of_memory = false;
+    o->program = tw_programs_link(gl, log, overlay_vs, NULL, overlay_fs, &out_of_memory);
+    if (!o->program)
+        return out_of_memory ? TW_ERR_NOMEM : TW_ERR_GL;
     o->u_screen = gl->GetUniformLocation(o->program, "u_screen");
 
     gl->GenVertexArrays(1, &o->vao);
@@ -320,12 +233,12 @@ static int overlay_init(struct overlay *o)
 
 static void overlay_finish(struct overlay *o)
 {
-    if (o->gl.DeleteBuffers) {
+    if (o->vao) {
         o->gl.DeleteBuffers(1, &o->vbo);
         o->gl.DeleteVertexArrays(1, &o->vao);
-        if (o->program)
-            o->gl.DeleteProgram(o->program);
     }
+    if (o->program)
+        o->gl.DeleteProgram(o->program);
     free(o->verts);
 }
 
@@ -414,7 +327,7 @@ static void overlay_text(struct overlay *o, float x, float y, const float color[
 
 static void overlay_draw(struct overlay *o, int fb_w, int fb_h)
 {
-    const struct view_gl *gl = &o->gl;
+    const struct tw_gl *gl = &o->gl;
     if (o->count > 0) {
         gl->BindFramebuffer(GL_FRAMEBUFFER, 0);
         gl->Viewport(0, 0, fb_w, fb_h);
@@ -911,7 +824,7 @@ static void draw_map(struct viewer *v, const struct tw_debug_box *boxes, size_t 
 
 static int write_screenshot(struct viewer *v, const char *file, int fb_w, int fb_h)
 {
-    const struct view_gl *gl = &v->ov.gl;
+    const struct tw_gl *gl = &v->ov.gl;
     const size_t w = (size_t)fb_w, h = (size_t)fb_h;
     uint8_t *rgba = malloc(w * h * 4), *rgb = malloc(w * h * 3);
     if (!rgba || !rgb) {
@@ -1019,7 +932,7 @@ int main(int argc, char **argv)
         rc = tw_cli_world_exit_status(err);
         goto out;
     }
-    err = overlay_init(&v.ov);
+    err = overlay_init(&v.ov, &log);
     if (err)
         goto out;
     v.debug = o->debug;

@@ -1,0 +1,333 @@
+/*
+ * Tile-query propagation (DESIGN §4) with a local method inside every tile
+ * found visible:
+ *
+ *   tilequery      hardware tile queries (cull/tilequery.c); a visible
+ *                  tile's clusters in the frustum, drawn whole (method-vfc.c)
+ *   tilequery+chc  the same queries; CHC++ inside a visible tile
+ *                  (method-chc.c), its pass suspended where it would wait
+ *   tilequery+hzb  the two phases of the HZB (method-hzb.c), phase 2 being
+ *                  propagation whose tile and node tests the depth pyramid
+ *                  answers at once
+ *
+ * The tiles of the neighbours that a visible cell's propagation is about to
+ * test are asked for early (DESIGN §12: prefetch when a neighbour is
+ * queried).
+ */
+#include "cull/cull-private.h"
+#include "tiles/neighbours.h"
+#include "tiles/tiles-internal.h"
+
+#include <stdlib.h>
+
+/* Asks the tile source for the tiles of cell's neighbours in view. */
+static void prefetch_neighbours(struct tw_cull_frame *fr, uint32_t neighbours,
+                                struct tw_cell cell)
+{
+    const struct tw_cull_grid *g = fr->g;
+    for (uint32_t k = 0; k < neighbours; k++) {
+        const struct tw_cell c = tw_cell_neighbour(cell, k);
+        float off[3], dist;
+        if (tw_cull_frame_cell_in_view(fr, c, off, &dist))
+            g->source.prefetch(g->source.ctx, c, dist);
+    }
+}
+
+/* ---- tilequery and tilequery+chc: hardware tile queries ----------------------------- */
+
+struct tilequery_method {
+    struct tw_cull_method_base base;
+    uint32_t neighbours;
+    struct tw_tilequery *tq;
+    struct tw_chc *chc;                 /* tilequery+chc's local method */
+    struct tw_cull_clusters clusters;   /* tilequery's local method's */
+};
+
+/* One frame's propagation, as its render callback sees it. */
+struct propagation {
+    struct tilequery_method *m;
+    struct tw_cull_frame *fr;
+};
+
+static const struct tw_cull_method_ops tilequery_ops, tilequery_chc_ops;
+
+static struct tilequery_method *tilequery_from_method(struct tw_cull_method_base *m)
+{
+    assert(m->impl == &tilequery_ops || m->impl == &tilequery_chc_ops);
+    return (struct tilequery_method *)m;
+}
+
+/* The tile of a cell found visible, when it is ready; its neighbours'
+ * tiles are asked for first. */
+static bool visible_tile(const struct propagation *pr, struct tw_cell cell, const float offset[3],
+                         struct tw_cull_tile *tile)
+{
+    struct tw_cull_frame *fr = pr->fr;
+    if (fr->err)
+        return false;
+    if (fr->g->source.prefetch)
+        prefetch_neighbours(fr, pr->m->neighbours, cell);
+    return tw_cull_frame_tile(fr, cell, tw_cull_box_distance(fr->v, &fr->g->common_box, offset),
+                              tile);
+}
+
+/* tilequery's local method. It keeps an instance per visible tile, as the
+ * system does, with no state in it. */
+static void render_vfc(void *user, struct tw_cell cell, const float offset[3])
+{
+    const struct propagation *pr = user;
+    struct tw_cull_tile tile;
+    if (!visible_tile(pr, cell, offset, &tile))
+        return;
+    struct tw_cull_instance inst;
+    bool created;
+    tw_cull_frame_instance(pr->fr, cell, &tile, offset, 0, &inst, &created);
+    tw_cull_vfc_draw(pr->fr, &pr->m->clusters, cell, &tile, offset);
+}
+
+/* tilequery+chc's local method. The tile query already found the cell
+ * visible: while a tile's pass waits, the next tiles' work goes to the GPU. */
+static void render_chc(void *user, struct tw_cell cell, const float offset[3])
+{
+    const struct propagation *pr = user;
+    struct tw_cull_tile tile;
+    if (visible_tile(pr, cell, offset, &tile))
+        tw_cull_chc_draw(pr->m->chc, pr->fr, cell, &tile, offset, true);
+}
+
+static int propagate(struct tilequery_method *m, struct tw_cull_frame *fr,
+                     tw_tilequery_render_fn render)
+{
+    struct tw_tilequery_stats tq;
+    const struct tw_cull_grid *g = fr->g;
+    struct propagation pr = {m, fr};
+    const int err = tw_tilequery_frame(m->tq, fr->v, fr->be, &g->common_box, g->footprint[0],
+                                       g->footprint[1], render, &pr, &tq);
+    fr->st->tiles_queried = tq.tiles_queried;
+    fr->st->predict_fail = tq.predict_fail;
+    fr->st->tiles_visible = tq.tiles_visible;
+    return err ? err : fr->err;
+}
+
+static int tilequery_frame(struct tw_cull_method_base *m, struct tw_cull_frame *fr)
+{
+    return propagate(tilequery_from_method(m), fr, render_vfc);
+}
+
+static int tilequery_chc_frame(struct tw_cull_method_base *m, struct tw_cull_frame *fr)
+{
+    struct tilequery_method *tm = tilequery_from_method(m);
+    tw_cull_chc_begin(tm->chc, fr);
+    const int err = propagate(tm, fr, render_chc);
+    tw_cull_chc_end(tm->chc, fr);
+    return err;
+}
+
+static void tilequery_chc_set_costs(struct tw_cull_method_base *m,
+                                    const struct tw_cost_model *costs)
+{
+    tw_chc_set_costs(tilequery_from_method(m)->chc, costs);
+}
+
+static const struct tw_tilequery *tilequery_engine(const struct tw_cull_method_base *m)
+{
+    return ((const struct tilequery_method *)m)->tq;
+}
+
+static size_t tilequery_bytes(const struct tw_cull_method_base *m)
+{
+    const struct tilequery_method *tm = (const struct tilequery_method *)m;
+    return sizeof(*tm) + tw_tilequery_bytes(tm->tq) + (tm->chc ? tw_chc_bytes(tm->chc) : 0) +
+           sizeof(*tm->clusters.index) * tm->clusters.cap;
+}
+
+static void tilequery_destroy(struct tw_cull_method_base *m)
+{
+    struct tilequery_method *tm = tilequery_from_method(m);
+    tw_tilequery_destroy(tm->tq);
+    tw_chc_destroy(tm->chc);
+    free(tm->clusters.index);
+    free(tm);
+}
+
+static const struct tw_cull_method_ops tilequery_ops = {
+    .destroy = tilequery_destroy,
+    .frame = tilequery_frame,
+    .bytes = tilequery_bytes,
+    .tilequery = tilequery_engine,
+    .tile_instances = true,
+};
+
+static const struct tw_cull_method_ops tilequery_chc_ops = {
+    .destroy = tilequery_destroy,
+    .frame = tilequery_chc_frame,
+    .bytes = tilequery_bytes,
+    .set_costs = tilequery_chc_set_costs,
+    .tilequery = tilequery_engine,
+    .tile_instances = true,
+};
+
+static int tilequery_create(const struct tw_cull_driver_settings *s,
+                            const struct tw_cull_method_ops *ops, struct tw_cull_method_base **out)
+{
+    struct tilequery_method *tm = calloc(1, sizeof(*tm));
+    if (!tm)
+        return TW_ERR_NOMEM;
+    tm->base.impl = ops;
+    tm->neighbours = s->tilequery.neighbours;
+    int err = TW_OK;
+    if (ops == &tilequery_chc_ops)
+        err = tw_chc_create(&s->chc, &tm->chc);
+    if (!err)
+        err = tw_tilequery_create(&s->tilequery, &tm->tq);
+    if (err) {
+        tilequery_destroy(&tm->base);
+        return err;
+    }
+    *out = &tm->base;
+    return TW_OK;
+}
+
+int tw_cull_tilequery_method_create(const struct tw_cull_driver_settings *s,
+                                    struct tw_cull_method_base **out)
+{
+    return tilequery_create(s, &tilequery_ops, out);
+}
+
+int tw_cull_tilequery_chc_method_create(const struct tw_cull_driver_settings *s,
+                                        struct tw_cull_method_base **out)
+{
+    return tilequery_create(s, &tilequery_chc_ops, out);
+}
+
+/* ---- tilequery+hzb: tile queries answered by the depth pyramid ---------------------- */
+
+struct tilequery_hzb_method {
+    struct tw_cull_method_base base;
+    uint32_t neighbours;
+    struct tw_hzb_phases phases;
+    struct tw_cull_cell *found;         /* cells found visible this frame */
+    size_t found_count, found_cap;
+    struct tw_distance_entry *heap;     /* of them, those to visit, nearest first */
+    size_t heap_count, heap_cap;
+};
+
+static const struct tw_cull_method_ops tilequery_hzb_ops;
+
+static struct tilequery_hzb_method *tilequery_hzb_from_method(struct tw_cull_method_base *m)
+{
+    assert(m->impl == &tilequery_hzb_ops);
+    return (struct tilequery_hzb_method *)m;
+}
+
+/* A cell found visible, queued for its visit. */
+static void queue_visible(struct tilequery_hzb_method *hm, struct tw_cull_frame *fr,
+                          struct tw_cell cell, float distance)
+{
+    const size_t n = hm->found_count;
+    if (!tw_cull_frame_reserve(fr, (void **)&hm->found, &hm->found_cap, n + 1,
+                               sizeof(*hm->found)) ||
+        !tw_cull_frame_reserve(fr, (void **)&hm->heap, &hm->heap_cap, n + 1, sizeof(*hm->heap)))
+        return;
+    hm->found[hm->found_count++] = (struct tw_cull_cell){cell, distance};
+    tw_distance_push(hm->heap, &hm->heap_count, distance, (uint32_t)n);
+}
+
+/* Phase 2 as §4 with immediate answers. From the camera's cell (or the
+ * nearest cell in view), visible cells are visited nearest first; each
+ * visit traverses the cell's tile, then decides on its neighbours in view
+ * not reached yet, and the visible ones join the queue. A hidden cell stops
+ * propagation there. No pending or postponed queue: the pyramid answers at
+ * once. */
+static void propagate_now(struct tilequery_hzb_method *hm, struct tw_cull_frame *fr)
+{
+    struct tw_hzb_phases *p = &hm->phases;
+    const struct tw_cull_grid *g = fr->g;
+    struct tw_cull_cell start;
+    float off[3];
+    if (tw_cull_frame_cell_in_view(fr, fr->v->cell, off, &start.distance)) {
+        start.cell = fr->v->cell;
+    } else {
+        const int err = tw_cull_cells_of_frame(fr->cells, fr->v, g);
+        if (err) {
+            fr->err = err;
+            return;
+        }
+        if (fr->cells->count == 0)
+            return;
+        start = fr->cells->cells[0];
+    }
+    hm->found_count = hm->heap_count = 0;
+    uint64_t prev;
+    tw_tiles_cell_offset(start.cell, fr->v->cell, g->footprint[0], g->footprint[1], off);
+    tw_hzb_phases_decide(p, fr, start.cell, off, true, &prev);
+    queue_visible(hm, fr, start.cell, start.distance);
+    while (hm->heap_count > 0 && !fr->err) {
+        const struct tw_cull_cell c = hm->found[tw_distance_pop(hm->heap, &hm->heap_count)];
+        tw_tiles_cell_offset(c.cell, fr->v->cell, g->footprint[0], g->footprint[1], off);
+        if (g->source.prefetch)
+            prefetch_neighbours(fr, hm->neighbours, c.cell);
+        tw_hzb_phases_visit(p, fr, c.cell, c.distance, off, tw_hzb_phases_verdict(p, c.cell));
+        for (uint32_t k = 0; k < hm->neighbours && !fr->err; k++) {
+            const struct tw_cell nc = tw_cell_neighbour(c.cell, k);
+            float noff[3], dist;
+            if (tw_hzb_phases_reached(p, fr, nc) ||
+                !tw_cull_frame_cell_in_view(fr, nc, noff, &dist))
+                continue;
+            /* Decided once per frame (tw_hzb_phases_reached), so queued at
+             * most once. */
+            const bool free_pass = tw_cull_near_box(fr->v, &g->common_box, noff);
+            if (tw_hzb_phases_decide(p, fr, nc, noff, free_pass, &prev))
+                queue_visible(hm, fr, nc, dist);
+        }
+    }
+}
+
+static int tilequery_hzb_frame(struct tw_cull_method_base *m, struct tw_cull_frame *fr)
+{
+    struct tilequery_hzb_method *hm = tilequery_hzb_from_method(m);
+    const uint32_t drawn = tw_hzb_phases_begin(&hm->phases, fr);
+    if (!fr->err)
+        propagate_now(hm, fr);
+    return tw_hzb_phases_end(&hm->phases, fr, drawn);
+}
+
+static size_t tilequery_hzb_bytes(const struct tw_cull_method_base *m)
+{
+    const struct tilequery_hzb_method *hm = (const struct tilequery_hzb_method *)m;
+    return sizeof(*hm) + tw_hzb_phases_bytes(&hm->phases) + sizeof(*hm->found) * hm->found_cap +
+           sizeof(*hm->heap) * hm->heap_cap;
+}
+
+static void tilequery_hzb_destroy(struct tw_cull_method_base *m)
+{
+    struct tilequery_hzb_method *hm = tilequery_hzb_from_method(m);
+    tw_hzb_phases_finish(&hm->phases);
+    free(hm->found);
+    free(hm->heap);
+    free(hm);
+}
+
+static const struct tw_cull_method_ops tilequery_hzb_ops = {
+    .destroy = tilequery_hzb_destroy,
+    .frame = tilequery_hzb_frame,
+    .bytes = tilequery_hzb_bytes,
+    .tile_instances = true,
+};
+
+int tw_cull_tilequery_hzb_method_create(const struct tw_cull_driver_settings *s,
+                                        struct tw_cull_method_base **out)
+{
+    struct tilequery_hzb_method *hm = calloc(1, sizeof(*hm));
+    if (!hm)
+        return TW_ERR_NOMEM;
+    hm->base.impl = &tilequery_hzb_ops;
+    hm->neighbours = s->tilequery.neighbours;
+    const int err = tw_hzb_phases_init(&hm->phases, s->hzb_mutate_shrink);
+    if (err) {
+        tilequery_hzb_destroy(&hm->base);
+        return err;
+    }
+    *out = &hm->base;
+    return TW_OK;
+}

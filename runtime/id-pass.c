@@ -1,0 +1,94 @@
+/* The oracle's object-ID pass (renderer.h, DESIGN §8): clusters drawn with
+ * their ids into a buffer of their own, through the scene's vertex stage
+ * and depth state, then read back. */
+#include "runtime/renderer-private.h"
+#include "tiles/tiles-internal.h"
+
+int tw_renderer_id_init(struct tw_renderer *r, GLenum depth_format)
+{
+    const struct tw_gl *gl = &r->gl;
+    gl->GenFramebuffers(1, &r->id_fbo);
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->id_fbo);
+    gl->GenRenderbuffers(1, &r->id_rb);
+    gl->BindRenderbuffer(GL_RENDERBUFFER, r->id_rb);
+    gl->RenderbufferStorage(GL_RENDERBUFFER, GL_R32UI, (GLsizei)r->width, (GLsizei)r->height);
+    gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, r->id_rb);
+    gl->GenRenderbuffers(1, &r->id_depth_rb);
+    gl->BindRenderbuffer(GL_RENDERBUFFER, r->id_depth_rb);
+    gl->RenderbufferStorage(GL_RENDERBUFFER, depth_format, (GLsizei)r->width,
+                            (GLsizei)r->height);
+    gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER,
+                                r->id_depth_rb);
+    if (gl->CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+        return tw_renderer_framebuffer_failed(r, "object-ID image");
+    return TW_OK;
+}
+
+void tw_renderer_id_finish(struct tw_renderer *r)
+{
+    if (!r->gl_loaded)
+        return;
+    r->gl.DeleteRenderbuffers(1, &r->id_rb);
+    r->gl.DeleteRenderbuffers(1, &r->id_depth_rb);
+    r->gl.DeleteFramebuffers(1, &r->id_fbo);
+}
+
+void tw_renderer_id_begin(struct tw_renderer *r, const struct tw_view *v)
+{
+    const struct tw_gl *gl = &r->gl;
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->id_fbo);
+    gl->Viewport(0, 0, (GLsizei)r->width, (GLsizei)r->height);
+    gl->ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    gl->DepthMask(GL_TRUE);
+    const GLuint none[4] = {TW_RENDERER_NO_ID, 0, 0, 0};
+    gl->ClearBufferuiv(GL_COLOR, 0, none);
+    const GLfloat far_depth = r->reversed_z ? 0.0f : 1.0f;     /* reversed depth: far is 0 */
+    gl->ClearBufferfv(GL_DEPTH, 0, &far_depth);
+    gl->Enable(GL_DEPTH_TEST);
+    gl->DepthFunc(r->reversed_z ? GL_GEQUAL : GL_LEQUAL);
+    gl->Enable(GL_CULL_FACE);
+    gl->CullFace(GL_BACK);
+    gl->UseProgram(r->programs.id.program);
+    gl->UniformMatrix4fv(r->programs.id.view_proj, 1, GL_FALSE,
+                         r->reversed_z ? v->view_proj_rz : v->view_proj);
+    r->bound_vao = 0;
+    r->mode = TW_RENDERER_MODE_NONE;
+}
+
+void tw_renderer_id_draw(struct tw_renderer *r, uint32_t content, const float offset[3],
+                         const uint32_t *clusters, uint32_t count, uint32_t first_id)
+{
+    const struct tw_gl *gl = &r->gl;
+    const struct tw_prototype *proto;
+    const struct tw_gpu_buffers *b = tw_renderer_bind_content(r, content, &proto);
+    const struct tw_tileset *ts = b->ts;
+    gl->Uniform3fv(r->programs.id.offset, 1, offset);
+    uint32_t last_instance = UINT32_MAX;
+    for (uint32_t k = 0; k < count; k++) {
+        const struct tw_cluster *c = &proto->clusters[clusters[k]];
+        if (c->instance != last_instance) {
+            gl->Uniform4fv(r->programs.id.model, 3, proto->instances[c->instance].transform);
+            last_instance = c->instance;
+        }
+        gl->Uniform1ui(r->programs.id.id, first_id + k);
+        const struct tw_mesh_part *part = &ts->parts[c->part];
+        const size_t first = (size_t)b->first_index[part->mesh] + 3u * part->first_triangle;
+        gl->DrawElementsBaseVertex(GL_TRIANGLES, (GLsizei)(3u * part->triangle_count),
+                                   GL_UNSIGNED_INT, (const void *)(first * sizeof(uint32_t)),
+                                   (GLint)b->base_vertex[part->mesh]);
+    }
+}
+
+void tw_renderer_id_read(struct tw_renderer *r, uint32_t *ids, float *depth)
+{
+    const struct tw_gl *gl = &r->gl;
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->id_fbo);
+    gl->ReadBuffer(GL_COLOR_ATTACHMENT0);
+    gl->PixelStorei(GL_PACK_ALIGNMENT, 4);
+    gl->ReadPixels(0, 0, (GLsizei)r->width, (GLsizei)r->height, GL_RED_INTEGER, GL_UNSIGNED_INT,
+                   ids);
+    if (depth)
+        gl->ReadPixels(0, 0, (GLsizei)r->width, (GLsizei)r->height, GL_DEPTH_COMPONENT, GL_FLOAT,
+                       depth);
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+}

@@ -1,0 +1,229 @@
+/* The GL programs: compiling and linking, the renderer's shader sources and
+ * uniform locations (programs.h). */
+#include "runtime/programs.h"
+#include "tiles/tiles-internal.h"
+
+#include <string.h>
+
+static const char *const scene_vs =
+    "#version 330 core\n"
+    "layout(location = 0) in vec3 a_pos;\n"
+    "layout(location = 1) in vec3 a_normal;\n"
+    "layout(location = 2) in vec4 a_color;\n"
+    "uniform mat4 u_view_proj;\n"
+    "uniform vec4 u_model[3];\n"
+    "uniform vec3 u_offset;\n"
+    "out vec3 v_normal;\n"
+    "out vec3 v_pos;\n"
+    "out vec3 v_color;\n"
+    "invariant gl_Position;\n"
+    "void main() {\n"
+    "    vec4 p = vec4(a_pos, 1.0);\n"
+    "    vec3 w = vec3(dot(u_model[0], p), dot(u_model[1], p), dot(u_model[2], p)) + u_offset;\n"
+    "    v_normal = vec3(dot(u_model[0].xyz, a_normal), dot(u_model[1].xyz, a_normal),\n"
+    "                    dot(u_model[2].xyz, a_normal));\n"
+    "    v_pos = w;\n"
+    "    v_color = a_color.rgb;\n"
+    "    gl_Position = u_view_proj * vec4(w, 1.0);\n"
+    "}\n";
+
+static const char *const scene_fs =
+    "#version 330 core\n"
+    "in vec3 v_normal;\n"
+    "in vec3 v_pos;\n"
+    "in vec3 v_color;\n"
+    "uniform vec4 u_color;\n"
+    "uniform vec3 u_eye;\n"
+    "uniform vec2 u_fog;\n"
+    "out vec4 o_color;\n"
+    "void main() {\n"
+    "    vec3 n = normalize(v_normal);\n"
+    "    vec3 sun = normalize(vec3(0.45, 0.8, 0.3));\n"
+    "    float light = 0.38 + 0.62 * max(dot(n, sun), 0.0) + 0.08 * max(-n.x, 0.0);\n"
+    "    vec3 c = u_color.rgb * v_color * light;\n"
+    "    float f = clamp((distance(v_pos, u_eye) - u_fog.x) / u_fog.y, 0.0, 0.85);\n"
+    "    o_color = vec4(mix(c, vec3(0.70, 0.80, 0.92), f), 1.0);\n"
+    "}\n";
+
+/* The ID pass shares scene_vs (whose position is invariant) and the normal
+ * pass's depth function, culling and clip control, and has no geometry
+ * shader: it rasterises exactly the fragments, at exactly the depths, that
+ * the normal pass would for the same clusters (DESIGN §8), so that the
+ * oracle sees what the user sees. */
+static const char *const id_fs =
+    "#version 330 core\n"
+    "uniform uint u_id;\n"
+    "out uint o_id;\n"
+    "void main() {\n"
+    "    o_id = u_id;\n"
+    "}\n";
+
+static const char *const box_vs =
+    "#version 330 core\n"
+    "layout(location = 0) in vec3 a_corner;\n"
+    "uniform mat4 u_view_proj;\n"
+    "uniform vec3 u_min;\n"
+    "uniform vec3 u_max;\n"
+    "void main() {\n"
+    "    gl_Position = u_view_proj * vec4(mix(u_min, u_max, a_corner), 1.0);\n"
+    "}\n";
+
+/* Query boxes: the box of each instance from per-instance attributes. */
+static const char *const query_vs =
+    "#version 330 core\n"
+    "layout(location = 0) in vec3 a_corner;\n"
+    "layout(location = 1) in vec3 i_min;\n"
+    "layout(location = 2) in vec3 i_max;\n"
+    "uniform mat4 u_view_proj;\n"
+    "void main() {\n"
+    "    gl_Position = u_view_proj * vec4(mix(i_min, i_max, a_corner), 1.0);\n"
+    "}\n";
+
+static const char *const box_fs =
+    "#version 330 core\n"
+    "out vec4 o_color;\n"
+    "void main() { o_color = vec4(1.0); }\n";
+
+/* Debug edges: each line becomes a quad u_width pixels wide, so that boxes
+ * stay readable where a core profile offers only 1-pixel lines. An end
+ * behind the eye is first moved to just in front of it. */
+static const char *const line_gs =
+    "#version 330 core\n"
+    "layout(lines) in;\n"
+    "layout(triangle_strip, max_vertices = 4) out;\n"
+    "uniform vec3 u_viewport;\n"   /* width, height in pixels; line width in pixels */
+    "void main() {\n"
+    "    vec4 a = gl_in[0].gl_Position, b = gl_in[1].gl_Position;\n"
+    "    const float eps = 1e-3;\n"
+    "    if (a.w < eps && b.w < eps) return;\n"
+    "    if (a.w < eps) a = mix(a, b, (eps - a.w) / (b.w - a.w));\n"
+    "    else if (b.w < eps) b = mix(b, a, (eps - b.w) / (a.w - b.w));\n"
+    "    vec2 d = (b.xy / b.w - a.xy / a.w) * u_viewport.xy;\n"
+    "    if (dot(d, d) < 1e-12) d = vec2(1.0, 0.0);\n"
+    "    vec2 n = normalize(vec2(-d.y, d.x)) * u_viewport.z / u_viewport.xy;\n"
+    "    gl_Position = a + vec4(n * a.w, 0.0, 0.0); EmitVertex();\n"
+    "    gl_Position = a - vec4(n * a.w, 0.0, 0.0); EmitVertex();\n"
+    "    gl_Position = b + vec4(n * b.w, 0.0, 0.0); EmitVertex();\n"
+    "    gl_Position = b - vec4(n * b.w, 0.0, 0.0); EmitVertex();\n"
+    "    EndPrimitive();\n"
+    "}\n";
+
+static const char *const color_fs =
+    "#version 330 core\n"
+    "uniform vec4 u_color;\n"
+    "out vec4 o_color;\n"
+    "void main() { o_color = u_color; }\n";
+
+static GLuint compile(const struct tw_gl *gl, const struct tw_log *log, GLenum type,
+                      const char *src, bool *out_of_memory)
+{
+    GLuint s = gl->CreateShader(type);
+    gl->ShaderSource(s, 1, &src, NULL);
+    gl->CompileShader(s);
+    GLint ok = 0;
+    gl->GetShaderiv(s, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+        char msg[1024] = "";
+        gl->GetShaderInfoLog(s, sizeof(msg), NULL, msg);
+        if (gl->GetError() == GL_OUT_OF_MEMORY && !*out_of_memory) {
+            *out_of_memory = true;
+            tw_log_printf(log, TW_LOG_ERROR, "the OpenGL driver ran out of memory "
+                          "compiling a shader");
+        } else if (!*out_of_memory) {
+            tw_log_printf(log, TW_LOG_ERROR, "a shader does not compile (a bug): %s", msg);
+        }
+        gl->DeleteShader(s);
+        return 0;
+    }
+    return s;
+}
+
+GLuint tw_programs_link(const struct tw_gl *gl, const struct tw_log *log, const char *vs_src,
+                        const char *gs_src, const char *fs_src, bool *out_of_memory)
+{
+    GLuint vs = compile(gl, log, GL_VERTEX_SHADER, vs_src, out_of_memory);
+    GLuint gs = gs_src ? compile(gl, log, GL_GEOMETRY_SHADER, gs_src, out_of_memory) : 0;
+    GLuint fs = compile(gl, log, GL_FRAGMENT_SHADER, fs_src, out_of_memory);
+    GLuint p = 0;
+    if (vs && fs && (gs || !gs_src)) {
+        p = gl->CreateProgram();
+        gl->AttachShader(p, vs);
+        if (gs)
+            gl->AttachShader(p, gs);
+        gl->AttachShader(p, fs);
+        gl->LinkProgram(p);
+        GLint ok = 0;
+        gl->GetProgramiv(p, GL_LINK_STATUS, &ok);
+        if (!ok) {
+            char msg[1024] = "";
+            gl->GetProgramInfoLog(p, sizeof(msg), NULL, msg);
+            if (gl->GetError() == GL_OUT_OF_MEMORY && !*out_of_memory) {
+                *out_of_memory = true;
+                tw_log_printf(log, TW_LOG_ERROR, "the OpenGL driver ran out of memory "
+                              "linking a shader program");
+            } else if (!*out_of_memory) {
+                tw_log_printf(log, TW_LOG_ERROR, "a shader program does not link (a bug): %s",
+                              msg);
+            }
+            gl->DeleteProgram(p);
+            p = 0;
+        }
+    }
+    if (vs)
+        gl->DeleteShader(vs);
+    if (gs)
+        gl->DeleteShader(gs);
+    if (fs)
+        gl->DeleteShader(fs);
+    return p;
+}
+
+int tw_programs_init(struct tw_programs *p, const struct tw_gl *gl, const struct tw_log *log)
+{
+    memset(p, 0, sizeof(*p));
+    bool out_of_memory = false;
+    p->scene.program = tw_programs_link(gl, log, scene_vs, NULL, scene_fs, &out_of_memory);
+    p->query.program = tw_programs_link(gl, log, query_vs, NULL, box_fs, &out_of_memory);
+    p->id.program = tw_programs_link(gl, log, scene_vs, NULL, id_fs, &out_of_memory);
+    p->line.program = tw_programs_link(gl, log, box_vs, line_gs, color_fs, &out_of_memory);
+    p->fill.program = tw_programs_link(gl, log, box_vs, NULL, color_fs, &out_of_memory);
+    if (!p->scene.program || !p->query.program || !p->id.program || !p->line.program ||
+        !p->fill.program)
+        return out_of_memory ? TW_ERR_NOMEM : TW_ERR_GL;
+    p->scene.view_proj = gl->GetUniformLocation(p->scene.program, "u_view_proj");
+    p->scene.model = gl->GetUniformLocation(p->scene.program, "u_model");
+    p->scene.offset = gl->GetUniformLocation(p->scene.program, "u_offset");
+    p->scene.color = gl->GetUniformLocation(p->scene.program, "u_color");
+    p->scene.eye = gl->GetUniformLocation(p->scene.program, "u_eye");
+    p->scene.fog = gl->GetUniformLocation(p->scene.program, "u_fog");
+    p->id.view_proj = gl->GetUniformLocation(p->id.program, "u_view_proj");
+    p->id.model = gl->GetUniformLocation(p->id.program, "u_model");
+    p->id.offset = gl->GetUniformLocation(p->id.program, "u_offset");
+    p->id.id = gl->GetUniformLocation(p->id.program, "u_id");
+    p->line.view_proj = gl->GetUniformLocation(p->line.program, "u_view_proj");
+    p->line.min = gl->GetUniformLocation(p->line.program, "u_min");
+    p->line.max = gl->GetUniformLocation(p->line.program, "u_max");
+    p->line.color = gl->GetUniformLocation(p->line.program, "u_color");
+    p->line.viewport = gl->GetUniformLocation(p->line.program, "u_viewport");
+    p->fill.view_proj = gl->GetUniformLocation(p->fill.program, "u_view_proj");
+    p->fill.min = gl->GetUniformLocation(p->fill.program, "u_min");
+    p->fill.max = gl->GetUniformLocation(p->fill.program, "u_max");
+    p->fill.color = gl->GetUniformLocation(p->fill.program, "u_color");
+    p->query.view_proj = gl->GetUniformLocation(p->query.program, "u_view_proj");
+    return TW_OK;
+}
+
+void tw_programs_finish(struct tw_programs *p, const struct tw_gl *gl)
+{
+    if (p->id.program)
+        gl->DeleteProgram(p->id.program);
+    if (p->scene.program)
+        gl->DeleteProgram(p->scene.program);
+    if (p->query.program)
+        gl->DeleteProgram(p->query.program);
+    if (p->line.program)
+        gl->DeleteProgram(p->line.program);
+    if (p->fill.program)
+        gl->DeleteProgram(p->fill.program);
+    memset(p, 0, sizeof(*p));
+}
