@@ -432,7 +432,7 @@ void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
     const struct tw_view *v = &w->last_view;
     const struct tw_oracle_depth dm = depth_model(w, v);
     size_t n = 0;
-    const struct tw_drawn_cluster *d = tw_world_drawn(w, &n);
+    const struct tw_drawn_cluster *d = tw_renderer_drawn(w->renderer, &n);
     for (size_t k = 0; k < n; k++) {
         const uint64_t *range = tw_cell_map_find(o->tiles, d[k].cell);
         const struct tw_cluster *cl =

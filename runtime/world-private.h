@@ -134,6 +134,26 @@ int tw_oracle_box_set(struct tw_world *w, const struct tw_view *v);
 /* Compares what the last frame drew with the last ID pass. */
 void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st);
 
+/* world-tiles.c */
+/* The provider the world shows, checked: the host's, or one made of the
+ * fixed tileset and its selection. */
+int tw_world_resolve_provider(struct tw_world *w);
+/* Starts the stream of the provider's own tiles, handing them to the
+ * renderer's GPU store. Between enter and leave. */
+int tw_world_start_stream(struct tw_world *w);
+/* The tile source the culling reads (struct tw_cull_source; ctx is the world). */
+int tw_world_get_tile(void *ctx, struct tw_cell cell, float distance, unsigned flags,
+                      struct tw_cull_tile *out);
+void tw_world_prefetch_tile(void *ctx, struct tw_cell cell, float distance);
+/* Requests the tiles the camera would need a second ahead along its motion
+ * (DESIGN §12), nearest first, behind everything the frame asked for. */
+void tw_world_look_ahead(struct tw_world *w, const struct tw_view *v);
+/* Over budget, the least recently drawn tiles go, then the oldest culling
+ * state of the other methods, then of this one; what this frame drew stays.
+ * Fills the byte and streaming counters of st. */
+void tw_world_keep_budget(struct tw_world *w, const struct method_state *ms,
+                          struct tw_frame_stats *st);
+
 /* debug.c */
 void tw_debug_finish(struct tw_world *w);
 /* After the timed part of a frame: the boxes of the debug views that are on. */

@@ -1,0 +1,348 @@
+/*
+ * Where a world's tiles come from (world-private.h): the provider, checked;
+ * the tile source the culling reads; the stream of generated tiles and its
+ * sink; the look-ahead; the byte budget; tile events; invalidation.
+ */
+#include "runtime/world-private.h"
+#include "tiles/array.h"
+#include "tiles/tiles-internal.h"
+
+#include <math.h>
+#include <string.h>
+
+/* The fixed tileset's selection as a provider's content(). */
+static uint32_t select_content(void *user, struct tw_cell cell)
+{
+    const struct tw_world *w = user;
+    return tw_tiles_select(w->s.tileset, &w->s.selection, cell);
+}
+
+static bool box_finite(const struct tw_box *b)
+{
+    for (int a = 0; a < 3; a++)
+        if (!isfinite(b->min[a]) || !isfinite(b->max[a]) || b->min[a] > b->max[a])
+            return false;
+    return true;
+}
+
+int tw_world_resolve_provider(struct tw_world *w)
+{
+    const struct tw_log *log = &w->s.log;
+    if (!w->s.provider) {
+        const struct tw_tileset *ts = w->s.tileset;
+        w->provider = (struct tw_tile_provider){
+            .name = ts->name,
+            .footprint = {ts->footprint[0], ts->footprint[1]},
+            .bound = ts->common_box,
+            .shared = ts,
+            .content = select_content,
+            .user = w,
+        };
+        return TW_OK;
+    }
+    const struct tw_tile_provider *p = w->s.provider;
+    w->provider = *p;
+    const char *name = p->name ? p->name : "(unnamed)";
+    if (!(p->footprint[0] > 0.0f && p->footprint[1] > 0.0f && isfinite(p->footprint[0]) &&
+          isfinite(p->footprint[1])) || !box_finite(&p->bound)) {
+        tw_log_printf(log, TW_LOG_ERROR, "provider %s: footprint or bound is not a finite box", name);
+        return TW_ERR_INVALID;
+    }
+    if (!p->generate && !p->content) {
+        tw_log_printf(log, TW_LOG_ERROR, "provider %s: neither content() nor generate()", name);
+        return TW_ERR_INVALID;
+    }
+    if (p->shared) {
+        const struct tw_tileset *ts = p->shared;
+        if (!ts->finished || ts->footprint[0] != p->footprint[0] ||
+            ts->footprint[1] != p->footprint[1]) {
+            tw_log_printf(log, TW_LOG_ERROR,
+                          "provider %s: the shared tileset is unfinished or has another footprint",
+                          name);
+            return TW_ERR_INVALID;
+        }
+        for (uint32_t k = 0; k < ts->prototype_count; k++) {
+            const struct tw_box *b = &ts->prototypes[k].box;
+            for (int a = 0; a < 3; a++)
+                if (b->min[a] < p->bound.min[a] || b->max[a] > p->bound.max[a]) {
+                    tw_log_printf(log, TW_LOG_ERROR,
+                                  "provider %s: shared prototype %u '%.48s' exceeds the bound",
+                                  name, k, ts->prototypes[k].name);
+                    return TW_ERR_INVALID;
+                }
+        }
+    }
+    return TW_OK;
+}
+
+/* The stream's tile sink: the renderer's GPU store. */
+static int sink_upload(void *user, const struct tw_tileset *ts, const struct tw_bvh *bvh,
+                       uint32_t *content, uint64_t *bytes_gpu)
+{
+    const struct tw_bvh *bvhs[1] = {bvh};
+    return tw_renderer_upload(user, ts, bvhs, content, bytes_gpu);
+}
+
+static void sink_release(void *user, uint32_t content)
+{
+    tw_renderer_release(user, content);
+}
+
+
+
+static void push_event(struct tw_world *w, const struct tw_tile_event *ev)
+{
+    if (tw_array_reserve((void **)&w->next_events, &w->next_event_cap, w->next_event_count + 1,
+                         sizeof(*w->next_events), 64))
+        return;     /* an event lost to memory: the counters still count it */
+    w->next_events[w->next_event_count++] = *ev;
+}
+
+static void stream_event(void *user, const struct tw_tile_event *e)
+{
+    push_event(user, e);
+}
+
+/* Starts the stream of the provider's own tiles, handing them to the
+ * renderer's GPU store. Between enter and leave. */
+int tw_world_start_stream(struct tw_world *w)
+{
+    const struct tw_stream_settings ss = {
+        .provider = &w->provider,
+        .sink = {sink_upload, sink_release, w->renderer},
+        .bvh = w->t.bvh,
+        .workers = w->s.workers,
+        .policy = w->s.policy,
+        .upload_bytes = w->s.upload_budget_bytes,
+        .upload_ms = w->s.upload_budget_ms,
+        .evict_after = w->s.evict_after_frames,
+        .budget = w->s.cache_budget_bytes,
+        .key_base = w->shared_count,
+        .stop_ms = w->s.shutdown_timeout_ms,
+        .log = &w->s.log,
+    };
+    int err = tw_stream_create(&ss, &w->stream);
+    if (!err)
+        tw_stream_set_events(w->stream, stream_event, w);
+    return err;
+}
+
+/* What cell shows, checked: a shared prototype, or TW_TILE_OWN. */
+static int content_of(struct tw_world *w, struct tw_cell cell, uint32_t *content)
+{
+    const struct tw_tile_provider *p = &w->provider;
+    const uint32_t c = p->content ? p->content(p->user, cell) : TW_TILE_OWN;
+    if (c == TW_TILE_OWN ? !w->stream : c >= w->shared_count) {
+        tw_log_printf(&w->s.log, TW_LOG_ERROR,
+                      "%s %s: cell (%lld, %lld) shows %s %u, but there are %u shared "
+                      "prototypes%s",
+                      w->s.provider ? "provider" : "selection of tileset",
+                      p->name ? p->name : "", (long long)cell.i, (long long)cell.j,
+                      c == TW_TILE_OWN ? "content" : "prototype", c, w->shared_count,
+                      c == TW_TILE_OWN ? " and no generate() for a tile of its own" : "");
+        return TW_ERR_INVALID;
+    }
+    *content = c;
+    return TW_OK;
+}
+
+int tw_world_get_tile(void *ctx, struct tw_cell cell, float distance, unsigned flags,
+                      struct tw_cull_tile *out)
+{
+    struct tw_world *w = ctx;
+    uint32_t c;
+    int err = content_of(w, cell, &c);
+    if (err)
+        return err;
+    if (c != TW_TILE_OWN) {
+        /* A cell that had a tile of its own and now shows a shared one: the
+         * provider's answer changed, which is an invalidation. */
+        if (w->stream && tw_stream_has(w->stream, cell))
+            tw_stream_invalidate(w->stream, cell);
+        out->proto = &w->provider.shared->prototypes[c];
+        out->bvh = w->bvhs[c];
+        out->content = c;
+        out->key = c;
+        return TW_OK;
+    }
+    return tw_stream_get(w->stream, cell, distance, flags, out);
+}
+
+void tw_world_prefetch_tile(void *ctx, struct tw_cell cell, float distance)
+{
+    struct tw_world *w = ctx;
+    const struct tw_tile_provider *p = &w->provider;
+    if (!p->content || p->content(p->user, cell) == TW_TILE_OWN)
+        tw_stream_prefetch(w->stream, cell, distance);
+}
+
+/* Frames ahead the look-ahead predicts, and how many of the cells it would
+ * see are requested (the nearest). */
+#define LOOK_AHEAD_FRAMES 30
+#define LOOK_AHEAD_CELLS 16
+
+void tw_world_look_ahead(struct tw_world *w, const struct tw_view *v)
+{
+    const float *fp = w->provider.footprint;
+    if (w->has_prev) {
+        float moved[3];
+        tw_tiles_cell_offset(v->cell, w->prev_pos.cell, fp[0], fp[1], moved);
+        for (int a = 0; a < 3; a++)
+            moved[a] += v->eye[a] - w->prev_pos.local[a];
+        const float step = sqrtf(moved[0] * moved[0] + moved[1] * moved[1] + moved[2] * moved[2]);
+        for (int a = 0; a < 3; a++)
+            w->velocity[a] = step > v->view_distance ? 0.0f  /* a jump: no motion to follow */
+                                                     : 0.7f * w->velocity[a] + 0.3f * moved[a];
+    }
+    w->prev_pos.cell = v->cell;
+    memcpy(w->prev_pos.local, v->eye, sizeof(v->eye));
+    w->has_prev = true;
+    const float speed2 = w->velocity[0] * w->velocity[0] + w->velocity[2] * w->velocity[2];
+    if (speed2 < 1e-4f)
+        return;
+    struct tw_view ahead = *v;
+    for (int a = 0; a < 3; a += 2)
+        ahead.eye[a] += LOOK_AHEAD_FRAMES * w->velocity[a];
+    /* The same matrices moved: the frustum of the eye translated. */
+    float translate[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    translate[12] = -LOOK_AHEAD_FRAMES * w->velocity[0];
+    translate[14] = -LOOK_AHEAD_FRAMES * w->velocity[2];
+    for (int c = 0; c < 4; c++)
+        for (int r = 0; r < 4; r++) {
+            float sum = 0.0f;
+            for (int k = 0; k < 4; k++)
+                sum += v->view_proj[k * 4 + r] * translate[c * 4 + k];
+            ahead.view_proj[c * 4 + r] = sum;
+        }
+    tw_cull_frustum_from_matrix(ahead.view_proj, &ahead.frustum);
+    if (tw_cull_cells_of_frame(&w->ahead, &ahead, &w->grid))
+        return;
+    const size_t n = w->ahead.count < LOOK_AHEAD_CELLS ? w->ahead.count : LOOK_AHEAD_CELLS;
+    for (size_t k = 0; k < n; k++) {
+        const struct tw_cell cell = w->ahead.cells[k].cell;
+        float off[3];
+        tw_tiles_cell_offset(cell, v->cell, fp[0], fp[1], off);
+        tw_world_prefetch_tile(w, cell, v->view_distance + tw_cull_box_distance(v, &w->grid.common_box, off));
+    }
+}
+
+/* Every byte the world's tiles cost: shared content once, generated tiles,
+ * every method's culling state. */
+static void count_bytes(const struct tw_world *w, uint64_t *cpu, uint64_t *gpu, uint64_t *state)
+{
+    uint64_t scpu = 0, sgpu = 0, culling = 0;
+    if (w->stream)
+        tw_stream_bytes(w->stream, &scpu, &sgpu);
+    for (int m = 0; m < TW_METHOD_COUNT; m++)
+        if (w->methods[m].driver)
+            culling += tw_cull_driver_bytes(w->methods[m].driver);
+    *cpu = w->shared_cpu + scpu + culling;
+    *gpu = w->shared_gpu + sgpu;
+    if (state)
+        *state = culling;
+}
+
+void tw_world_keep_budget(struct tw_world *w, const struct method_state *ms,
+                          struct tw_frame_stats *st)
+{
+    uint64_t cpu, gpu, state;
+    count_bytes(w, &cpu, &gpu, NULL);
+    const uint64_t budget = w->s.cache_budget_bytes;
+    uint32_t instances = 0;
+    /* Evicting can grow a table (the record of evictions): count again. */
+    while (budget && cpu + gpu > budget && w->stream &&
+           tw_stream_trim(w->stream, cpu + gpu - budget, w->frame_serial, NULL, NULL) > 0)
+        count_bytes(w, &cpu, &gpu, NULL);
+    for (int pass = 0; pass < 2 && budget && cpu + gpu > budget; pass++)
+        for (int m = 0; m < TW_METHOD_COUNT && cpu + gpu > budget; m++) {
+            const struct method_state *other = &w->methods[m];
+            if (!other->driver || (other == ms) != (pass == 1))
+                continue;
+            /* Another method's instances are all older than its next frame. */
+            tw_cull_driver_trim(other->driver, cpu + gpu - budget, other->frame + (other != ms),
+                                &instances);
+            count_bytes(w, &cpu, &gpu, NULL);
+        }
+    count_bytes(w, &cpu, &gpu, &state);
+    st->bytes_cpu = cpu;
+    st->bytes_gpu = gpu;
+    st->bytes_state = state;
+    st->bytes_needed = cpu + gpu;
+    st->over_budget = budget && cpu + gpu > budget;
+    if (w->stream) {
+        const struct tw_stream_stats *ss = tw_stream_stats(w->stream);
+        st->bytes_needed = cpu + gpu - tw_stream_tile_bytes(w->stream) + ss->bytes_used;
+        st->loads_requested = ss->loads_requested;
+        st->loads_done = ss->loads_done;
+        st->evictions = ss->evictions;
+        st->ms_upload = ss->ms_upload;
+        st->bytes_loading = ss->bytes_loading;
+        st->tiles_loading = ss->tiles_loading;
+    }
+    st->evictions += instances;
+}
+
+const struct tw_tile_event *tw_world_tile_events(const struct tw_world *w, size_t *count)
+{
+    if (!w || !count) {
+        if (count)
+            *count = 0;
+        return NULL;
+    }
+    *count = w->event_count;
+    return w->events;
+}
+
+int tw_world_invalidate_rect(struct tw_world *w, struct tw_cell lo, struct tw_cell hi)
+{
+    if (!w || lo.i > hi.i || lo.j > hi.j)
+        return TW_ERR_INVALID;
+    tw_renderer_enter(w->renderer);
+    if (w->stream) {
+        if (lo.i == hi.i && lo.j == hi.j)
+            tw_stream_invalidate(w->stream, lo);
+        else
+            tw_stream_invalidate_rect(w->stream, lo, hi);
+    }
+    tw_renderer_leave(w->renderer);
+    /* Every method's culling state of those cells: made for what they showed. */
+    for (int m = 0; m < TW_METHOD_COUNT; m++) {
+        struct tw_cull_driver *d = w->methods[m].driver;
+        if (!d)
+            continue;
+        const uint64_t wi = (uint64_t)hi.i - (uint64_t)lo.i, wj = (uint64_t)hi.j - (uint64_t)lo.j;
+        if (wi < 64 && wj < 64) {
+            for (uint64_t a = 0; a <= wi; a++)
+                for (uint64_t b = 0; b <= wj; b++)
+                    tw_cull_driver_forget(d, (struct tw_cell){(int64_t)((uint64_t)lo.i + a),
+                                                              (int64_t)((uint64_t)lo.j + b)});
+        } else {
+            tw_cull_driver_forget_rect(d, lo, hi);
+        }
+    }
+    return TW_OK;
+}
+
+int tw_world_invalidate(struct tw_world *w, struct tw_cell cell)
+{
+    return tw_world_invalidate_rect(w, cell, cell);
+}
+
+int tw_world_cache_totals(const struct tw_world *w, struct tw_cache_totals *out)
+{
+    if (!w || !out)
+        return TW_ERR_INVALID;
+    memset(out, 0, sizeof(*out));
+    if (!w->stream)
+        return TW_OK;
+    const struct tw_stream_totals *t = tw_stream_totals(w->stream);
+    out->tiles_ready = tw_stream_ready_count(w->stream);
+    out->tiles_loading = tw_stream_loading_count(w->stream);
+    out->tile_bytes = tw_stream_tile_bytes(w->stream);
+    out->loads_requested = t->loads_requested;
+    out->loads_done = t->loads_done;
+    out->evictions = t->evictions;
+    out->reloads = t->reloads;
+    out->refused = t->refused;
+    return TW_OK;
+}
