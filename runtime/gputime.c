@@ -11,7 +11,7 @@ void tw_gputime_init(struct tw_gputime *t, const struct tw_gl *gl)
     memset(t, 0, sizeof(*t));
     t->gl = gl;
     t->current = -1;
-    for (int m = 0; m < TW_METHOD_COUNT; m++)
+    for (int m = 0; m < TW_METHOD_ALL; m++)
         t->late[m].ms = -1.0;
     /* A core 3.3 context has GL_TIMESTAMP, but may count with no bits. */
     GLint bits = 0;
@@ -137,7 +137,7 @@ void tw_gputime_late(const struct tw_gputime *t, enum tw_method m, uint64_t *fra
 {
     *frame = 0;
     *ms = -1.0;
-    if ((unsigned)m < TW_METHOD_COUNT && t->late[m].frame > 0) {
+    if ((unsigned)m < TW_METHOD_ALL && t->late[m].frame > 0) {
         *frame = t->late[m].frame;
         *ms = t->late[m].ms;
     }

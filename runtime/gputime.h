@@ -7,7 +7,7 @@
 #define TW_RUNTIME_GPUTIME_H
 
 #include "runtime/gl.h"
-#include "tileworld/runtime.h"
+#include "runtime/runtime-internal.h"
 
 /* Frames whose timers may be in flight at once. */
 #define TW_GPUTIME_RING 8
@@ -44,7 +44,7 @@ struct tw_gputime {
     int32_t current;            /* the entry of the frame being drawn or last drawn;
                                    -1: none (no frame yet, or a fixed set's) */
     uint64_t dropped;           /* entries reused before their results came back */
-    struct tw_gputime_late late[TW_METHOD_COUNT];
+    struct tw_gputime_late late[TW_METHOD_ALL];
 };
 
 /* Makes the query objects; the context of gl must be current. Without a

@@ -63,6 +63,23 @@ int tw_world_create_tuned(const struct tw_world_settings *s, const struct tw_wor
 /* The world's resolved tuning. */
 const struct tw_world_tuning *tw_world_tuning(const struct tw_world *w);
 
+/* The limits the methods are measured against, past the public methods:
+ * frames that know their visibility from the verify pass's untimed
+ * ID-buffer pass and draw only what it found (the oracle: the clusters with
+ * a visible pixel; the box oracle: those visible or whose own box shows in
+ * front of the frame's true depth, README "The box oracle"). Never a method
+ * a renderer could use, so not in runtime.h; the tools measure them beside
+ * the methods. */
+#define TW_METHOD_ORACLE ((enum tw_method)TW_METHOD_COUNT)
+#define TW_METHOD_BOX_ORACLE ((enum tw_method)(TW_METHOD_COUNT + 1))
+#define TW_METHOD_ALL (TW_METHOD_COUNT + 2)   /* the methods and the limits */
+
+/* tw_method_from_name() for the limits too ("oracle", "box-oracle"). */
+int tw_method_or_limit_from_name(const char *name, enum tw_method *out);
+/* tw_world_set_method() for the limits too. A world created with
+ * tw_world_create_tuned() may have a limit as its settings' method. */
+int tw_world_set_method_or_limit(struct tw_world *w, enum tw_method m);
+
 /* TW_METHOD_DEFAULT resolved; every other value as it is. */
 enum tw_method tw_method_resolve(enum tw_method m);
 /* True if method m under tuning t (NULL: the defaults) must never miss a

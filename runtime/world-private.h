@@ -91,7 +91,7 @@ struct tw_world {
     struct tw_cull_grid grid;
     struct tw_cull_cells cells;     /* the cells in view of the current view */
     enum tw_method method;
-    struct method_state methods[TW_METHOD_COUNT];
+    struct method_state methods[TW_METHOD_ALL];
     struct tw_cull_driver *fixed_set;  /* tw_world_frame_fixed */
     struct tw_drawn_cluster *fixed_order;  /* its set, grouped tile by tile */
     size_t fixed_order_cap;

@@ -233,7 +233,7 @@ static void count_bytes(const struct tw_world *w, uint64_t *cpu, uint64_t *gpu, 
     uint64_t scpu = 0, sgpu = 0, culling = 0;
     if (w->stream)
         tw_stream_bytes(w->stream, &scpu, &sgpu);
-    for (int m = 0; m < TW_METHOD_COUNT; m++)
+    for (int m = 0; m < TW_METHOD_ALL; m++)
         if (w->methods[m].driver)
             culling += tw_cull_driver_bytes(w->methods[m].driver);
     *cpu = w->shared_cpu + scpu + culling;
@@ -254,7 +254,7 @@ void tw_world_keep_budget(struct tw_world *w, const struct method_state *ms,
            tw_stream_trim(w->stream, cpu + gpu - budget, w->frame_serial, NULL, NULL) > 0)
         count_bytes(w, &cpu, &gpu, NULL);
     for (int pass = 0; pass < 2 && budget && cpu + gpu > budget; pass++)
-        for (int m = 0; m < TW_METHOD_COUNT && cpu + gpu > budget; m++) {
+        for (int m = 0; m < TW_METHOD_ALL && cpu + gpu > budget; m++) {
             const struct method_state *other = &w->methods[m];
             if (!other->driver || (other == ms) != (pass == 1))
                 continue;
@@ -306,7 +306,7 @@ int tw_world_invalidate_rect(struct tw_world *w, struct tw_cell lo, struct tw_ce
     }
     tw_renderer_leave(w->renderer);
     /* Every method's culling state of those cells: made for what they showed. */
-    for (int m = 0; m < TW_METHOD_COUNT; m++) {
+    for (int m = 0; m < TW_METHOD_ALL; m++) {
         struct tw_cull_driver *d = w->methods[m].driver;
         if (!d)
             continue;

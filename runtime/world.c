@@ -14,33 +14,43 @@
 #include <string.h>
 #include <unistd.h>
 
-static const char *const method_names[TW_METHOD_COUNT] = {
+static const char *const method_names[TW_METHOD_ALL] = {
     [TW_METHOD_DEFAULT] = "default",
     [TW_METHOD_VFC] = "vfc",
     [TW_METHOD_TILEQUERY] = "tilequery",
     [TW_METHOD_CHC] = "chc",
     [TW_METHOD_TILEQUERY_CHC] = "tilequery+chc",
-    [TW_METHOD_ORACLE] = "oracle",
     [TW_METHOD_HZB] = "hzb",
     [TW_METHOD_TILEQUERY_HZB] = "tilequery+hzb",
+    [TW_METHOD_ORACLE] = "oracle",
     [TW_METHOD_BOX_ORACLE] = "box-oracle",
 };
 
 const char *tw_method_name(enum tw_method m)
 {
-    return (unsigned)m < TW_METHOD_COUNT ? method_names[m] : "unknown";
+    return (unsigned)m < TW_METHOD_ALL ? method_names[m] : "unknown";
 }
 
-int tw_method_from_name(const char *name, enum tw_method *out)
+static int from_name(const char *name, int count, enum tw_method *out)
 {
     if (!name || !out)
         return TW_ERR_INVALID;
-    for (int m = TW_METHOD_FIRST; m < TW_METHOD_COUNT; m++)
+    for (int m = TW_METHOD_FIRST; m < count; m++)
         if (strcmp(name, method_names[m]) == 0) {
             *out = (enum tw_method)m;
             return TW_OK;
         }
     return TW_ERR_INVALID;
+}
+
+int tw_method_from_name(const char *name, enum tw_method *out)
+{
+    return from_name(name, TW_METHOD_COUNT, out);
+}
+
+int tw_method_or_limit_from_name(const char *name, enum tw_method *out)
+{
+    return from_name(name, TW_METHOD_ALL, out);
 }
 
 enum tw_method tw_method_resolve(enum tw_method m)
@@ -52,10 +62,10 @@ bool tw_method_conservative(enum tw_method m, const struct tw_world_tuning *t)
 {
     const uint32_t chc_t = t ? t->chc.threshold : 0;
     const uint32_t tq_t = t ? t->tilequery.threshold : 0;
+    if (tw_method_limit(m))
+        return true;
     switch (tw_method_resolve(m)) {
     case TW_METHOD_VFC:
-    case TW_METHOD_ORACLE:
-    case TW_METHOD_BOX_ORACLE:
     case TW_METHOD_HZB:             /* no queries, no threshold */
     case TW_METHOD_TILEQUERY_HZB:
         return true;
@@ -118,7 +128,7 @@ void tw_world_default_tuning(struct tw_world_tuning *t)
 /* The driver of method m (the oracles' timed parts draw a given set). */
 static int create_driver(const struct tw_world *w, enum tw_method m, struct tw_cull_driver **out)
 {
-    static const enum tw_cull_method drivers[TW_METHOD_COUNT] = {
+    static const enum tw_cull_method drivers[TW_METHOD_ALL] = {
         [TW_METHOD_VFC] = TW_CULL_VFC,
         [TW_METHOD_TILEQUERY] = TW_CULL_TILEQUERY,
         [TW_METHOD_CHC] = TW_CULL_CHC,
@@ -153,7 +163,7 @@ static const char *out_of_range(const struct tw_world_settings *s)
         return "the field of view is not a finite angle below 179 degrees";
     if (!isfinite(s->view_distance) || !isfinite(s->near_plane))
         return "the view distance or the near plane is not a finite number";
-    if ((unsigned)s->method >= TW_METHOD_COUNT)
+    if ((unsigned)s->method >= TW_METHOD_ALL)
         return "the method is unknown";
     if (!(s->verify_tolerance >= 0.0f && s->verify_tolerance < 1.0f))
         return "the verify tolerance is not in [0, 1)";
@@ -168,6 +178,10 @@ static const char *out_of_range(const struct tw_world_settings *s)
 
 int tw_world_create(const struct tw_world_settings *settings, struct tw_world **out)
 {
+    if (settings && (unsigned)settings->method >= TW_METHOD_COUNT) {
+        tw_log_printf(&settings->log, TW_LOG_ERROR, "cannot create the world: the method is unknown");
+        return TW_ERR_INVALID;
+    }
     return tw_world_create_tuned(settings, NULL, out);
 }
 
@@ -281,7 +295,7 @@ int tw_world_create_tuned(const struct tw_world_settings *settings,
     if (!err)
         err = tw_cull_driver_create(&given, &w->fixed_set);
     if (!err)
-        err = tw_world_set_method(w, w->s.method);
+        err = tw_world_set_method_or_limit(w, w->s.method);
     if (err)
         goto fail;
     *out = w;
@@ -296,7 +310,7 @@ uint32_t tw_world_destroy(struct tw_world *w)
     if (!w)
         return 0;
     uint32_t left_behind = 0;
-    for (int m = 0; m < TW_METHOD_COUNT; m++)
+    for (int m = 0; m < TW_METHOD_ALL; m++)
         tw_cull_driver_destroy(w->methods[m].driver);
     tw_cull_driver_destroy(w->fixed_set);
     free(w->fixed_order);
@@ -328,7 +342,14 @@ uint32_t tw_world_destroy(struct tw_world *w)
 
 int tw_world_set_method(struct tw_world *w, enum tw_method m)
 {
-    if (!w || (unsigned)m >= TW_METHOD_COUNT)
+    if ((unsigned)m >= TW_METHOD_COUNT)
+        return TW_ERR_INVALID;
+    return tw_world_set_method_or_limit(w, m);
+}
+
+int tw_world_set_method_or_limit(struct tw_world *w, enum tw_method m)
+{
+    if (!w || (unsigned)m >= TW_METHOD_ALL)
         return TW_ERR_INVALID;
     m = tw_method_resolve(m);
     struct method_state *ms = &w->methods[m];

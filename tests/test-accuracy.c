@@ -103,7 +103,7 @@ static void walk(struct tw_context *ctx, const struct tw_tileset *ts, const char
         for (size_t k = 0; k < METHODS; k++) {
             const size_t m = order[k];
             struct tw_frame_stats *st = &frame[m];
-            CHECK(tw_world_set_method(w, methods[m]) == TW_OK);
+            CHECK(tw_world_set_method_or_limit(w, methods[m]) == TW_OK);
             CHECK(tw_world_frame(w, &path.keys[f], st) == TW_OK);
             if (st->missed_pixels != 0 || st->depth_errors != 0)
                 fprintf(stderr, "%s/%s frame %u: %s missed %llu pixels in %u clusters, "
@@ -207,7 +207,7 @@ static void identity(struct tw_context *ctx, const struct tw_tileset *ts)
         const struct tw_camera *cam = k < nviews ? &views[k] : &flyover.keys[144 + (k - nviews)];
         for (size_t m = 0; m < 2; m++) {
             struct tw_frame_stats st;
-            CHECK(tw_world_set_method(w, methods[m]) == TW_OK);
+            CHECK(tw_world_set_method_or_limit(w, methods[m]) == TW_OK);
             CHECK(tw_world_frame(w, cam, &st) == TW_OK);
             if (st.depth_errors != 0)
                 fprintf(stderr, "identity: %s view %zu: %llu pixels' depths differ from the ID "
@@ -244,7 +244,7 @@ static void mutated_walk(struct tw_context *ctx, const struct tw_tileset *ts, fl
     for (uint32_t f = 0; w && f < path.count; f++)
         for (size_t m = 0; m < 2; m++) {
             struct tw_frame_stats st;
-            CHECK(tw_world_set_method(w, methods[m]) == TW_OK);
+            CHECK(tw_world_set_method_or_limit(w, methods[m]) == TW_OK);
             CHECK(tw_world_frame(w, &path.keys[f], &st) == TW_OK);
             /* A missed pixel is a depth error too (what is shown lies farther). */
             CHECK(st.depth_errors >= st.missed_pixels);

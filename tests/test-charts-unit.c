@@ -397,7 +397,7 @@ static void test_gpu_data(const char *dir, const char *system_path)
     write_frames(run_dir, "vfc", vfc_gpu);
     write_frames(run_dir, "chc", chc_gpu);
     write_frames(run_dir, "tilequery+chc", tq_gpu);
-    struct tw_method_figures figures[TW_METHOD_COUNT];
+    struct tw_method_figures figures[TW_METHOD_ALL];
     memset(figures, 0, sizeof(figures));
     /* chc and tilequery+chc coincide in CPU time and accuracy: their labels
      * must be placed apart. */
@@ -408,8 +408,8 @@ static void test_gpu_data(const char *dir, const char *system_path)
     /* A sweep of T over two values; the fronts by CPU time (pareto.h) put
      * chc T=4 on it, by GPU time tilequery+chc T=4. */
     static const double values[2] = {4, 0};
-    struct tw_method_figures (*sweep)[TW_METHOD_COUNT] = calloc(2, sizeof(*sweep));
-    bool (*conservative)[TW_METHOD_COUNT] = calloc(2, sizeof(*conservative));
+    struct tw_method_figures (*sweep)[TW_METHOD_ALL] = calloc(2, sizeof(*sweep));
+    bool (*conservative)[TW_METHOD_ALL] = calloc(2, sizeof(*conservative));
     CHECK(sweep && conservative);
     if (!sweep || !conservative)
         return;
@@ -423,10 +423,10 @@ static void test_gpu_data(const char *dir, const char *system_path)
     set_figures(&sweep[1][TW_METHOD_TILEQUERY_CHC], 21, 10, 6, 4, 0, 2e4);
     conservative[1][TW_METHOD_CHC] = conservative[1][TW_METHOD_TILEQUERY_CHC] = true;
     struct tw_pareto_point points[6];
-    tw_pareto_points(values, 2, (const struct tw_method_figures(*)[TW_METHOD_COUNT])sweep,
-                     (const bool(*)[TW_METHOD_COUNT])conservative, methods, 3, figures, 1, points);
+    tw_pareto_points(values, 2, (const struct tw_method_figures(*)[TW_METHOD_ALL])sweep,
+                     (const bool(*)[TW_METHOD_ALL])conservative, methods, 3, figures, 1, points);
     const struct tw_chart_sweep chart_sweep = {
-        "T", 2, values, (const struct tw_method_figures(*)[TW_METHOD_COUNT])sweep, points, 6,
+        "T", 2, values, (const struct tw_method_figures(*)[TW_METHOD_ALL])sweep, points, 6,
     };
     struct tw_chart_run run = {
         .dir = run_dir, .tileset = "city", .path = "street", .width = 160, .height = 90,
@@ -466,9 +466,9 @@ static void test_gpu_data(const char *dir, const char *system_path)
     CHECK(has(run_dir, "chart-data/labels-pareto-1.dat", "\"tilequery+chc T=4\""));
 
     /* Asked for GPU time and none came back: CPU time, and the charts say so. */
-    struct tw_method_figures cpu_only[TW_METHOD_COUNT];
+    struct tw_method_figures cpu_only[TW_METHOD_ALL];
     memcpy(cpu_only, figures, sizeof(cpu_only));
-    for (int m = 0; m < TW_METHOD_COUNT; m++)
+    for (int m = 0; m < TW_METHOD_ALL; m++)
         cpu_only[m].gpu_frames = 0;
     run.figures = cpu_only;
     run.sweep = NULL;

@@ -23,7 +23,7 @@ static struct tw_world *make_world_as(struct tw_context *ctx, const struct tw_ti
     s.method = method;
     s.deterministic = deterministic;
     struct tw_world *w = NULL;
-    return tw_world_create(&s, &w) == TW_OK ? w : NULL;
+    return tw_world_create_tuned(&s, NULL, &w) == TW_OK ? w : NULL;
 }
 
 static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tileset *ts,
@@ -232,7 +232,7 @@ int main(void)
     if (!open_headless(W, H, "city", 1, &ctx, &ts))
         return 1;
     test_off(ctx, ts);
-    for (int m = TW_METHOD_FIRST; m < TW_METHOD_COUNT; m++)
+    for (int m = TW_METHOD_FIRST; m < TW_METHOD_ALL; m++)
         test_records(ctx, ts, (enum tw_method)m);
     test_fixed(ctx, ts);
     tw_tileset_destroy(ts);

@@ -17,7 +17,7 @@ static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tiles
     s.method = m;
     s.verify = verify;
     struct tw_world *w = NULL;
-    if (tw_world_create(&s, &w) != TW_OK)
+    if (tw_world_create_tuned(&s, NULL, &w) != TW_OK)
         return NULL;
     return w;
 }
@@ -26,7 +26,7 @@ static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tiles
  * known; an ID pass timed apart exactly when there is one. */
 static void test_finished(struct tw_context *ctx, const struct tw_tileset *ts, bool verify)
 {
-    for (int m = TW_METHOD_FIRST; m < TW_METHOD_COUNT; m++) {
+    for (int m = TW_METHOD_FIRST; m < TW_METHOD_ALL; m++) {
         const char *name = tw_method_name((enum tw_method)m);
         struct tw_world *w = make_world(ctx, ts, (enum tw_method)m, verify);
         CHECK_MSG(w != NULL, "%s", name);

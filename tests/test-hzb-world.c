@@ -37,16 +37,16 @@ static void check_frame(struct tw_world *w, const struct tw_camera *cam, bool wa
                         struct totals *t, const char *what, uint32_t f)
 {
     struct tw_frame_stats st;
-    CHECK(tw_world_set_method(w, TW_METHOD_VFC) == TW_OK);
+    CHECK(tw_world_set_method_or_limit(w, TW_METHOD_VFC) == TW_OK);
     CHECK(tw_world_frame(w, cam, &st) == TW_OK);
     const uint64_t vfc_triangles = st.triangles;
-    CHECK(tw_world_set_method(w, TW_METHOD_ORACLE) == TW_OK);
+    CHECK(tw_world_set_method_or_limit(w, TW_METHOD_ORACLE) == TW_OK);
     CHECK(tw_world_frame(w, cam, &st) == TW_OK);
     size_t nv = 0;
     struct tw_drawn_cluster *visible = copy_drawn(w, &nv);
     static const enum tw_method methods[2] = {TW_METHOD_HZB, TW_METHOD_TILEQUERY_HZB};
     for (int m = 0; m < 2; m++) {
-        CHECK(tw_world_set_method(w, methods[m]) == TW_OK);
+        CHECK(tw_world_set_method_or_limit(w, methods[m]) == TW_OK);
         CHECK(tw_world_frame(w, cam, &st) == TW_OK);
         size_t n = 0;
         struct tw_drawn_cluster *drawn = copy_drawn(w, &n);
@@ -143,7 +143,7 @@ static void test_mutation(struct tw_context *ctx, const struct tw_tileset *ts)
         struct tw_camera c = cam;
         c.yaw += 3.0f * (float)f;
         struct tw_frame_stats st;
-        CHECK(tw_world_set_method(w, TW_METHOD_HZB) == TW_OK);
+        CHECK(tw_world_set_method_or_limit(w, TW_METHOD_HZB) == TW_OK);
         CHECK(tw_world_frame(w, &c, &st) == TW_OK);
         missed += st.missed_pixels;
     }

@@ -53,8 +53,8 @@ static char *read_all(const char *file)
 
 int main(void)
 {
-    struct tw_method_figures figures[VALUES][TW_METHOD_COUNT];
-    bool conservative[VALUES][TW_METHOD_COUNT];
+    struct tw_method_figures figures[VALUES][TW_METHOD_ALL];
+    bool conservative[VALUES][TW_METHOD_ALL];
     memset(figures, 0, sizeof(figures));
     memset(conservative, 0, sizeof(conservative));
     /* chc: T=0 is beaten by tilequery+chc T=0 (faster, as few errors);
@@ -76,8 +76,8 @@ int main(void)
 
     struct tw_pareto_point points[VALUES * METHODS];
     const uint32_t n = VALUES * METHODS;
-    tw_pareto_points(values, VALUES, (const struct tw_method_figures(*)[TW_METHOD_COUNT])figures,
-                     (const bool(*)[TW_METHOD_COUNT])conservative, methods, METHODS, NULL, 0,
+    tw_pareto_points(values, VALUES, (const struct tw_method_figures(*)[TW_METHOD_ALL])figures,
+                     (const bool(*)[TW_METHOD_ALL])conservative, methods, METHODS, NULL, 0,
                      points);
     const struct tw_pareto_point *chc0 = find(points, n, TW_METHOD_CHC, 0);
     const struct tw_pareto_point *chc4 = find(points, n, TW_METHOD_CHC, 4);
@@ -101,17 +101,17 @@ int main(void)
     /* Equal points: neither beats the other. Against the defaults. */
     set(&figures[1][TW_METHOD_CHC], 7.0, 1000, 1000);
     set(&figures[2][TW_METHOD_CHC], 7.0, 1000, 1000);
-    struct tw_method_figures defaults[TW_METHOD_COUNT];
+    struct tw_method_figures defaults[TW_METHOD_ALL];
     memset(defaults, 0, sizeof(defaults));
     set(&defaults[TW_METHOD_CHC], 14.0, 0, 0);
     set(&defaults[TW_METHOD_TILEQUERY_CHC], 14.0, 0, 0);
-    tw_pareto_points(values, VALUES, (const struct tw_method_figures(*)[TW_METHOD_COUNT])figures,
-                     (const bool(*)[TW_METHOD_COUNT])conservative, methods, METHODS, defaults,
+    tw_pareto_points(values, VALUES, (const struct tw_method_figures(*)[TW_METHOD_ALL])figures,
+                     (const bool(*)[TW_METHOD_ALL])conservative, methods, METHODS, defaults,
                      UINT32_MAX, points);
     CHECK(!chc4->front && !chc16->front);   /* tilequery+chc T=16 is as fast with fewer */
     set(&figures[2][TW_METHOD_TILEQUERY_CHC], 7.0, 1000, 1000);
-    tw_pareto_points(values, VALUES, (const struct tw_method_figures(*)[TW_METHOD_COUNT])figures,
-                     (const bool(*)[TW_METHOD_COUNT])conservative, methods, METHODS, defaults,
+    tw_pareto_points(values, VALUES, (const struct tw_method_figures(*)[TW_METHOD_ALL])figures,
+                     (const bool(*)[TW_METHOD_ALL])conservative, methods, METHODS, defaults,
                      UINT32_MAX, points);
     CHECK(chc4->front && chc16->front && tq16->front);
     CHECK(chc4->speedup == 2.0);

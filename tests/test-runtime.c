@@ -63,14 +63,14 @@ static void test_methods_match_vfc(struct tw_context *ctx, const struct tw_tiles
     const enum tw_method methods[] = {TW_METHOD_CHC, TW_METHOD_TILEQUERY, TW_METHOD_TILEQUERY_CHC};
     uint8_t *ref = malloc(W * H * 3), *img = malloc(W * H * 3);
     for (size_t v = 0; v < sizeof(city_views) / sizeof(city_views[0]); v++) {
-        CHECK(tw_world_set_method(w, TW_METHOD_VFC) == TW_OK);
+        CHECK(tw_world_set_method_or_limit(w, TW_METHOD_VFC) == TW_OK);
         struct tw_frame_stats vst;
         CHECK(render(w, &city_views[v], ref, &vst) == TW_OK);
         size_t nv;
         struct tw_drawn_cluster *dv = copy_drawn(w, &nv);
         CHECK(nv == vst.clusters);
         for (size_t m = 0; m < sizeof(methods) / sizeof(methods[0]); m++) {
-            CHECK(tw_world_set_method(w, methods[m]) == TW_OK);
+            CHECK(tw_world_set_method_or_limit(w, methods[m]) == TW_OK);
             for (int f = 0; f < 4; f++) {
                 struct tw_frame_stats st;
                 CHECK(render(w, &city_views[v], img, &st) == TW_OK);

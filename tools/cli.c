@@ -254,9 +254,9 @@ static const char *join(const char *const *names, char *out, size_t size)
 enum tw_method tw_cli_method(const char *program, const char *opt, const char *s)
 {
     enum tw_method m;
-    if (tw_method_from_name(s, &m) != TW_OK) {
-        const char *list[TW_METHOD_COUNT + 1] = {NULL};
-        for (int k = TW_METHOD_FIRST; k < TW_METHOD_COUNT; k++)
+    if (tw_method_or_limit_from_name(s, &m) != TW_OK) {
+        const char *list[TW_METHOD_ALL + 1] = {NULL};
+        for (int k = TW_METHOD_FIRST; k < TW_METHOD_ALL; k++)
             list[k - TW_METHOD_FIRST] = tw_method_name((enum tw_method)k);
         char names[256];
         tw_cli_fail(program, opt, "unknown method '%s' (%s)", s, join(list, names, sizeof(names)));

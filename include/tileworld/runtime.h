@@ -35,19 +35,15 @@ enum tw_method {
     TW_METHOD_TILEQUERY,
     TW_METHOD_CHC,
     TW_METHOD_TILEQUERY_CHC,
-    TW_METHOD_ORACLE,
     TW_METHOD_HZB,              /* two-phase hierarchical-Z culling (DESIGN §6) */
     TW_METHOD_TILEQUERY_HZB,    /* §4 answered by the depth pyramid instead of queries */
-    TW_METHOD_BOX_ORACLE,       /* the limit of culling with boxes: draws every cluster
-                                   that is visible or whose own box shows in front of
-                                   the frame's true depth (README, "The box oracle") */
     TW_METHOD_COUNT
 };
 /* The first real method: loops over methods run [TW_METHOD_FIRST, TW_METHOD_COUNT). */
 #define TW_METHOD_FIRST TW_METHOD_VFC
 
-/* "vfc", "tilequery", "chc", "tilequery+chc", "oracle", "hzb",
- * "tilequery+hzb", "box-oracle" ("default" for TW_METHOD_DEFAULT). */
+/* "vfc", "tilequery", "chc", "tilequery+chc", "hzb", "tilequery+hzb"
+ * ("default" for TW_METHOD_DEFAULT). */
 const char *tw_method_name(enum tw_method m);
 /* Parses a method name (not "default"); returns TW_ERR_INVALID for an
  * unknown one. */
@@ -110,7 +106,8 @@ struct tw_world_settings {
     float near_plane;                  /* metres; default 0.2 */
     float view_distance;               /* metres; default 600 */
     uint32_t evict_after_frames;       /* tile cache; default 60 */
-    bool verify;                       /* run the oracle's ID pass every frame (untimed) */
+    bool verify;                       /* run the oracle's ID pass every frame (untimed) and
+                                          count what the method missed (missed_pixels) */
     float verify_tolerance;            /* relative depth difference that --verify takes for
                                           a real one (DESIGN §8); default
                                           TW_VERIFY_TOLERANCE */

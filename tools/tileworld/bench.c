@@ -187,7 +187,7 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
          * hits them all alike. */
         for (uint32_t m = 0; m < run->method_count; m++) {
             struct tw_frame_stats st;
-            rc = tw_world_set_method(world, run->methods[m]);
+            rc = tw_world_set_method_or_limit(world, run->methods[m]);
             if (!rc)
                 rc = tw_world_frame(world, &run->path->keys[f], &st);
             /* A frame's time ends when the GPU has finished it. */
@@ -416,8 +416,8 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
     memcpy(run->figures, base.figures, sizeof(run->figures));
     run->about = base.about;
     run->conservative_missed_pixels = base.conservative_missed_pixels;
-    struct tw_method_figures (*figures)[TW_METHOD_COUNT] = calloc(count, sizeof(*figures));
-    bool (*conservative)[TW_METHOD_COUNT] = calloc(count, sizeof(*conservative));
+    struct tw_method_figures (*figures)[TW_METHOD_ALL] = calloc(count, sizeof(*figures));
+    bool (*conservative)[TW_METHOD_ALL] = calloc(count, sizeof(*conservative));
     struct tw_pareto_point *points = calloc((size_t)count * run->method_count, sizeof(*points));
     if (!figures || !conservative || !points) {
         free(figures);
@@ -493,15 +493,15 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
             reference = k;
     const uint32_t npoints = count * run->method_count;
     if (!rc) {
-        tw_pareto_points(values, count, (const struct tw_method_figures(*)[TW_METHOD_COUNT])figures,
-                         (const bool(*)[TW_METHOD_COUNT])conservative, run->methods,
+        tw_pareto_points(values, count, (const struct tw_method_figures(*)[TW_METHOD_ALL])figures,
+                         (const bool(*)[TW_METHOD_ALL])conservative, run->methods,
                          run->method_count, run->figures, reference, points);
         rc = write_sweep_md(run, sweep_names[param], reference == UINT32_MAX ? "defaults" : "T=0",
                             points, npoints, err, err_size);
     }
     if (!rc && run->bench) {
         const struct tw_chart_sweep sweep = {sweep_names[param], count, values,
-                                             (const struct tw_method_figures(*)[TW_METHOD_COUNT])figures,
+                                             (const struct tw_method_figures(*)[TW_METHOD_ALL])figures,
                                              points, npoints};
         rc = draw_charts(run, ctx, &sweep, err, err_size);
     }
@@ -587,7 +587,7 @@ struct scenario_result {
     struct check checks[32];
     uint32_t check_count;
     uint32_t frames;
-    struct tw_method_figures figures[TW_METHOD_COUNT];
+    struct tw_method_figures figures[TW_METHOD_ALL];
 };
 
 static struct check *add_check(struct scenario_result *r)
@@ -620,8 +620,8 @@ static struct check *add_check(struct scenario_result *r)
 
 /* Each method's worst frame after the first (CPU time), from on_frame. */
 struct worst_frames {
-    double cpu_ms[TW_METHOD_COUNT];
-    uint32_t frame[TW_METHOD_COUNT];
+    double cpu_ms[TW_METHOD_ALL];
+    uint32_t frame[TW_METHOD_ALL];
 };
 
 static void track_worst(void *user, uint32_t f, struct tw_world *w, const struct tw_frame_stats *st)
@@ -945,7 +945,7 @@ int tw_run_scenarios(struct tw_run *run, struct tw_context *ctx, const char *nam
                           "CPU max | triangles | tiles/frame | missed pixels | depth errors |\n"
                           "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (uint32_t k = 0; k < count; k++)
-        for (int m = 0; m < TW_METHOD_COUNT; m++) {
+        for (int m = 0; m < TW_METHOD_ALL; m++) {
             const struct tw_method_figures *fg = &results[k].figures[m];
             if (!fg->used)
                 continue;

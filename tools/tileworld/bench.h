@@ -30,7 +30,7 @@ struct tw_run {
     const char *path_name;
     struct tw_world_settings world;     /* tileset and get_proc are filled in by tw_run_execute */
     struct tw_world_tuning tuning;
-    enum tw_method methods[TW_METHOD_COUNT];
+    enum tw_method methods[TW_METHOD_ALL];
     uint32_t method_count;
     const char *out;                    /* output folder */
     uint32_t png_every;
@@ -48,7 +48,7 @@ struct tw_run {
     tw_run_frame_fn on_frame;
     void *on_frame_user;
     /* results */
-    struct tw_method_figures figures[TW_METHOD_COUNT];
+    struct tw_method_figures figures[TW_METHOD_ALL];
     struct tw_report_about about;       /* what ran (of a sweep: its base run) */
     /* Under --verify, pixels that conservative methods missed, over every
      * run (a sweep's too). */

@@ -354,7 +354,7 @@ static void text_size(size_t n, double pt, double *w, double *h)
     *h = 1.3 * em;
 }
 
-enum { LABELS_MAX = 64 * TW_METHOD_COUNT + TW_METHOD_COUNT };
+enum { LABELS_MAX = 64 * TW_METHOD_ALL + TW_METHOD_ALL };
 
 /* One panel's points and labels, in pixels, with what they must avoid. */
 struct panel {

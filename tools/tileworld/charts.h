@@ -57,7 +57,7 @@ struct tw_chart_sweep {
     const char *param;
     uint32_t count;
     const double *values;                                       /* count, any order */
-    const struct tw_method_figures (*figures)[TW_METHOD_COUNT]; /* count, by method */
+    const struct tw_method_figures (*figures)[TW_METHOD_ALL]; /* count, by method */
     const struct tw_pareto_point *points;                       /* speed against accuracy */
     uint32_t point_count;
 };
@@ -71,7 +71,7 @@ struct tw_chart_run {
     bool split;                                 /* --split: frames-*.dat's set_* columns */
     const enum tw_method *methods;              /* in the order of the run */
     uint32_t method_count;
-    const struct tw_method_figures *figures;    /* TW_METHOD_COUNT, by method */
+    const struct tw_method_figures *figures;    /* TW_METHOD_ALL, by method */
     const struct tw_chart_sweep *sweep;         /* NULL: no sweep */
     /* The primary time: TW_CHART_TIME_GPU where the context is a real GPU
      * (struct tw_context_info.software false), else CPU (zero). With GPU,

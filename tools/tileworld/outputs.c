@@ -27,7 +27,7 @@ static bool ends_with(const char *s, size_t n, const char *end)
 
 static bool is_method(const char *s, size_t n)
 {
-    for (int m = 0; m < TW_METHOD_COUNT; m++) {
+    for (int m = 0; m < TW_METHOD_ALL; m++) {
         const char *name = tw_method_name((enum tw_method)m);
         if (strlen(name) == n && memcmp(s, name, n) == 0)
             return true;

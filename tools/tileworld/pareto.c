@@ -38,8 +38,8 @@ static void mark_front(struct tw_pareto_point *points, uint32_t n, const double 
 }
 
 void tw_pareto_points(const double *values, uint32_t count,
-                      const struct tw_method_figures (*figures)[TW_METHOD_COUNT],
-                      const bool (*conservative)[TW_METHOD_COUNT], const enum tw_method *methods,
+                      const struct tw_method_figures (*figures)[TW_METHOD_ALL],
+                      const bool (*conservative)[TW_METHOD_ALL], const enum tw_method *methods,
                       uint32_t method_count, const struct tw_method_figures *reference,
                       uint32_t reference_value_index, struct tw_pareto_point *out)
 {

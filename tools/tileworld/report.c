@@ -504,18 +504,18 @@ static void add_ratios(char *line, double a, double vfc, double box, bool short_
 }
 
 bool tw_report_missed(const struct tw_report_about *about,
-                      const struct tw_method_figures figures[TW_METHOD_COUNT])
+                      const struct tw_method_figures figures[TW_METHOD_ALL])
 {
     if (!about->verified)
         return false;
-    for (int k = 0; k < TW_METHOD_COUNT; k++)
+    for (int k = 0; k < TW_METHOD_ALL; k++)
         if (figures[k].used && about->conservative[k] && figures[k].missed_pixels_total > 0)
             return true;
     return false;
 }
 
 void tw_report_verdict(const struct tw_report_about *about,
-                       const struct tw_method_figures figures[TW_METHOD_COUNT], bool bench,
+                       const struct tw_method_figures figures[TW_METHOD_ALL], bool bench,
                        enum tw_verdict_form form, struct tw_verdict *out)
 {
     memset(out, 0, sizeof(*out));
@@ -530,7 +530,7 @@ void tw_report_verdict(const struct tw_report_about *about,
     tw_report_escape(known(about->commit), md, commit, sizeof(commit));
     int used = 0;
     enum tw_method only = TW_METHOD_VFC;
-    for (int k = 0; k < TW_METHOD_COUNT; k++)
+    for (int k = 0; k < TW_METHOD_ALL; k++)
         if (figures[k].used) {
             used++;
             only = (enum tw_method)k;
@@ -567,20 +567,20 @@ void tw_report_verdict(const struct tw_report_about *about,
             reference ? "" : tw_method_name(only), reference ? "" : ",");
     } else {
         /* The conservative methods a renderer could use, by the figure. */
-        enum tw_method best = TW_METHOD_COUNT, next = TW_METHOD_COUNT;
-        for (int k = 0; k < TW_METHOD_COUNT; k++) {
+        enum tw_method best = TW_METHOD_ALL, next = TW_METHOD_ALL;
+        for (int k = 0; k < TW_METHOD_ALL; k++) {
             const struct tw_method_figures *fg = &figures[k];
             if (!fg->used || tw_method_limit((enum tw_method)k) || !about->conservative[k])
                 continue;
             const double v = ranked_figure(fg, sw);
-            if (best == TW_METHOD_COUNT || v < ranked_figure(&figures[best], sw)) {
+            if (best == TW_METHOD_ALL || v < ranked_figure(&figures[best], sw)) {
                 next = best;
                 best = (enum tw_method)k;
-            } else if (next == TW_METHOD_COUNT || v < ranked_figure(&figures[next], sw)) {
+            } else if (next == TW_METHOD_ALL || v < ranked_figure(&figures[next], sw)) {
                 next = (enum tw_method)k;
             }
         }
-        if (best == TW_METHOD_COUNT) {
+        if (best == TW_METHOD_ALL) {
             add(line, "No conservative method a renderer could use ran (see --methods and "
                       "--threshold): none is ranked.");
         } else {
@@ -606,7 +606,7 @@ void tw_report_verdict(const struct tw_report_about *about,
                 add(line, "; GPU time not known");
             }
             add(line, ".");
-            if (next != TW_METHOD_COUNT) {
+            if (next != TW_METHOD_ALL) {
                 const double a = ranked_figure(fg, sw), b = ranked_figure(&figures[next], sw);
                 add(line, " The next fastest, %s, took %.2fx as much %s.", tw_method_name(next),
                     a > 0.0 ? b / a : 0.0, sw ? "CPU time" : "wall time");
@@ -623,7 +623,7 @@ void tw_report_verdict(const struct tw_report_about *about,
                 vfc->used ? "vfc's" : "", vfc->used && box->used ? " / " : "",
                 box->used ? "the box oracle's" : "");
             bool comma = false;
-            for (int k = 0; k < TW_METHOD_COUNT; k++) {
+            for (int k = 0; k < TW_METHOD_ALL; k++) {
                 const struct tw_method_figures *fg = &figures[k];
                 if (!fg->used)
                     continue;
@@ -656,7 +656,7 @@ void tw_report_verdict(const struct tw_report_about *about,
             add(line, "%sFAILED: a conservative method missed pixels under --verify:",
                 md ? "**" : "");
             bool comma = false;
-            for (int k = 0; k < TW_METHOD_COUNT; k++) {
+            for (int k = 0; k < TW_METHOD_ALL; k++) {
                 const struct tw_method_figures *fg = &figures[k];
                 if (!fg->used || !about->conservative[k] || fg->missed_pixels_total == 0)
                     continue;
@@ -678,7 +678,7 @@ void tw_report_verdict(const struct tw_report_about *about,
                 add(line, "Accuracy (--verify, the oracle's ID pass on every frame): no "
                           "conservative method missed a pixel.");
         }
-        for (int k = 0; k < TW_METHOD_COUNT; k++) {
+        for (int k = 0; k < TW_METHOD_ALL; k++) {
             const struct tw_method_figures *fg = &figures[k];
             if (fg->used && !about->conservative[k])
                 add(line, " %s, approximate (--threshold), missed %llu pixels in %u of %u frames.",
@@ -727,10 +727,10 @@ static void write_floor(struct tw_outfile *f, const struct row *rows, int nrows,
 }
 
 int tw_report_close(struct tw_report *r, bool markdown,
-                    struct tw_method_figures figures[TW_METHOD_COUNT], char *err, size_t err_size)
+                    struct tw_method_figures figures[TW_METHOD_ALL], char *err, size_t err_size)
 {
     int rc = tw_outfile_commit(&r->frames_csv, err, err_size);
-    for (int k = 0; k < TW_METHOD_COUNT && !rc; k++)
+    for (int k = 0; k < TW_METHOD_ALL && !rc; k++)
         if (r->chart_frames[k].f)
             rc = tw_outfile_commit(&r->chart_frames[k], err, err_size);
     if (rc) {
@@ -738,15 +738,15 @@ int tw_report_close(struct tw_report *r, bool markdown,
         return rc;
     }
 
-    struct row rows[TW_METHOD_COUNT];
+    struct row rows[TW_METHOD_ALL];
     int nrows = 0;
     /* The figures are the verdict's too: kept here when the caller wants none. */
-    struct tw_method_figures own[TW_METHOD_COUNT];
+    struct tw_method_figures own[TW_METHOD_ALL];
     struct tw_method_figures *figures_of = figures ? figures : own;
-    memset(figures_of, 0, sizeof(struct tw_method_figures) * TW_METHOD_COUNT);
+    memset(figures_of, 0, sizeof(struct tw_method_figures) * TW_METHOD_ALL);
     json_object *root = json_object_new_object();
     json_object *methods = json_object_new_object();
-    for (int k = 0; k < TW_METHOD_COUNT; k++) {
+    for (int k = 0; k < TW_METHOD_ALL; k++) {
         struct tw_method_summary *m = &r->methods[k];
         if (!m->used)
             continue;
@@ -1004,7 +1004,7 @@ int tw_report_close(struct tw_report *r, bool markdown,
 void tw_report_abort(struct tw_report *r)
 {
     tw_outfile_discard(&r->frames_csv);
-    for (int k = 0; k < TW_METHOD_COUNT; k++) {
+    for (int k = 0; k < TW_METHOD_ALL; k++) {
         tw_outfile_discard(&r->chart_frames[k]);
         free(r->methods[k].ms);
         free(r->methods[k].cpu_ms);

@@ -130,7 +130,7 @@ struct tw_report_about {
     uint32_t frames;          /* of the path: each method's */
     /* Which methods must never miss a visible pixel under the run's settings
      * (tw_method_conservative()). */
-    bool conservative[TW_METHOD_COUNT];
+    bool conservative[TW_METHOD_ALL];
     /* --allow-missed: a conservative method's missed pixels are reported,
      * not a failure. */
     bool allow_missed;
@@ -141,8 +141,8 @@ struct tw_report {
     bool open;
     struct tw_outfile frames_csv;
     bool chart_data;
-    struct tw_outfile chart_frames[TW_METHOD_COUNT];
-    struct tw_method_summary methods[TW_METHOD_COUNT];
+    struct tw_outfile chart_frames[TW_METHOD_ALL];
+    struct tw_method_summary methods[TW_METHOD_ALL];
     /* Every byte the world's tile cache held after a frame, CPU and GPU
      * (frames.csv bytes_cpu + bytes_gpu): its peak over the run. */
     uint64_t peak_tile_cache_bytes;
@@ -164,7 +164,7 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
  * summary.md when markdown is true) and frees everything. figures (may be
  * NULL) receives each method's figures, indexed by method. */
 int tw_report_close(struct tw_report *r, bool markdown,
-                    struct tw_method_figures figures[TW_METHOD_COUNT], char *err, size_t err_size);
+                    struct tw_method_figures figures[TW_METHOD_ALL], char *err, size_t err_size);
 /* Frees and removes the unfinished files, writing no summary (after a
  * failure). */
 void tw_report_abort(struct tw_report *r);
@@ -185,11 +185,11 @@ struct tw_verdict {
     bool failed;
 };
 void tw_report_verdict(const struct tw_report_about *about,
-                       const struct tw_method_figures figures[TW_METHOD_COUNT], bool bench,
+                       const struct tw_method_figures figures[TW_METHOD_ALL], bool bench,
                        enum tw_verdict_form form, struct tw_verdict *out);
 /* Whether a conservative method missed a pixel under --verify. */
 bool tw_report_missed(const struct tw_report_about *about,
-                      const struct tw_method_figures figures[TW_METHOD_COUNT]);
+                      const struct tw_method_figures figures[TW_METHOD_ALL]);
 
 /* Text from input (a tileset's or a path file's name: any bytes) made safe
  * for a terminal, a report and JSON: valid UTF-8, no control character or

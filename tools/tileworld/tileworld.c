@@ -36,7 +36,7 @@ struct options {
     const char *command;
     const char *out;
     bool methods_given;
-    enum tw_method methods[TW_METHOD_COUNT];
+    enum tw_method methods[TW_METHOD_ALL];
     uint32_t method_count;
     uint32_t png_every;
     uint32_t cluster_triangles;
@@ -445,7 +445,7 @@ static int run(const struct options *o, bool bench)
         memcpy(r.methods, o->methods, sizeof(r.methods));
         r.method_count = o->method_count;
     } else {
-        for (int m = TW_METHOD_FIRST; m < TW_METHOD_COUNT; m++)
+        for (int m = TW_METHOD_FIRST; m < TW_METHOD_ALL; m++)
             r.methods[r.method_count++] = (enum tw_method)m;
     }
 

@@ -445,7 +445,7 @@ static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods)
                                                  TW_METHOD_TILEQUERY_CHC, TW_METHOD_ORACLE,
                                                  TW_METHOD_HZB, TW_METHOD_TILEQUERY_HZB,
                                                  TW_METHOD_BOX_ORACLE};
-        if (tw_world_set_method(v->world, by_key[key - GLFW_KEY_1]) == TW_OK)
+        if (tw_world_set_method_or_limit(v->world, by_key[key - GLFW_KEY_1]) == TW_OK)
             set_title(v);
         break;
     }
