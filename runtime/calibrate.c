@@ -33,7 +33,7 @@ static double focal_pixels(uint32_t height, float fov_y)
 }
 
 /* The pixels of the screen rectangle of box b moved by offset (NULL: none)
- * in view v, as the cost model counts them (cull/chc.c): the calibration's
+ * in view v, as the cost model counts them (cull/chc-queries.c): the calibration's
  * pixel figures are per such pixel. */
 static double model_pixels(const struct tw_view *v, double screen, const struct tw_box *b,
                            const float offset[3])

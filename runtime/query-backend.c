@@ -203,7 +203,7 @@ static void record_query(struct tw_renderer *r, uint32_t handle, const struct tw
     }
 }
 
-/* The mutation of tw_world_settings.mutate_query_shrink: b shrunk by f of
+/* The mutation of tw_world_tuning.mutate_query_shrink: b shrunk by f of
  * its size on every axis, about its centre. */
 static void shrink(struct tw_box *b, float f)
 {

@@ -56,7 +56,7 @@ void tw_memtest_walk_init(const struct tw_memtest_options *o, const struct tw_cl
     w->footprint[1] = shown->footprint[1];
     const char *name = o->cli.path;
     if (strcmp(name, "straight") == 0 || strcmp(name, "wander") == 0) {
-        /* 2 m a frame (tw_path_builtin_speed); turns cost a little. */
+        /* 2 m a frame (tw_path_builtin's own speed); turns cost a little. */
         const double frames = ceil(o->distance_m / 2.0 * 1.05) + 16.0;
         if (frames > MAX_FRAMES)
             tw_cli_fail(program, "--distance", "%g km would take about %.0f frames, more than "
