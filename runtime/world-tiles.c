@@ -103,8 +103,6 @@ static void stream_event(void *user, const struct tw_tile_event *e)
     push_event(user, e);
 }
 
-/* Starts the stream of the provider's own tiles, handing them to the
- * renderer's GPU store. Between enter and leave. */
 int tw_world_start_stream(struct tw_world *w)
 {
     const struct tw_stream_settings ss = {

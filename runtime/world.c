@@ -155,7 +155,7 @@ static uint32_t default_workers(void)
 }
 
 /* What is wrong with s's numbers, or NULL. */
-static const char *out_of_range(const struct tw_world_settings *s)
+static const char *out_of_range(const struct tw_world_settings *s, int methods)
 {
     if (s->width > 16384 || s->height > 16384)
         return "the image is larger than 16384 pixels across";
@@ -163,7 +163,7 @@ static const char *out_of_range(const struct tw_world_settings *s)
         return "the field of view is not a finite angle below 179 degrees";
     if (!isfinite(s->view_distance) || !isfinite(s->near_plane))
         return "the view distance or the near plane is not a finite number";
-    if ((unsigned)s->method >= TW_METHOD_ALL)
+    if ((unsigned)s->method >= (unsigned)methods)
         return "the method is unknown";
     if (!(s->verify_tolerance >= 0.0f && s->verify_tolerance < 1.0f))
         return "the verify tolerance is not in [0, 1)";
@@ -176,17 +176,23 @@ static const char *out_of_range(const struct tw_world_settings *s)
     return NULL;
 }
 
+static int create(const struct tw_world_settings *settings, const struct tw_world_tuning *tuning,
+                  int methods, struct tw_world **out);
+
+/* A host's world draws with a method; the tools' may draw a limit too. */
 int tw_world_create(const struct tw_world_settings *settings, struct tw_world **out)
 {
-    if (settings && (unsigned)settings->method >= TW_METHOD_COUNT) {
-        tw_log_printf(&settings->log, TW_LOG_ERROR, "cannot create the world: the method is unknown");
-        return TW_ERR_INVALID;
-    }
-    return tw_world_create_tuned(settings, NULL, out);
+    return create(settings, NULL, TW_METHOD_COUNT, out);
 }
 
 int tw_world_create_tuned(const struct tw_world_settings *settings,
                           const struct tw_world_tuning *tuning, struct tw_world **out)
+{
+    return create(settings, tuning, TW_METHOD_ALL, out);
+}
+
+static int create(const struct tw_world_settings *settings, const struct tw_world_tuning *tuning,
+                  int methods, struct tw_world **out)
 {
     if (!settings || !out)
         return TW_ERR_INVALID;
@@ -210,7 +216,7 @@ int tw_world_create_tuned(const struct tw_world_settings *settings,
                       "loader (get_proc)");
         return TW_ERR_INVALID;
     }
-    const char *bad = out_of_range(settings);
+    const char *bad = out_of_range(settings, methods);
     if (bad) {
         tw_log_printf(log, TW_LOG_ERROR, "cannot create the world: %s", bad);
         return TW_ERR_INVALID;

@@ -127,9 +127,14 @@ static void test_merged_colors(struct tw_context *ctx)
                   ts->meshes[p->instances[2].mesh].colors,
               "%u instances, %u clusters: the walls not merged", p->instance_count, p->cluster_count);
     struct tw_world_settings s = world_settings(ctx, ts, W, H, 1, 400.0f);
-    s.method = TW_METHOD_VFC;
     struct tw_world *w = NULL;
+    /* The limits are the tools' (runtime-internal.h), not a host's methods. */
+    s.method = TW_METHOD_ORACLE;
+    CHECK(tw_world_create(&s, &w) == TW_ERR_INVALID && !w);
+    s.method = TW_METHOD_VFC;
     CHECK(tw_world_create(&s, &w) == TW_OK);
+    CHECK(tw_world_set_method(w, TW_METHOD_BOX_ORACLE) == TW_ERR_INVALID);
+    CHECK(tw_world_set_method(w, TW_METHOD_VFC) == TW_OK);
     uint8_t *rgb = malloc(W * H * 3);
     if (w && rgb) {
         const struct tw_camera cam = {{{0, 0}, {5.0f, 1.5f, 2.0f}}, 0.0f, 0.0f};
