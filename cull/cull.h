@@ -187,6 +187,13 @@ struct tw_query_backend {
     void (*draw)(void *ctx, struct tw_cell cell, uint32_t content,
                  const float offset[3], const uint32_t *clusters,
                  uint32_t count);
+    /* May be NULL. Draws as draw() does, but only if query (issued, not read
+     * yet) passes, the GPU deciding without a CPU wait (conditional
+     * rendering); a GPU that has no answer yet when the draw reaches it
+     * draws. The query must still be read once with wait(). NULL where there
+     * is no conditional rendering: callers then wait, or draw, as before. */
+    void (*draw_if)(void *ctx, uint32_t query, struct tw_cell cell, uint32_t content,
+                    const float offset[3], const uint32_t *clusters, uint32_t count);
     /* Sends issued work to the GPU. */
     void (*flush)(void *ctx);
     /* The depth of everything drawn so far this frame, for the HZB methods
@@ -199,6 +206,31 @@ struct tw_query_backend {
      * methods draw everything in the frustum. */
     bool (*read_depth)(void *ctx, float *depth, uint32_t *width, uint32_t *height,
                        bool *reversed);
+    /* The HZB on the GPU (DESIGN §6), where the backend has compute
+     * shaders; all NULL where it has not (the HZB methods then read the
+     * depth back and build the pyramid on the CPU). No call waits for the
+     * GPU.
+     * gpu_hzb_build: builds a depth pyramid of everything drawn so far this
+     *   frame and clears the frame's candidates; false: none could be made
+     *   (nothing is then proven hidden).
+     * gpu_hzb_candidate: queues box (view-relative, the query margin
+     *   included) for the frame's test; when it passes, or when always
+     *   (a box the near plane may cut), count clusters of the tile at cell
+     *   (content placed at offset) are drawn. Returns the candidate's
+     *   index in the frame's results.
+     * gpu_hzb_test: tests every candidate queued against the pyramid and
+     *   draws the clusters of those that pass, in the order queued.
+     * gpu_hzb_results: the results of the latest frame whose test the GPU
+     *   has finished and that was not yet given out: one bit per candidate
+     *   (bit i % 32 of word i / 32 set: passed), their number, and that
+     *   frame's number (the view's); NULL when none is new. wait: block
+     *   until the latest frame tested is finished (a deterministic run). */
+    bool (*gpu_hzb_build)(void *ctx, uint64_t frame);
+    uint32_t (*gpu_hzb_candidate)(void *ctx, const struct tw_box *box, bool always,
+                                  struct tw_cell cell, uint32_t content, const float offset[3],
+                                  const uint32_t *clusters, uint32_t count);
+    void (*gpu_hzb_test)(void *ctx);
+    const uint32_t *(*gpu_hzb_results)(void *ctx, bool wait, uint32_t *count, uint64_t *frame);
 };
 
 /* ---- vfc: view-frustum culling inside one tile ------------------------------ */

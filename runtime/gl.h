@@ -73,6 +73,8 @@
     X(PFNGLGETQUERYIVPROC, GetQueryiv) \
     X(PFNGLQUERYCOUNTERPROC, QueryCounter) \
     X(PFNGLGETQUERYOBJECTUI64VPROC, GetQueryObjectui64v) \
+    X(PFNGLBEGINCONDITIONALRENDERPROC, BeginConditionalRender) \
+    X(PFNGLENDCONDITIONALRENDERPROC, EndConditionalRender) \
     X(PFNGLGENFRAMEBUFFERSPROC, GenFramebuffers) \
     X(PFNGLDELETEFRAMEBUFFERSPROC, DeleteFramebuffers) \
     X(PFNGLBINDFRAMEBUFFERPROC, BindFramebuffer) \
@@ -103,7 +105,31 @@
  * may also hand out a pointer that the context cannot use, so the renderer
  * checks the version or the extension before calling it. */
 #define TW_GL_OPTIONAL_FUNCTIONS(X) \
-    X(PFNGLCLIPCONTROLPROC, ClipControl)
+    X(PFNGLCLIPCONTROLPROC, ClipControl) \
+    X(PFNGLMULTIDRAWELEMENTSINDIRECTPROC, MultiDrawElementsIndirect) \
+    X(PFNGLDISPATCHCOMPUTEPROC, DispatchCompute) \
+    X(PFNGLMEMORYBARRIERPROC, MemoryBarrier) \
+    X(PFNGLBINDBUFFERRANGEPROC, BindBufferRange) \
+    X(PFNGLBINDBUFFERBASEPROC, BindBufferBase) \
+    X(PFNGLBINDIMAGETEXTUREPROC, BindImageTexture) \
+    X(PFNGLTEXSTORAGE2DPROC, TexStorage2D) \
+    X(PFNGLFENCESYNCPROC, FenceSync) \
+    X(PFNGLCLIENTWAITSYNCPROC, ClientWaitSync) \
+    X(PFNGLDELETESYNCPROC, DeleteSync) \
+    X(PFNGLGETBUFFERSUBDATAPROC, GetBufferSubData) \
+    X(PFNGLCOPYBUFFERSUBDATAPROC, CopyBufferSubData) \
+    X(PFNGLGETINTEGERI_VPROC, GetIntegeri_v) \
+    X(PFNGLGETINTEGER64I_VPROC, GetInteger64i_v) \
+    X(PFNGLUNIFORM1IPROC, Uniform1i) \
+    X(PFNGLUNIFORM1FPROC, Uniform1f) \
+    X(PFNGLUNIFORM2IPROC, Uniform2i) \
+    X(PFNGLUNIFORM4IVPROC, Uniform4iv) \
+    X(PFNGLGENTEXTURESPROC, GenTextures) \
+    X(PFNGLDELETETEXTURESPROC, DeleteTextures) \
+    X(PFNGLBINDTEXTUREPROC, BindTexture) \
+    X(PFNGLACTIVETEXTUREPROC, ActiveTexture) \
+    X(PFNGLTEXPARAMETERIPROC, TexParameteri) \
+    X(PFNGLFRAMEBUFFERTEXTURE2DPROC, FramebufferTexture2D)
 
 struct tw_gl {
 #define TW_GL_MEMBER(type, name) type name;
@@ -114,6 +140,19 @@ struct tw_gl {
 
 /* The host's GL state that the world changes, saved on entry into the
  * library and restored on exit (runtime.h, tw_world_frame). */
+/* What the compute passes change (saved only where they run): the active
+ * texture unit and units 0 and 1's 2D textures, image units 0 and 1,
+ * the generic and the first four indexed shader storage bindings. */
+struct tw_gl_compute_state {
+    GLint active_texture, texture[2];
+    GLint image_name[2], image_level[2], image_layered[2], image_layer[2], image_access[2],
+        image_format[2];
+    GLint ssbo, ssbo_name[4];
+    GLint64 ssbo_start[4], ssbo_size[4];
+};
+void tw_gl_compute_state_enter(const struct tw_gl *gl, struct tw_gl_compute_state *s);
+void tw_gl_compute_state_leave(const struct tw_gl *gl, const struct tw_gl_compute_state *s);
+
 struct tw_gl_state {
     GLint draw_fbo, read_fbo, renderbuffer, program, vertex_array, array_buffer;
     GLint pixel_pack_buffer, pixel_unpack_buffer;

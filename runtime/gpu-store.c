@@ -88,6 +88,7 @@ static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts,
     gl->VertexAttribPointer(1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, VERTEX_BYTES, (const void *)12);
     gl->EnableVertexAttribArray(2);
     gl->VertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, VERTEX_BYTES, (const void *)16);
+    tw_renderer_draws_vertex_array(r);
     gl->BindVertexArray(0);
     r->bound_vao = 0;
     b->bytes = (uint64_t)VERTEX_BYTES * vertices + sizeof(uint32_t) * indices;

@@ -58,25 +58,24 @@ void tw_renderer_id_begin(struct tw_renderer *r, const struct tw_view *v)
 void tw_renderer_id_draw(struct tw_renderer *r, uint32_t content, const float offset[3],
                          const uint32_t *clusters, uint32_t count, uint32_t first_id)
 {
-    const struct tw_gl *gl = &r->gl;
+    if (count == 0)
+        return;
     const struct tw_prototype *proto;
     const struct tw_gpu_buffers *b = tw_renderer_bind_content(r, content, &proto);
-    const struct tw_tileset *ts = b->ts;
-    gl->Uniform3fv(r->programs.id.offset, 1, offset);
-    uint32_t last_instance = UINT32_MAX;
-    for (uint32_t k = 0; k < count; k++) {
-        const struct tw_cluster *c = &proto->clusters[clusters[k]];
-        if (c->instance != last_instance) {
-            gl->Uniform4fv(r->programs.id.model, 3, proto->instances[c->instance].transform);
-            last_instance = c->instance;
-        }
-        gl->Uniform1ui(r->programs.id.id, first_id + k);
-        const struct tw_mesh_part *part = &ts->parts[c->part];
-        const size_t first = (size_t)b->first_index[part->mesh] + 3u * part->first_triangle;
-        gl->DrawElementsBaseVertex(GL_TRIANGLES, (GLsizei)(3u * part->triangle_count),
-                                   GL_UNSIGNED_INT, (const void *)(first * sizeof(uint32_t)),
-                                   (GLint)b->base_vertex[part->mesh]);
+    /* Ids travel as floats in the records: exact below 2^24. */
+    if ((uint64_t)first_id + count > (1u << 24)) {
+        tw_log_printf(&r->log, TW_LOG_ERROR, "the ID pass holds at most 2^24 clusters");
+        return;
     }
+    uint32_t records;
+    if (tw_renderer_stage_clusters(r, b, proto, offset, clusters, count, first_id, &records) ==
+        UINT32_MAX) {
+        tw_log_printf(&r->log, TW_LOG_ERROR, "out of memory staging the ID pass's draws");
+        return;
+    }
+    const struct tw_render_counters saved = r->counters;   /* not the frame's */
+    tw_renderer_draws_submit(r, r->stage_records, records, r->stage_commands, count);
+    r->counters = saved;
 }
 
 void tw_renderer_id_read(struct tw_renderer *r, uint32_t *ids, float *depth)

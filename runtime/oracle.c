@@ -216,7 +216,8 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
     tw_cell_map_clear(o->tiles);
     tw_renderer_id_begin(w->renderer, v);
     struct id_backend ib = {w};
-    const struct tw_query_backend be = {&ib, id_issue, id_ready, id_wait, id_draw, id_flush, NULL};
+    const struct tw_query_backend be = {.ctx = &ib, .issue = id_issue, .ready = id_ready,
+                                        .wait = id_wait, .draw = id_draw, .flush = id_flush};
     int err = tw_cull_driver_frame(o->vfc, v, &w->grid, &be, &w->cells, NULL);
     if (!err)
         err = o->err;

@@ -10,20 +10,28 @@ static const char *const scene_vs =
     "layout(location = 0) in vec3 a_pos;\n"
     "layout(location = 1) in vec3 a_normal;\n"
     "layout(location = 2) in vec4 a_color;\n"
+    /* the draw's record (runtime/draws.c): instanced attributes */
+    "layout(location = 3) in vec4 i_model0;\n"
+    "layout(location = 4) in vec4 i_model1;\n"
+    "layout(location = 5) in vec4 i_model2;\n"
+    "layout(location = 6) in vec4 i_offset;\n"
+    "layout(location = 7) in vec4 i_color;\n"
     "uniform mat4 u_view_proj;\n"
-    "uniform vec4 u_model[3];\n"
-    "uniform vec3 u_offset;\n"
     "out vec3 v_normal;\n"
     "out vec3 v_pos;\n"
     "out vec3 v_color;\n"
+    "flat out vec3 v_material;\n"
+    "flat out uint v_id;\n"
     "invariant gl_Position;\n"
     "void main() {\n"
     "    vec4 p = vec4(a_pos, 1.0);\n"
-    "    vec3 w = vec3(dot(u_model[0], p), dot(u_model[1], p), dot(u_model[2], p)) + u_offset;\n"
-    "    v_normal = vec3(dot(u_model[0].xyz, a_normal), dot(u_model[1].xyz, a_normal),\n"
-    "                    dot(u_model[2].xyz, a_normal));\n"
+    "    vec3 w = vec3(dot(i_model0, p), dot(i_model1, p), dot(i_model2, p)) + i_offset.xyz;\n"
+    "    v_normal = vec3(dot(i_model0.xyz, a_normal), dot(i_model1.xyz, a_normal),\n"
+    "                    dot(i_model2.xyz, a_normal));\n"
     "    v_pos = w;\n"
     "    v_color = a_color.rgb;\n"
+    "    v_material = i_color.rgb;\n"
+    "    v_id = uint(i_offset.w);\n"
     "    gl_Position = u_view_proj * vec4(w, 1.0);\n"
     "}\n";
 
@@ -32,7 +40,7 @@ static const char *const scene_fs =
     "in vec3 v_normal;\n"
     "in vec3 v_pos;\n"
     "in vec3 v_color;\n"
-    "uniform vec4 u_color;\n"
+    "flat in vec3 v_material;\n"
     "uniform vec3 u_eye;\n"
     "uniform vec2 u_fog;\n"
     "out vec4 o_color;\n"
@@ -40,7 +48,7 @@ static const char *const scene_fs =
     "    vec3 n = normalize(v_normal);\n"
     "    vec3 sun = normalize(vec3(0.45, 0.8, 0.3));\n"
     "    float light = 0.38 + 0.62 * max(dot(n, sun), 0.0) + 0.08 * max(-n.x, 0.0);\n"
-    "    vec3 c = u_color.rgb * v_color * light;\n"
+    "    vec3 c = v_material * v_color * light;\n"
     "    float f = clamp((distance(v_pos, u_eye) - u_fog.x) / u_fog.y, 0.0, 0.85);\n"
     "    o_color = vec4(mix(c, vec3(0.70, 0.80, 0.92), f), 1.0);\n"
     "}\n";
@@ -52,10 +60,10 @@ static const char *const scene_fs =
  * oracle sees what the user sees. */
 static const char *const id_fs =
     "#version 330 core\n"
-    "uniform uint u_id;\n"
+    "flat in uint v_id;\n"
     "out uint o_id;\n"
     "void main() {\n"
-    "    o_id = u_id;\n"
+    "    o_id = v_id;\n"
     "}\n";
 
 static const char *const box_vs =
@@ -191,15 +199,9 @@ int tw_programs_init(struct tw_programs *p, const struct tw_gl *gl, const struct
         !p->fill.program)
         return out_of_memory ? TW_ERR_NOMEM : TW_ERR_GL;
     p->scene.view_proj = gl->GetUniformLocation(p->scene.program, "u_view_proj");
-    p->scene.model = gl->GetUniformLocation(p->scene.program, "u_model");
-    p->scene.offset = gl->GetUniformLocation(p->scene.program, "u_offset");
-    p->scene.color = gl->GetUniformLocation(p->scene.program, "u_color");
     p->scene.eye = gl->GetUniformLocation(p->scene.program, "u_eye");
     p->scene.fog = gl->GetUniformLocation(p->scene.program, "u_fog");
     p->id.view_proj = gl->GetUniformLocation(p->id.program, "u_view_proj");
-    p->id.model = gl->GetUniformLocation(p->id.program, "u_model");
-    p->id.offset = gl->GetUniformLocation(p->id.program, "u_offset");
-    p->id.id = gl->GetUniformLocation(p->id.program, "u_id");
     p->line.view_proj = gl->GetUniformLocation(p->line.program, "u_view_proj");
     p->line.min = gl->GetUniformLocation(p->line.program, "u_min");
     p->line.max = gl->GetUniformLocation(p->line.program, "u_max");

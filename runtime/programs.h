@@ -28,7 +28,7 @@ GLuint tw_programs_link(const struct tw_gl *gl, const struct tw_log *log, const 
 struct tw_programs {
     struct {
         GLuint program;
-        GLint view_proj, model, offset, color, eye, fog;
+        GLint view_proj, eye, fog;   /* per draw: runtime/draws.c's records */
     } scene;
     struct {
         GLuint program;
@@ -36,7 +36,7 @@ struct tw_programs {
     } query;
     struct {
         GLuint program;
-        GLint view_proj, model, offset, id;
+        GLint view_proj;             /* the id: a record's offset.w */
     } id;
     struct {
         GLuint program;

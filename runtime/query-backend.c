@@ -1,5 +1,5 @@
 /* The GL query backend (cull/cull.h's struct tw_query_backend): draws
- * clusters, one multi-draw per instance, and occlusion queries of boxes,
+ * clusters, one multi-draw per call (draws.c), and occlusion queries of boxes,
  * with the recording of both for debugging (renderer.h). */
 #include "runtime/renderer-private.h"
 #include "tiles/array.h"
@@ -13,7 +13,7 @@
 /* Boxes in the query ring buffer. */
 #define QUERY_RING_BOXES 16384u
 
-static void enter_draw_mode(struct tw_renderer *r)
+void tw_renderer_enter_draw_mode(struct tw_renderer *r)
 {
     if (r->mode == TW_RENDERER_MODE_DRAW)
         return;
@@ -46,8 +46,8 @@ static void enter_query_mode(struct tw_renderer *r)
     r->mode = TW_RENDERER_MODE_QUERY;
 }
 
-static void record(struct tw_renderer *r, struct tw_cell cell, uint32_t prototype,
-                   const uint32_t *clusters, uint32_t count)
+void tw_renderer_record_clusters(struct tw_renderer *r, struct tw_cell cell, uint32_t prototype,
+                                 const uint32_t *clusters, uint32_t count)
 {
     if (tw_array_reserve((void **)&r->drawn, &r->drawn_cap, r->drawn_count + count,
                          sizeof(*r->drawn), 4096)) {
@@ -58,76 +58,66 @@ static void record(struct tw_renderer *r, struct tw_cell cell, uint32_t prototyp
         r->drawn[r->drawn_count++] = (struct tw_drawn_cluster){cell, prototype, clusters[k]};
 }
 
-/* Grows *p to n elements of elem bytes; false (and *p as it was) on failure. */
-static bool regrow(void *p, size_t n, size_t elem)
+bool tw_renderer_instance_map(struct tw_renderer *r, uint32_t instances)
 {
-    void *q = realloc(*(void **)p, n * elem);
-    if (q)
-        *(void **)p = q;
-    return q != NULL;
-}
-
-/* Scratch of backend_draw for count clusters of a prototype of instances
- * instances; false if it cannot be had (one draw per cluster then). */
-static bool multi_draw_room(struct tw_renderer *r, uint32_t count, uint32_t instances)
-{
-    if (count > r->run_cap) {
-        if (!regrow(&r->run_next, count, sizeof(*r->run_next)) ||
-            !regrow(&r->run_clusters, count, sizeof(*r->run_clusters)) ||
-            !regrow(&r->run_counts, count, sizeof(*r->run_counts)) ||
-            !regrow(&r->run_offsets, count, sizeof(*r->run_offsets)) ||
-            !regrow(&r->run_bases, count, sizeof(*r->run_bases)))
-            return false;
-        r->run_cap = count;
-    }
     if (instances > r->run_instance_cap) {
-        if (!regrow(&r->run_seen, instances, sizeof(*r->run_seen)) ||
-            !regrow(&r->run_first, instances, sizeof(*r->run_first)) ||
-            !regrow(&r->run_last, instances, sizeof(*r->run_last)) ||
-            !regrow(&r->run_order, instances, sizeof(*r->run_order)))
+        uint32_t *seen = realloc(r->run_seen, instances * sizeof(*seen));
+        if (!seen)
             return false;
+        r->run_seen = seen;
+        uint32_t *rec = realloc(r->run_record, instances * sizeof(*rec));
+        if (!rec)
+            return false;
+        r->run_record = rec;
         memset(r->run_seen + r->run_instance_cap, 0,
                (instances - r->run_instance_cap) * sizeof(*r->run_seen));
         r->run_instance_cap = instances;
     }
-    if (r->run_stamp == UINT32_MAX) {
+    if (r->run_stamp >= UINT32_MAX - 1) {
         memset(r->run_seen, 0, r->run_instance_cap * sizeof(*r->run_seen));
         r->run_stamp = 0;
     }
     return true;
 }
 
-/* Draws n clusters of one instance: one call (a multi-draw when
- * multi, else one draw per cluster). */
-static void draw_run(struct tw_renderer *r, const struct tw_tileset *ts,
-                     const struct tw_gpu_buffers *b, const struct tw_prototype *proto,
-                     const uint32_t *clusters, uint32_t n, bool multi)
+/* Room to stage count clusters of a prototype of instances instances. */
+static bool draw_room(struct tw_renderer *r, uint32_t count, uint32_t instances)
 {
-    const struct tw_gl *gl = &r->gl;
-    const struct tw_instance *in = &proto->instances[proto->clusters[clusters[0]].instance];
-    gl->Uniform4fv(r->programs.scene.model, 3, in->transform);
-    gl->Uniform4fv(r->programs.scene.color, 1, ts->materials[in->material].base_color);
-    for (uint32_t k = 0; k < n; k++) {
-        const struct tw_mesh_part *part = &ts->parts[proto->clusters[clusters[k]].part];
-        const size_t first = (size_t)b->first_index[part->mesh] + 3u * part->first_triangle;
-        const GLsizei indices = (GLsizei)(3u * part->triangle_count);
-        const void *offset = (const void *)(first * sizeof(uint32_t));
-        const GLint base = (GLint)b->base_vertex[part->mesh];
-        r->counters.triangles += part->triangle_count;
-        if (!multi) {
-            gl->DrawElementsBaseVertex(GL_TRIANGLES, indices, GL_UNSIGNED_INT, offset, base);
-            r->counters.draws++;
-            continue;
+    return tw_renderer_draws_reserve(r, count, count) && tw_renderer_instance_map(r, instances);
+}
+
+uint32_t tw_renderer_stage_clusters(struct tw_renderer *r, const struct tw_gpu_buffers *b,
+                                    const struct tw_prototype *proto, const float offset[3],
+                                    const uint32_t *clusters, uint32_t count, uint32_t first_id,
+                                    uint32_t *records)
+{
+    if (!draw_room(r, count, proto->instance_count))
+        return UINT32_MAX;
+    const struct tw_tileset *ts = b->ts;
+    const uint32_t stamp = ++r->run_stamp;
+    uint32_t n = 0;
+    for (uint32_t k = 0; k < count; k++) {
+        const struct tw_cluster *c = &proto->clusters[clusters[k]];
+        const struct tw_instance *in = &proto->instances[c->instance];
+        uint32_t rec;
+        if (first_id != UINT32_MAX) {
+            /* The ID pass: a record per cluster, for its id. */
+            rec = n++;
+            tw_renderer_draws_record(&r->stage_records[rec], in, offset,
+                                     ts->materials[in->material].base_color,
+                                     (float)(first_id + k));
+        } else if (r->run_seen[c->instance] == stamp) {
+            rec = r->run_record[c->instance];
+        } else {
+            r->run_seen[c->instance] = stamp;
+            rec = r->run_record[c->instance] = n++;
+            tw_renderer_draws_record(&r->stage_records[rec], in, offset,
+                                     ts->materials[in->material].base_color, 0.0f);
         }
-        r->run_counts[k] = indices;
-        r->run_offsets[k] = offset;
-        r->run_bases[k] = base;
+        tw_renderer_draws_command(&r->stage_commands[k], b, ts, c, rec);
     }
-    if (multi) {
-        gl->MultiDrawElementsBaseVertex(GL_TRIANGLES, r->run_counts, GL_UNSIGNED_INT,
-                                        r->run_offsets, (GLsizei)n, r->run_bases);
-        r->counters.draws++;
-    }
+    *records = n;
+    return count;
 }
 
 static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
@@ -137,46 +127,22 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
     if (count == 0)
         return;
     const double t0 = tw_clock_monotonic_ms();
-    const struct tw_gl *gl = &r->gl;
-    enter_draw_mode(r);
+    tw_renderer_enter_draw_mode(r);
     const struct tw_prototype *proto;
     const struct tw_gpu_buffers *b = tw_renderer_bind_content(r, content, &proto);
-    const struct tw_tileset *ts = b->ts;
-    gl->Uniform3fv(r->programs.scene.offset, 1, offset);
     if (r->recording)
-        record(r, cell, content, clusters, count);
-    /* One multi-draw per instance (one transform, one material: a merged
-     * instance is all of the prototype's small objects, their colours in its
-     * vertices), instances in the order of their first cluster, clusters in
-     * the order given. */
-    if (!multi_draw_room(r, count, proto->instance_count)) {
-        for (uint32_t k = 0; k < count; k++)
-            draw_run(r, ts, b, proto, &clusters[k], 1, false);
-    } else {
-        const uint32_t stamp = ++r->run_stamp;
-        uint32_t runs = 0;
-        for (uint32_t k = 0; k < count; k++) {
-            const uint32_t in = proto->clusters[clusters[k]].instance;
-            if (r->run_seen[in] != stamp) {
-                r->run_seen[in] = stamp;
-                r->run_first[in] = UINT32_MAX;
-                r->run_order[runs++] = in;
-            }
-            /* Chain the instance's clusters in order (run_next by position k). */
-            r->run_next[k] = UINT32_MAX;
-            if (r->run_first[in] == UINT32_MAX)
-                r->run_first[in] = k;
-            else
-                r->run_next[r->run_last[in]] = k;
-            r->run_last[in] = k;
-        }
-        for (uint32_t q = 0; q < runs; q++) {
-            uint32_t n = 0;
-            for (uint32_t k = r->run_first[r->run_order[q]]; k != UINT32_MAX; k = r->run_next[k])
-                r->run_clusters[n++] = clusters[k];
-            draw_run(r, ts, b, proto, r->run_clusters, n, n > 1);
-        }
+        tw_renderer_record_clusters(r, cell, content, clusters, count);
+    /* One multi-draw of every cluster in the order given, each command
+     * naming its instance's record. */
+    uint32_t records;
+    if (tw_renderer_stage_clusters(r, b, proto, offset, clusters, count, UINT32_MAX, &records) ==
+        UINT32_MAX) {
+        tw_log_printf(&r->log, TW_LOG_ERROR, "out of memory staging %u draws: not drawn", count);
+        return;
     }
+    for (uint32_t k = 0; k < count; k++)
+        r->counters.triangles += proto->clusters[clusters[k]].triangle_count;
+    tw_renderer_draws_submit(r, r->stage_records, records, r->stage_commands, count);
     r->counters.clusters += count;
     r->counters.ms_backend += tw_clock_monotonic_ms() - t0;
 }
@@ -319,6 +285,7 @@ static bool backend_ready(void *ctx, uint32_t query)
 static uint32_t backend_wait(void *ctx, uint32_t query)
 {
     struct tw_renderer *r = ctx;
+    r->counters.waits++;
     if (query == TW_QUERY_VISIBLE)
         return UINT32_MAX;
     const double t0 = tw_clock_monotonic_ms();
@@ -348,10 +315,31 @@ static void backend_flush(void *ctx)
 {
     struct tw_renderer *r = ctx;
     const double t0 = tw_clock_monotonic_ms();
+    r->counters.flushes++;
     r->gl.Flush();
     const double dt = tw_clock_monotonic_ms() - t0;
     r->counters.ms_wait += dt;
     r->counters.ms_backend += dt;
+}
+
+/* Draws as backend_draw does, only if query (issued, not read yet) passes:
+ * the GPU decides, with no wait (GL_QUERY_NO_WAIT: if the result is not in
+ * when the draw reaches the GPU, it draws). The query is still read once,
+ * with wait(), by its owner. */
+static void backend_draw_if(void *ctx, uint32_t query, struct tw_cell cell, uint32_t content,
+                            const float offset[3], const uint32_t *clusters, uint32_t count)
+{
+    struct tw_renderer *r = ctx;
+    if (count == 0)
+        return;
+    if (query == TW_QUERY_VISIBLE) {
+        backend_draw(ctx, cell, content, offset, clusters, count);
+        return;
+    }
+    const struct tw_gl *gl = &r->gl;
+    gl->BeginConditionalRender(r->queries[query - 1], GL_QUERY_NO_WAIT);
+    backend_draw(ctx, cell, content, offset, clusters, count);
+    gl->EndConditionalRender();
 }
 
 /* The HZB methods' depth readback: on llvmpipe glReadPixels first finishes
@@ -367,6 +355,7 @@ static bool backend_read_depth(void *ctx, float *depth, uint32_t *width, uint32_
         return true;
     const double t0 = tw_clock_monotonic_ms();
     tw_renderer_read_depth(r, depth);
+    r->counters.bytes_read_back += (uint64_t)r->width * r->height * 4u;
     const double dt = tw_clock_monotonic_ms() - t0;
     r->counters.ms_wait += dt;
     r->counters.ms_backend += dt;
@@ -381,9 +370,11 @@ struct tw_query_backend tw_renderer_backend(struct tw_renderer *r)
         .ready = backend_ready,
         .wait = backend_wait,
         .draw = backend_draw,
+        .draw_if = backend_draw_if,
         .flush = backend_flush,
         .read_depth = backend_read_depth,
     };
+    tw_renderer_gpu_hzb_ops(r, &be);
     return be;
 }
 
@@ -474,6 +465,7 @@ void tw_renderer_queries_begin_frame(struct tw_renderer *r, const struct tw_view
 {
     memset(&r->counters, 0, sizeof(r->counters));
     r->drawn_count = 0;
+    tw_renderer_gpu_hzb_begin_frame(r, v);
     memcpy(r->eye, v->eye, sizeof(r->eye));
     if (r->query_box_count) {
         for (size_t k = 0; k < r->query_box_count; k++)
@@ -492,15 +484,8 @@ void tw_renderer_queries_finish(struct tw_renderer *r)
     }
     free(r->query_boxes);
     free(r->query_corners);
-    free(r->run_next);
-    free(r->run_clusters);
-    free(r->run_counts);
-    free(r->run_offsets);
-    free(r->run_bases);
     free(r->run_seen);
-    free(r->run_first);
-    free(r->run_last);
-    free(r->run_order);
+    free(r->run_record);
     free(r->query_record);
     free(r->drawn);
     free(r->queries);

@@ -38,6 +38,84 @@ struct tw_gpu_content {
     bool live;
 };
 
+/* What one indirect command draws with (draws.c): its instance's
+ * transform (row-major 3x4, mesh-local -> tile-local), the tile's offset
+ * (view-relative) with the ID pass's id in w, and the material's colour.
+ * The vertex stage reads it as instanced attributes 3 to 7. */
+struct tw_draw_record {
+    float model[12];
+    float offset[4];
+    float color[4];
+};
+
+/* GL's DrawElementsIndirectCommand. */
+struct tw_draw_command {
+    uint32_t count;
+    uint32_t instance_count;
+    uint32_t first_index;
+    int32_t base_vertex;
+    uint32_t base_instance;     /* the record's index */
+};
+
+/* The HZB on the GPU (gpu-hzb.c). */
+#define TW_GPU_HZB_SLOTS 3
+struct tw_gpu_vec4 {
+    float v[4];
+};
+/* A run of candidates' commands drawn from one tileset's buffers. */
+struct tw_gpu_segment {
+    uint32_t buffers, content;  /* the buffers, and a content of theirs to bind them by */
+    uint32_t first, count;      /* commands */
+};
+/* One frame's bits in flight: read back under a fence. */
+struct tw_gpu_hzb_slot {
+    GLsync fence;
+    bool pending;
+    uint64_t frame;
+    uint32_t count;             /* candidates */
+    size_t bytes;               /* of its read-back buffer */
+    uint32_t *tris, *clusters;  /* per candidate, counted when it passed */
+    uint32_t cap;
+};
+struct tw_gpu_hzb {
+    bool live;                  /* compute shaders, and everything made */
+    GLuint reduce, test;        /* programs */
+    GLint u_view_proj, u_proj, u_near, u_size, u_levels, u_reversed, u_built, u_count;
+    GLint u_src_size, u_from_depth, u_reduce_reversed;
+    GLuint buffers[4];          /* boxes, info, (spare), result bits */
+    GLuint readback[TW_GPU_HZB_SLOTS];
+    struct tw_gpu_hzb_slot slot[TW_GPU_HZB_SLOTS];
+    /* The pyramid: level k is depth reduced k + 1 times (2 x 2 farthest). */
+    GLuint pyramid;
+    uint32_t pyramid_w, pyramid_h, levels;
+    uint32_t level_w[24], level_h[24];
+    bool built;
+    struct tw_view view;        /* the frame's */
+    uint64_t frame;
+    /* The frame's candidates, staged. */
+    struct tw_gpu_vec4 *boxes;  /* two per candidate: min (w: always), max */
+    uint32_t (*info)[2];        /* first command, commands */
+    uint32_t *cand_tris, *cand_clusters, *cand_first;
+    struct tw_drawn_cluster *cand_where;    /* cell and content (cluster unused) */
+    uint32_t count, cand_cap;
+    struct tw_draw_command *commands;
+    uint32_t command_count, command_cap;
+    struct tw_draw_record *records;
+    uint32_t record_count, record_cap;
+    uint32_t *cluster_ids;
+    uint32_t cluster_id_count, cluster_id_cap;
+    struct tw_gpu_segment *segments;
+    uint32_t segment_count, segment_cap;
+    bool key_valid;             /* the tile placement whose records are mapped */
+    struct tw_cell key_cell;
+    uint32_t key_content, key_stamp;
+    uint32_t *bits, bits_cap, bits_count;
+    uint64_t bits_frame;
+    uint32_t *zeros, zeros_cap;
+    uint64_t candidates_tested;
+    double ms_build;
+};
+
 struct tw_renderer {
     struct tw_gl gl;
     struct tw_log log;
@@ -46,6 +124,7 @@ struct tw_renderer {
      * glClipControl is there, else standard 24-bit depth (near = 0). */
     bool reversed_z;
     bool has_clip_control;
+    bool has_compute;      /* GL 4.3 compute: the depth is a texture and the GPU HZB runs */
     bool gl_loaded;        /* every entry point of the table is there */
     /* The host's GL state, saved while the library is inside a call. */
     struct tw_gl_state host_state;
@@ -82,13 +161,9 @@ struct tw_renderer {
     uint32_t *free_queries;
     uint32_t query_count, free_count, query_cap;
     float eye[3];          /* the frame's, view-relative */
-    /* The draw's scratch: clusters grouped by instance (one multi-draw
-     * each), run_seen[i] == run_stamp marking instances met in this call. */
-    uint32_t *run_next, *run_clusters, run_cap;
-    GLsizei *run_counts;
-    const void **run_offsets;
-    GLint *run_bases;
-    uint32_t *run_seen, *run_first, *run_last, *run_order, run_instance_cap, run_stamp;
+    /* The draw's scratch: run_record[i] is instance i's record in this
+     * call when run_seen[i] == run_stamp. */
+    uint32_t *run_seen, *run_record, run_instance_cap, run_stamp;
     bool recording;        /* of drawn clusters */
     struct tw_drawn_cluster *drawn;
     size_t drawn_count, drawn_cap;
@@ -102,6 +177,22 @@ struct tw_renderer {
     bool deterministic;    /* no query is ready before it is waited on */
     GLenum query_target;   /* GL_ANY_SAMPLES_PASSED, or GL_SAMPLES_PASSED to count them */
     float mutate_shrink;   /* testing: query boxes shrunk by this fraction */
+
+    /* draws.c: records and commands staged by a draw, then streamed
+     * into rings (orphaned when they wrap). */
+    bool has_mdi;          /* glMultiDrawElementsIndirect with base instances (GL 4.3) */
+    GLuint record_ring, command_ring;
+    uint32_t record_ring_cap, record_ring_next, command_ring_cap;
+    size_t command_ring_bytes;
+    struct tw_draw_record *stage_records;
+    struct tw_draw_command *stage_commands;
+    uint32_t stage_record_cap, stage_command_cap;
+    GLint host_indirect_buffer;    /* saved on enter, restored on leave */
+
+    /* gpu-hzb.c; the image's depth is a texture where it is live. */
+    struct tw_gpu_hzb ghzb;
+    GLuint depth_texture;
+    struct tw_gl_compute_state host_compute;   /* saved on enter, restored on leave */
 
     /* id-pass.c: the object-ID buffer, one uint per pixel, its own depth. */
     GLuint id_fbo, id_rb, id_depth_rb;
@@ -129,6 +220,66 @@ void tw_renderer_queries_begin_frame(struct tw_renderer *r, const struct tw_view
 /* Deletes the query objects and the ring (while gl_loaded, between enter
  * and leave) and frees the backend's arrays. */
 void tw_renderer_queries_finish(struct tw_renderer *r);
+
+/* query-backend.c */
+/* Stages a draw of clusters of proto (buffers b) placed at offset into
+ * r->stage_records and r->stage_commands: one command per cluster in the
+ * order given, a record per instance (first_id == UINT32_MAX) or, for the
+ * ID pass, per cluster with ids first_id, first_id + 1, ... Returns count
+ * with the records' number in *records, or UINT32_MAX: out of memory. */
+uint32_t tw_renderer_stage_clusters(struct tw_renderer *r, const struct tw_gpu_buffers *b,
+                                    const struct tw_prototype *proto, const float offset[3],
+                                    const uint32_t *clusters, uint32_t count, uint32_t first_id,
+                                    uint32_t *records);
+
+/* Enters the scene's drawing state (program, masks). */
+void tw_renderer_enter_draw_mode(struct tw_renderer *r);
+/* Room in the instance -> record map for a prototype of that many
+ * instances; false: out of memory. */
+bool tw_renderer_instance_map(struct tw_renderer *r, uint32_t instances);
+/* Adds clusters to the recording of drawn clusters. */
+void tw_renderer_record_clusters(struct tw_renderer *r, struct tw_cell cell, uint32_t prototype,
+                                 const uint32_t *clusters, uint32_t count);
+
+/* gpu-hzb.c */
+/* Makes the compute programs and buffers; false (logged) where they
+ * cannot be had: the HZB is then the CPU's. */
+bool tw_renderer_gpu_hzb_init(struct tw_renderer *r);
+void tw_renderer_gpu_hzb_finish(struct tw_renderer *r);
+void tw_renderer_gpu_hzb_begin_frame(struct tw_renderer *r, const struct tw_view *v);
+/* Fills be's gpu_hzb_* operations where the GPU HZB is live. */
+void tw_renderer_gpu_hzb_ops(struct tw_renderer *r, struct tw_query_backend *be);
+
+/* draws.c */
+/* Makes the rings (the command ring only with mdi: GL 4.3). */
+void tw_renderer_draws_init(struct tw_renderer *r, bool mdi);
+void tw_renderer_draws_finish(struct tw_renderer *r);
+/* Sets up the record attributes of the vertex array being made (bound). */
+void tw_renderer_draws_vertex_array(struct tw_renderer *r);
+/* Room for that many staged records and commands; false: out of memory. */
+bool tw_renderer_draws_reserve(struct tw_renderer *r, uint32_t records, uint32_t commands);
+/* Fills a record of instance in placed at offset, with colour color and
+ * the ID pass's id (exact up to 2^24). */
+void tw_renderer_draws_record(struct tw_draw_record *rec, const struct tw_instance *in,
+                              const float offset[3], const float color[4], float id);
+/* Fills a command drawing cluster cl of buffers b (tileset ts) with record. */
+void tw_renderer_draws_command(struct tw_draw_command *c, const struct tw_gpu_buffers *b,
+                               const struct tw_tileset *ts, const struct tw_cluster *cl,
+                               uint32_t record);
+/* Draws commands with the vertex array of their buffers bound: base
+ * instances index records (rewritten into the ring's indices). One
+ * multi-draw with GL 4.3, else one draw per command. */
+void tw_renderer_draws_submit(struct tw_renderer *r, const struct tw_draw_record *rec,
+                              uint32_t records, struct tw_draw_command *cmd, uint32_t commands);
+/* The rings themselves, for the GPU's own culling (gpu-hzb.c): records
+ * streamed (their first index returned), commands streamed (their byte
+ * offset in the command ring returned, 256-byte aligned), and a
+ * multi-draw of n commands at byte offset at. */
+uint32_t tw_renderer_draws_put_records(struct tw_renderer *r, const struct tw_draw_record *rec,
+                                       uint32_t n);
+size_t tw_renderer_draws_put_commands(struct tw_renderer *r, const struct tw_draw_command *cmd,
+                                      uint32_t n);
+void tw_renderer_draws_commands(struct tw_renderer *r, size_t at, uint32_t n);
 
 /* id-pass.c */
 /* Makes the object-ID framebuffer, its depth in depth_format; leaves it

@@ -66,13 +66,26 @@ static int create_framebuffer(struct tw_renderer *r)
     gl->RenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, (GLsizei)r->width, (GLsizei)r->height);
     gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER,
                                 r->color_rb);
-    gl->GenRenderbuffers(1, &r->depth_rb);
-    gl->BindRenderbuffer(GL_RENDERBUFFER, r->depth_rb);
     const GLenum depth_format = r->reversed_z ? GL_DEPTH_COMPONENT32F : GL_DEPTH_COMPONENT24;
-    gl->RenderbufferStorage(GL_RENDERBUFFER, depth_format, (GLsizei)r->width,
-                            (GLsizei)r->height);
-    gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER,
-                                r->depth_rb);
+    if (r->has_compute) {
+        /* A texture, which the GPU HZB's compute passes read. */
+        gl->GenTextures(1, &r->depth_texture);
+        gl->BindTexture(GL_TEXTURE_2D, r->depth_texture);
+        gl->TexStorage2D(GL_TEXTURE_2D, 1, depth_format, (GLsizei)r->width, (GLsizei)r->height);
+        gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+        gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_NONE);
+        gl->BindTexture(GL_TEXTURE_2D, 0);
+        gl->FramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D,
+                                 r->depth_texture, 0);
+    } else {
+        gl->GenRenderbuffers(1, &r->depth_rb);
+        gl->BindRenderbuffer(GL_RENDERBUFFER, r->depth_rb);
+        gl->RenderbufferStorage(GL_RENDERBUFFER, depth_format, (GLsizei)r->width,
+                                (GLsizei)r->height);
+        gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER,
+                                    r->depth_rb);
+    }
     if (gl->CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
         return tw_renderer_framebuffer_failed(r, "image");
     const int err = tw_renderer_id_init(r, depth_format);
@@ -137,6 +150,17 @@ int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_pr
     r->has_clip_control = gl->ClipControl &&
                           (major * 10 + minor >= 45 || has_extension(gl, "GL_ARB_clip_control"));
     r->reversed_z = r->has_clip_control;
+    /* Compute shaders, image load/store and fences: core since 4.3. The
+     * environment can turn the GPU HZB off (TW_GPU_HZB=0: the CPU's). */
+    const char *env = getenv("TW_GPU_HZB");
+    r->has_compute = major * 10 + minor >= 43 && gl->DispatchCompute && gl->MemoryBarrier &&
+                     gl->BindBufferRange && gl->BindBufferBase && gl->BindImageTexture &&
+                     gl->TexStorage2D && gl->FenceSync && gl->ClientWaitSync && gl->DeleteSync &&
+                     gl->GetBufferSubData && gl->CopyBufferSubData && gl->GetIntegeri_v &&
+                     gl->GetInteger64i_v && gl->Uniform1i && gl->Uniform1f && gl->Uniform2i &&
+                     gl->GenTextures && gl->DeleteTextures && gl->BindTexture &&
+                     gl->ActiveTexture && gl->TexParameteri && gl->FramebufferTexture2D &&
+                     gl->MultiDrawElementsIndirect && !(env && strcmp(env, "0") == 0);
     tw_renderer_enter(r);
     if (!r->reversed_z) {
         tw_log_printf(&r->log, TW_LOG_WARN,
@@ -148,6 +172,13 @@ int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_pr
         goto fail;
     upload_box(r);
     tw_renderer_queries_init(r);
+    /* Draws go out as one multi-draw of indirect commands where the
+     * context has them (core since 4.3, base instances since 4.2). */
+    tw_renderer_draws_init(r, gl->MultiDrawElementsIndirect && major * 10 + minor >= 43);
+    if (r->has_compute && !tw_renderer_gpu_hzb_init(r)) {
+        tw_gl_compute_state_leave(gl, &r->host_compute);
+        r->has_compute = false;     /* the depth stays a renderbuffer */
+    }
     err = create_framebuffer(r);
     if (err)
         goto fail;
@@ -184,6 +215,10 @@ void tw_renderer_enter(struct tw_renderer *r)
     if (r->entered++ > 0)
         return;
     tw_gl_state_enter(&r->gl, r->has_clip_control, &r->host_state);
+    if (r->has_mdi)
+        r->gl.GetIntegerv(GL_DRAW_INDIRECT_BUFFER_BINDING, &r->host_indirect_buffer);
+    if (r->has_compute)
+        tw_gl_compute_state_enter(&r->gl, &r->host_compute);
     r->bound_vao = 0;
     if (r->reversed_z)
         r->gl.ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
@@ -195,6 +230,10 @@ void tw_renderer_leave(struct tw_renderer *r)
     if (r->entered == 0 || --r->entered > 0)
         return;
     tw_gl_state_leave(&r->gl, r->has_clip_control, &r->host_state);
+    if (r->has_mdi)
+        r->gl.BindBuffer(GL_DRAW_INDIRECT_BUFFER, (GLuint)r->host_indirect_buffer);
+    if (r->has_compute)
+        tw_gl_compute_state_leave(&r->gl, &r->host_compute);
     r->mode = TW_RENDERER_MODE_NONE;
 }
 
@@ -206,6 +245,8 @@ void tw_renderer_destroy(struct tw_renderer *r)
     if (r->gl_loaded)
         tw_renderer_enter(r);
     tw_renderer_queries_finish(r);
+    tw_renderer_draws_finish(r);
+    tw_renderer_gpu_hzb_finish(r);
     tw_renderer_store_finish(r);
     tw_renderer_id_finish(r);
     if (r->gl_loaded) {
@@ -213,7 +254,10 @@ void tw_renderer_destroy(struct tw_renderer *r)
         gl->DeleteBuffers(1, &r->box_ibo);
         gl->DeleteVertexArrays(1, &r->box_vao);
         gl->DeleteRenderbuffers(1, &r->color_rb);
-        gl->DeleteRenderbuffers(1, &r->depth_rb);
+        if (r->depth_rb)
+            gl->DeleteRenderbuffers(1, &r->depth_rb);
+        if (r->depth_texture)
+            gl->DeleteTextures(1, &r->depth_texture);
         gl->DeleteFramebuffers(1, &r->fbo);
         tw_programs_finish(&r->programs, gl);
         tw_renderer_leave(r);

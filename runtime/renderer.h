@@ -23,6 +23,10 @@ struct tw_render_counters {
     double ms_wait;       /* blocked in wait() */
     double ms_backend;    /* inside draw()/issue()/wait() in all */
     uint32_t query_failures;  /* queries that could not be made (read as visible) */
+    uint32_t waits;       /* calls of wait(): query results read, ready or not */
+    uint32_t flushes;     /* calls of flush() */
+    uint64_t bytes_read_back; /* bytes the CPU read back from the GPU (depth, buffers);
+                                 query results are not counted */
 };
 
 struct tw_renderer;

@@ -425,6 +425,9 @@ static void collect_counters(const struct tw_world *w, struct tw_frame_stats *st
     st->draws = rc->draws;
     st->queries = rc->queries;
     st->blocking_reads = rc->blocking_reads;
+    st->waits = rc->waits;
+    st->flushes = rc->flushes;
+    st->bytes_read_back = rc->bytes_read_back;
 }
 
 static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_frame_stats *out)

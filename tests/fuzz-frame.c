@@ -176,8 +176,9 @@ static void run_frames(const struct tw_tileset *ts, struct tw_bvh *const *bvhs, 
     memset(&fk, 0, sizeof(fk));
     fk.seed = h;
     fk.ts = ts;
-    const struct tw_query_backend be = {&fk, fake_issue, fake_ready, fake_wait, fake_draw,
-                                        fake_flush, fake_read_depth};
+    const struct tw_query_backend be = {.ctx = &fk, .issue = fake_issue, .ready = fake_ready,
+                                        .wait = fake_wait, .draw = fake_draw,
+                                        .flush = fake_flush, .read_depth = fake_read_depth};
     static const enum tw_cull_method methods[] = {TW_CULL_TILEQUERY_CHC, TW_CULL_VFC,
                                                   TW_CULL_CHC, TW_CULL_TILEQUERY,
                                                   TW_CULL_HZB, TW_CULL_TILEQUERY_HZB};

@@ -194,6 +194,11 @@ struct tw_frame_stats {
                                 of this method whose timers had come back when
                                 tw_world_frame() began (its frame number; 0: none) */
     double gpu_late_ms;      /* that frame's gpu_ms; -1 with none */
+    /* The CPU's round trips to the GPU in the frame (every method). */
+    uint32_t waits;          /* query results read (each query once), ready or not */
+    uint32_t flushes;        /* times issued work was sent to the GPU (glFlush) */
+    uint64_t bytes_read_back;/* bytes the CPU read back from the GPU (the HZB methods'
+                                depth, buffers); query results are not counted */
 };
 
 struct tw_world;
