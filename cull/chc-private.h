@@ -49,6 +49,8 @@ struct iquery {
     uint32_t handle;
     uint32_t count;
     size_t first;
+    uint64_t flush;     /* tw_chc.flushes when it was issued: sent to the GPU once that
+                           count has grown (wavefront mode) */
 };
 
 struct vquery {
@@ -102,12 +104,14 @@ struct pass {
     uint32_t iqueue_seq;
 };
 
-/* A pass suspended where it would have blocked (tw_chc_traverse_async). */
+/* A pass suspended where it would have blocked (tw_chc_traverse_async).
+ * Allocated one by one and kept, so that pass.tile stays put. */
 struct suspended {
     struct pass pass;
     struct tw_cull_instance tile;    /* pass.tile points here */
     struct queues q;
     uint64_t started;
+    uint64_t resumed;                /* tw_chc_resume_flushed(): the round that resumed it */
     bool active;
 };
 
@@ -127,8 +131,16 @@ struct tw_chc {
     struct queues q;            /* the running traversal's */
     struct deferred_vquery *deferred;
     size_t deferred_count, deferred_cap;
-    struct suspended slots[TW_CHC_MAX_SUSPENDED];
+    struct suspended **slots;   /* slot_count of them: settings.suspended_passes at
+                                   most, any number in wavefront mode */
+    uint32_t slot_count, slot_cap;
     uint64_t passes_started;
+    /* Wavefront mode (tw_chc_set_wavefront): the caller flushes, once per
+     * wavefront, and says so (tw_chc_resume_flushed); passes never flush and
+     * wait only on queries sent before the last of those flushes. */
+    bool wavefront;
+    uint64_t flushes;           /* the caller's flushes so far */
+    uint64_t rounds;
     /* V-query answers, and of them hidden ones, decayed by VQ_DECAY per
      * answer: the chance that a visible leaf's re-query finds it hidden. */
     double vq_answers, vq_hidden;
@@ -182,7 +194,7 @@ void tw_chc_draw_leaf(struct pass *p, uint32_t node);
 /* Draws the render queue. */
 void tw_chc_flush_render(struct pass *p);
 /* Sends what was drawn and issued to the GPU, if anything was since the
- * last time. */
+ * last time; in wavefront mode nothing (the caller flushes). */
 void tw_chc_flush_gpu(struct pass *p);
 
 /* ---- the queries and the costs they are decided with (chc-queries.c) --------------- */

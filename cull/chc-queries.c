@@ -153,7 +153,7 @@ static void issue_iquery(struct pass *p, size_t first, uint32_t count)
     struct tw_chc *chc = p->chc;
     const uint32_t handle = issue_nodes(p, &chc->q.query_nodes[first], count);
     assert(chc->q.iq_head + chc->q.iq_count < chc->q.iq_cap);
-    chc->q.iqueries[chc->q.iq_head + chc->q.iq_count++] = (struct iquery){handle, count, first};
+    chc->q.iqueries[chc->q.iq_head + chc->q.iq_count++] = (struct iquery){handle, count, first, chc->flushes};
 }
 
 static bool iqueue_before(const struct iqueue_item *a, const struct iqueue_item *b)

@@ -102,8 +102,11 @@ void tw_chc_destroy(struct tw_chc *chc)
     if (!chc)
         return;
     free_queues(&chc->q);
-    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
-        free_queues(&chc->slots[k].q);
+    for (uint32_t k = 0; k < chc->slot_count; k++) {
+        free_queues(&chc->slots[k]->q);
+        free(chc->slots[k]);
+    }
+    free(chc->slots);
     free(chc->deferred);
     free(chc);
 }
@@ -132,8 +135,9 @@ size_t tw_chc_bytes(const struct tw_chc *chc)
         return 0;
     size_t bytes = sizeof(*chc) + queues_bytes(&chc->q) +
                    chc->deferred_cap * sizeof(*chc->deferred);
-    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
-        bytes += queues_bytes(&chc->slots[k].q);
+    bytes += chc->slot_cap * sizeof(*chc->slots);
+    for (uint32_t k = 0; k < chc->slot_count; k++)
+        bytes += sizeof(*chc->slots[k]) + queues_bytes(&chc->slots[k]->q);
     return bytes;
 }
 
@@ -210,7 +214,7 @@ void tw_chc_flush_render(struct pass *p)
 
 void tw_chc_flush_gpu(struct pass *p)
 {
-    if (!p->chc->unflushed)
+    if (!p->chc->unflushed || p->chc->wavefront)
         return;
     p->be->flush(p->be->ctx);
     p->chc->unflushed = false;
@@ -369,8 +373,12 @@ static bool run_pass(struct pass *p, bool may_suspend)
                     continue;
                 }
                 if (chc->q.vqueue_count > 0) {
-                    chc->q.vqueue_count--;
-                    tw_chc_issue_vquery(p, chc->q.vqueue[chc->q.vqueue_head++]);
+                    /* In wavefront mode the V-queries go with the wavefront's
+                     * flush, all at once. */
+                    do {
+                        chc->q.vqueue_count--;
+                        tw_chc_issue_vquery(p, chc->q.vqueue[chc->q.vqueue_head++]);
+                    } while (chc->wavefront && chc->q.vqueue_count > 0);
                     tw_chc_flush_gpu(p);
                     continue;
                 }
@@ -378,7 +386,10 @@ static bool run_pass(struct pass *p, bool may_suspend)
                  * or before leaving it to the next tile. */
                 tw_chc_flush_render(p);
                 tw_chc_flush_gpu(p);
-                if (may_suspend)
+                /* In wavefront mode only a query sent by the caller's last
+                 * flush is waited on (a batched read); any other waits for
+                 * the next one. */
+                if (may_suspend && !(chc->wavefront && q.flush < chc->flushes))
                     return false;
                 chc->stats.waits++;
             }
@@ -451,15 +462,15 @@ static bool usable(const struct tw_chc *chc, const struct tw_view *v,
 static void swap_queues(struct tw_chc *chc, uint32_t k)
 {
     const struct queues t = chc->q;
-    chc->q = chc->slots[k].q;
-    chc->slots[k].q = t;
+    chc->q = chc->slots[k]->q;
+    chc->slots[k]->q = t;
 }
 
 /* Resumes suspended pass k; block: runs it to its end. Frees the slot when
  * the pass is done. */
 static void resume(struct tw_chc *chc, uint32_t k, bool block)
 {
-    struct suspended *sl = &chc->slots[k];
+    struct suspended *sl = chc->slots[k];
     swap_queues(chc, k);
     if (run_pass(&sl->pass, !block)) {
         end_pass(&sl->pass);
@@ -468,16 +479,39 @@ static void resume(struct tw_chc *chc, uint32_t k, bool block)
     swap_queues(chc, k);
 }
 
-/* The suspended pass started first (the nearest tile's), or TW_CHC_MAX_SUSPENDED
- * when none is. */
-static uint32_t oldest_suspended(const struct tw_chc *chc)
+/* The suspended pass started first (the nearest tile's) of those not
+ * resumed in round (0: any), or chc->slot_count when there is none. */
+static uint32_t oldest_suspended(const struct tw_chc *chc, uint64_t round)
 {
-    uint32_t oldest = TW_CHC_MAX_SUSPENDED;
-    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
-        if (chc->slots[k].active &&
-            (oldest == TW_CHC_MAX_SUSPENDED || chc->slots[k].started < chc->slots[oldest].started))
+    uint32_t oldest = chc->slot_count;
+    for (uint32_t k = 0; k < chc->slot_count; k++) {
+        const struct suspended *sl = chc->slots[k];
+        if (sl->active && (round == 0 || sl->resumed != round) &&
+            (oldest == chc->slot_count || sl->started < chc->slots[oldest]->started))
             oldest = k;
+    }
     return oldest;
+}
+
+/* A slot for one more suspended pass, allocated if there are fewer than
+ * want; chc->slot_count when there is no memory for it. */
+static uint32_t new_slot(struct tw_chc *chc, uint32_t want)
+{
+    if (chc->slot_count >= want)
+        return chc->slot_count;
+    if (chc->slot_count == chc->slot_cap) {
+        const uint32_t cap = chc->slot_cap ? 2 * chc->slot_cap : TW_CHC_MAX_SUSPENDED;
+        struct suspended **s = realloc(chc->slots, cap * sizeof(*s));
+        if (!s)
+            return chc->slot_count;
+        chc->slots = s;
+        chc->slot_cap = cap;
+    }
+    struct suspended *sl = calloc(1, sizeof(*sl));
+    if (!sl)
+        return chc->slot_count;
+    chc->slots[chc->slot_count] = sl;
+    return chc->slot_count++;
 }
 
 void tw_chc_traverse(struct tw_chc *chc, const struct tw_view *v,
@@ -497,20 +531,29 @@ void tw_chc_traverse_async(struct tw_chc *chc, const struct tw_view *v,
 {
     if (!usable(chc, v, be, tile))
         return;
-    /* Give the suspended passes what has come back; the oldest is finished
-     * when every slot is taken. */
-    uint32_t free_slot = TW_CHC_MAX_SUSPENDED;
-    for (uint32_t k = 0; k < chc->settings.suspended_passes; k++) {
-        if (chc->slots[k].active)
+    const uint32_t limit = chc->wavefront ? UINT32_MAX : chc->settings.suspended_passes;
+    /* Give the suspended passes what has come back (in wavefront mode that
+     * is tw_chc_resume_flushed's); the oldest is finished when every slot is
+     * taken. */
+    uint32_t free_slot = chc->slot_count;
+    for (uint32_t k = 0; k < chc->slot_count && k < limit; k++) {
+        if (chc->slots[k]->active && !chc->wavefront)
             resume(chc, k, false);
-        if (!chc->slots[k].active && free_slot == TW_CHC_MAX_SUSPENDED)
+        if (!chc->slots[k]->active && free_slot == chc->slot_count)
             free_slot = k;
     }
-    if (free_slot == TW_CHC_MAX_SUSPENDED) {
-        free_slot = oldest_suspended(chc);
+    if (free_slot == chc->slot_count)
+        free_slot = new_slot(chc, limit);
+    if (free_slot == chc->slot_count) {
+        free_slot = oldest_suspended(chc, 0);
+        if (free_slot == chc->slot_count) {
+            /* No slot at all (out of memory): the pass runs to its end. */
+            tw_chc_traverse(chc, v, be, tile);
+            return;
+        }
         resume(chc, free_slot, true);
     }
-    struct suspended *sl = &chc->slots[free_slot];
+    struct suspended *sl = chc->slots[free_slot];
     sl->tile = *tile;
     swap_queues(chc, free_slot);
     if (start_pass(&sl->pass, chc, v, be, &sl->tile)) {
@@ -530,8 +573,32 @@ void tw_chc_finish(struct tw_chc *chc)
     if (!chc)
         return;
     /* Oldest first: the nearer tiles' passes, started first. */
-    for (uint32_t k = oldest_suspended(chc); k < TW_CHC_MAX_SUSPENDED; k = oldest_suspended(chc))
+    for (uint32_t k = oldest_suspended(chc, 0); k < chc->slot_count;
+         k = oldest_suspended(chc, 0))
         resume(chc, k, true);
+}
+
+void tw_chc_set_wavefront(struct tw_chc *chc, bool on)
+{
+    if (chc)
+        chc->wavefront = on;
+}
+
+bool tw_chc_resume_flushed(struct tw_chc *chc)
+{
+    if (!chc)
+        return false;
+    chc->flushes++;
+    chc->unflushed = false;
+    const uint64_t round = ++chc->rounds;
+    bool more = false;
+    for (uint32_t k = oldest_suspended(chc, round); k < chc->slot_count;
+         k = oldest_suspended(chc, round)) {
+        chc->slots[k]->resumed = round;
+        resume(chc, k, false);
+        more = more || chc->slots[k]->active;
+    }
+    return more;
 }
 
 void tw_chc_begin_frame(struct tw_chc *chc, const struct tw_view *v,
@@ -540,8 +607,8 @@ void tw_chc_begin_frame(struct tw_chc *chc, const struct tw_view *v,
 {
     if (!chc)
         return;
-    for (uint32_t k = 0; k < TW_CHC_MAX_SUSPENDED; k++)
-        assert(!chc->slots[k].active && "tw_chc_finish() was not called at the end of a frame");
+    for (uint32_t k = 0; k < chc->slot_count; k++)
+        assert(!chc->slots[k]->active && "tw_chc_finish() was not called at the end of a frame");
     memset(&chc->stats, 0, sizeof(chc->stats));
     if (!be) {
         chc->deferred_count = 0;

@@ -200,6 +200,19 @@ void tw_chc_traverse_async(struct tw_chc *chc, const struct tw_view *v,
 /* Runs every suspended pass to its end, oldest first. */
 void tw_chc_finish(struct tw_chc *chc);
 
+/* Wavefront mode (off by default), for a caller that flushes once per
+ * wavefront of its own (tile-query propagation): tw_chc_traverse_async()
+ * suspends any number of passes, never resumes one itself, and no pass
+ * flushes; a pass that would wait on a query issued since the caller's
+ * last flush is suspended instead. */
+void tw_chc_set_wavefront(struct tw_chc *chc, bool on);
+/* Wavefront mode: the caller has just flushed, so everything issued so far
+ * is on its way. Resumes every suspended pass, oldest first, each until it
+ * would wait on something issued after that flush (a wait before that is
+ * one of the wavefront's batched reads). Returns whether a pass is still
+ * suspended. */
+bool tw_chc_resume_flushed(struct tw_chc *chc);
+
 /* This frame's counters (reset by tw_chc_begin_frame). */
 const struct tw_chc_stats *tw_chc_stats(const struct tw_chc *chc);
 
@@ -338,12 +351,25 @@ struct tw_tilequery_stats {
                                    frame and found hidden, or considered last frame, found
                                    hidden then, and visible now; a cell with no verdict in
                                    the previous frame has no prediction to fail */
-    uint32_t waits;             /* blocking waits on tile queries */
+    uint32_t waits;             /* waits on tile queries (reads of a wavefront's answers) */
+    uint32_t fronts;            /* wavefronts: the GPU was flushed once for each */
 };
 
 /* Renders the tile at cell, placed at offset (view-relative), with the local
- * method, before its neighbours are queried. */
-typedef void (*tw_tilequery_render_fn)(void *user, struct tw_cell cell, const float offset[3]);
+ * method, before its neighbours are queried. condition: 0, or the cell's
+ * own query, issued and not read yet, when it is drawn on last frame's word
+ * (postponed): a local method may draw under it (be->draw_if), the GPU
+ * skipping what it finds hidden; the engine reads it. */
+typedef void (*tw_tilequery_render_fn)(void *user, struct tw_cell cell, const float offset[3],
+                                       uint32_t condition);
+
+/* Called once per wavefront, right after its flush: everything drawn and
+ * issued so far has gone to the GPU, so the local method may now read what
+ * it issued before (a wait there is covered by the same flush) and go on,
+ * issuing more, without a flush of its own. Returns whether it still has
+ * work waiting on the GPU (then one more wavefront follows even when no
+ * tile query is left). */
+typedef bool (*tw_tilequery_front_fn)(void *user);
 
 int tw_tilequery_create(const struct tw_tilequery_settings *s, struct tw_tilequery **out);
 /* Accepts NULL. Queries still in flight are abandoned unread. */
@@ -352,10 +378,15 @@ void tw_tilequery_destroy(struct tw_tilequery *tq);
 /* Runs one frame (v->frame, increasing by one each call): spreads visibility
  * from the camera across the grid of footprint w x d, front to back,
  * querying common_box (tile-local) placed at each candidate cell, and calls
- * render for every cell found visible. */
+ * render for every cell found visible. It goes a wavefront at a time: the
+ * cells rendered in one wavefront have their neighbours queried, then
+ * be->flush() is called once (the only flush it makes), front (may be NULL)
+ * is called, and the wavefront's answers are read; the visible cells are
+ * the next wavefront's to render. */
 int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
                        const struct tw_query_backend *be, const struct tw_box *common_box,
-                       float w, float d, tw_tilequery_render_fn render, void *user,
+                       float w, float d, tw_tilequery_render_fn render,
+                       tw_tilequery_front_fn front, void *user,
                        struct tw_tilequery_stats *stats);
 
 /* True if cell was found visible in frame (only the last two frames are kept). */
@@ -507,6 +538,7 @@ void tw_cull_chc_end(struct tw_chc *chc, struct tw_cull_frame *fr);
  * Kept across frames: the pyramid and its traversals, the cells with a node
  * visible last frame and this frame's, the latest verdict on every cell
  * decided lately. Zero-initialise, then tw_hzb_phases_init(). */
+struct tw_hzb_gpu_candidate;
 struct tw_hzb_phases {
     struct tw_hzb *hzb;
     struct tw_cull_cell *last, *next;   /* cells with a visible node: last frame's
@@ -514,6 +546,21 @@ struct tw_hzb_phases {
     size_t last_count, last_cap, next_count, next_cap;
     struct tw_cell_map *verdict;        /* cell -> frame << 4 | what that frame learnt */
     uint64_t last_prune;
+    /* On the GPU (the backend's gpu_hzb_* operations, DESIGN §6): phase 2's
+     * tests are the GPU's, their answers arrive a frame or more later. */
+    bool gpu;                           /* this frame's phase 2 is the GPU's */
+    float shrink;                       /* testing only: tw_hzb_set_mutation() */
+    uint64_t known;                     /* the latest frame whose answers were applied */
+    struct tw_cell_map *gpu_verdict;    /* cell -> frame << 1 | common box passed */
+    struct tw_hzb_gpu_list {
+        uint64_t frame;                 /* 0: free */
+        struct tw_hzb_gpu_candidate *items;
+        size_t count, cap;
+    } lists[4];                         /* the candidates of frames in flight */
+    uint32_t *stack;                    /* a traversal's nodes */
+    size_t stack_cap;
+    uint32_t *render;                   /* phase 1's clusters of one tile */
+    size_t render_count, render_cap;
 };
 
 int tw_hzb_phases_init(struct tw_hzb_phases *p, float mutate_shrink);

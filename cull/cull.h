@@ -212,7 +212,8 @@ struct tw_query_backend {
      * GPU.
      * gpu_hzb_build: builds a depth pyramid of everything drawn so far this
      *   frame and clears the frame's candidates; false: none could be made
-     *   (nothing is then proven hidden).
+     *   (nothing is then proven hidden). owner names whose frame it is
+     *   (methods run side by side share a backend): results go to it.
      * gpu_hzb_candidate: queues box (view-relative, the query margin
      *   included) for the frame's test; when it passes, or when always
      *   (a box the near plane may cut), count clusters of the tile at cell
@@ -225,12 +226,13 @@ struct tw_query_backend {
      *   (bit i % 32 of word i / 32 set: passed), their number, and that
      *   frame's number (the view's); NULL when none is new. wait: block
      *   until the latest frame tested is finished (a deterministic run). */
-    bool (*gpu_hzb_build)(void *ctx, uint64_t frame);
+    bool (*gpu_hzb_build)(void *ctx, const void *owner, uint64_t frame);
     uint32_t (*gpu_hzb_candidate)(void *ctx, const struct tw_box *box, bool always,
                                   struct tw_cell cell, uint32_t content, const float offset[3],
                                   const uint32_t *clusters, uint32_t count);
     void (*gpu_hzb_test)(void *ctx);
-    const uint32_t *(*gpu_hzb_results)(void *ctx, bool wait, uint32_t *count, uint64_t *frame);
+    const uint32_t *(*gpu_hzb_results)(void *ctx, const void *owner, bool wait, uint32_t *count,
+                                       uint64_t *frame);
 };
 
 /* ---- vfc: view-frustum culling inside one tile ------------------------------ */
@@ -252,6 +254,10 @@ struct tw_chc_settings {
     bool no_tight_boxes;        /* query node boxes, not tight-box lists */
     bool no_cost_model;         /* ignore tw_chc_set_costs(): every query costs one unit,
                                    as in the paper (for measurements) */
+    bool per_tile_waits;        /* tilequery+chc: passes flush and wait tile by tile, at
+                                   most suspended_passes suspended (the default: they
+                                   suspend without limit and resume at each wavefront's
+                                   one flush, tw_chc_set_wavefront) */
     uint32_t suspended_passes;  /* tw_chc_traverse_async: passes suspended at once,
                                    1..TW_CHC_MAX_SUSPENDED; default 1 */
     bool first_sight_draws;     /* a leaf never found visible by a query (a new tile's) is
@@ -412,7 +418,13 @@ struct tw_cull_frame_stats {
                                            and BVH nodes */
     double ms_hzb_read;                 /* reading the depth back (be->read_depth), blocked
                                            until phase 1 is drawn */
-    double ms_hzb_build;                /* building the pyramid */
+    double ms_hzb_build;                /* building the pyramid (on the GPU: submitting it) */
+    uint32_t tiles_late;                /* the GPU HZB: cells whose common box the GPU found
+                                           visible in a frame that had not taken their tile
+                                           (it learnt it too late: a frame may have missed
+                                           pixels), counted when the answer arrives */
+    uint32_t hzb_results_lag;           /* the GPU HZB: frames between the answers applied
+                                           and this frame (0: none yet) */
 };
 
 /* A method with its temporal state: the tile cache of its instances, its

@@ -10,8 +10,22 @@
 #include "tiles/clock.h"
 #include "tiles/tiles-internal.h"
 
+#include <assert.h>
 #include <stdlib.h>
 #include <string.h>
+
+/* What a candidate of the GPU's test was, to apply its answer when it
+ * arrives: a cell's common box (taken: its tile was instantiated and its
+ * leaves queued; not taken: a box that passes is a tile late), or a leaf
+ * of a tile instance. */
+enum { GPU_CELL_TAKEN, GPU_CELL_NOT_TAKEN, GPU_LEAF };
+struct tw_hzb_gpu_candidate {
+    struct tw_cell cell;
+    uint64_t tag;                       /* leaf: the tile instance's handle */
+    uint32_t node;                      /* leaf: its BVH node */
+    uint32_t kind;
+    bool inside;                        /* cell: its common box wholly in the frustum */
+};
 
 /* ---- the two phases ------------------------------------------------------------------ */
 
@@ -29,7 +43,10 @@ int tw_hzb_phases_init(struct tw_hzb_phases *p, float mutate_shrink)
     if (!err)
         err = tw_cell_map_create(&p->verdict);
     if (!err)
+        err = tw_cell_map_create(&p->gpu_verdict);
+    if (!err)
         tw_hzb_set_mutation(p->hzb, mutate_shrink);
+    p->shrink = mutate_shrink > 0.0f && mutate_shrink < 1.0f ? mutate_shrink : 0.0f;
     return err;
 }
 
@@ -37,6 +54,11 @@ void tw_hzb_phases_finish(struct tw_hzb_phases *p)
 {
     tw_hzb_destroy(p->hzb);
     tw_cell_map_destroy(p->verdict);
+    tw_cell_map_destroy(p->gpu_verdict);
+    for (int k = 0; k < 4; k++)
+        free(p->lists[k].items);
+    free(p->stack);
+    free(p->render);
     free(p->last);
     free(p->next);
     memset(p, 0, sizeof(*p));
@@ -44,7 +66,12 @@ void tw_hzb_phases_finish(struct tw_hzb_phases *p)
 
 size_t tw_hzb_phases_bytes(const struct tw_hzb_phases *p)
 {
+    size_t lists = 0;
+    for (int k = 0; k < 4; k++)
+        lists += p->lists[k].cap * sizeof(*p->lists[k].items);
     return tw_hzb_bytes(p->hzb) + (p->verdict ? tw_cell_map_bytes(p->verdict) : 0) +
+           (p->gpu_verdict ? tw_cell_map_bytes(p->gpu_verdict) : 0) + lists +
+           sizeof(*p->stack) * p->stack_cap + sizeof(*p->render) * p->render_cap +
            sizeof(*p->last) * (p->last_cap + p->next_cap);
 }
 
@@ -147,6 +174,259 @@ static void pyramid(struct tw_hzb_phases *p, struct tw_cull_frame *fr, bool draw
     fr->st->ms_hzb_build += tw_clock_monotonic_ms() - t1;
 }
 
+/* ---- the two phases on the GPU --------------------------------------------------------- */
+
+static struct tw_hzb_gpu_list *gpu_list(struct tw_hzb_phases *p, uint64_t frame)
+{
+    for (int k = 0; k < 4; k++)
+        if (p->lists[k].frame == frame)
+            return &p->lists[k];
+    return NULL;
+}
+
+/* Queues a candidate of the frame's test; false: out of memory (the
+ * frame's error). */
+static bool gpu_queue(struct tw_hzb_phases *p, struct tw_cull_frame *fr, const struct tw_box *box,
+                      bool always, const struct tw_hzb_gpu_candidate *c, uint32_t content,
+                      const float off[3], const uint32_t *clusters, uint32_t count)
+{
+    struct tw_hzb_gpu_list *l = gpu_list(p, fr->v->frame);
+    if (!l || !tw_cull_frame_reserve(fr, (void **)&l->items, &l->cap, l->count + 1,
+                                     sizeof(*l->items)))
+        return false;
+    const struct tw_query_backend *be = fr->be;
+    struct tw_box q = *box;
+    if (p->shrink > 0.0f) /* testing: a broken culler the checks must catch */
+        for (int a = 0; a < 3; a++) {
+            const float m = 0.5f * (q.min[a] + q.max[a]), r = 0.5f * (q.max[a] - q.min[a]);
+            q.min[a] = m - r * (1.0f - p->shrink);
+            q.max[a] = m + r * (1.0f - p->shrink);
+        }
+    const uint32_t i = be->gpu_hzb_candidate(be->ctx, &q, always, c->cell, content, off,
+                                             clusters, count);
+    if (i == UINT32_MAX)
+        return true;    /* drawn untested (the backend out of memory) */
+    /* Indices are consecutive from 0 in a frame. */
+    assert(i == l->count);
+    l->items[l->count++] = *c;
+    fr->st->hzb_boxes++;
+    return true;
+}
+
+/* Applies the answers of the latest frame the GPU has finished: leaves
+ * that passed are marked visible in that frame (phase 1 draws them next),
+ * cells get their verdict, and the cells with a visible leaf become the
+ * next phase 1's list. */
+static void gpu_apply(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
+{
+    const struct tw_query_backend *be = fr->be;
+    uint32_t n = 0;
+    uint64_t frame = 0;
+    const uint32_t *bits = be->gpu_hzb_results(be->ctx, p, false, &n, &frame);
+    if (bits) {
+        struct tw_hzb_gpu_list *l = gpu_list(p, frame);
+        if (l) {
+            p->last_count = 0;
+            struct tw_cell last_cell = {0, 0};
+            bool have_last = false;
+            const size_t count = n < l->count ? n : l->count;
+            for (size_t i = 0; i < count; i++) {
+                const struct tw_hzb_gpu_candidate *c = &l->items[i];
+                const bool passed = bits[i >> 5] >> (i & 31) & 1u;
+                if (c->kind != GPU_LEAF) {
+                    /* A box partly outside the frustum was tested only where it
+                     * showed: hidden there says nothing of the rest, which a
+                     * turn may bring in (no verdict). */
+                    if (passed || c->inside) {
+                        if (tw_cell_map_set(p->gpu_verdict, c->cell,
+                                            frame << 1 | (passed ? 1u : 0u)))
+                            fr->err = TW_ERR_NOMEM;
+                    } else {
+                        tw_cell_map_remove(p->gpu_verdict, c->cell);
+                    }
+                    if (passed && c->kind == GPU_CELL_NOT_TAKEN)
+                        fr->st->tiles_late++;
+                    continue;
+                }
+                if (!passed || !fr->cache)
+                    continue;
+                struct tw_hzb_node_state *state =
+                    tw_tile_cache_state(fr->cache, tw_tile_handle_unpack(c->tag));
+                if (!state)
+                    continue;   /* gone since */
+                state[c->node].visible_frame = frame;
+                if (!have_last || last_cell.i != c->cell.i || last_cell.j != c->cell.j) {
+                    /* A tile's leaves are consecutive: one entry per tile. */
+                    if (tw_cull_frame_reserve(fr, (void **)&p->last, &p->last_cap,
+                                              p->last_count + 1, sizeof(*p->last)))
+                        p->last[p->last_count++] = (struct tw_cull_cell){c->cell, 0.0f};
+                    last_cell = c->cell;
+                    have_last = true;
+                }
+            }
+            p->known = frame;
+        }
+        for (int k = 0; k < 4; k++)
+            if (p->lists[k].frame <= frame)
+                p->lists[k].frame = 0;
+    }
+    fr->st->hzb_results_lag = p->known ? (uint32_t)(fr->v->frame - p->known) : 0;
+    /* A list for this frame's candidates: the oldest in flight gives way
+     * (its answers, if they ever come, are then ignored). */
+    int free_list = -1;
+    for (int k = 0; k < 4; k++)
+        if (free_list < 0 || p->lists[k].frame < p->lists[free_list].frame)
+            free_list = k;
+    p->lists[free_list].frame = fr->v->frame;
+    p->lists[free_list].count = 0;
+}
+
+/* The GPU's latest verdict on cell: -1 none as of the latest answers, 0
+ * hidden, 1 visible. */
+static int gpu_verdict(const struct tw_hzb_phases *p, struct tw_cell cell)
+{
+    const uint64_t *v = tw_cell_map_find(p->gpu_verdict, cell);
+    if (!v || p->known == 0 || *v >> 1 != p->known)
+        return -1;
+    return (int)(*v & 1u);
+}
+
+/* Taken (its tile instantiated and its leaves tested): a cell the GPU
+ * found visible in its latest answers, or did not test, or next to one it
+ * found visible (the paper's remedy for late answers, applied to the
+ * ring of eight). */
+static bool gpu_take(const struct tw_hzb_phases *p, struct tw_cell cell)
+{
+    if (gpu_verdict(p, cell) != 0)
+        return true;
+    for (int dj = -1; dj <= 1; dj++)
+        for (int di = -1; di <= 1; di++)
+            if ((di || dj) &&
+                gpu_verdict(p, (struct tw_cell){cell.i + di, cell.j + dj}) == 1)
+                return true;
+    return false;
+}
+
+/* The tile's BVH in the frustum and view distance, nearer child first:
+ * leaves go to leaf(). */
+static void gpu_traverse(struct tw_hzb_phases *p, struct tw_cull_frame *fr,
+                         const struct tw_cull_instance *t,
+                         void (*leaf)(struct tw_hzb_phases *, struct tw_cull_frame *,
+                                      const struct tw_cull_instance *, uint32_t))
+{
+    const struct tw_view *v = fr->v;
+    const struct tw_bvh_node *nodes = t->bvh->nodes;
+    if (!tw_cull_frame_reserve(fr, (void **)&p->stack, &p->stack_cap, t->bvh->node_count + 1,
+                               sizeof(*p->stack)))
+        return;
+    size_t top = 0;
+    p->stack[top++] = 0;
+    while (top > 0 && !fr->err) {
+        const uint32_t node = p->stack[--top];
+        const struct tw_box *b = &nodes[node].box;
+        if (!(tw_cull_box_distance(v, b, t->offset) <= v->view_distance) ||
+            tw_cull_frustum_box(&v->frustum, b, t->offset) == TW_CULL_OUTSIDE)
+            continue;
+        if (nodes[node].child[0] == TW_BVH_NONE) {
+            leaf(p, fr, t, node);
+            continue;
+        }
+        uint32_t a = nodes[node].child[0], c = nodes[node].child[1];
+        if (c != TW_BVH_NONE &&
+            tw_cull_box_distance(v, &nodes[c].box, t->offset) <
+                tw_cull_box_distance(v, &nodes[a].box, t->offset)) {
+            const uint32_t x = a;
+            a = c;
+            c = x;
+        }
+        if (c != TW_BVH_NONE)
+            p->stack[top++] = c;
+        p->stack[top++] = a;
+    }
+}
+
+static void phase1_leaf(struct tw_hzb_phases *p, struct tw_cull_frame *fr,
+                        const struct tw_cull_instance *t, uint32_t node)
+{
+    struct tw_hzb_node_state *state = t->state;
+    const struct tw_bvh_node *n = &t->bvh->nodes[node];
+    if (state[node].visible_frame != p->known || p->known == 0)
+        return;
+    state[node].drawn_frame = fr->v->frame;
+    memcpy(p->render + p->render_count, &t->bvh->cluster_order[n->first_cluster],
+           n->cluster_count * sizeof(*p->render));
+    p->render_count += n->cluster_count;
+}
+
+static void phase2_leaf(struct tw_hzb_phases *p, struct tw_cull_frame *fr,
+                        const struct tw_cull_instance *t, uint32_t node)
+{
+    struct tw_hzb_node_state *state = t->state;
+    const struct tw_bvh_node *n = &t->bvh->nodes[node];
+    if (n->cluster_count == 0)
+        return;
+    /* A leaf phase 1 drew is tested too, not drawn again: its answer
+     * keeps it in the next phase 1 (niagara's late pass). */
+    const bool drawn = state[node].drawn_frame == fr->v->frame;
+    state[node].drawn_frame = fr->v->frame;
+    const struct tw_box q = tw_cull_query_box(fr->v->eye, &n->box, t->offset);
+    const struct tw_hzb_gpu_candidate c = {t->cell, t->tag, node, GPU_LEAF, false};
+    if (!gpu_queue(p, fr, &q, tw_cull_near_box(fr->v, &n->box, t->offset), &c, t->content,
+                   t->offset, &t->bvh->cluster_order[n->first_cluster],
+                   drawn ? 0 : n->cluster_count))
+        fr->err = TW_ERR_NOMEM;
+}
+
+/* Phase 1 on the GPU's answers: the tiles with a leaf visible in the
+ * latest answers, front to back, each drawing those leaves in the
+ * frustum. */
+static uint32_t gpu_phase1(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
+{
+    size_t n = 0;
+    for (size_t k = 0; k < p->last_count; k++) {
+        float off[3], dist;
+        if (tw_cull_frame_cell_in_view(fr, p->last[k].cell, off, &dist))
+            p->last[n++] = (struct tw_cull_cell){p->last[k].cell, dist};
+    }
+    p->last_count = n;
+    if (n > 1)
+        qsort(p->last, n, sizeof(*p->last), compare_cells);
+    uint32_t drawn = 0;
+    for (size_t k = 0; k < n && !fr->err; k++) {
+        const struct tw_cell cell = p->last[k].cell;
+        float off[3];
+        tw_tiles_cell_offset(cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], off);
+        struct tw_cull_instance t;
+        if (!instance(fr, cell, p->last[k].distance, off, &t) || !t.bvh ||
+            t.bvh->node_count == 0)
+            continue;
+        if (!tw_cull_frame_reserve(fr, (void **)&p->render, &p->render_cap,
+                                   t.bvh->cluster_count + 1, sizeof(*p->render)))
+            return drawn;
+        p->render_count = 0;
+        gpu_traverse(p, fr, &t, phase1_leaf);
+        if (p->render_count > 0) {
+            fr->be->draw(fr->be->ctx, cell, t.content, t.offset, p->render,
+                         (uint32_t)p->render_count);
+            fr->st->tiles_visible++;
+            drawn += (uint32_t)p->render_count;
+        }
+        set_verdict(p, fr, cell, HZ_PHASE1 | (p->render_count > 0 ? HZ_DREW1 : 0));
+    }
+    return drawn;
+}
+
+/* Phase 2 on the GPU in a taken cell: every leaf in the frustum that phase
+ * 1 did not draw, queued for the GPU's test. */
+static void gpu_visit(struct tw_hzb_phases *p, struct tw_cull_frame *fr, struct tw_cell cell,
+                      float distance, const float off[3])
+{
+    struct tw_cull_instance t;
+    if (!instance(fr, cell, distance, off, &t) || !t.bvh || t.bvh->node_count == 0)
+        return;
+    gpu_traverse(p, fr, &t, phase2_leaf);
+}
+
 uint32_t tw_hzb_phases_begin(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
 {
     const uint64_t f = fr->v->frame;
@@ -156,6 +436,19 @@ uint32_t tw_hzb_phases_begin(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
     }
     tw_hzb_begin_frame(p->hzb);
     p->next_count = 0;
+    const struct tw_query_backend *be = fr->be;
+    p->gpu = be->gpu_hzb_build && be->gpu_hzb_candidate && be->gpu_hzb_test &&
+             be->gpu_hzb_results && fr->cache;
+    if (p->gpu) {
+        gpu_apply(p, fr);
+        const uint32_t drawn = fr->err ? 0 : gpu_phase1(p, fr);
+        if (!fr->err) {
+            const double t0 = tw_clock_monotonic_ms();
+            be->gpu_hzb_build(be->ctx, p, f);
+            fr->st->ms_hzb_build += tw_clock_monotonic_ms() - t0;
+        }
+        return drawn;
+    }
     const uint32_t drawn = phase1(p, fr);
     if (!fr->err)
         pyramid(p, fr, drawn > 0);
@@ -167,6 +460,44 @@ bool tw_hzb_phases_decide(struct tw_hzb_phases *p, struct tw_cull_frame *fr, str
 {
     const uint64_t f = fr->v->frame;
     const uint64_t old = tw_hzb_phases_verdict(p, cell);
+    if (p->gpu) {
+        /* The GPU tests the common box; the cell is taken on its latest
+         * answers (gpu_take), its box's answer applies to later frames. */
+        fr->st->tiles_queried++;
+        const bool taken = free_pass || gpu_take(p, cell);
+        /* A cell not taken whose tile is at hand anyway has its leaves
+         * tested all the same (nothing requested, nothing waited for):
+         * late answers then cost only tiles never loaded. */
+        bool resident = false;
+        if (!taken) {
+            struct tw_cull_tile tile;
+            const float dist = tw_cull_box_distance(fr->v, &fr->g->common_box, off);
+            if (fr->g->source.get(fr->g->source.ctx, cell, dist,
+                                  fr->source_flags | TW_TILE_SOURCE_RESIDENT |
+                                      TW_TILE_SOURCE_QUIET,
+                                  &tile) == TW_OK) {
+                resident = true;
+                struct tw_cull_instance t;
+                bool created;
+                if (tile.proto && tile.bvh && tile.bvh->node_count > 0 &&
+                    tw_cull_frame_instance(fr, cell, &tile, off, tw_hzb_state_bytes(tile.bvh), &t,
+                                           &created))
+                    gpu_traverse(p, fr, &t, phase2_leaf);
+            }
+        }
+        const struct tw_box q = tw_cull_query_box(fr->v->eye, &fr->g->common_box, off);
+        const struct tw_hzb_gpu_candidate c = {
+            cell, 0, 0, taken || resident ? GPU_CELL_TAKEN : GPU_CELL_NOT_TAKEN,
+            tw_cull_frustum_box(&fr->v->frustum, &fr->g->common_box, off) == TW_CULL_INSIDE};
+        if (!gpu_queue(p, fr, &q, tw_cull_near_box(fr->v, &fr->g->common_box, off), &c, 0, off,
+                       NULL, 0))
+            fr->err = TW_ERR_NOMEM;
+        const bool this_frame = old >> HZ_SHIFT == f;
+        *prev = this_frame ? old : 0;
+        set_verdict(p, fr, cell, (*prev & (HZ_PHASE1 | HZ_DREW1)) | HZ_TESTED |
+                                     (taken ? HZ_VISIBLE : 0));
+        return taken;
+    }
     bool visible = true;
     if (!free_pass) {
         fr->st->tiles_queried++;
@@ -189,6 +520,10 @@ bool tw_hzb_phases_decide(struct tw_hzb_phases *p, struct tw_cull_frame *fr, str
 void tw_hzb_phases_visit(struct tw_hzb_phases *p, struct tw_cull_frame *fr, struct tw_cell cell,
                          float distance, const float off[3], uint64_t prev)
 {
+    if (p->gpu) {
+        gpu_visit(p, fr, cell, distance, off);
+        return;
+    }
     struct tw_cull_instance t;
     struct tw_hzb_node_state *state = instance(fr, cell, distance, off, &t);
     if (!state)
@@ -239,6 +574,31 @@ static void retest(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
 
 int tw_hzb_phases_end(struct tw_hzb_phases *p, struct tw_cull_frame *fr, uint32_t phase1)
 {
+    if (p->gpu) {
+        /* The answers the method decided with are a frame old or more: a
+         * cell its choice did not reach (tilequery+hzb's propagation
+         * stopped short of it) still has its box tested, and its tile's
+         * leaves where the tile is at hand, so that nothing visible now
+         * waits for an answer. */
+        int err = fr->err ? fr->err : tw_cull_cells_of_frame(fr->cells, fr->v, fr->g);
+        for (size_t k = 0; !err && k < fr->cells->count && !fr->err; k++) {
+            const struct tw_cell cell = fr->cells->cells[k].cell;
+            if (tw_hzb_phases_reached(p, fr, cell))
+                continue;
+            float off[3];
+            uint64_t prev;
+            tw_tiles_cell_offset(cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], off);
+            if (tw_hzb_phases_decide(p, fr, cell, off,
+                                     tw_cull_near_box(fr->v, &fr->g->common_box, off), &prev))
+                gpu_visit(p, fr, cell, fr->cells->cells[k].distance, off);
+        }
+        if (err)
+            fr->err = err;
+        /* The GPU tests and draws; its answers make a later phase 1. */
+        if (!fr->err)
+            fr->be->gpu_hzb_test(fr->be->ctx);
+        return fr->err;
+    }
     /* Phase 2 drew more than phase 1 (the first frame, a jump, a fast turn):
      * what it drew was tested against too little depth, and would all be
      * drawn blind by the next phase 1. Worth a second readback. */

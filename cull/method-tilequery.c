@@ -72,37 +72,59 @@ static bool visible_tile(const struct propagation *pr, struct tw_cell cell, cons
 }
 
 /* tilequery's local method. It keeps an instance per visible tile, as the
- * system does, with no state in it. */
-static void render_vfc(void *user, struct tw_cell cell, const float offset[3])
+ * system does, with no state in it. A cell drawn on last frame's word is
+ * drawn under its own query where the backend can (the GPU skips it if it
+ * is hidden now, and nothing waits). */
+static void render_vfc(void *user, struct tw_cell cell, const float offset[3], uint32_t condition)
 {
     const struct propagation *pr = user;
+    struct tw_cull_frame *fr = pr->fr;
     struct tw_cull_tile tile;
     if (!visible_tile(pr, cell, offset, &tile))
         return;
     struct tw_cull_instance inst;
     bool created;
-    tw_cull_frame_instance(pr->fr, cell, &tile, offset, 0, &inst, &created);
-    tw_cull_vfc_draw(pr->fr, &pr->m->clusters, cell, &tile, offset);
+    tw_cull_frame_instance(fr, cell, &tile, offset, 0, &inst, &created);
+    if (condition == 0 || !fr->be->draw_if) {
+        tw_cull_vfc_draw(fr, &pr->m->clusters, cell, &tile, offset);
+        return;
+    }
+    uint32_t *out = tw_cull_frame_clusters(fr, &pr->m->clusters, tile.proto->cluster_count);
+    if (!out)
+        return;
+    const uint32_t n = tw_cull_vfc_tile(fr->v, tile.proto, offset, out);
+    if (n > 0)
+        fr->be->draw_if(fr->be->ctx, condition, cell, tile.content, offset, out, n);
 }
 
 /* tilequery+chc's local method. The tile query already found the cell
  * visible: while a tile's pass waits, the next tiles' work goes to the GPU. */
-static void render_chc(void *user, struct tw_cell cell, const float offset[3])
+static void render_chc(void *user, struct tw_cell cell, const float offset[3],
+                       uint32_t condition)
 {
+    (void)condition;
     const struct propagation *pr = user;
     struct tw_cull_tile tile;
     if (visible_tile(pr, cell, offset, &tile))
         tw_cull_chc_draw(pr->m->chc, pr->fr, cell, &tile, offset, true);
 }
 
+/* tilequery+chc at each wavefront's flush: the suspended CHC++ passes read
+ * what that flush sent and go on. */
+static bool front_chc(void *user)
+{
+    const struct propagation *pr = user;
+    return tw_chc_resume_flushed(pr->m->chc);
+}
+
 static int propagate(struct tilequery_method *m, struct tw_cull_frame *fr,
-                     tw_tilequery_render_fn render)
+                     tw_tilequery_render_fn render, tw_tilequery_front_fn front)
 {
     struct tw_tilequery_stats tq;
     const struct tw_cull_grid *g = fr->g;
     struct propagation pr = {m, fr};
     const int err = tw_tilequery_frame(m->tq, fr->v, fr->be, &g->common_box, g->footprint[0],
-                                       g->footprint[1], render, &pr, &tq);
+                                       g->footprint[1], render, front, &pr, &tq);
     fr->st->tiles_queried = tq.tiles_queried;
     fr->st->predict_fail = tq.predict_fail;
     fr->st->tiles_visible = tq.tiles_visible;
@@ -111,14 +133,14 @@ static int propagate(struct tilequery_method *m, struct tw_cull_frame *fr,
 
 static int tilequery_frame(struct tw_cull_method_base *m, struct tw_cull_frame *fr)
 {
-    return propagate(tilequery_from_method(m), fr, render_vfc);
+    return propagate(tilequery_from_method(m), fr, render_vfc, NULL);
 }
 
 static int tilequery_chc_frame(struct tw_cull_method_base *m, struct tw_cull_frame *fr)
 {
     struct tilequery_method *tm = tilequery_from_method(m);
     tw_cull_chc_begin(tm->chc, fr);
-    const int err = propagate(tm, fr, render_chc);
+    const int err = propagate(tm, fr, render_chc, front_chc);
     tw_cull_chc_end(tm->chc, fr);
     return err;
 }
@@ -176,8 +198,11 @@ static int tilequery_create(const struct tw_cull_driver_settings *s,
     tm->base.impl = ops;
     tm->neighbours = s->tilequery.neighbours;
     int err = TW_OK;
-    if (ops == &tilequery_chc_ops)
+    if (ops == &tilequery_chc_ops) {
         err = tw_chc_create(&s->chc, &tm->chc);
+        if (!err)
+            tw_chc_set_wavefront(tm->chc, !s->chc.per_tile_waits);
+    }
     if (!err)
         err = tw_tilequery_create(&s->tilequery, &tm->tq);
     if (err) {

@@ -11,6 +11,8 @@ struct pending {
     uint32_t query;          /* 0: visible without a query */
     bool predicted;          /* visible last frame */
     bool known;              /* last frame had a verdict on the cell (a prediction exists) */
+    bool visible;            /* this frame's verdict, once its wavefront is read */
+    bool postponed;          /* drawn on last frame's word, its query read at the end */
     struct tw_cell cell;
 };
 
@@ -97,6 +99,7 @@ struct frame_ctx {
     const struct tw_box *common_box;
     float w, d;
     tw_tilequery_render_fn render;
+    tw_tilequery_front_fn front;
     void *user;
     struct tw_tilequery_stats *st;
     int err;
@@ -159,7 +162,6 @@ static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell)
         fc->err = TW_ERR_NOMEM;
         return;
     }
-    bool issued = false;
     for (uint32_t k = 0; k < n; k++) {
         struct pending *p = &tq->queue[tq->tail++];
         const uint64_t *vis = tw_cell_map_find(tq->visible, todo[k].cell);
@@ -175,15 +177,13 @@ static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell)
         } else {
             p->query = fc->be->issue(fc->be->ctx, fc->common_box, 1, off);
             fc->st->tiles_queried++;
-            issued = true;
         }
     }
-    if (issued)
-        fc->be->flush(fc->be->ctx);
 }
 
-/* Step 2 then 3: render a visible cell, then query its neighbours. */
-static void visit(struct frame_ctx *fc, struct tw_cell cell)
+/* Step 2 then 3: render a visible cell (condition: its unread query, when
+ * it is drawn on last frame's word), then query its neighbours. */
+static void visit(struct frame_ctx *fc, struct tw_cell cell, uint32_t condition)
 {
     float off[3];
     offset_of(fc, cell, off);
@@ -191,7 +191,7 @@ static void visit(struct frame_ctx *fc, struct tw_cell cell)
         fc->err = TW_ERR_NOMEM;
         return;
     }
-    fc->render(fc->user, cell, off);
+    fc->render(fc->user, cell, off, condition);
     fc->st->tiles_visible++;
     query_neighbours(fc, cell);
 }
@@ -225,13 +225,61 @@ static bool find_start(struct frame_ctx *fc, struct tw_cell *start)
     }
 }
 
+/* Step 4 for one wavefront, the queue's entries [head, end): first what
+ * needs no wait (the near-plane rule; a cell visible last frame whose
+ * answer is not in yet, postponed), then the answers of the others, read in
+ * issue order (the first wait covers the rest: they were flushed together),
+ * then the visible cells rendered in issue order. Their neighbours' queries
+ * form the next wavefront. */
+static void run_front(struct frame_ctx *fc, uint32_t end)
+{
+    struct tw_tilequery *tq = fc->tq;
+    const struct tw_query_backend *be = fc->be;
+    const uint32_t first = tq->head;
+    tq->head = end;
+    for (uint32_t k = first; k < end; k++) {
+        struct pending *p = &tq->queue[k];
+        p->visible = false;
+        p->postponed = false;
+        if (p->query == 0) {
+            p->visible = true;
+        } else if (p->predicted && !be->ready(be->ctx, p->query)) {
+            /* Trust last frame: render now, read the answer at the end. */
+            if (tw_array_reserve_u32((void **)&tq->postponed, &tq->postponed_cap,
+                                     tq->postponed_count + 1, sizeof(*tq->postponed), 64)) {
+                fc->err = TW_ERR_NOMEM;
+                return;
+            }
+            tq->postponed[tq->postponed_count++] = *p;
+            fc->st->postponed++;
+            p->visible = true;
+            p->postponed = true;
+        }
+    }
+    for (uint32_t k = first; k < end; k++) {
+        struct pending *p = &tq->queue[k];
+        if (p->visible)
+            continue;
+        fc->st->waits++;
+        p->visible = be->wait(be->ctx, p->query) > tq->s.threshold;
+        if (p->visible != p->predicted && p->known)
+            fc->st->predict_fail++;
+    }
+    for (uint32_t k = first; k < end && fc->err == TW_OK; k++) {
+        const struct pending p = tq->queue[k];
+        if (p.visible)
+            visit(fc, p.cell, p.postponed ? p.query : 0);
+    }
+}
+
 int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
                        const struct tw_query_backend *be, const struct tw_box *common_box,
-                       float w, float d, tw_tilequery_render_fn render, void *user,
+                       float w, float d, tw_tilequery_render_fn render,
+                       tw_tilequery_front_fn front, void *user,
                        struct tw_tilequery_stats *stats)
 {
     struct tw_tilequery_stats st = {0};
-    struct frame_ctx fc = {tq, v, be, common_box, w, d, render, user, &st, TW_OK};
+    struct frame_ctx fc = {tq, v, be, common_box, w, d, render, front, user, &st, TW_OK};
     const uint64_t f = v->frame;
 
     /* Last frame's unresolved postponed queries: read and dropped (their
@@ -257,33 +305,19 @@ int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
         tq->last_started = true;
         tw_cell_map_set(tq->queried, start, f);
         st.tiles_free++;
-        visit(&fc, start);
+        visit(&fc, start, 0);
     }
-    /* Step 4: pop the pending queue in issue order. */
-    while (tq->head < tq->tail && fc.err == TW_OK) {
-        const struct pending p = tq->queue[tq->head++];
-        if (p.query == 0) {
-            visit(&fc, p.cell);
-            continue;
-        }
-        if (p.predicted && !be->ready(be->ctx, p.query)) {
-            /* Trust last frame: render now, read the answer at the end. */
-            if (tw_array_reserve_u32((void **)&tq->postponed, &tq->postponed_cap,
-                                     tq->postponed_count + 1, sizeof(*tq->postponed), 64)) {
-                fc.err = TW_ERR_NOMEM;
-                break;
-            }
-            tq->postponed[tq->postponed_count++] = p;
-            st.postponed++;
-            visit(&fc, p.cell);
-            continue;
-        }
-        st.waits++;
-        const bool visible = be->wait(be->ctx, p.query) > tq->s.threshold;
-        if (visible != p.predicted && p.known)
-            st.predict_fail++;
-        if (visible)
-            visit(&fc, p.cell);
+    /* Step 4, a wavefront at a time: what the last one drew and issued (its
+     * visible cells' tiles, their neighbours' queries, the local method's
+     * own queries) goes to the GPU in one flush, then the local method reads
+     * what it issued before it and goes on, then the wavefront's answers are
+     * read and its visible cells rendered. */
+    bool more = true;
+    while (fc.err == TW_OK && (tq->head < tq->tail || more)) {
+        be->flush(be->ctx);
+        st.fronts++;
+        more = front && front(user);
+        run_front(&fc, tq->tail);
     }
     /* Step 6: postponed queries decide the next frame. */
     for (uint32_t k = 0; k < tq->postponed_count && fc.err == TW_OK; k++) {

@@ -220,16 +220,6 @@ static void tried(struct attempts *a, const char *fmt, ...)
     if (a->len >= sizeof(a->text))
         a->len = sizeof(a->text) - 1;   /* cut: the text is full */
 }
-static bool renderer_is_software(const char *renderer)
-{
-    static const char *const names[] = {"llvmpipe", "softpipe", "swrast", "SwiftShader",
-                                        "Software Rasterizer"};
-    for (size_t k = 0; k < sizeof(names) / sizeof(names[0]); k++)
-        if (strstr(renderer, names[k]))
-            return true;
-    return false;
-}
-
 /* Reads what the current context is; false if it is not a 3.3+ context at
  * all (a driver that ignored the version asked for). */
 static bool read_gl_strings(struct tw_context *c, tw_gl_get_proc_fn get_proc)
@@ -255,7 +245,7 @@ static bool read_gl_strings(struct tw_context *c, tw_gl_get_proc_fn get_proc)
     get_integer(0x821C /* GL_MINOR_VERSION */, &minor);
     c->gl_major = major > 0 ? (uint32_t)major : 0;
     c->gl_minor = minor > 0 ? (uint32_t)minor : 0;
-    c->software = renderer_is_software(c->renderer);
+    c->software = tw_renderer_name_is_software(c->renderer);
     return major > 3 || (major == 3 && minor >= 3);
 }
 

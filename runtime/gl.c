@@ -134,19 +134,13 @@ void tw_gl_state_leave(const struct tw_gl *gl, bool has_clip_control, const stru
 void tw_gl_compute_state_enter(const struct tw_gl *gl, struct tw_gl_compute_state *s)
 {
     gl->GetIntegerv(GL_ACTIVE_TEXTURE, &s->active_texture);
-    for (GLuint u = 0; u < 2; u++) {
-        gl->ActiveTexture(GL_TEXTURE0 + u);
-        gl->GetIntegerv(GL_TEXTURE_BINDING_2D, &s->texture[u]);
-        gl->GetIntegeri_v(GL_IMAGE_BINDING_NAME, u, &s->image_name[u]);
-        gl->GetIntegeri_v(GL_IMAGE_BINDING_LEVEL, u, &s->image_level[u]);
-        gl->GetIntegeri_v(GL_IMAGE_BINDING_LAYERED, u, &s->image_layered[u]);
-        gl->GetIntegeri_v(GL_IMAGE_BINDING_LAYER, u, &s->image_layer[u]);
-        gl->GetIntegeri_v(GL_IMAGE_BINDING_ACCESS, u, &s->image_access[u]);
-        gl->GetIntegeri_v(GL_IMAGE_BINDING_FORMAT, u, &s->image_format[u]);
-    }
+    gl->ActiveTexture(GL_TEXTURE0);
+    gl->GetIntegerv(GL_TEXTURE_BINDING_2D, &s->texture);
     gl->ActiveTexture((GLenum)s->active_texture);
+    gl->GetIntegerv(GL_COPY_READ_BUFFER_BINDING, &s->copy_read);
+    gl->GetIntegerv(GL_COPY_WRITE_BUFFER_BINDING, &s->copy_write);
     gl->GetIntegerv(GL_SHADER_STORAGE_BUFFER_BINDING, &s->ssbo);
-    for (GLuint k = 0; k < 4; k++) {
+    for (GLuint k = 0; k < TW_GL_COMPUTE_SSBOS; k++) {
         gl->GetIntegeri_v(GL_SHADER_STORAGE_BUFFER_BINDING, k, &s->ssbo_name[k]);
         gl->GetInteger64i_v(GL_SHADER_STORAGE_BUFFER_START, k, &s->ssbo_start[k]);
         gl->GetInteger64i_v(GL_SHADER_STORAGE_BUFFER_SIZE, k, &s->ssbo_size[k]);
@@ -155,15 +149,12 @@ void tw_gl_compute_state_enter(const struct tw_gl *gl, struct tw_gl_compute_stat
 
 void tw_gl_compute_state_leave(const struct tw_gl *gl, const struct tw_gl_compute_state *s)
 {
-    for (GLuint u = 0; u < 2; u++) {
-        gl->ActiveTexture(GL_TEXTURE0 + u);
-        gl->BindTexture(GL_TEXTURE_2D, (GLuint)s->texture[u]);
-        gl->BindImageTexture(u, (GLuint)s->image_name[u], s->image_level[u],
-                             (GLboolean)s->image_layered[u], s->image_layer[u],
-                             (GLenum)s->image_access[u], (GLenum)s->image_format[u]);
-    }
+    gl->ActiveTexture(GL_TEXTURE0);
+    gl->BindTexture(GL_TEXTURE_2D, (GLuint)s->texture);
     gl->ActiveTexture((GLenum)s->active_texture);
-    for (GLuint k = 0; k < 4; k++) {
+    gl->BindBuffer(GL_COPY_READ_BUFFER, (GLuint)s->copy_read);
+    gl->BindBuffer(GL_COPY_WRITE_BUFFER, (GLuint)s->copy_write);
+    for (GLuint k = 0; k < TW_GL_COMPUTE_SSBOS; k++) {
         if (s->ssbo_size[k] > 0)
             gl->BindBufferRange(GL_SHADER_STORAGE_BUFFER, k, (GLuint)s->ssbo_name[k],
                                 (GLintptr)s->ssbo_start[k], (GLsizeiptr)s->ssbo_size[k]);

@@ -111,7 +111,6 @@
     X(PFNGLMEMORYBARRIERPROC, MemoryBarrier) \
     X(PFNGLBINDBUFFERRANGEPROC, BindBufferRange) \
     X(PFNGLBINDBUFFERBASEPROC, BindBufferBase) \
-    X(PFNGLBINDIMAGETEXTUREPROC, BindImageTexture) \
     X(PFNGLTEXSTORAGE2DPROC, TexStorage2D) \
     X(PFNGLFENCESYNCPROC, FenceSync) \
     X(PFNGLCLIENTWAITSYNCPROC, ClientWaitSync) \
@@ -123,7 +122,7 @@
     X(PFNGLUNIFORM1IPROC, Uniform1i) \
     X(PFNGLUNIFORM1FPROC, Uniform1f) \
     X(PFNGLUNIFORM2IPROC, Uniform2i) \
-    X(PFNGLUNIFORM4IVPROC, Uniform4iv) \
+    X(PFNGLUNIFORM1IVPROC, Uniform1iv) \
     X(PFNGLGENTEXTURESPROC, GenTextures) \
     X(PFNGLDELETETEXTURESPROC, DeleteTextures) \
     X(PFNGLBINDTEXTUREPROC, BindTexture) \
@@ -141,14 +140,13 @@ struct tw_gl {
 /* The host's GL state that the world changes, saved on entry into the
  * library and restored on exit (runtime.h, tw_world_frame). */
 /* What the compute passes change (saved only where they run): the active
- * texture unit and units 0 and 1's 2D textures, image units 0 and 1,
- * the generic and the first four indexed shader storage bindings. */
+ * texture unit and unit 0's 2D texture, the copy buffers, the generic and
+ * the first six indexed shader storage bindings. */
+#define TW_GL_COMPUTE_SSBOS 6
 struct tw_gl_compute_state {
-    GLint active_texture, texture[2];
-    GLint image_name[2], image_level[2], image_layered[2], image_layer[2], image_access[2],
-        image_format[2];
-    GLint ssbo, ssbo_name[4];
-    GLint64 ssbo_start[4], ssbo_size[4];
+    GLint active_texture, texture, copy_read, copy_write;
+    GLint ssbo, ssbo_name[TW_GL_COMPUTE_SSBOS];
+    GLint64 ssbo_start[TW_GL_COMPUTE_SSBOS], ssbo_size[TW_GL_COMPUTE_SSBOS];
 };
 void tw_gl_compute_state_enter(const struct tw_gl *gl, struct tw_gl_compute_state *s);
 void tw_gl_compute_state_leave(const struct tw_gl *gl, const struct tw_gl_compute_state *s);

@@ -24,24 +24,26 @@ static const char *const reduce_cs =
     "#version 430 core\n"
     "layout(local_size_x = 8, local_size_y = 8) in;\n"
     "layout(binding = 0) uniform sampler2D u_depth;\n"
-    "layout(r32f, binding = 0) uniform writeonly image2D u_dst;\n"
-    "layout(r32f, binding = 1) uniform readonly image2D u_src;\n"
+    "layout(std430, binding = 5) buffer Pyramid { float pyramid[]; };\n"
     "uniform ivec2 u_src_size;\n"
-    "uniform int u_from_depth;\n"
+    "uniform ivec2 u_dst_size;\n"
+    "uniform int u_src_at;\n"         /* -1: the depth texture */
+    "uniform int u_dst_at;\n"
     "uniform int u_reversed;\n"
     /* the farther of two depths: reversed depth has far = 0 */
     "float farther(float a, float b) { return u_reversed != 0 ? min(a, b) : max(a, b); }\n"
     "float fetch(ivec2 p) {\n"
     "    p = min(p, u_src_size - 1);\n"
-    "    return u_from_depth != 0 ? texelFetch(u_depth, p, 0).r : imageLoad(u_src, p).r;\n"
+    "    return u_src_at < 0 ? texelFetch(u_depth, p, 0).r\n"
+    "                        : pyramid[u_src_at + p.y * u_src_size.x + p.x];\n"
     "}\n"
     "void main() {\n"
     "    ivec2 d = ivec2(gl_GlobalInvocationID.xy);\n"
-    "    if (any(greaterThanEqual(d, imageSize(u_dst)))) return;\n"
+    "    if (any(greaterThanEqual(d, u_dst_size))) return;\n"
     "    ivec2 s = 2 * d;\n"
     "    float f = farther(farther(fetch(s), fetch(s + ivec2(1, 0))),\n"
     "                      farther(fetch(s + ivec2(0, 1)), fetch(s + ivec2(1, 1))));\n"
-    "    imageStore(u_dst, d, vec4(f));\n"
+    "    pyramid[u_dst_at + d.y * u_dst_size.x + d.x] = f;\n"
     "}\n";
 
 /* REL: reversed float depth, relative (a few ulps of float arithmetic in
@@ -55,7 +57,9 @@ static const char *const test_cs =
     "layout(std430, binding = 2) buffer Commands { uint commands[]; };\n"
     "layout(std430, binding = 3) buffer Results { uint bits[]; };\n"
     "layout(binding = 0) uniform sampler2D u_depth;\n"
-    "layout(binding = 1) uniform sampler2D u_pyramid;\n"
+    "layout(std430, binding = 5) readonly buffer Pyramid { float pyramid[]; };\n"
+    "uniform int u_level_at[24];\n"  /* the pyramid's levels 1.. in the buffer */
+    "uniform int u_level_w[24];\n"
     "uniform mat4 u_view_proj;\n"
     "uniform vec2 u_proj;\n"          /* proj[10], proj[14] of the depth convention */
     "uniform float u_near;\n"
@@ -80,13 +84,16 @@ static const char *const test_cs =
     "    return lo.x <= hi.x && lo.y <= hi.y;\n"
     "}\n"
     "float texel(int k, ivec2 p) {\n"
-    "    return k == 0 ? texelFetch(u_depth, p, 0).r : texelFetch(u_pyramid, p, k - 1).r;\n"
+    "    return k == 0 ? texelFetch(u_depth, p, 0).r\n"
+    "                  : pyramid[u_level_at[k - 1] + p.y * u_level_w[k - 1] + p.x];\n"
     "}\n"
     "bool hidden(vec3 a, vec3 b) {\n"
     "    vec2 lo, hi; float wmin;\n"
     "    if (!screen_rect(a, b, lo, hi, wmin)) return false;\n"
+
     "    float ndc = -u_proj.x + u_proj.y / wmin;\n"
     "    float dn = u_reversed != 0 ? ndc : 0.5 * ndc + 0.5;\n"
+
     "    vec2 S = vec2(u_size);\n"
     "    vec2 f0 = floor((lo * 0.5 + 0.5) * S - 0.5);\n"
     "    vec2 f1 = floor((hi * 0.5 + 0.5) * S - 0.5) + 1.0;\n"
@@ -131,6 +138,7 @@ static const char *const test_cs =
     "    vec4 a = boxes[2u * i], b = boxes[2u * i + 1u];\n"
     "    bool visible = a.w != 0.0 || u_built == 0 || split_visible(a.xyz, b.xyz);\n"
     "    if (visible) atomicOr(bits[i >> 5], 1u << (i & 31u));\n"
+
     "    uvec2 n = info[i];\n"
     "    for (uint k = 0u; k < n.y; k++) commands[5u * (n.x + k) + 1u] = visible ? 1u : 0u;\n"
     "}\n";
@@ -194,9 +202,13 @@ bool tw_renderer_gpu_hzb_init(struct tw_renderer *r)
     g->u_reversed = U("u_reversed");
     g->u_built = U("u_built");
     g->u_count = U("u_count");
-#undef U
+    g->u_level_at = U("u_level_at");
+    g->u_level_w = U("u_level_w");
     g->u_src_size = gl->GetUniformLocation(g->reduce, "u_src_size");
-    g->u_from_depth = gl->GetUniformLocation(g->reduce, "u_from_depth");
+    g->u_dst_size = gl->GetUniformLocation(g->reduce, "u_dst_size");
+    g->u_src_at = gl->GetUniformLocation(g->reduce, "u_src_at");
+    g->u_dst_at = gl->GetUniformLocation(g->reduce, "u_dst_at");
+#undef U
     g->u_reduce_reversed = gl->GetUniformLocation(g->reduce, "u_reversed");
     gl->GenBuffers(4, g->buffers);
     gl->GenBuffers(TW_GPU_HZB_SLOTS, g->readback);
@@ -217,8 +229,6 @@ void tw_renderer_gpu_hzb_finish(struct tw_renderer *r)
             gl->DeleteBuffers(4, g->buffers);
             gl->DeleteBuffers(TW_GPU_HZB_SLOTS, g->readback);
         }
-        if (g->pyramid)
-            gl->DeleteTextures(1, &g->pyramid);
         for (int k = 0; k < TW_GPU_HZB_SLOTS; k++)
             if (g->slot[k].fence)
                 gl->DeleteSync(g->slot[k].fence);
@@ -244,7 +254,7 @@ void tw_renderer_gpu_hzb_finish(struct tw_renderer *r)
 
 /* ---- the pyramid -------------------------------------------------------------- */
 
-static bool build(void *ctx, uint64_t frame)
+static bool build(void *ctx, const void *owner, uint64_t frame)
 {
     struct tw_renderer *r = ctx;
     struct tw_gpu_hzb *g = &r->ghzb;
@@ -253,28 +263,29 @@ static bool build(void *ctx, uint64_t frame)
     g->count = g->command_count = g->record_count = g->segment_count = 0;
     g->cluster_id_count = 0;
     g->frame = frame;
+    g->owner = owner;
     g->key_valid = false;
     g->built = false;
     if (r->width < 2 && r->height < 2)
         return false;
-    if (!g->pyramid || g->pyramid_w != r->width || g->pyramid_h != r->height) {
-        if (g->pyramid)
-            gl->DeleteTextures(1, &g->pyramid);
-        uint32_t w = r->width, h = r->height, n = 0;
+    if (g->pyramid_w != r->width || g->pyramid_h != r->height) {
+        /* Levels 1.. of the pyramid (level 0 is the depth texture itself),
+         * one after the other in one buffer, as cull/hzb.c lays them out. */
+        uint32_t w = r->width, h = r->height, n = 0, at = 0;
         while (w > 1 || h > 1) {
             w = (w + 1) / 2;
             h = (h + 1) / 2;
             g->level_w[n] = w;
             g->level_h[n] = h;
+            g->level_at[n] = (GLint)at;
+            g->level_wi[n] = (GLint)w;
+            at += w * h;
             n++;
         }
         g->levels = n;
-        gl->GenTextures(1, &g->pyramid);
-        gl->BindTexture(GL_TEXTURE_2D, g->pyramid);
-        gl->TexStorage2D(GL_TEXTURE_2D, (GLsizei)n, GL_R32F, (GLsizei)g->level_w[0],
-                         (GLsizei)g->level_h[0]);
-        gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST_MIPMAP_NEAREST);
-        gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+        gl->BindBuffer(GL_SHADER_STORAGE_BUFFER, g->buffers[2]);
+        gl->BufferData(GL_SHADER_STORAGE_BUFFER, (GLsizeiptr)((size_t)at * 4u), NULL,
+                       GL_DYNAMIC_COPY);
         g->pyramid_w = r->width;
         g->pyramid_h = r->height;
     }
@@ -283,20 +294,18 @@ static bool build(void *ctx, uint64_t frame)
     gl->Uniform1i(g->u_reduce_reversed, r->reversed_z);
     gl->ActiveTexture(GL_TEXTURE0);
     gl->BindTexture(GL_TEXTURE_2D, r->depth_texture);
+    gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, g->buffers[2]);
     uint32_t sw = r->width, sh = r->height;
     for (uint32_t k = 0; k < g->levels; k++) {
-        gl->Uniform1i(g->u_from_depth, k == 0);
         gl->Uniform2i(g->u_src_size, (GLint)sw, (GLint)sh);
-        gl->BindImageTexture(0, g->pyramid, (GLint)k, GL_FALSE, 0, GL_WRITE_ONLY, GL_R32F);
-        if (k > 0)
-            gl->BindImageTexture(1, g->pyramid, (GLint)k - 1, GL_FALSE, 0, GL_READ_ONLY,
-                                 GL_R32F);
+        gl->Uniform2i(g->u_dst_size, (GLint)g->level_w[k], (GLint)g->level_h[k]);
+        gl->Uniform1i(g->u_src_at, k == 0 ? -1 : g->level_at[k - 1]);
+        gl->Uniform1i(g->u_dst_at, g->level_at[k]);
         gl->DispatchCompute((g->level_w[k] + 7) / 8, (g->level_h[k] + 7) / 8, 1);
-        gl->MemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+        gl->MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
         sw = g->level_w[k];
         sh = g->level_h[k];
     }
-    gl->MemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
     gl->BindTexture(GL_TEXTURE_2D, 0);
     g->built = true;
     g->ms_build += tw_clock_monotonic_ms() - t0;
@@ -495,7 +504,7 @@ static void test(void *ctx)
         gl->BindBufferRange(GL_SHADER_STORAGE_BUFFER, 2, r->command_ring, (GLintptr)at,
                             (GLsizeiptr)(g->command_count * sizeof(*g->commands)));
     else
-        gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, g->buffers[3]);
+        gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, g->buffers[3]);   /* not written */
     gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, g->buffers[3]);
     gl->UseProgram(g->test);
     r->mode = TW_RENDERER_MODE_NONE;
@@ -511,13 +520,12 @@ static void test(void *ctx)
     gl->Uniform1ui(g->u_count, n);
     gl->ActiveTexture(GL_TEXTURE0);
     gl->BindTexture(GL_TEXTURE_2D, r->depth_texture);
-    gl->ActiveTexture(GL_TEXTURE1);
-    gl->BindTexture(GL_TEXTURE_2D, g->pyramid);
+    gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, g->buffers[2]);
+    gl->Uniform1iv(g->u_level_at, (GLsizei)g->levels, g->level_at);
+    gl->Uniform1iv(g->u_level_w, (GLsizei)g->levels, g->level_wi);
     gl->DispatchCompute((n + GROUP - 1) / GROUP, 1, 1);
     gl->MemoryBarrier(GL_COMMAND_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT |
                       GL_BUFFER_UPDATE_BARRIER_BIT);
-    gl->BindTexture(GL_TEXTURE_2D, 0);
-    gl->ActiveTexture(GL_TEXTURE0);
     gl->BindTexture(GL_TEXTURE_2D, 0);
     /* The draws: one multi-draw per run of one tileset's buffers. */
     for (uint32_t s = 0; s < g->segment_count; s++) {
@@ -567,6 +575,7 @@ static void test(void *ctx)
     sl->pending = true;
     sl->count = n;
     sl->frame = g->frame;
+    sl->owner = g->owner;
     g->candidates_tested += n;
     /* Recording what was drawn (the oracle's comparison, debugging): the
      * bits are needed now, so this waits. Not for timings. */
@@ -592,7 +601,8 @@ static void test(void *ctx)
     r->counters.ms_backend += tw_clock_monotonic_ms() - t0;
 }
 
-static const uint32_t *results(void *ctx, bool wait, uint32_t *count, uint64_t *frame)
+static const uint32_t *results(void *ctx, const void *owner, bool wait, uint32_t *count,
+                               uint64_t *frame)
 {
     struct tw_renderer *r = ctx;
     struct tw_gpu_hzb *g = &r->ghzb;
@@ -603,7 +613,8 @@ static const uint32_t *results(void *ctx, bool wait, uint32_t *count, uint64_t *
     for (;;) {
         int s = -1;
         for (int k = 0; k < TW_GPU_HZB_SLOTS; k++)
-            if (g->slot[k].pending && (s < 0 || g->slot[k].frame < g->slot[s].frame))
+            if (g->slot[k].pending && g->slot[k].owner == owner &&
+                (s < 0 || g->slot[k].frame < g->slot[s].frame))
                 s = k;
         if (s < 0)
             break;
@@ -628,9 +639,20 @@ void tw_renderer_gpu_hzb_begin_frame(struct tw_renderer *r, const struct tw_view
     r->ghzb.view = *v;
 }
 
+bool tw_renderer_use_gpu_hzb(struct tw_renderer *r, bool on)
+{
+    r->ghzb.on = on && r->ghzb.live;
+    return r->ghzb.on;
+}
+
+bool tw_renderer_software(const struct tw_renderer *r)
+{
+    return r->software;
+}
+
 void tw_renderer_gpu_hzb_ops(struct tw_renderer *r, struct tw_query_backend *be)
 {
-    if (!r->ghzb.live)
+    if (!r->ghzb.on)
         return;
     be->gpu_hzb_build = build;
     be->gpu_hzb_candidate = candidate;

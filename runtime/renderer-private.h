@@ -58,7 +58,7 @@ struct tw_draw_command {
 };
 
 /* The HZB on the GPU (gpu-hzb.c). */
-#define TW_GPU_HZB_SLOTS 3
+#define TW_GPU_HZB_SLOTS 8
 struct tw_gpu_vec4 {
     float v[4];
 };
@@ -71,6 +71,7 @@ struct tw_gpu_segment {
 struct tw_gpu_hzb_slot {
     GLsync fence;
     bool pending;
+    const void *owner;          /* whose frame (gpu_hzb_build's owner) */
     uint64_t frame;
     uint32_t count;             /* candidates */
     size_t bytes;               /* of its read-back buffer */
@@ -79,18 +80,22 @@ struct tw_gpu_hzb_slot {
 };
 struct tw_gpu_hzb {
     bool live;                  /* compute shaders, and everything made */
+    bool on;                    /* offered to the methods (tw_renderer_use_gpu_hzb) */
     GLuint reduce, test;        /* programs */
     GLint u_view_proj, u_proj, u_near, u_size, u_levels, u_reversed, u_built, u_count;
-    GLint u_src_size, u_from_depth, u_reduce_reversed;
-    GLuint buffers[4];          /* boxes, info, (spare), result bits */
+    GLint u_level_at, u_level_w;
+    GLint u_src_size, u_dst_size, u_src_at, u_dst_at, u_reduce_reversed;
+    GLuint buffers[4];          /* boxes, info, the pyramid, result bits */
     GLuint readback[TW_GPU_HZB_SLOTS];
     struct tw_gpu_hzb_slot slot[TW_GPU_HZB_SLOTS];
-    /* The pyramid: level k is depth reduced k + 1 times (2 x 2 farthest). */
-    GLuint pyramid;
+    /* The pyramid in buffers[2]: level k (at level_at[k] floats) is the
+     * depth reduced k + 1 times, the farthest of each 2 x 2. */
     uint32_t pyramid_w, pyramid_h, levels;
     uint32_t level_w[24], level_h[24];
+    GLint level_at[24], level_wi[24];
     bool built;
     struct tw_view view;        /* the frame's */
+    const void *owner;
     uint64_t frame;
     /* The frame's candidates, staged. */
     struct tw_gpu_vec4 *boxes;  /* two per candidate: min (w: always), max */
@@ -124,6 +129,7 @@ struct tw_renderer {
      * glClipControl is there, else standard 24-bit depth (near = 0). */
     bool reversed_z;
     bool has_clip_control;
+    bool software;         /* GL_RENDERER names a software rasteriser */
     bool has_compute;      /* GL 4.3 compute: the depth is a texture and the GPU HZB runs */
     bool gl_loaded;        /* every entry point of the table is there */
     /* The host's GL state, saved while the library is inside a call. */

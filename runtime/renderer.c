@@ -146,21 +146,20 @@ int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_pr
         err = TW_ERR_GL;
         goto fail;
     }
+    r->software = tw_renderer_name_is_software((const char *)gl->GetString(GL_RENDERER));
     /* Reversed depth needs [0, 1] clip depth: core since 4.5. */
     r->has_clip_control = gl->ClipControl &&
                           (major * 10 + minor >= 45 || has_extension(gl, "GL_ARB_clip_control"));
     r->reversed_z = r->has_clip_control;
-    /* Compute shaders, image load/store and fences: core since 4.3. The
-     * environment can turn the GPU HZB off (TW_GPU_HZB=0: the CPU's). */
-    const char *env = getenv("TW_GPU_HZB");
+    /* Compute shaders, shader storage and fences: core since 4.3. */
     r->has_compute = major * 10 + minor >= 43 && gl->DispatchCompute && gl->MemoryBarrier &&
-                     gl->BindBufferRange && gl->BindBufferBase && gl->BindImageTexture &&
+                     gl->BindBufferRange && gl->BindBufferBase &&
                      gl->TexStorage2D && gl->FenceSync && gl->ClientWaitSync && gl->DeleteSync &&
                      gl->GetBufferSubData && gl->CopyBufferSubData && gl->GetIntegeri_v &&
-                     gl->GetInteger64i_v && gl->Uniform1i && gl->Uniform1f && gl->Uniform2i &&
+                     gl->GetInteger64i_v && gl->Uniform1i && gl->Uniform1iv && gl->Uniform1f && gl->Uniform2i &&
                      gl->GenTextures && gl->DeleteTextures && gl->BindTexture &&
                      gl->ActiveTexture && gl->TexParameteri && gl->FramebufferTexture2D &&
-                     gl->MultiDrawElementsIndirect && !(env && strcmp(env, "0") == 0);
+                     gl->MultiDrawElementsIndirect;
     tw_renderer_enter(r);
     if (!r->reversed_z) {
         tw_log_printf(&r->log, TW_LOG_WARN,

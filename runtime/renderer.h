@@ -31,6 +31,13 @@ struct tw_render_counters {
 
 struct tw_renderer;
 
+/* Whether the backend offers the GPU HZB (cull.h's gpu_hzb_* operations):
+ * on asks for it, and it is given where it was made (GL 4.3). Returns
+ * whether it is now on. Off by default. */
+bool tw_renderer_use_gpu_hzb(struct tw_renderer *r, bool on);
+/* True if GL_RENDERER names a software rasteriser. */
+bool tw_renderer_software(const struct tw_renderer *r);
+
 /* log is borrowed for the renderer's lifetime. The GL context must be
  * current. */
 int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_proc,

@@ -41,6 +41,15 @@ struct tw_calibration {
 
 /* A world's tuning. Zero-initialisable: tw_world_create_tuned() resolves
  * every zero field to its default (tw_world_default_tuning()). */
+/* Where the HZB methods' depth pyramid is built and tested. */
+enum tw_hzb_pyramid {
+    TW_HZB_PYRAMID_AUTO = 0,    /* the GPU's on a GPU with compute shaders, the CPU's on a
+                                   software rasteriser (there the CPU's C loop is cheaper
+                                   than the rasteriser's compute) */
+    TW_HZB_PYRAMID_GPU,         /* compute passes; the CPU's where GL 4.3 is missing */
+    TW_HZB_PYRAMID_CPU,         /* depth read back every frame, built and tested on the CPU */
+};
+
 struct tw_world_tuning {
     struct tw_chc_settings chc;        /* chc.no_cost_model: CHC++ with unit query costs */
     struct tw_tilequery_settings tilequery;
@@ -48,6 +57,7 @@ struct tw_world_tuning {
     struct tw_calibration calibration; /* zeroed (query_ms 0): measured at creation
                                           (a deterministic world: the nominal figures);
                                           else these figures */
+    enum tw_hzb_pyramid hzb_pyramid;
     float mutate_query_shrink;         /* testing only: every query box shrunk by this
                                           fraction of its size, a deliberately broken
                                           culler that the accuracy checks must catch */

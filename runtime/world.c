@@ -252,6 +252,14 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
         err = tw_renderer_create(w->s.width, w->s.height, w->s.get_proc, &w->s.log, &w->renderer);
     if (err)
         goto fail;
+    {
+        const enum tw_hzb_pyramid hp = w->t.hzb_pyramid;
+        const bool want = hp == TW_HZB_PYRAMID_GPU ||
+                          (hp == TW_HZB_PYRAMID_AUTO && !tw_renderer_software(w->renderer));
+        if (!tw_renderer_use_gpu_hzb(w->renderer, want) && hp == TW_HZB_PYRAMID_GPU)
+            tw_log_printf(&w->s.log, TW_LOG_WARN, "the HZB's pyramid is built on the CPU: "
+                          "the GL context has no compute shaders (4.3)");
+    }
     tw_renderer_enter(w->renderer);
     const struct tw_tileset *ts = w->provider.shared;
     if (ts) {
@@ -500,6 +508,8 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     st.hzb_boxes = cs.hzb_boxes;
     st.ms_hzb_build = cs.ms_hzb_build;
     st.ms_hzb_read = cs.ms_hzb_read;
+    st.tiles_late = cs.tiles_late;
+    st.hzb_lag = cs.hzb_results_lag;
     if (err)
         return err;
     if (w->stream)

@@ -396,6 +396,10 @@ struct world {
     uint64_t frame;
     bool resolve_nothing;
     bool async;                           /* tw_chc_traverse_async, then tw_chc_finish */
+    bool wavefront;                       /* with async: wavefront mode, the world
+                                             flushing and resuming as tile-query
+                                             propagation does */
+    uint32_t rounds;                      /* wavefront: this frame's flushes */
 };
 
 static struct tw_chc_node_state *resolve(void *user, uint64_t tag, const struct tw_bvh **bvh)
@@ -430,8 +434,8 @@ static struct world *world_create(struct tree *t, const struct tw_chc_settings *
     }
     tw_chc_set_costs(w->chc, world_costs);
     w->fake.ready_after = ready_after;
-    w->be = (struct tw_query_backend){&w->fake, fake_issue, fake_ready, fake_wait, fake_draw,
-                                      fake_flush, NULL};
+    w->be = (struct tw_query_backend){.ctx = &w->fake, .issue = fake_issue, .ready = fake_ready,
+                                      .wait = fake_wait, .draw = fake_draw, .flush = fake_flush};
     w->tree = t;
     w->tile_count = 1;
     w->tile[0] = (struct tw_cull_instance){
@@ -507,6 +511,16 @@ static size_t run_frame_at(struct world *w, uint64_t frame, size_t *begin_mark, 
             tw_chc_traverse_async(w->chc, &v, &w->be, &w->tile[t]);
         else
             tw_chc_traverse(w->chc, &v, &w->be, &w->tile[t]);
+    }
+    w->rounds = 0;
+    if (w->async && w->wavefront) {
+        /* As tilequery.c: one flush per wavefront, then the passes go on. */
+        bool more = true;
+        while (more) {
+            fake_flush(&w->fake);
+            w->rounds++;
+            more = tw_chc_resume_flushed(w->chc);
+        }
     }
     if (w->async)
         tw_chc_finish(w->chc);
@@ -1262,7 +1276,30 @@ struct random_run {
     uint32_t suspended;     /* passes suspended over the run (async) */
     uint32_t waits;
     uint32_t idle_flushes;  /* flushes with nothing issued or drawn since the last */
+    uint32_t flushes;       /* every flush */
+    uint32_t rounds;        /* wavefront: the world's own */
+    uint32_t unsent_waits;  /* waits on a query issued since the last flush */
 };
+
+/* Blocking waits, after log index mark, on a query that no flush had sent
+ * yet (a result the fake has ready needed no flush). */
+static uint32_t unsent_waits(const struct fake *f, size_t mark)
+{
+    uint32_t n = 0;
+    for (size_t e = mark; e < f->event_count; e++) {
+        if (f->events[e].type != EV_WAIT || !f->events[e].blocked)
+            continue;
+        bool sent = false;
+        for (size_t k = e; k-- > 0;) {
+            if (f->events[k].type == EV_FLUSH)
+                sent = true;
+            if (f->events[k].type == EV_ISSUE && f->events[k].query == f->events[e].query)
+                break;
+        }
+        n += !sent;
+    }
+    return n;
+}
 
 static uint32_t idle_flushes(const struct fake *f)
 {
@@ -1284,6 +1321,7 @@ static uint32_t idle_flushes(const struct fake *f)
  * them with tw_chc_traverse_async(). */
 static uint32_t random_tiles = 2;
 static bool random_async;
+static bool random_wavefront;
 
 /* Two tiles sharing one random BVH, random visibility changing every frame, a
  * jittering camera. Checks every frame: each leaf that the fake sees (a point
@@ -1298,7 +1336,9 @@ static struct random_run random_run(uint64_t seed, const struct tw_chc_settings 
     struct world *w = world_create(random_tree(&rng, leaves), settings, ready_after);
     struct tree *t = w->tree;
     w->tile_count = random_tiles;
-    w->async = random_async;
+    w->async = random_async || random_wavefront;
+    w->wavefront = random_wavefront;
+    tw_chc_set_wavefront(w->chc, random_wavefront);
     for (uint32_t k = 1; k < w->tile_count; k++) {
         w->tile[k] = w->tile[0];
         w->tile[k].cell = (struct tw_cell){0, k};
@@ -1334,6 +1374,10 @@ static struct random_run random_run(uint64_t seed, const struct tw_chc_settings 
         const size_t mark = run_frame_at(w, f, &begin_mark, __LINE__);
         out.suspended += tw_chc_stats(w->chc)->suspended;
         out.waits += tw_chc_stats(w->chc)->waits;
+        out.rounds += w->rounds;
+        out.unsent_waits += unsent_waits(&w->fake, mark);
+        for (size_t e = mark; e < w->fake.event_count; e++)
+            out.flushes += w->fake.events[e].type == EV_FLUSH;
         if (w->fake.query_count > 0 && fake_in_flight(&w->fake) > 0) {
             /* Only queries issued in this frame's traversal may be in flight. */
             for (size_t e = 0; e < begin_mark; e++)
@@ -1452,6 +1496,32 @@ static void test_async_worlds(void)
                      async.idle_flushes, sync.idle_flushes);
         }
     random_async = false;
+    random_tiles = 2;
+}
+
+/* Wavefront mode (tilequery+chc): the random worlds over six tiles, every
+ * pass suspended at once, the world flushing once per wavefront and the
+ * passes resumed after it. The same invariants hold (every visible leaf
+ * drawn, nothing drawn twice, nothing left in flight but deferred
+ * V-queries); the engine never flushes itself (every flush is one of the
+ * world's) and never waits on a query that no flush has sent. */
+static void test_wavefront_worlds(void)
+{
+    test_name = "wavefront_worlds";
+    random_tiles = MAX_TILES;
+    random_wavefront = true;
+    for (uint64_t seed = 1; seed <= 16; seed++)
+        for (int m = 0; m < 4; m++) {
+            const struct tw_chc_settings s = random_settings(seed);
+            const struct random_run r = random_run(seed * 313, &s, ready_modes[m], 30);
+            if (r.flushes != r.rounds || r.unsent_waits != 0)
+                fail(__LINE__, "seed %llu, results after %u polls: %u flushes for %u "
+                     "wavefronts, %u waits on unsent queries", (unsigned long long)seed,
+                     ready_modes[m], r.flushes, r.rounds, r.unsent_waits);
+            if (ready_modes[m] != 0 && r.suspended == 0)
+                fail(__LINE__, "seed %llu: no pass suspended", (unsigned long long)seed);
+        }
+    random_wavefront = false;
     random_tiles = 2;
 }
 
@@ -1748,6 +1818,7 @@ int main(void)
     test_pull_up();
     test_shared_cluster();
     test_drawn_before_wait();
+    test_wavefront_worlds();
     test_failed_multiquery();
     test_multiquery_grouping();
     test_near_plane();

@@ -159,7 +159,7 @@ if "$tw" walk --path "$tmp/good.csv" --size 96x54 --png-every 0 --quiet --out "$
 if "$tw" walk --tileset city --path street --frames 5 --method vfc --size 160x90 --png-every 2 \
       --quiet --out "$tmp/walk" 2>"$tmp/err"; then
     [ "$(wc -l <"$tmp/walk/frames.csv")" -eq 6 ] && ok || bad "frames.csv row count"
-    head -1 "$tmp/walk/frames.csv" | grep -q '^frame,method,ms_frame,ms_cull,ms_wait,triangles,clusters,draws,queries,tiles_queried,tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,missed_clusters,overdraw_triangles,cpu_ms,depth_errors,tiles_pending,loads_requested,loads_done,evictions,bytes_cpu,bytes_gpu,bytes_state,bytes_needed,over_budget,ms_upload,blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read,bytes_loading,tiles_loading,set_cpu_ms,set_ms,set_triangles,set_draws,overdraw_box_triangles,gpu_ms,gpu_ms_id$' \
+    head -1 "$tmp/walk/frames.csv" | grep -q '^frame,method,ms_frame,ms_cull,ms_wait,triangles,clusters,draws,queries,tiles_queried,tiles_visible,tiles_new,tiles_cached,cache_bytes,predict_fail,missed_pixels,missed_clusters,overdraw_triangles,cpu_ms,depth_errors,tiles_pending,loads_requested,loads_done,evictions,bytes_cpu,bytes_gpu,bytes_state,bytes_needed,over_budget,ms_upload,blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read,bytes_loading,tiles_loading,set_cpu_ms,set_ms,set_triangles,set_draws,overdraw_box_triangles,gpu_ms,gpu_ms_id,waits,flushes,bytes_read_back,tiles_late,hzb_lag$' \
         && ok || bad "frames.csv header"
     for key in '"methods"' '"vfc"' '"mean_ms"' '"median_ms"' '"p95_ms"' '"p99_ms"' '"mean_triangles"' \
                '"mean_queries"' '"missed_pixels_total"' '"frames_with_missed_pixels"' \

@@ -60,10 +60,10 @@ if "$tw" info --gl egl 2>/dev/null | grep -q '^OpenGL: .*a software renderer'; t
     done
 
     # The images are byte-identical, and so are the counts (every column but the
-    # timings and blocking_reads, which counts waits that timing decides: the
+    # timings and blocking_reads, waits and hzb_lag, which timing decides: the
     # walk is deterministic).
     counts() {
-        awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i !~ /ms/ && $i != "blocking_reads") keep[i] = 1 }
+        awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i !~ /ms/ && $i != "blocking_reads" && $i != "waits" && $i != "hzb_lag") keep[i] = 1 }
                  { row = ""; for (i = 1; i <= NF; i++) if (keep[i]) row = row $i ","; print row }' \
             "$1/frames.csv"
     }

@@ -24,7 +24,11 @@ struct fake {
     bool result[MAX_QUERIES];
     int polls_left[MAX_QUERIES];
     bool read[MAX_QUERIES];
+    uint32_t sent_by[MAX_QUERIES]; /* the flushes there had been when it was issued */
     uint32_t issued;
+    uint32_t flushes;              /* this frame's */
+    uint32_t flushes_total;
+    uint32_t unsent_reads;         /* waits on a query no flush had sent yet */
     int delay;                 /* ready() polls before a result is available; < 0: never */
     /* what happened this frame */
     struct tw_cell queried[MAX_LOG];
@@ -61,6 +65,7 @@ static uint32_t fake_issue(void *ctx, const struct tw_box *boxes, uint32_t count
     fk->result[q] = vis;
     fk->polls_left[q] = fk->delay;
     fk->read[q] = false;
+    fk->sent_by[q] = fk->flushes_total;
     /* The cell is recovered from the offset (footprint 10). */
     if (fk->queried_count < MAX_LOG)
         fk->queried[fk->queried_count++] = (struct tw_cell){(int64_t)lroundf(off[0] / 10.0f),
@@ -89,6 +94,7 @@ static uint32_t fake_wait(void *ctx, uint32_t q)
     }
     fk->read[q] = true;
     fk->waits++;
+    fk->unsent_reads += fk->sent_by[q] == fk->flushes_total;
     return fk->result[q] ? 1 : 0;
 }
 
@@ -100,12 +106,15 @@ static void fake_draw(void *ctx, struct tw_cell cell, uint32_t p, const float of
 
 static void fake_flush(void *ctx)
 {
-    (void)ctx;
+    struct fake *fk = ctx;
+    fk->flushes++;
+    fk->flushes_total++;
 }
 
-static void render(void *user, struct tw_cell cell, const float off[3])
+static void render(void *user, struct tw_cell cell, const float off[3], uint32_t condition)
 {
     (void)off;
+    (void)condition;
     struct fake *fk = user;
     if (fk->rendered_count < MAX_LOG)
         fk->rendered[fk->rendered_count++] = cell;
@@ -139,8 +148,9 @@ static int run_frame(struct tw_tilequery *tq, struct fake *fk, uint64_t frame, f
                      float eye_y, float eye_z, float pitch, float view_distance,
                      struct tw_tilequery_stats *st)
 {
-    const struct tw_query_backend be = {fk, fake_issue, fake_ready, fake_wait, fake_draw, fake_flush,
-                                        NULL};
+    const struct tw_query_backend be = {.ctx = fk, .issue = fake_issue, .ready = fake_ready,
+                                        .wait = fake_wait, .draw = fake_draw,
+                                        .flush = fake_flush};
     struct tw_view v;
     const float eye[3] = {eye_x, eye_y, eye_z};
     tw_cull_view_setup(&v, (struct tw_cell){0, 0}, eye, 0.0f, pitch, 60.0f, 16.0f / 9.0f, 0.1f,
@@ -151,8 +161,10 @@ static int run_frame(struct tw_tilequery *tq, struct fake *fk, uint64_t frame, f
     fk->eye_z = eye_z;
     fk->queried_count = fk->rendered_count = 0;
     fk->waits = 0;
+    fk->flushes = 0;
+    fk->unsent_reads = 0;
     fk->frame = frame;
-    return tw_tilequery_frame(tq, &v, &be, &common, 10.0f, 10.0f, render, fk, st);
+    return tw_tilequery_frame(tq, &v, &be, &common, 10.0f, 10.0f, render, NULL, fk, st);
 }
 
 /* A fake backend (no wall until the test sets one) and a tilequery engine
@@ -296,6 +308,38 @@ static void test_postponed(void)
     fake_close(fk, tq);
 }
 
+/* Propagation goes a wavefront at a time: every query of a wavefront is
+ * issued before the one flush that sends them all, and read after it, so a
+ * frame flushes once per wavefront (the rings of cells around the start,
+ * with 4 neighbours: a cell k steps away is in the k-th), not once per tile,
+ * and never reads a query that no flush has sent. The backend here has no
+ * draw_if (NULL), as a GL without conditional rendering. */
+static void test_one_flush_per_wavefront(void)
+{
+    struct tw_tilequery *tq = NULL;
+    struct fake *fk = fake_open(&tq);
+    fk->wall_z = 25.0f;
+    fk->wall_h = 3.0f;
+    fk->delay = 2;
+    struct tw_tilequery_stats st;
+    for (uint64_t f = 1; f <= 4; f++) {
+        CHECK(run_frame(tq, fk, f, 5.0f, 1.7f, 5.0f, 0.0f, 60.0f, &st) == TW_OK);
+        CHECK(st.tiles_queried > 10);
+        CHECK(fk->flushes == st.fronts);
+        CHECK(fk->unsent_reads == 0);
+        /* The farthest ring reached, in steps from the start cell (0, 0). */
+        int64_t rings = 0;
+        for (uint32_t k = 0; k < fk->queried_count; k++) {
+            const int64_t steps = llabs(fk->queried[k].i) + llabs(fk->queried[k].j);
+            rings = steps > rings ? steps : rings;
+        }
+        CHECK_MSG(st.fronts == (uint32_t)rings, "frame %d: %u flushes, %d rings", (int)f,
+                  st.fronts, (int)rings);
+        CHECK(st.fronts < st.tiles_queried);
+    }
+    fake_close(fk, tq);
+}
+
 /* The camera's cell, and a neighbour whose common box the eye is within
  * near-plane reach of, are visible without a query. */
 static void test_near_plane_rule(void)
@@ -427,6 +471,7 @@ int main(void)
     test_figure7_no_late_tiles();
     test_postponed();
     test_near_plane_rule();
+    test_one_flush_per_wavefront();
     test_memory_bounded();
     test_last_cells();
     return check_summary("test-tilequery");

@@ -12,6 +12,7 @@
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "tileworld/tiles.h"
 
@@ -215,5 +216,17 @@ bool tw_tile_cache_evict_oldest(struct tw_tile_cache *c, uint64_t frame, uint64_
 uint32_t tw_tile_cache_count(const struct tw_tile_cache *c);
 /* Exact heap bytes held by the cache: its tables and every state block. */
 uint64_t tw_tile_cache_bytes(const struct tw_tile_cache *c);
+
+/* True if a GL_RENDERER string names a CPU rasteriser (llvmpipe,
+ * softpipe, swrast, SwiftShader): its "GPU" work is CPU time. */
+static inline bool tw_renderer_name_is_software(const char *renderer)
+{
+    static const char *const names[] = {"llvmpipe", "softpipe", "swrast", "SwiftShader",
+                                        "Software Rasterizer"};
+    for (size_t k = 0; renderer && k < sizeof(names) / sizeof(names[0]); k++)
+        if (strstr(renderer, names[k]))
+            return true;
+    return false;
+}
 
 #endif

@@ -199,6 +199,13 @@ struct tw_frame_stats {
     uint32_t flushes;        /* times issued work was sent to the GPU (glFlush) */
     uint64_t bytes_read_back;/* bytes the CPU read back from the GPU (the HZB methods'
                                 depth, buffers); query results are not counted */
+    /* The HZB methods with the pyramid on the GPU, whose answers arrive
+     * later: cells whose common box the GPU found visible in a frame that
+     * had not instantiated their tile (a frame that may have missed pixels),
+     * counted when the answer arrives; and how many frames old the answers
+     * applied in this frame were (0: none yet, or the CPU's pyramid). */
+    uint32_t tiles_late;
+    uint32_t hzb_lag;
 };
 
 struct tw_world;

@@ -27,7 +27,8 @@
 #                      predict_fail, missed_pixels, missed_clusters,
 #                      overdraw_triangles, cpu_ms, depth_errors, ..., the set_*
 #                      columns of bench --split (0 without it), gpu_ms (-1: not
-#                      known), gpu_ms_id)
+#                      known), gpu_ms_id, waits, flushes, bytes_read_back,
+#                      tiles_late, hzb_lag)
 #   methods.dat        one row per method, in the order of `methods`: method,
 #                      frames, mean_ms, median_ms, p95_ms, p99_ms, max_ms (wall),
 #                      mean_triangles, mean_queries, mean_overdraw_triangles,

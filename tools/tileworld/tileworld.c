@@ -59,7 +59,8 @@ static const char walk_synopsis[] =
     "                        [--png-every N] [--out DIR] [--quiet] [--cluster-triangles N]\n"
     "                        [--tile-neighbours 4|8] [--evict-after N] [--chc-batch N] [--chc-nav N]\n"
     "                        [--chc-suspend N] [--threshold T] [--no-cost-model] [--first-sight-draws]\n"
-    "                        [--mutate-query-shrink F] [--workers N] [--policy wait|skip]\n"
+    "                        [--hzb-pyramid auto|gpu|cpu] [--mutate-query-shrink F] [--workers N]\n"
+    "                        [--policy wait|skip]\n"
     "                        [--budget BYTES] [--upload-budget BYTES] [--gl auto|egl|osmesa] [--gpu N]\n";
 static const char bench_synopsis[] =
     "usage: tileworld bench  [walk's options] [--methods M1,M2,...] [--sweep PARAM=v1,v2,...]\n"
@@ -96,15 +97,20 @@ static const char run_help[] =
     "--evict-after N       frames a tile may stay unseen before it leaves the cache (default 60)\n"
     "--chc-batch N         CHC++ multiquery batch (default 50)\n"
     "--chc-nav N           frames a visible node is assumed visible (default 8)\n"
-    "--chc-suspend N       tilequery+chc: CHC++ passes suspended at once where they would\n"
-    "                      wait, 1..4 (default 1: a tile's pass ends before the next starts;\n"
-    "                      more: fewer blocking reads, but farther tiles queried early)\n"
+    "--chc-suspend N       tilequery+chc flushes and waits tile by tile, N CHC++ passes\n"
+    "                      suspended at once, 1..4 (1: a tile's pass ends before the next\n"
+    "                      starts); default: one flush per wavefront of the propagation,\n"
+    "                      passes suspended until it\n"
     "--threshold T         a node is visible when more than T samples pass (default 0;\n"
     "                      T > 0 is approximate, not conservative)\n"
     "--no-cost-model       CHC++ counts every query as one unit, as the paper does, and\n"
     "                      ignores the measured costs (what the cost model buys)\n"
     "--first-sight-draws   CHC++ draws a new tile's leaves in view before it queries them,\n"
     "                      as the paper does (default: queried first, one round trip)\n"
+    "--hzb-pyramid auto|gpu|cpu  where hzb and tilequery+hzb build and test the depth\n"
+    "                      pyramid: gpu (compute passes, indirect draws, answers read back\n"
+    "                      a frame later; needs GL 4.3), cpu (the depth read back each\n"
+    "                      frame), auto (default): gpu on a GPU, cpu on a software renderer\n"
     "Accuracy:\n"
     "--verify              the oracle's ID pass after every frame (untimed): missed pixels,\n"
     "                      depth errors and overdraw; a conservative method that misses a\n"
@@ -201,6 +207,7 @@ enum {
     OPT_EVICT_AFTER,
     OPT_CHC_BATCH,
     OPT_CHC_SUSPEND,
+    OPT_HZB_PYRAMID,
     OPT_CHC_NAV,
     OPT_THRESHOLD,
     OPT_DETERMINISTIC,
@@ -226,6 +233,7 @@ static const struct option options_table[] = {
     {"evict-after", required_argument, NULL, OPT_EVICT_AFTER},
     {"chc-batch", required_argument, NULL, OPT_CHC_BATCH},
     {"chc-suspend", required_argument, NULL, OPT_CHC_SUSPEND},
+    {"hzb-pyramid", required_argument, NULL, OPT_HZB_PYRAMID},
     {"chc-nav", required_argument, NULL, OPT_CHC_NAV},
     {"threshold", required_argument, NULL, OPT_THRESHOLD},
     {"deterministic", no_argument, NULL, OPT_DETERMINISTIC},
@@ -306,6 +314,17 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
     case OPT_CHC_BATCH: wt->chc.batch_size = (uint32_t)tw_cli_u64(program, name, v, 1, 100000); break;
     case OPT_CHC_SUSPEND:
         wt->chc.suspended_passes = (uint32_t)tw_cli_u64(program, name, v, 1, TW_CHC_MAX_SUSPENDED);
+        wt->chc.per_tile_waits = true;
+        break;
+    case OPT_HZB_PYRAMID:
+        if (strcmp(v, "auto") == 0)
+            wt->hzb_pyramid = TW_HZB_PYRAMID_AUTO;
+        else if (strcmp(v, "gpu") == 0)
+            wt->hzb_pyramid = TW_HZB_PYRAMID_GPU;
+        else if (strcmp(v, "cpu") == 0)
+            wt->hzb_pyramid = TW_HZB_PYRAMID_CPU;
+        else
+            tw_cli_fail(program, name, "'%s' is none of auto, gpu, cpu", v);
         break;
     case OPT_CHC_NAV: wt->chc.assumed_visible = (uint32_t)tw_cli_u64(program, name, v, 1, 1000); break;
     case OPT_THRESHOLD:
