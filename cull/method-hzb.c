@@ -121,10 +121,9 @@ static struct tw_hzb_node_state *instance(struct tw_cull_frame *fr, struct tw_ce
                                   &created);
 }
 
-/* Phase 1: last frame's visible tiles still in view, front to back, each
- * drawing its clusters visible last frame. Returns how many clusters were
- * drawn. */
-static uint32_t phase1(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
+/* Keeps of p->last the cells still in view, with their distance, front to
+ * back; returns how many. */
+static size_t last_in_view(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
 {
     size_t n = 0;
     for (size_t k = 0; k < p->last_count; k++) {
@@ -134,6 +133,15 @@ static uint32_t phase1(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
     }
     if (n > 1) /* qsort() wants a valid pointer even for no elements */
         qsort(p->last, n, sizeof(*p->last), compare_cells);
+    return n;
+}
+
+/* Phase 1: last frame's visible tiles still in view, front to back, each
+ * drawing its clusters visible last frame. Returns how many clusters were
+ * drawn. */
+static uint32_t phase1(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
+{
+    const size_t n = last_in_view(p, fr);
     uint32_t drawn = 0;
     for (size_t k = 0; k < n && !fr->err; k++) {
         const struct tw_cell cell = p->last[k].cell;
@@ -382,15 +390,8 @@ static void phase2_leaf(struct tw_hzb_phases *p, struct tw_cull_frame *fr,
  * frustum. */
 static uint32_t gpu_phase1(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
 {
-    size_t n = 0;
-    for (size_t k = 0; k < p->last_count; k++) {
-        float off[3], dist;
-        if (tw_cull_frame_cell_in_view(fr, p->last[k].cell, off, &dist))
-            p->last[n++] = (struct tw_cull_cell){p->last[k].cell, dist};
-    }
+    const size_t n = last_in_view(p, fr);
     p->last_count = n;
-    if (n > 1)
-        qsort(p->last, n, sizeof(*p->last), compare_cells);
     uint32_t drawn = 0;
     for (size_t k = 0; k < n && !fr->err; k++) {
         const struct tw_cell cell = p->last[k].cell;

@@ -17,7 +17,7 @@
  * this (GL's shader storage offset alignment is at most 256 bytes). */
 #define COMMAND_ALIGN 256u
 
-static bool grow(void *p, uint32_t *cap, uint32_t n, size_t elem)
+bool tw_renderer_grow(void *p, uint32_t *cap, uint32_t n, size_t elem)
 {
     if (n <= *cap)
         return true;
@@ -34,8 +34,8 @@ static bool grow(void *p, uint32_t *cap, uint32_t n, size_t elem)
 
 bool tw_renderer_draws_reserve(struct tw_renderer *r, uint32_t records, uint32_t commands)
 {
-    return grow(&r->stage_records, &r->stage_record_cap, records, sizeof(*r->stage_records)) &&
-           grow(&r->stage_commands, &r->stage_command_cap, commands,
+    return tw_renderer_grow(&r->stage_records, &r->stage_record_cap, records, sizeof(*r->stage_records)) &&
+           tw_renderer_grow(&r->stage_commands, &r->stage_command_cap, commands,
                 sizeof(*r->stage_commands));
 }
 

@@ -143,45 +143,16 @@ static const char *const test_cs =
     "    for (uint k = 0u; k < n.y; k++) commands[5u * (n.x + k) + 1u] = visible ? 1u : 0u;\n"
     "}\n";
 
-static GLuint link_compute(struct tw_renderer *r, const char *src)
-{
-    const struct tw_gl *gl = &r->gl;
-    GLuint s = gl->CreateShader(GL_COMPUTE_SHADER);
-    gl->ShaderSource(s, 1, &src, NULL);
-    gl->CompileShader(s);
-    GLint ok = 0;
-    gl->GetShaderiv(s, GL_COMPILE_STATUS, &ok);
-    if (!ok) {
-        char msg[1024] = "";
-        gl->GetShaderInfoLog(s, sizeof(msg), NULL, msg);
-        tw_log_printf(&r->log, TW_LOG_WARN, "the GPU HZB's compute shader does not compile: "
-                      "%s (the HZB is built on the CPU)", msg);
-        gl->DeleteShader(s);
-        return 0;
-    }
-    GLuint p = gl->CreateProgram();
-    gl->AttachShader(p, s);
-    gl->LinkProgram(p);
-    gl->DeleteShader(s);
-    gl->GetProgramiv(p, GL_LINK_STATUS, &ok);
-    if (!ok) {
-        char msg[1024] = "";
-        gl->GetProgramInfoLog(p, sizeof(msg), NULL, msg);
-        tw_log_printf(&r->log, TW_LOG_WARN, "the GPU HZB's compute program does not link: %s "
-                      "(the HZB is built on the CPU)", msg);
-        gl->DeleteProgram(p);
-        return 0;
-    }
-    return p;
-}
-
 bool tw_renderer_gpu_hzb_init(struct tw_renderer *r)
 {
     struct tw_gpu_hzb *g = &r->ghzb;
     const struct tw_gl *gl = &r->gl;
-    g->reduce = link_compute(r, reduce_cs);
-    g->test = link_compute(r, test_cs);
+    bool out_of_memory = false;
+    g->reduce = tw_programs_link_compute(gl, &r->log, reduce_cs, &out_of_memory);
+    g->test = tw_programs_link_compute(gl, &r->log, test_cs, &out_of_memory);
     if (!g->reduce || !g->test) {
+        tw_log_printf(&r->log, TW_LOG_WARN, "no GPU HZB: the HZB methods build their "
+                      "pyramid on the CPU");
         tw_renderer_gpu_hzb_finish(r);
         return false;
     }
@@ -314,53 +285,38 @@ static bool build(void *ctx, const void *owner, uint64_t frame)
 
 /* ---- candidates --------------------------------------------------------------- */
 
-static bool grow(void *p, uint32_t *cap, uint32_t n, size_t elem)
-{
-    if (n <= *cap)
-        return true;
-    uint32_t c = *cap ? *cap : 1024;
-    while (c < n)
-        c *= 2;
-    void *q = realloc(*(void **)p, (size_t)c * elem);
-    if (!q)
-        return false;
-    *(void **)p = q;
-    *cap = c;
-    return true;
-}
-
 static bool room(struct tw_gpu_hzb *g, uint32_t count)
 {
     const uint32_t n = g->count + 1;
     uint32_t c = g->cand_cap;
-    bool ok = grow(&g->boxes, &c, n, 2 * sizeof(*g->boxes));
+    bool ok = tw_renderer_grow(&g->boxes, &c, n, 2 * sizeof(*g->boxes));
     c = g->cand_cap;
-    ok = ok && grow(&g->info, &c, n, sizeof(*g->info));
+    ok = ok && tw_renderer_grow(&g->info, &c, n, sizeof(*g->info));
     c = g->cand_cap;
-    ok = ok && grow(&g->cand_tris, &c, n, sizeof(*g->cand_tris));
+    ok = ok && tw_renderer_grow(&g->cand_tris, &c, n, sizeof(*g->cand_tris));
     c = g->cand_cap;
-    ok = ok && grow(&g->cand_clusters, &c, n, sizeof(*g->cand_clusters));
+    ok = ok && tw_renderer_grow(&g->cand_clusters, &c, n, sizeof(*g->cand_clusters));
     c = g->cand_cap;
-    ok = ok && grow(&g->cand_first, &c, n, sizeof(*g->cand_first));
+    ok = ok && tw_renderer_grow(&g->cand_first, &c, n, sizeof(*g->cand_first));
     c = g->cand_cap;
-    ok = ok && grow(&g->cand_where, &c, n, sizeof(*g->cand_where));
+    ok = ok && tw_renderer_grow(&g->cand_where, &c, n, sizeof(*g->cand_where));
     if (!ok)
         return false;
     g->cand_cap = c;
     c = g->command_cap;
-    if (!grow(&g->commands, &c, g->command_count + count, sizeof(*g->commands)))
+    if (!tw_renderer_grow(&g->commands, &c, g->command_count + count, sizeof(*g->commands)))
         return false;
     g->command_cap = c;
     c = g->record_cap;
-    if (!grow(&g->records, &c, g->record_count + count, sizeof(*g->records)))
+    if (!tw_renderer_grow(&g->records, &c, g->record_count + count, sizeof(*g->records)))
         return false;
     g->record_cap = c;
     c = g->cluster_id_cap;
-    if (!grow(&g->cluster_ids, &c, g->cluster_id_count + count, sizeof(*g->cluster_ids)))
+    if (!tw_renderer_grow(&g->cluster_ids, &c, g->cluster_id_count + count, sizeof(*g->cluster_ids)))
         return false;
     g->cluster_id_cap = c;
     c = g->segment_cap;
-    if (!grow(&g->segments, &c, g->segment_count + 1, sizeof(*g->segments)))
+    if (!tw_renderer_grow(&g->segments, &c, g->segment_count + 1, sizeof(*g->segments)))
         return false;
     g->segment_cap = c;
     return true;
@@ -449,7 +405,7 @@ static void read_slot(struct tw_renderer *r, int s)
     struct tw_gpu_hzb_slot *sl = &g->slot[s];
     const uint32_t words = (sl->count + 31) / 32;
     uint32_t cap = g->bits_cap;
-    if (!grow(&g->bits, &cap, words + 1, sizeof(*g->bits))) {
+    if (!tw_renderer_grow(&g->bits, &cap, words + 1, sizeof(*g->bits))) {
         sl->pending = false;
         return;
     }
@@ -490,7 +446,7 @@ static void test(void *ctx)
         at = tw_renderer_draws_put_commands(r, g->commands, g->command_count);
     const uint32_t words = (n + 31) / 32;
     uint32_t zcap = g->zeros_cap;
-    if (!grow(&g->zeros, &zcap, words, sizeof(*g->zeros)))
+    if (!tw_renderer_grow(&g->zeros, &zcap, words, sizeof(*g->zeros)))
         return;
     if (zcap > g->zeros_cap)
         memset(g->zeros, 0, (size_t)zcap * sizeof(*g->zeros));
@@ -554,8 +510,8 @@ static void test(void *ctx)
     }
     struct tw_gpu_hzb_slot *sl = &g->slot[s];
     uint32_t cap = sl->cap, cap2 = sl->cap;
-    if (!grow(&sl->tris, &cap, n, sizeof(*sl->tris)) ||
-        !grow(&sl->clusters, &cap2, n, sizeof(*sl->clusters)))
+    if (!tw_renderer_grow(&sl->tris, &cap, n, sizeof(*sl->tris)) ||
+        !tw_renderer_grow(&sl->clusters, &cap2, n, sizeof(*sl->clusters)))
         return;
     sl->cap = cap < cap2 ? cap : cap2;
     memcpy(sl->tris, g->cand_tris, (size_t)n * sizeof(*sl->tris));
@@ -583,7 +539,7 @@ static void test(void *ctx)
         gl->ClientWaitSync(sl->fence, GL_SYNC_FLUSH_COMMANDS_BIT, UINT64_MAX);
         gl->BindBuffer(GL_COPY_READ_BUFFER, g->readback[s]);
         uint32_t bcap = g->bits_cap;
-        if (grow(&g->bits, &bcap, words + 1, sizeof(*g->bits))) {
+        if (tw_renderer_grow(&g->bits, &bcap, words + 1, sizeof(*g->bits))) {
             g->bits_cap = bcap;
             gl->GetBufferSubData(GL_COPY_READ_BUFFER, 0, (GLsizeiptr)(words * 4u), g->bits);
             for (uint32_t i = 0; i < n; i++)

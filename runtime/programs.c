@@ -146,44 +146,60 @@ static GLuint compile(const struct tw_gl *gl, const struct tw_log *log, GLenum t
     return s;
 }
 
+/* Links the n compiled shaders (all non-zero) into a program, then deletes
+ * them: its name, or 0 (logged as tw_programs_link says). */
+static GLuint link_shaders(const struct tw_gl *gl, const struct tw_log *log, const GLuint *shaders,
+                           int n, bool *out_of_memory)
+{
+    GLuint p = gl->CreateProgram();
+    for (int k = 0; k < n; k++)
+        gl->AttachShader(p, shaders[k]);
+    gl->LinkProgram(p);
+    GLint ok = 0;
+    gl->GetProgramiv(p, GL_LINK_STATUS, &ok);
+    if (!ok) {
+        char msg[1024] = "";
+        gl->GetProgramInfoLog(p, sizeof(msg), NULL, msg);
+        if (gl->GetError() == GL_OUT_OF_MEMORY && !*out_of_memory) {
+            *out_of_memory = true;
+            tw_log_printf(log, TW_LOG_ERROR, "the OpenGL driver ran out of memory "
+                          "linking a shader program");
+        } else if (!*out_of_memory) {
+            tw_log_printf(log, TW_LOG_ERROR, "a shader program does not link (a bug): %s", msg);
+        }
+        gl->DeleteProgram(p);
+        p = 0;
+    }
+    for (int k = 0; k < n; k++)
+        gl->DeleteShader(shaders[k]);
+    return p;
+}
+
 GLuint tw_programs_link(const struct tw_gl *gl, const struct tw_log *log, const char *vs_src,
                         const char *gs_src, const char *fs_src, bool *out_of_memory)
 {
-    GLuint vs = compile(gl, log, GL_VERTEX_SHADER, vs_src, out_of_memory);
-    GLuint gs = gs_src ? compile(gl, log, GL_GEOMETRY_SHADER, gs_src, out_of_memory) : 0;
-    GLuint fs = compile(gl, log, GL_FRAGMENT_SHADER, fs_src, out_of_memory);
-    GLuint p = 0;
-    if (vs && fs && (gs || !gs_src)) {
-        p = gl->CreateProgram();
-        gl->AttachShader(p, vs);
-        if (gs)
-            gl->AttachShader(p, gs);
-        gl->AttachShader(p, fs);
-        gl->LinkProgram(p);
-        GLint ok = 0;
-        gl->GetProgramiv(p, GL_LINK_STATUS, &ok);
-        if (!ok) {
-            char msg[1024] = "";
-            gl->GetProgramInfoLog(p, sizeof(msg), NULL, msg);
-            if (gl->GetError() == GL_OUT_OF_MEMORY && !*out_of_memory) {
-                *out_of_memory = true;
-                tw_log_printf(log, TW_LOG_ERROR, "the OpenGL driver ran out of memory "
-                              "linking a shader program");
-            } else if (!*out_of_memory) {
-                tw_log_printf(log, TW_LOG_ERROR, "a shader program does not link (a bug): %s",
-                              msg);
-            }
-            gl->DeleteProgram(p);
-            p = 0;
-        }
+    GLuint sh[3];
+    int n = 0;
+    sh[n] = compile(gl, log, GL_VERTEX_SHADER, vs_src, out_of_memory);
+    n += sh[n] != 0;
+    if (gs_src) {
+        sh[n] = compile(gl, log, GL_GEOMETRY_SHADER, gs_src, out_of_memory);
+        n += sh[n] != 0;
     }
-    if (vs)
-        gl->DeleteShader(vs);
-    if (gs)
-        gl->DeleteShader(gs);
-    if (fs)
-        gl->DeleteShader(fs);
-    return p;
+    sh[n] = compile(gl, log, GL_FRAGMENT_SHADER, fs_src, out_of_memory);
+    n += sh[n] != 0;
+    if (n == (gs_src ? 3 : 2))
+        return link_shaders(gl, log, sh, n, out_of_memory);
+    for (int k = 0; k < n; k++)
+        gl->DeleteShader(sh[k]);
+    return 0;
+}
+
+GLuint tw_programs_link_compute(const struct tw_gl *gl, const struct tw_log *log,
+                                const char *cs_src, bool *out_of_memory)
+{
+    const GLuint cs = compile(gl, log, GL_COMPUTE_SHADER, cs_src, out_of_memory);
+    return cs ? link_shaders(gl, log, &cs, 1, out_of_memory) : 0;
 }
 
 int tw_programs_init(struct tw_programs *p, const struct tw_gl *gl, const struct tw_log *log)

@@ -21,6 +21,10 @@
 GLuint tw_programs_link(const struct tw_gl *gl, const struct tw_log *log, const char *vs,
                         const char *gs, const char *fs, bool *out_of_memory);
 
+/* The same for a compute shader (GL 4.3). */
+GLuint tw_programs_link_compute(const struct tw_gl *gl, const struct tw_log *log,
+                                const char *cs, bool *out_of_memory);
+
 /* The renderer's programs: the scene (lit, fogged clusters), the query
  * boxes (one instance per box, depth only), the oracle's object IDs (the
  * scene's vertex stage), and the debug boxes as edges (screen-space quads)

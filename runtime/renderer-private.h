@@ -257,6 +257,9 @@ void tw_renderer_gpu_hzb_begin_frame(struct tw_renderer *r, const struct tw_view
 void tw_renderer_gpu_hzb_ops(struct tw_renderer *r, struct tw_query_backend *be);
 
 /* draws.c */
+/* Grows *p (an array of *cap elements of elem bytes, doubling from 256) to
+ * hold n; false (and *p as it was) when out of memory. */
+bool tw_renderer_grow(void *p, uint32_t *cap, uint32_t n, size_t elem);
 /* Makes the rings (the command ring only with mdi: GL 4.3). */
 void tw_renderer_draws_init(struct tw_renderer *r, bool mdi);
 void tw_renderer_draws_finish(struct tw_renderer *r);
