@@ -539,6 +539,7 @@ void tw_cull_chc_end(struct tw_chc *chc, struct tw_cull_frame *fr);
  * visible last frame and this frame's, the latest verdict on every cell
  * decided lately. Zero-initialise, then tw_hzb_phases_init(). */
 struct tw_hzb_gpu_candidate;
+#define TW_HZB_GPU_LISTS 4
 struct tw_hzb_phases {
     struct tw_hzb *hzb;
     struct tw_cull_cell *last, *next;   /* cells with a visible node: last frame's
@@ -551,12 +552,13 @@ struct tw_hzb_phases {
     bool gpu;                           /* this frame's phase 2 is the GPU's */
     float shrink;                       /* testing only: tw_hzb_set_mutation() */
     uint64_t known;                     /* the latest frame whose answers were applied */
-    struct tw_cell_map *gpu_verdict;    /* cell -> frame << 1 | common box passed */
+    struct tw_cell_map *gpu_verdict;    /* cell -> its common box passed (1) or not (0) in
+                                           the latest answers (frame known) */
     struct tw_hzb_gpu_list {
         uint64_t frame;                 /* 0: free */
         struct tw_hzb_gpu_candidate *items;
         size_t count, cap;
-    } lists[4];                         /* the candidates of frames in flight */
+    } lists[TW_HZB_GPU_LISTS];          /* the candidates of frames in flight */
     uint32_t *stack;                    /* a traversal's nodes */
     size_t stack_cap;
     uint32_t *render;                   /* phase 1's clusters of one tile */

@@ -55,7 +55,7 @@ void tw_hzb_phases_finish(struct tw_hzb_phases *p)
     tw_hzb_destroy(p->hzb);
     tw_cell_map_destroy(p->verdict);
     tw_cell_map_destroy(p->gpu_verdict);
-    for (int k = 0; k < 4; k++)
+    for (int k = 0; k < TW_HZB_GPU_LISTS; k++)
         free(p->lists[k].items);
     free(p->stack);
     free(p->render);
@@ -67,7 +67,7 @@ void tw_hzb_phases_finish(struct tw_hzb_phases *p)
 size_t tw_hzb_phases_bytes(const struct tw_hzb_phases *p)
 {
     size_t lists = 0;
-    for (int k = 0; k < 4; k++)
+    for (int k = 0; k < TW_HZB_GPU_LISTS; k++)
         lists += p->lists[k].cap * sizeof(*p->lists[k].items);
     return tw_hzb_bytes(p->hzb) + (p->verdict ? tw_cell_map_bytes(p->verdict) : 0) +
            (p->gpu_verdict ? tw_cell_map_bytes(p->gpu_verdict) : 0) + lists +
@@ -136,28 +136,6 @@ static size_t last_in_view(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
     return n;
 }
 
-/* Phase 1: last frame's visible tiles still in view, front to back, each
- * drawing its clusters visible last frame. Returns how many clusters were
- * drawn. */
-static uint32_t phase1(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
-{
-    const size_t n = last_in_view(p, fr);
-    uint32_t drawn = 0;
-    for (size_t k = 0; k < n && !fr->err; k++) {
-        const struct tw_cell cell = p->last[k].cell;
-        float off[3];
-        tw_tiles_cell_offset(cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], off);
-        struct tw_cull_instance t;
-        uint32_t c = 0;
-        if (instance(fr, cell, p->last[k].distance, off, &t))
-            c = tw_hzb_draw_last_visible(p->hzb, fr->v, fr->be, &t);
-        if (c > 0)
-            fr->st->tiles_visible++;
-        drawn += c;
-        set_verdict(p, fr, cell, HZ_PHASE1 | (c > 0 ? HZ_DREW1 : 0));
-    }
-    return drawn;
-}
 
 /* The depth drawn so far as a pyramid; none (every box visible) when
  * nothing was drawn or there is no depth to read. */
@@ -186,7 +164,7 @@ static void pyramid(struct tw_hzb_phases *p, struct tw_cull_frame *fr, bool draw
 
 static struct tw_hzb_gpu_list *gpu_list(struct tw_hzb_phases *p, uint64_t frame)
 {
-    for (int k = 0; k < 4; k++)
+    for (int k = 0; k < TW_HZB_GPU_LISTS; k++)
         if (p->lists[k].frame == frame)
             return &p->lists[k];
     return NULL;
@@ -235,6 +213,8 @@ static void gpu_apply(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
         struct tw_hzb_gpu_list *l = gpu_list(p, frame);
         if (l) {
             p->last_count = 0;
+            /* Only the latest answers count: older verdicts go. */
+            tw_cell_map_clear(p->gpu_verdict);
             struct tw_cell last_cell = {0, 0};
             bool have_last = false;
             const size_t count = n < l->count ? n : l->count;
@@ -245,13 +225,9 @@ static void gpu_apply(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
                     /* A box partly outside the frustum was tested only where it
                      * showed: hidden there says nothing of the rest, which a
                      * turn may bring in (no verdict). */
-                    if (passed || c->inside) {
-                        if (tw_cell_map_set(p->gpu_verdict, c->cell,
-                                            frame << 1 | (passed ? 1u : 0u)))
-                            fr->err = TW_ERR_NOMEM;
-                    } else {
-                        tw_cell_map_remove(p->gpu_verdict, c->cell);
-                    }
+                    if ((passed || c->inside) &&
+                        tw_cell_map_set(p->gpu_verdict, c->cell, passed ? 1u : 0u))
+                        fr->err = TW_ERR_NOMEM;
                     if (passed && c->kind == GPU_CELL_NOT_TAKEN)
                         fr->st->tiles_late++;
                     continue;
@@ -274,7 +250,7 @@ static void gpu_apply(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
             }
             p->known = frame;
         }
-        for (int k = 0; k < 4; k++)
+        for (int k = 0; k < TW_HZB_GPU_LISTS; k++)
             if (p->lists[k].frame <= frame)
                 p->lists[k].frame = 0;
     }
@@ -282,21 +258,19 @@ static void gpu_apply(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
     /* A list for this frame's candidates: the oldest in flight gives way
      * (its answers, if they ever come, are then ignored). */
     int free_list = -1;
-    for (int k = 0; k < 4; k++)
+    for (int k = 0; k < TW_HZB_GPU_LISTS; k++)
         if (free_list < 0 || p->lists[k].frame < p->lists[free_list].frame)
             free_list = k;
     p->lists[free_list].frame = fr->v->frame;
     p->lists[free_list].count = 0;
 }
 
-/* The GPU's latest verdict on cell: -1 none as of the latest answers, 0
+/* The GPU's latest verdict on cell: -1 none in the latest answers, 0
  * hidden, 1 visible. */
 static int gpu_verdict(const struct tw_hzb_phases *p, struct tw_cell cell)
 {
     const uint64_t *v = tw_cell_map_find(p->gpu_verdict, cell);
-    if (!v || p->known == 0 || *v >> 1 != p->known)
-        return -1;
-    return (int)(*v & 1u);
+    return v ? (int)*v : -1;
 }
 
 /* Taken (its tile instantiated and its leaves tested): a cell the GPU
@@ -385,36 +359,22 @@ static void phase2_leaf(struct tw_hzb_phases *p, struct tw_cull_frame *fr,
         fr->err = TW_ERR_NOMEM;
 }
 
-/* Phase 1 on the GPU's answers: the tiles with a leaf visible in the
- * latest answers, front to back, each drawing those leaves in the
- * frustum. */
-static uint32_t gpu_phase1(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
+/* Phase 1 of a tile on the GPU's answers: its leaves visible in the
+ * latest answers that lie in the frustum. Returns how many clusters it
+ * drew. */
+static uint32_t gpu_draw_last_visible(struct tw_hzb_phases *p, struct tw_cull_frame *fr,
+                                      const struct tw_cull_instance *t)
 {
-    const size_t n = last_in_view(p, fr);
-    p->last_count = n;
-    uint32_t drawn = 0;
-    for (size_t k = 0; k < n && !fr->err; k++) {
-        const struct tw_cell cell = p->last[k].cell;
-        float off[3];
-        tw_tiles_cell_offset(cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], off);
-        struct tw_cull_instance t;
-        if (!instance(fr, cell, p->last[k].distance, off, &t) || !t.bvh ||
-            t.bvh->node_count == 0)
-            continue;
-        if (!tw_cull_frame_reserve(fr, (void **)&p->render, &p->render_cap,
-                                   t.bvh->cluster_count + 1, sizeof(*p->render)))
-            return drawn;
-        p->render_count = 0;
-        gpu_traverse(p, fr, &t, phase1_leaf);
-        if (p->render_count > 0) {
-            fr->be->draw(fr->be->ctx, cell, t.content, t.offset, p->render,
-                         (uint32_t)p->render_count);
-            fr->st->tiles_visible++;
-            drawn += (uint32_t)p->render_count;
-        }
-        set_verdict(p, fr, cell, HZ_PHASE1 | (p->render_count > 0 ? HZ_DREW1 : 0));
-    }
-    return drawn;
+    if (!t->bvh || t->bvh->node_count == 0 ||
+        !tw_cull_frame_reserve(fr, (void **)&p->render, &p->render_cap,
+                               t->bvh->cluster_count + 1, sizeof(*p->render)))
+        return 0;
+    p->render_count = 0;
+    gpu_traverse(p, fr, t, phase1_leaf);
+    if (p->render_count > 0)
+        fr->be->draw(fr->be->ctx, t->cell, t->content, t->offset, p->render,
+                     (uint32_t)p->render_count);
+    return (uint32_t)p->render_count;
 }
 
 /* Phase 2 on the GPU in a taken cell: every leaf in the frustum that phase
@@ -426,6 +386,31 @@ static void gpu_visit(struct tw_hzb_phases *p, struct tw_cull_frame *fr, struct 
     if (!instance(fr, cell, distance, off, &t) || !t.bvh || t.bvh->node_count == 0)
         return;
     gpu_traverse(p, fr, &t, phase2_leaf);
+}
+
+/* Phase 1: last frame's visible tiles still in view, front to back, each
+ * drawing its clusters visible last frame. Returns how many clusters were
+ * drawn. */
+static uint32_t phase1(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
+{
+    const size_t n = last_in_view(p, fr);
+    p->last_count = n;  /* on the GPU the list stays until new answers come */
+    uint32_t drawn = 0;
+    for (size_t k = 0; k < n && !fr->err; k++) {
+        const struct tw_cell cell = p->last[k].cell;
+        float off[3];
+        tw_tiles_cell_offset(cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], off);
+        struct tw_cull_instance t;
+        uint32_t c = 0;
+        if (instance(fr, cell, p->last[k].distance, off, &t))
+            c = p->gpu ? gpu_draw_last_visible(p, fr, &t)
+                       : tw_hzb_draw_last_visible(p->hzb, fr->v, fr->be, &t);
+        if (c > 0)
+            fr->st->tiles_visible++;
+        drawn += c;
+        set_verdict(p, fr, cell, HZ_PHASE1 | (c > 0 ? HZ_DREW1 : 0));
+    }
+    return drawn;
 }
 
 uint32_t tw_hzb_phases_begin(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
@@ -442,7 +427,7 @@ uint32_t tw_hzb_phases_begin(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
              be->gpu_hzb_results && fr->cache;
     if (p->gpu) {
         gpu_apply(p, fr);
-        const uint32_t drawn = fr->err ? 0 : gpu_phase1(p, fr);
+        const uint32_t drawn = fr->err ? 0 : phase1(p, fr);
         if (!fr->err) {
             const double t0 = tw_clock_monotonic_ms();
             be->gpu_hzb_build(be->ctx, p, f);

@@ -5,6 +5,7 @@
  * With GL 4.3 the list is one glMultiDrawElementsIndirect; without it, one
  * draw per command with the record's attributes pointed at directly. */
 #include "runtime/renderer-private.h"
+#include "tiles/array.h"
 #include "tiles/tiles-internal.h"
 
 #include <stdlib.h>
@@ -17,26 +18,12 @@
  * this (GL's shader storage offset alignment is at most 256 bytes). */
 #define COMMAND_ALIGN 256u
 
-bool tw_renderer_grow(void *p, uint32_t *cap, uint32_t n, size_t elem)
-{
-    if (n <= *cap)
-        return true;
-    uint32_t c = *cap ? *cap : 256;
-    while (c < n)
-        c *= 2;
-    void *q = realloc(*(void **)p, (size_t)c * elem);
-    if (!q)
-        return false;
-    *(void **)p = q;
-    *cap = c;
-    return true;
-}
-
 bool tw_renderer_draws_reserve(struct tw_renderer *r, uint32_t records, uint32_t commands)
 {
-    return tw_renderer_grow(&r->stage_records, &r->stage_record_cap, records, sizeof(*r->stage_records)) &&
-           tw_renderer_grow(&r->stage_commands, &r->stage_command_cap, commands,
-                sizeof(*r->stage_commands));
+    return !tw_array_reserve((void **)&r->stage_records, &r->stage_record_cap, records,
+                             sizeof(*r->stage_records), 256) &&
+           !tw_array_reserve((void **)&r->stage_commands, &r->stage_command_cap, commands,
+                             sizeof(*r->stage_commands), 256);
 }
 
 static void ring_storage(struct tw_renderer *r, GLenum target, GLuint buffer, size_t bytes)
@@ -158,11 +145,11 @@ void tw_renderer_draws_commands(struct tw_renderer *r, size_t at, uint32_t n)
                                   0);
 }
 
-void tw_renderer_draws_submit(struct tw_renderer *r, const struct tw_draw_record *rec,
-                              uint32_t records, struct tw_draw_command *cmd, uint32_t commands)
+uint32_t tw_renderer_draws_submit(struct tw_renderer *r, const struct tw_draw_record *rec,
+                                  uint32_t records, struct tw_draw_command *cmd, uint32_t commands)
 {
     if (commands == 0)
-        return;
+        return 0;
     const struct tw_gl *gl = &r->gl;
     const uint32_t first = tw_renderer_draws_put_records(r, rec, records);
     if (r->has_mdi) {
@@ -170,8 +157,7 @@ void tw_renderer_draws_submit(struct tw_renderer *r, const struct tw_draw_record
             cmd[k].base_instance += first;
         const size_t at = tw_renderer_draws_put_commands(r, cmd, commands);
         tw_renderer_draws_commands(r, at, commands);
-        r->counters.draws++;
-        return;
+        return 1;
     }
     /* GL before 4.3: one draw per command, the record attributes pointed at
      * its record (the vertex array's pointers are put back after). */
@@ -181,9 +167,9 @@ void tw_renderer_draws_submit(struct tw_renderer *r, const struct tw_draw_record
         gl->DrawElementsBaseVertex(GL_TRIANGLES, (GLsizei)cmd[k].count, GL_UNSIGNED_INT,
                                    (const void *)((size_t)cmd[k].first_index * sizeof(uint32_t)),
                                    cmd[k].base_vertex);
-        r->counters.draws++;
     }
     point_records(gl, r->record_ring, 0);
+    return commands;
 }
 
 void tw_renderer_draws_record(struct tw_draw_record *rec, const struct tw_instance *in,

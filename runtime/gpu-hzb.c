@@ -10,6 +10,7 @@
  * (TW_HZB_SPAN texels at most along each axis), the same two levels of
  * halving; its depth tolerance is wider (float arithmetic throughout). */
 #include "runtime/renderer-private.h"
+#include "tiles/array.h"
 #include "tiles/clock.h"
 #include "tiles/tiles-internal.h"
 
@@ -53,9 +54,11 @@ static const char *const test_cs =
     "#version 430 core\n"
     "layout(local_size_x = 64) in;\n"
     "layout(std430, binding = 0) readonly buffer Boxes { vec4 boxes[]; };\n"
-    "layout(std430, binding = 1) readonly buffer Info { uvec2 info[]; };\n"
+    "layout(std430, binding = 1) readonly buffer Info { uvec4 info[]; };\n"
     "layout(std430, binding = 2) buffer Commands { uint commands[]; };\n"
-    "layout(std430, binding = 3) buffer Results { uint bits[]; };\n"
+    /* the triangles and clusters drawn, then a bit per candidate */
+    "layout(std430, binding = 3) buffer Results { uint drawn_triangles; uint drawn_clusters;\n"
+    "                                            uint bits[]; };\n"
     "layout(binding = 0) uniform sampler2D u_depth;\n"
     "layout(std430, binding = 5) readonly buffer Pyramid { float pyramid[]; };\n"
     "uniform int u_level_at[24];\n"  /* the pyramid's levels 1.. in the buffer */
@@ -90,10 +93,8 @@ static const char *const test_cs =
     "bool hidden(vec3 a, vec3 b) {\n"
     "    vec2 lo, hi; float wmin;\n"
     "    if (!screen_rect(a, b, lo, hi, wmin)) return false;\n"
-
     "    float ndc = -u_proj.x + u_proj.y / wmin;\n"
     "    float dn = u_reversed != 0 ? ndc : 0.5 * ndc + 0.5;\n"
-
     "    vec2 S = vec2(u_size);\n"
     "    vec2 f0 = floor((lo * 0.5 + 0.5) * S - 0.5);\n"
     "    vec2 f1 = floor((hi * 0.5 + 0.5) * S - 0.5) + 1.0;\n"
@@ -137,9 +138,14 @@ static const char *const test_cs =
     "    if (i >= u_count) return;\n"
     "    vec4 a = boxes[2u * i], b = boxes[2u * i + 1u];\n"
     "    bool visible = a.w != 0.0 || u_built == 0 || split_visible(a.xyz, b.xyz);\n"
-    "    if (visible) atomicOr(bits[i >> 5], 1u << (i & 31u));\n"
-
-    "    uvec2 n = info[i];\n"
+    "    uvec4 n = info[i];\n"
+    "    if (visible) {\n"
+    "        atomicOr(bits[i >> 5], 1u << (i & 31u));\n"
+    "        if (n.y > 0u) {\n"
+    "            atomicAdd(drawn_triangles, n.z);\n"
+    "            atomicAdd(drawn_clusters, n.y);\n"
+    "        }\n"
+    "    }\n"
     "    for (uint k = 0u; k < n.y; k++) commands[5u * (n.x + k) + 1u] = visible ? 1u : 0u;\n"
     "}\n";
 
@@ -206,20 +212,12 @@ void tw_renderer_gpu_hzb_finish(struct tw_renderer *r)
     }
     free(g->boxes);
     free(g->info);
+    free(g->where);
     free(g->commands);
     free(g->records);
-    free(g->segments);
-    free(g->cand_tris);
-    free(g->cand_clusters);
-    free(g->cand_first);
-    free(g->cand_where);
     free(g->cluster_ids);
-    free(g->bits);
-    free(g->zeros);
-    for (int k = 0; k < TW_GPU_HZB_SLOTS; k++) {
-        free(g->slot[k].tris);
-        free(g->slot[k].clusters);
-    }
+    free(g->segments);
+    free(g->result);
     memset(g, 0, sizeof(*g));
 }
 
@@ -230,7 +228,6 @@ static bool build(void *ctx, const void *owner, uint64_t frame)
     struct tw_renderer *r = ctx;
     struct tw_gpu_hzb *g = &r->ghzb;
     const struct tw_gl *gl = &r->gl;
-    const double t0 = tw_clock_monotonic_ms();
     g->count = g->command_count = g->record_count = g->segment_count = 0;
     g->cluster_id_count = 0;
     g->frame = frame;
@@ -246,10 +243,9 @@ static bool build(void *ctx, const void *owner, uint64_t frame)
         while (w > 1 || h > 1) {
             w = (w + 1) / 2;
             h = (h + 1) / 2;
-            g->level_w[n] = w;
-            g->level_h[n] = h;
+            g->level_w[n] = (GLint)w;
+            g->level_h[n] = (GLint)h;
             g->level_at[n] = (GLint)at;
-            g->level_wi[n] = (GLint)w;
             at += w * h;
             n++;
         }
@@ -269,57 +265,36 @@ static bool build(void *ctx, const void *owner, uint64_t frame)
     uint32_t sw = r->width, sh = r->height;
     for (uint32_t k = 0; k < g->levels; k++) {
         gl->Uniform2i(g->u_src_size, (GLint)sw, (GLint)sh);
-        gl->Uniform2i(g->u_dst_size, (GLint)g->level_w[k], (GLint)g->level_h[k]);
+        gl->Uniform2i(g->u_dst_size, g->level_w[k], g->level_h[k]);
         gl->Uniform1i(g->u_src_at, k == 0 ? -1 : g->level_at[k - 1]);
         gl->Uniform1i(g->u_dst_at, g->level_at[k]);
-        gl->DispatchCompute((g->level_w[k] + 7) / 8, (g->level_h[k] + 7) / 8, 1);
+        gl->DispatchCompute(((GLuint)g->level_w[k] + 7) / 8, ((GLuint)g->level_h[k] + 7) / 8, 1);
         gl->MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-        sw = g->level_w[k];
-        sh = g->level_h[k];
+        sw = (uint32_t)g->level_w[k];
+        sh = (uint32_t)g->level_h[k];
     }
     gl->BindTexture(GL_TEXTURE_2D, 0);
     g->built = true;
-    g->ms_build += tw_clock_monotonic_ms() - t0;
     return true;
 }
 
 /* ---- candidates --------------------------------------------------------------- */
 
+/* Room for one more candidate drawing count clusters. */
 static bool room(struct tw_gpu_hzb *g, uint32_t count)
 {
-    const uint32_t n = g->count + 1;
-    uint32_t c = g->cand_cap;
-    bool ok = tw_renderer_grow(&g->boxes, &c, n, 2 * sizeof(*g->boxes));
-    c = g->cand_cap;
-    ok = ok && tw_renderer_grow(&g->info, &c, n, sizeof(*g->info));
-    c = g->cand_cap;
-    ok = ok && tw_renderer_grow(&g->cand_tris, &c, n, sizeof(*g->cand_tris));
-    c = g->cand_cap;
-    ok = ok && tw_renderer_grow(&g->cand_clusters, &c, n, sizeof(*g->cand_clusters));
-    c = g->cand_cap;
-    ok = ok && tw_renderer_grow(&g->cand_first, &c, n, sizeof(*g->cand_first));
-    c = g->cand_cap;
-    ok = ok && tw_renderer_grow(&g->cand_where, &c, n, sizeof(*g->cand_where));
-    if (!ok)
-        return false;
-    g->cand_cap = c;
-    c = g->command_cap;
-    if (!tw_renderer_grow(&g->commands, &c, g->command_count + count, sizeof(*g->commands)))
-        return false;
-    g->command_cap = c;
-    c = g->record_cap;
-    if (!tw_renderer_grow(&g->records, &c, g->record_count + count, sizeof(*g->records)))
-        return false;
-    g->record_cap = c;
-    c = g->cluster_id_cap;
-    if (!tw_renderer_grow(&g->cluster_ids, &c, g->cluster_id_count + count, sizeof(*g->cluster_ids)))
-        return false;
-    g->cluster_id_cap = c;
-    c = g->segment_cap;
-    if (!tw_renderer_grow(&g->segments, &c, g->segment_count + 1, sizeof(*g->segments)))
-        return false;
-    g->segment_cap = c;
-    return true;
+    const size_t n = g->count + 1;
+    return !tw_array_reserve((void **)&g->boxes, &g->box_cap, 2 * n, sizeof(*g->boxes), 1024) &&
+           !tw_array_reserve((void **)&g->info, &g->info_cap, n, sizeof(*g->info), 512) &&
+           !tw_array_reserve((void **)&g->where, &g->where_cap, n, sizeof(*g->where), 512) &&
+           !tw_array_reserve((void **)&g->commands, &g->command_cap, g->command_count + count,
+                             sizeof(*g->commands), 1024) &&
+           !tw_array_reserve((void **)&g->records, &g->record_cap, g->record_count + count,
+                             sizeof(*g->records), 1024) &&
+           !tw_array_reserve((void **)&g->cluster_ids, &g->cluster_id_cap,
+                             g->cluster_id_count + count, sizeof(*g->cluster_ids), 1024) &&
+           !tw_array_reserve((void **)&g->segments, &g->segment_cap, g->segment_count + 1,
+                             sizeof(*g->segments), 16);
 }
 
 static uint32_t candidate(void *ctx, const struct tw_box *box, bool always, struct tw_cell cell,
@@ -334,20 +309,18 @@ static uint32_t candidate(void *ctx, const struct tw_box *box, bool always, stru
             tw_renderer_backend(r).draw(r, cell, content, offset, clusters, count);
         return UINT32_MAX;
     }
-    const uint32_t i = g->count++;
+    const uint32_t i = (uint32_t)g->count++;
     g->boxes[2 * i] = (struct tw_gpu_vec4){{box->min[0], box->min[1], box->min[2],
                                             always ? 1.0f : 0.0f}};
     g->boxes[2 * i + 1] = (struct tw_gpu_vec4){{box->max[0], box->max[1], box->max[2], 0.0f}};
-    g->info[i][0] = g->command_count;
+    g->info[i][0] = (uint32_t)g->command_count;
     g->info[i][1] = count;
-    g->cand_tris[i] = 0;
-    g->cand_clusters[i] = count;
-    g->cand_first[i] = g->cluster_id_count;
-    g->cand_where[i] = (struct tw_drawn_cluster){cell, content, 0};
-    if (count == 0)
+    g->info[i][2] = g->info[i][3] = 0;
+    g->where[i] = (struct tw_gpu_hzb_where){cell, content, (uint32_t)g->cluster_id_count};
+    if (count == 0 || content >= r->content_count || !r->contents[content].live) {
+        g->info[i][1] = 0;
         return i;
-    if (content >= r->content_count || !r->contents[content].live)
-        return i;
+    }
     const uint32_t buffers = r->contents[content].buffers;
     const struct tw_gpu_buffers *b = &r->buffers[buffers];
     const struct tw_prototype *proto = &b->ts->prototypes[r->contents[content].proto];
@@ -362,7 +335,7 @@ static uint32_t candidate(void *ctx, const struct tw_box *box, bool always, stru
     /* A segment per run of candidates drawn from the same buffers. */
     if (g->segment_count == 0 || g->segments[g->segment_count - 1].buffers != buffers)
         g->segments[g->segment_count++] = (struct tw_gpu_segment){buffers, content,
-                                                                   g->command_count, 0};
+                                                                   (uint32_t)g->command_count, 0};
     const struct tw_tileset *ts = b->ts;
     const bool mapped = g->key_stamp != 0;
     for (uint32_t k = 0; k < count; k++) {
@@ -371,7 +344,7 @@ static uint32_t candidate(void *ctx, const struct tw_box *box, bool always, stru
         if (mapped && r->run_seen[c->instance] == g->key_stamp) {
             rec = r->run_record[c->instance];
         } else {
-            rec = g->record_count++;
+            rec = (uint32_t)g->record_count++;
             if (mapped) {
                 r->run_seen[c->instance] = g->key_stamp;
                 r->run_record[c->instance] = rec;
@@ -382,13 +355,82 @@ static uint32_t candidate(void *ctx, const struct tw_box *box, bool always, stru
         }
         tw_renderer_draws_command(&g->commands[g->command_count++], b, ts, c, rec);
         g->cluster_ids[g->cluster_id_count++] = clusters[k];
-        g->cand_tris[i] += c->triangle_count;
+        g->info[i][2] += c->triangle_count;
     }
     g->segments[g->segment_count - 1].count += count;
     return i;
 }
 
 /* ---- the test ------------------------------------------------------------------ */
+
+/* Words of the result buffer for n candidates. */
+static size_t result_words(size_t n)
+{
+    return TW_GPU_HZB_RESULT_HEAD + (n + 31) / 32;
+}
+
+/* Reads slot s's results (its fence signalled) into g->result and counts
+ * what its candidates drew; false when out of memory. */
+static bool read_slot(struct tw_renderer *r, int s)
+{
+    struct tw_gpu_hzb *g = &r->ghzb;
+    const struct tw_gl *gl = &r->gl;
+    struct tw_gpu_hzb_slot *sl = &g->slot[s];
+    const size_t words = result_words(sl->count);
+    gl->DeleteSync(sl->fence);
+    sl->fence = NULL;
+    sl->pending = false;
+    if (tw_array_reserve((void **)&g->result, &g->result_cap, words, sizeof(*g->result), 64))
+        return false;
+    gl->BindBuffer(GL_COPY_READ_BUFFER, g->readback[s]);
+    gl->GetBufferSubData(GL_COPY_READ_BUFFER, 0, (GLsizeiptr)(words * 4u), g->result);
+    gl->BindBuffer(GL_COPY_READ_BUFFER, 0);
+    r->counters.bytes_read_back += words * 4u;
+    r->counters.triangles += g->result[0];
+    r->counters.clusters += g->result[1];
+    g->result_count = sl->count;
+    g->result_frame = sl->frame;
+    return true;
+}
+
+/* The slot to copy this frame's results into: a free one, else the oldest
+ * in flight, waited for (the GPU is TW_GPU_HZB_SLOTS frames behind). */
+static int free_slot(struct tw_renderer *r)
+{
+    struct tw_gpu_hzb *g = &r->ghzb;
+    for (int k = 0; k < TW_GPU_HZB_SLOTS; k++)
+        if (!g->slot[k].pending)
+            return k;
+    int s = 0;
+    for (int k = 1; k < TW_GPU_HZB_SLOTS; k++)
+        if (g->slot[k].frame < g->slot[s].frame)
+            s = k;
+    r->gl.ClientWaitSync(g->slot[s].fence, GL_SYNC_FLUSH_COMMANDS_BIT, UINT64_MAX);
+    r->counters.waits++;
+    read_slot(r, s);
+    return s;
+}
+
+/* Recording what was drawn (the oracle's comparison, debugging) needs the
+ * answers now: this waits for slot s. Not for timings. */
+static void record_passed(struct tw_renderer *r, int s)
+{
+    struct tw_gpu_hzb *g = &r->ghzb;
+    const struct tw_gl *gl = &r->gl;
+    const size_t words = result_words(g->count);
+    if (tw_array_reserve((void **)&g->result, &g->result_cap, words, sizeof(*g->result), 64))
+        return;
+    gl->ClientWaitSync(g->slot[s].fence, GL_SYNC_FLUSH_COMMANDS_BIT, UINT64_MAX);
+    gl->BindBuffer(GL_COPY_READ_BUFFER, g->readback[s]);
+    gl->GetBufferSubData(GL_COPY_READ_BUFFER, 0, (GLsizeiptr)(words * 4u), g->result);
+    gl->BindBuffer(GL_COPY_READ_BUFFER, 0);
+    const uint32_t *bits = g->result + TW_GPU_HZB_RESULT_HEAD;
+    for (size_t i = 0; i < g->count; i++)
+        if (g->info[i][1] && (bits[i >> 5] >> (i & 31) & 1u))
+            tw_renderer_record_clusters(r, g->where[i].cell, g->where[i].content,
+                                        g->cluster_ids + g->where[i].first_cluster,
+                                        g->info[i][1]);
+}
 
 static void upload(const struct tw_gl *gl, GLuint buffer, const void *data, size_t bytes)
 {
@@ -397,63 +439,30 @@ static void upload(const struct tw_gl *gl, GLuint buffer, const void *data, size
                    GL_STREAM_DRAW);
 }
 
-/* Reads slot s's bits (its fence signalled) and counts what it drew. */
-static void read_slot(struct tw_renderer *r, int s)
-{
-    struct tw_gpu_hzb *g = &r->ghzb;
-    const struct tw_gl *gl = &r->gl;
-    struct tw_gpu_hzb_slot *sl = &g->slot[s];
-    const uint32_t words = (sl->count + 31) / 32;
-    uint32_t cap = g->bits_cap;
-    if (!tw_renderer_grow(&g->bits, &cap, words + 1, sizeof(*g->bits))) {
-        sl->pending = false;
-        return;
-    }
-    g->bits_cap = cap;
-    gl->BindBuffer(GL_COPY_READ_BUFFER, g->readback[s]);
-    gl->GetBufferSubData(GL_COPY_READ_BUFFER, 0, (GLsizeiptr)(words * 4u), g->bits);
-    gl->BindBuffer(GL_COPY_READ_BUFFER, 0);
-    r->counters.bytes_read_back += words * 4u;
-    for (uint32_t i = 0; i < sl->count; i++)
-        if (g->bits[i >> 5] >> (i & 31) & 1u) {
-            r->counters.triangles += sl->tris[i];
-            r->counters.clusters += sl->clusters[i];
-        }
-    gl->DeleteSync(sl->fence);
-    sl->fence = NULL;
-    sl->pending = false;
-    g->bits_count = sl->count;
-    g->bits_frame = sl->frame;
-}
-
 static void test(void *ctx)
 {
     struct tw_renderer *r = ctx;
     struct tw_gpu_hzb *g = &r->ghzb;
     const struct tw_gl *gl = &r->gl;
-    const uint32_t n = g->count;
+    const uint32_t n = (uint32_t)g->count;
     if (n == 0)
         return;
     const double t0 = tw_clock_monotonic_ms();
     /* Records into the ring, commands naming them. */
-    const uint32_t first = g->record_count ? tw_renderer_draws_put_records(r, g->records,
-                                                                          g->record_count)
-                                           : 0;
-    for (uint32_t k = 0; k < g->command_count; k++)
+    const uint32_t first =
+        g->record_count ? tw_renderer_draws_put_records(r, g->records, (uint32_t)g->record_count)
+                        : 0;
+    for (size_t k = 0; k < g->command_count; k++)
         g->commands[k].base_instance += first;
     size_t at = 0;
     if (g->command_count)
-        at = tw_renderer_draws_put_commands(r, g->commands, g->command_count);
-    const uint32_t words = (n + 31) / 32;
-    uint32_t zcap = g->zeros_cap;
-    if (!tw_renderer_grow(&g->zeros, &zcap, words, sizeof(*g->zeros)))
-        return;
-    if (zcap > g->zeros_cap)
-        memset(g->zeros, 0, (size_t)zcap * sizeof(*g->zeros));
-    g->zeros_cap = zcap;
+        at = tw_renderer_draws_put_commands(r, g->commands, (uint32_t)g->command_count);
+    const size_t words = result_words(n);
     upload(gl, g->buffers[0], g->boxes, (size_t)n * 2 * sizeof(*g->boxes));
     upload(gl, g->buffers[1], g->info, (size_t)n * sizeof(*g->info));
-    upload(gl, g->buffers[3], g->zeros, (size_t)words * 4u);
+    upload(gl, g->buffers[3], NULL, words * 4u);
+    gl->ClearBufferData(GL_SHADER_STORAGE_BUFFER, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT,
+                        NULL);
     gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, g->buffers[0]);
     gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, g->buffers[1]);
     if (g->command_count)
@@ -478,46 +487,25 @@ static void test(void *ctx)
     gl->BindTexture(GL_TEXTURE_2D, r->depth_texture);
     gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, g->buffers[2]);
     gl->Uniform1iv(g->u_level_at, (GLsizei)g->levels, g->level_at);
-    gl->Uniform1iv(g->u_level_w, (GLsizei)g->levels, g->level_wi);
+    gl->Uniform1iv(g->u_level_w, (GLsizei)g->levels, g->level_w);
     gl->DispatchCompute((n + GROUP - 1) / GROUP, 1, 1);
     gl->MemoryBarrier(GL_COMMAND_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT |
                       GL_BUFFER_UPDATE_BARRIER_BIT);
     gl->BindTexture(GL_TEXTURE_2D, 0);
     /* The draws: one multi-draw per run of one tileset's buffers. */
-    for (uint32_t s = 0; s < g->segment_count; s++) {
-        const struct tw_gpu_segment *sg = &g->segments[s];
+    for (size_t k = 0; k < g->segment_count; k++) {
+        const struct tw_gpu_segment *sg = &g->segments[k];
         tw_renderer_enter_draw_mode(r);
         const struct tw_prototype *proto;
         tw_renderer_bind_content(r, sg->content, &proto);
         tw_renderer_draws_commands(r, at + (size_t)sg->first * sizeof(*g->commands), sg->count);
         r->counters.draws++;
     }
-    /* The bits into a read-back slot, under a fence. */
-    int s = -1;
-    for (int k = 0; k < TW_GPU_HZB_SLOTS; k++)
-        if (!g->slot[k].pending && (s < 0 || g->slot[k].frame < g->slot[s].frame))
-            s = k;
-    if (s < 0) {
-        /* Every slot in flight: the oldest is waited for (the GPU is more
-         * than TW_GPU_HZB_SLOTS frames behind). */
-        s = 0;
-        for (int k = 1; k < TW_GPU_HZB_SLOTS; k++)
-            if (g->slot[k].frame < g->slot[s].frame)
-                s = k;
-        gl->ClientWaitSync(g->slot[s].fence, GL_SYNC_FLUSH_COMMANDS_BIT, UINT64_MAX);
-        r->counters.waits++;
-        read_slot(r, s);
-    }
+    /* The results into a read-back slot, under a fence. */
+    const int s = free_slot(r);
     struct tw_gpu_hzb_slot *sl = &g->slot[s];
-    uint32_t cap = sl->cap, cap2 = sl->cap;
-    if (!tw_renderer_grow(&sl->tris, &cap, n, sizeof(*sl->tris)) ||
-        !tw_renderer_grow(&sl->clusters, &cap2, n, sizeof(*sl->clusters)))
-        return;
-    sl->cap = cap < cap2 ? cap : cap2;
-    memcpy(sl->tris, g->cand_tris, (size_t)n * sizeof(*sl->tris));
-    memcpy(sl->clusters, g->cand_clusters, (size_t)n * sizeof(*sl->clusters));
-    if (sl->bytes < (size_t)words * 4u) {
-        sl->bytes = (size_t)words * 8u;
+    if (sl->bytes < words * 4u) {
+        sl->bytes = words * 8u;
         gl->BindBuffer(GL_COPY_WRITE_BUFFER, g->readback[s]);
         gl->BufferData(GL_COPY_WRITE_BUFFER, (GLsizeiptr)sl->bytes, NULL, GL_STREAM_READ);
     }
@@ -532,28 +520,8 @@ static void test(void *ctx)
     sl->count = n;
     sl->frame = g->frame;
     sl->owner = g->owner;
-    g->candidates_tested += n;
-    /* Recording what was drawn (the oracle's comparison, debugging): the
-     * bits are needed now, so this waits. Not for timings. */
-    if (r->recording) {
-        gl->ClientWaitSync(sl->fence, GL_SYNC_FLUSH_COMMANDS_BIT, UINT64_MAX);
-        gl->BindBuffer(GL_COPY_READ_BUFFER, g->readback[s]);
-        uint32_t bcap = g->bits_cap;
-        if (tw_renderer_grow(&g->bits, &bcap, words + 1, sizeof(*g->bits))) {
-            g->bits_cap = bcap;
-            gl->GetBufferSubData(GL_COPY_READ_BUFFER, 0, (GLsizeiptr)(words * 4u), g->bits);
-            for (uint32_t i = 0; i < n; i++)
-                if (g->cand_clusters[i] && (g->bits[i >> 5] >> (i & 31) & 1u))
-                    tw_renderer_record_clusters(r, g->cand_where[i].cell,
-                                                g->cand_where[i].prototype,
-                                                g->cluster_ids + g->cand_first[i],
-                                                g->cand_clusters[i]);
-        }
-        gl->BindBuffer(GL_COPY_READ_BUFFER, 0);
-    }
-    g->count = g->command_count = g->record_count = g->segment_count = 0;
-    g->cluster_id_count = 0;
-    g->key_valid = false;
+    if (r->recording)
+        record_passed(r, s);
     r->counters.ms_backend += tw_clock_monotonic_ms() - t0;
 }
 
@@ -580,14 +548,13 @@ static const uint32_t *results(void *ctx, const void *owner, bool wait, uint32_t
             break;
         if (wait)
             r->counters.waits++;
-        read_slot(r, s);
-        any = true;
+        any = read_slot(r, s);
     }
     if (!any)
         return NULL;
-    *count = g->bits_count;
-    *frame = g->bits_frame;
-    return g->bits;
+    *count = g->result_count;
+    *frame = g->result_frame;
+    return g->result + TW_GPU_HZB_RESULT_HEAD;
 }
 
 void tw_renderer_gpu_hzb_begin_frame(struct tw_renderer *r, const struct tw_view *v)

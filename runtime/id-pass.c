@@ -68,14 +68,11 @@ void tw_renderer_id_draw(struct tw_renderer *r, uint32_t content, const float of
         return;
     }
     uint32_t records;
-    if (tw_renderer_stage_clusters(r, b, proto, offset, clusters, count, first_id, &records) ==
-        UINT32_MAX) {
+    if (!tw_renderer_stage_clusters(r, b, proto, offset, clusters, count, first_id, &records)) {
         tw_log_printf(&r->log, TW_LOG_ERROR, "out of memory staging the ID pass's draws");
         return;
     }
-    const struct tw_render_counters saved = r->counters;   /* not the frame's */
     tw_renderer_draws_submit(r, r->stage_records, records, r->stage_commands, count);
-    r->counters = saved;
 }
 
 void tw_renderer_id_read(struct tw_renderer *r, uint32_t *ids, float *depth)

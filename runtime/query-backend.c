@@ -86,13 +86,13 @@ static bool draw_room(struct tw_renderer *r, uint32_t count, uint32_t instances)
     return tw_renderer_draws_reserve(r, count, count) && tw_renderer_instance_map(r, instances);
 }
 
-uint32_t tw_renderer_stage_clusters(struct tw_renderer *r, const struct tw_gpu_buffers *b,
-                                    const struct tw_prototype *proto, const float offset[3],
-                                    const uint32_t *clusters, uint32_t count, uint32_t first_id,
-                                    uint32_t *records)
+bool tw_renderer_stage_clusters(struct tw_renderer *r, const struct tw_gpu_buffers *b,
+                                const struct tw_prototype *proto, const float offset[3],
+                                const uint32_t *clusters, uint32_t count, uint32_t first_id,
+                                uint32_t *records)
 {
     if (!draw_room(r, count, proto->instance_count))
-        return UINT32_MAX;
+        return false;
     const struct tw_tileset *ts = b->ts;
     const uint32_t stamp = ++r->run_stamp;
     uint32_t n = 0;
@@ -117,7 +117,7 @@ uint32_t tw_renderer_stage_clusters(struct tw_renderer *r, const struct tw_gpu_b
         tw_renderer_draws_command(&r->stage_commands[k], b, ts, c, rec);
     }
     *records = n;
-    return count;
+    return true;
 }
 
 static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
@@ -135,14 +135,14 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
     /* One multi-draw of every cluster in the order given, each command
      * naming its instance's record. */
     uint32_t records;
-    if (tw_renderer_stage_clusters(r, b, proto, offset, clusters, count, UINT32_MAX, &records) ==
-        UINT32_MAX) {
+    if (!tw_renderer_stage_clusters(r, b, proto, offset, clusters, count, UINT32_MAX, &records)) {
         tw_log_printf(&r->log, TW_LOG_ERROR, "out of memory staging %u draws: not drawn", count);
         return;
     }
     for (uint32_t k = 0; k < count; k++)
         r->counters.triangles += proto->clusters[clusters[k]].triangle_count;
-    tw_renderer_draws_submit(r, r->stage_records, records, r->stage_commands, count);
+    r->counters.draws +=
+        tw_renderer_draws_submit(r, r->stage_records, records, r->stage_commands, count);
     r->counters.clusters += count;
     r->counters.ms_backend += tw_clock_monotonic_ms() - t0;
 }

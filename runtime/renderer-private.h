@@ -67,7 +67,7 @@ struct tw_gpu_segment {
     uint32_t buffers, content;  /* the buffers, and a content of theirs to bind them by */
     uint32_t first, count;      /* commands */
 };
-/* One frame's bits in flight: read back under a fence. */
+/* One frame's answers in flight: read back under a fence. */
 struct tw_gpu_hzb_slot {
     GLsync fence;
     bool pending;
@@ -75,9 +75,16 @@ struct tw_gpu_hzb_slot {
     uint64_t frame;
     uint32_t count;             /* candidates */
     size_t bytes;               /* of its read-back buffer */
-    uint32_t *tris, *clusters;  /* per candidate, counted when it passed */
-    uint32_t cap;
 };
+/* What a candidate draws, for the recording of drawn clusters. */
+struct tw_gpu_hzb_where {
+    struct tw_cell cell;
+    uint32_t content;
+    uint32_t first_cluster;     /* in cluster_ids */
+};
+/* The result buffer: the triangles and clusters the passing candidates
+ * drew, then one bit per candidate. */
+#define TW_GPU_HZB_RESULT_HEAD 2u
 struct tw_gpu_hzb {
     bool live;                  /* compute shaders, and everything made */
     bool on;                    /* offered to the methods (tw_renderer_use_gpu_hzb) */
@@ -85,40 +92,38 @@ struct tw_gpu_hzb {
     GLint u_view_proj, u_proj, u_near, u_size, u_levels, u_reversed, u_built, u_count;
     GLint u_level_at, u_level_w;
     GLint u_src_size, u_dst_size, u_src_at, u_dst_at, u_reduce_reversed;
-    GLuint buffers[4];          /* boxes, info, the pyramid, result bits */
+    GLuint buffers[4];          /* boxes, info, the pyramid, results */
     GLuint readback[TW_GPU_HZB_SLOTS];
     struct tw_gpu_hzb_slot slot[TW_GPU_HZB_SLOTS];
-    /* The pyramid in buffers[2]: level k (at level_at[k] floats) is the
-     * depth reduced k + 1 times, the farthest of each 2 x 2. */
+    /* The pyramid in buffers[2]: level k (at level_at[k] floats, level_w[k]
+     * x level_h[k]) is the depth reduced k + 1 times, the farthest of each
+     * 2 x 2. */
     uint32_t pyramid_w, pyramid_h, levels;
-    uint32_t level_w[24], level_h[24];
-    GLint level_at[24], level_wi[24];
+    GLint level_w[24], level_h[24], level_at[24];
     bool built;
     struct tw_view view;        /* the frame's */
     const void *owner;
     uint64_t frame;
-    /* The frame's candidates, staged. */
+    /* The frame's candidates, staged: boxes and info as the test reads them. */
     struct tw_gpu_vec4 *boxes;  /* two per candidate: min (w: always), max */
-    uint32_t (*info)[2];        /* first command, commands */
-    uint32_t *cand_tris, *cand_clusters, *cand_first;
-    struct tw_drawn_cluster *cand_where;    /* cell and content (cluster unused) */
-    uint32_t count, cand_cap;
+    uint32_t (*info)[4];        /* first command, commands, triangles, 0 */
+    struct tw_gpu_hzb_where *where;
+    size_t count, box_cap, info_cap, where_cap;
     struct tw_draw_command *commands;
-    uint32_t command_count, command_cap;
+    size_t command_count, command_cap;
     struct tw_draw_record *records;
-    uint32_t record_count, record_cap;
+    size_t record_count, record_cap;
     uint32_t *cluster_ids;
-    uint32_t cluster_id_count, cluster_id_cap;
+    size_t cluster_id_count, cluster_id_cap;
     struct tw_gpu_segment *segments;
-    uint32_t segment_count, segment_cap;
+    size_t segment_count, segment_cap;
     bool key_valid;             /* the tile placement whose records are mapped */
     struct tw_cell key_cell;
     uint32_t key_content, key_stamp;
-    uint32_t *bits, bits_cap, bits_count;
-    uint64_t bits_frame;
-    uint32_t *zeros, zeros_cap;
-    uint64_t candidates_tested;
-    double ms_build;
+    uint32_t *result;           /* the latest read: head, then bits */
+    size_t result_cap;
+    uint32_t result_count;
+    uint64_t result_frame;
 };
 
 struct tw_renderer {
@@ -192,7 +197,7 @@ struct tw_renderer {
     size_t command_ring_bytes;
     struct tw_draw_record *stage_records;
     struct tw_draw_command *stage_commands;
-    uint32_t stage_record_cap, stage_command_cap;
+    size_t stage_record_cap, stage_command_cap;
     GLint host_indirect_buffer;    /* saved on enter, restored on leave */
 
     /* gpu-hzb.c; the image's depth is a texture where it is live. */
@@ -231,9 +236,9 @@ void tw_renderer_queries_finish(struct tw_renderer *r);
 /* Stages a draw of clusters of proto (buffers b) placed at offset into
  * r->stage_records and r->stage_commands: one command per cluster in the
  * order given, a record per instance (first_id == UINT32_MAX) or, for the
- * ID pass, per cluster with ids first_id, first_id + 1, ... Returns count
- * with the records' number in *records, or UINT32_MAX: out of memory. */
-uint32_t tw_renderer_stage_clusters(struct tw_renderer *r, const struct tw_gpu_buffers *b,
+ * ID pass, per cluster with ids first_id, first_id + 1, ... Returns
+ * false when out of memory; *records receives the records' number. */
+bool tw_renderer_stage_clusters(struct tw_renderer *r, const struct tw_gpu_buffers *b,
                                     const struct tw_prototype *proto, const float offset[3],
                                     const uint32_t *clusters, uint32_t count, uint32_t first_id,
                                     uint32_t *records);
@@ -257,9 +262,6 @@ void tw_renderer_gpu_hzb_begin_frame(struct tw_renderer *r, const struct tw_view
 void tw_renderer_gpu_hzb_ops(struct tw_renderer *r, struct tw_query_backend *be);
 
 /* draws.c */
-/* Grows *p (an array of *cap elements of elem bytes, doubling from 256) to
- * hold n; false (and *p as it was) when out of memory. */
-bool tw_renderer_grow(void *p, uint32_t *cap, uint32_t n, size_t elem);
 /* Makes the rings (the command ring only with mdi: GL 4.3). */
 void tw_renderer_draws_init(struct tw_renderer *r, bool mdi);
 void tw_renderer_draws_finish(struct tw_renderer *r);
@@ -277,8 +279,9 @@ void tw_renderer_draws_command(struct tw_draw_command *c, const struct tw_gpu_bu
                                uint32_t record);
 /* Draws commands with the vertex array of their buffers bound: base
  * instances index records (rewritten into the ring's indices). One
- * multi-draw with GL 4.3, else one draw per command. */
-void tw_renderer_draws_submit(struct tw_renderer *r, const struct tw_draw_record *rec,
+ * multi-draw with GL 4.3, else one draw per command. Returns the GL draw
+ * calls made. */
+uint32_t tw_renderer_draws_submit(struct tw_renderer *r, const struct tw_draw_record *rec,
                               uint32_t records, struct tw_draw_command *cmd, uint32_t commands);
 /* The rings themselves, for the GPU's own culling (gpu-hzb.c): records
  * streamed (their first index returned), commands streamed (their byte

@@ -155,7 +155,7 @@ int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_pr
     r->has_compute = major * 10 + minor >= 43 && gl->DispatchCompute && gl->MemoryBarrier &&
                      gl->BindBufferRange && gl->BindBufferBase &&
                      gl->TexStorage2D && gl->FenceSync && gl->ClientWaitSync && gl->DeleteSync &&
-                     gl->GetBufferSubData && gl->CopyBufferSubData && gl->GetIntegeri_v &&
+                     gl->GetBufferSubData && gl->CopyBufferSubData && gl->ClearBufferData && gl->GetIntegeri_v &&
                      gl->GetInteger64i_v && gl->Uniform1i && gl->Uniform1iv && gl->Uniform1f && gl->Uniform2i &&
                      gl->GenTextures && gl->DeleteTextures && gl->BindTexture &&
                      gl->ActiveTexture && gl->TexParameteri && gl->FramebufferTexture2D &&
