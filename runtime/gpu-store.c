@@ -90,7 +90,11 @@ static int upload_buffers(struct tw_renderer *r, const struct tw_tileset *ts,
     gl->VertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, VERTEX_BYTES, (const void *)16);
     tw_renderer_draws_vertex_array(r);
     gl->BindVertexArray(0);
+    /* An upload can come in the middle of a frame (a tile the frame waits
+     * for): whatever mode the renderer was in, its vertex array is no
+     * longer bound, so the next draw or query sets its state up again. */
     r->bound_vao = 0;
+    r->mode = TW_RENDERER_MODE_NONE;
     b->bytes = (uint64_t)VERTEX_BYTES * vertices + sizeof(uint32_t) * indices;
     /* Buffers without storage would draw nothing, silently: the driver's
      * memory, said by the caller as any other (it knows what the tileset is). */
@@ -113,6 +117,7 @@ static void free_buffers(struct tw_renderer *r, struct tw_gpu_buffers *b)
         if (r->bound_vao == b->vao)
             r->bound_vao = 0;
         gl->DeleteVertexArrays(1, &b->vao);
+        r->mode = TW_RENDERER_MODE_NONE;    /* as after an upload */
     }
     free(b->base_vertex); /* first_index is in the same block */
     memset(b, 0, sizeof(*b));

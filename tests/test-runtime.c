@@ -8,6 +8,8 @@
 #include "tests/drawn-set.h"
 #include "tests/headless-world.h"
 #include "tests/image-diff.h"
+#include "cull/cull.h"
+#include "runtime/renderer.h"
 #include "tiles/tiles-internal.h"
 
 enum { W = 320, H = 180 };
@@ -156,12 +158,52 @@ static void test_merged_colors(struct tw_context *ctx)
     tw_tileset_destroy(ts);
 }
 
+/* A tileset uploaded in the middle of a frame (a tile the frame waits for
+ * arrives between two queries) leaves no vertex array bound: the queries
+ * after it must still draw their boxes. An open box in front of the eye,
+ * on an empty depth buffer, passes before the upload and after it. */
+static void test_upload_between_queries(struct tw_context *ctx, const struct tw_tileset *ts)
+{
+    struct tw_renderer *r = NULL;
+    CHECK(tw_renderer_create(64, 64, tw_context_get_proc(ctx), &test_log, &r) == TW_OK);
+    if (!r)
+        return;
+    tw_renderer_enter(r);
+    struct tw_view v;
+    const float eye[3] = {0.0f, 1.7f, 0.0f};
+    tw_cull_view_setup(&v, (struct tw_cell){0, 0}, eye, 0.0f, 0.0f, 60.0f, 1.0f, 0.2f, 1000.0f);
+    v.view_distance = 1000.0f;
+    v.frame = 1;
+    /* Whichever of two boxes, ahead along +z or -z, the view sees. */
+    struct tw_box box = {{-20.0f, -20.0f, 10.0f}, {20.0f, 20.0f, 40.0f}};
+    if (!(tw_cull_box_screen_fraction(&v, &box, NULL) > 0.0f)) {
+        box.min[2] = -40.0f;
+        box.max[2] = -10.0f;
+    }
+    CHECK(tw_cull_box_screen_fraction(&v, &box, NULL) > 0.0f);
+    tw_renderer_begin_frame(r, &v);
+    const struct tw_query_backend be = tw_renderer_backend(r);
+    const float zero[3] = {0.0f, 0.0f, 0.0f};
+    const uint32_t before = be.issue(be.ctx, &box, 1, zero);
+    uint32_t first = 0;
+    CHECK(tw_renderer_upload(r, ts, NULL, &first, NULL) == TW_OK);
+    const uint32_t after = be.issue(be.ctx, &box, 1, zero);
+    be.flush(be.ctx);
+    CHECK(be.wait(be.ctx, before) > 0);
+    CHECK(be.wait(be.ctx, after) > 0);
+    tw_renderer_end_frame(r);
+    tw_renderer_release(r, first);
+    tw_renderer_leave(r);
+    tw_renderer_destroy(r);
+}
+
 int main(void)
 {
     struct tw_context *ctx = NULL;
     struct tw_tileset *ts = NULL;
     if (!open_headless(W, H, "city", 1, &ctx, &ts))
         return 1;
+    test_upload_between_queries(ctx, ts);
     uint8_t *a = malloc(W * H * 3), *b = malloc(W * H * 3);
 
     /* A known view: on the street at a crossing, looking down +z. */
