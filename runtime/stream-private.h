@@ -26,7 +26,9 @@ enum job_state { J_NONE = 0, J_QUEUED, J_RUNNING, J_DONE };
 struct job_result {
     struct tw_tileset *ts;
     struct tw_bvh *bvh;
-    uint64_t bytes_cpu;          /* what ts and bvh cost (0 on failure) */
+    struct tw_lods lods;         /* its levels of detail (none unless the stream's lods) */
+    struct tw_bvh **lod_bvhs;    /* one per level */
+    uint64_t bytes_cpu;          /* what ts, bvh and the levels cost (0 on failure) */
     int err;
     char message[256];
 };
@@ -41,6 +43,9 @@ struct entry {
     uint64_t request_frame, wanted_frame, drawn_frame;
     struct tw_tileset *ts;       /* R_READY: owned */
     struct tw_bvh *bvh;
+    struct tw_lods lods;         /* R_READY: owned; levels of detail */
+    struct tw_bvh **lod_bvhs;
+    uint32_t lod_content;        /* R_READY with levels: the renderer's content of level 1 */
     uint32_t next_free;
     bool reload;                 /* this cell's tile had been evicted before */
     /* Under the lock. */
@@ -67,6 +72,7 @@ struct worker {
     struct tw_tile_provider provider;    /* a copy: the world's may be gone when a job
                                             left behind comes back */
     struct tw_bvh_settings bvh;
+    bool lods;                           /* build the tiles' levels of detail */
     pthread_t thread;
     bool started;
     /* Under the lock. */
@@ -126,6 +132,8 @@ struct tw_stream {
 void tw_stream_job_run(struct worker *wk, struct tw_cell cell, struct job_result *r);
 /* Frees what a result holds and zeroes it. */
 void tw_stream_job_free(struct job_result *r);
+/* Frees levels of detail and their BVHs, and zeroes them. */
+void tw_stream_job_free_levels(struct tw_lods *lods, struct tw_bvh ***bvhs);
 /* Queues entry index (lock held): false when the heap has no room (the job
  * then stays queued for the render thread to run when it is needed). */
 bool tw_stream_jobs_push(struct tw_stream *s, uint32_t index);

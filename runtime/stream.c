@@ -113,6 +113,9 @@ static struct entry *request(struct tw_stream *s, struct tw_cell cell, float dis
 static void drop_ready(struct tw_stream *s, struct entry *e)
 {
     s->set.sink.release(s->set.sink.user, e->content);
+    if (e->lods.levels)
+        s->set.sink.release(s->set.sink.user, e->lod_content);
+    tw_stream_job_free_levels(&e->lods, &e->lod_bvhs);
     tw_bvh_destroy(e->bvh);
     tw_tileset_destroy(e->ts);
     e->bvh = NULL;
@@ -137,7 +140,17 @@ static int make_ready(struct tw_stream *s, uint32_t k)
     s->loading--;
     const double t0 = tw_clock_monotonic_ms();
     if (!r.err) {
-        r.err = s->set.sink.upload(s->set.sink.user, r.ts, r.bvh, &e->content, &e->bytes_gpu);
+        const struct tw_bvh *bvhs[1] = {r.bvh};
+        r.err = s->set.sink.upload(s->set.sink.user, r.ts, bvhs, &e->content, &e->bytes_gpu);
+        uint64_t lod_gpu = 0;
+        if (!r.err && r.lods.levels) {
+            r.err = s->set.sink.upload(s->set.sink.user, r.lods.levels,
+                                       (const struct tw_bvh *const *)r.lod_bvhs, &e->lod_content,
+                                       &lod_gpu);
+            if (r.err)
+                s->set.sink.release(s->set.sink.user, e->content);
+        }
+        e->bytes_gpu += lod_gpu;
         if (r.err)
             snprintf(r.message, sizeof(r.message), "cannot upload it: %s",
                      tw_error_to_str(r.err));
@@ -170,6 +183,8 @@ static int make_ready(struct tw_stream *s, uint32_t k)
     }
     e->ts = r.ts;
     e->bvh = r.bvh;
+    e->lods = r.lods;
+    e->lod_bvhs = r.lod_bvhs;
     e->bytes_cpu = r.bytes_cpu;
     e->rstate = R_READY;
     s->bytes_cpu += e->bytes_cpu;
@@ -482,22 +497,33 @@ static void mark_used(struct tw_stream *s, struct entry *e)
     e->wanted_frame = e->drawn_frame = s->frame;
 }
 
-static void fill(const struct entry *e, struct tw_cull_tile *out)
+/* An instance key names the tile and its level: the level in the top bits. */
+#define LEVEL_KEY_SHIFT 28
+
+static void fill(const struct entry *e, float max_error, struct tw_cull_tile *out)
 {
-    if (e->rstate == R_READY) {
-        out->proto = &e->ts->prototypes[0];
-        out->bvh = e->bvh;
-        out->content = e->content;
-    } else {
+    out->key = e->key;
+    if (e->rstate != R_READY) {
         out->proto = NULL;
         out->bvh = NULL;
         out->content = 0;
+        return;
     }
-    out->key = e->key;
+    const uint32_t level = tw_lods_pick(&e->lods, 0, max_error);
+    if (level == 0) {
+        out->proto = &e->ts->prototypes[0];
+        out->bvh = e->bvh;
+        out->content = e->content;
+        return;
+    }
+    out->proto = &e->lods.levels->prototypes[level - 1];
+    out->bvh = e->lod_bvhs[level - 1];
+    out->content = e->lod_content + level - 1;
+    out->key = (e->key & ((1u << LEVEL_KEY_SHIFT) - 1u)) | level << LEVEL_KEY_SHIFT;
 }
 
 int tw_stream_get(struct tw_stream *s, struct tw_cell cell, float distance, unsigned flags,
-                  struct tw_cull_tile *out)
+                  float max_error, struct tw_cull_tile *out)
 {
     uint32_t k;
     struct entry *e = find(s, cell, &k);
@@ -505,7 +531,7 @@ int tw_stream_get(struct tw_stream *s, struct tw_cell cell, float distance, unsi
     if (e && (e->rstate == R_READY || e->rstate == R_REFUSED)) {
         if (touch)
             mark_used(s, e);
-        fill(e, out);
+        fill(e, max_error, out);
         return TW_OK;
     }
     if (flags & TW_TILE_SOURCE_RESIDENT)
@@ -529,7 +555,7 @@ int tw_stream_get(struct tw_stream *s, struct tw_cell cell, float distance, unsi
     e = &s->entries[k];
     if (touch)
         mark_used(s, e);
-    fill(e, out);
+    fill(e, max_error, out);
     return TW_OK;
 }
 

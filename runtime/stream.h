@@ -18,11 +18,13 @@
 #include "tileworld/runtime.h"
 
 /* Where finished tiles go, on the render thread. upload() takes a finished
- * one-prototype tileset and its BVH (both stay the stream's) and returns
- * the content number it is drawn by and the GPU bytes it holds, or an
- * error (the tile is then refused); release() frees what upload() made. */
+ * tileset and one BVH per prototype (all stay the stream's) and returns the
+ * content number its first prototype is drawn by (the others follow) and
+ * the GPU bytes it holds, or an error (the tile is then refused); release()
+ * frees what upload() made. A tile is one upload, its levels of detail
+ * another. */
 struct tw_tile_sink {
-    int (*upload)(void *user, const struct tw_tileset *ts, const struct tw_bvh *bvh,
+    int (*upload)(void *user, const struct tw_tileset *ts, const struct tw_bvh *const *bvhs,
                   uint32_t *content, uint64_t *bytes_gpu);
     void (*release)(void *user, uint32_t content);
     void *user;
@@ -42,7 +44,8 @@ struct tw_stream_settings {
                                         when the tiles held and on their way would
                                         fill it */
     uint32_t key_base;               /* instance keys of own tiles start here (above the
-                                        shared prototypes' indices) */
+                                        shared contents' numbers) */
+    bool lods;                       /* build each tile's levels of detail (DESIGN §17) */
     uint32_t stop_ms;                /* how long destroy waits for jobs still running;
                                         0: TW_STREAM_STOP_MS */
     const struct tw_log *log;        /* borrowed; called on the render thread only */
@@ -91,9 +94,11 @@ void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame);
  * TW_TILE_SOURCE_RESIDENT); or a negative error. Under policy wait the call
  * makes the tile ready before it returns (running its job here if no
  * worker has started it). A refused tile reads as an empty one: TW_OK with
- * out->proto NULL. Between enter and leave. */
+ * out->proto NULL. The tile is given at the coarsest of its levels of
+ * detail whose error is at most max_error metres (0: full detail); each
+ * level has its own key. Between enter and leave. */
 int tw_stream_get(struct tw_stream *s, struct tw_cell cell, float distance, unsigned flags,
-                  struct tw_cull_tile *out);
+                  float max_error, struct tw_cull_tile *out);
 /* Requests cell's tile unless it is there or on its way. */
 void tw_stream_prefetch(struct tw_stream *s, struct tw_cell cell, float distance);
 /* Marks the tile of cell drawn this frame (kept against eviction). */

@@ -103,16 +103,49 @@ void tw_stream_job_run(struct worker *wk, struct tw_cell cell, struct job_result
     }
     (void)tw_bvh_pack(&r->bvh);
     r->bytes_cpu = tw_tileset_bytes(r->ts) + r->bvh->bytes;
+    if (wk->lods) {
+        /* Its levels of detail (DESIGN §17), made here with the tile. */
+        err = tw_lods_build(r->ts, p->max_cluster_triangles ? p->max_cluster_triangles : 2048,
+                            &r->lods);
+        const uint32_t n = r->lods.levels ? r->lods.levels->prototype_count : 0;
+        if (!err && n > 0 && !(r->lod_bvhs = calloc(n, sizeof(*r->lod_bvhs))))
+            err = TW_ERR_NOMEM;
+        for (uint32_t k = 0; k < n && !err; k++) {
+            err = tw_bvh_build(wk->builder, &r->lods.levels->prototypes[k], &wk->bvh,
+                               &r->lod_bvhs[k]);
+            if (!err)
+                (void)tw_bvh_pack(&r->lod_bvhs[k]);
+        }
+        if (err) {
+            fail(r, err, "its levels of detail cannot be built: %s", tw_error_to_str(err));
+            goto out;
+        }
+        r->bytes_cpu += tw_lods_bytes(&r->lods) + (uint64_t)n * sizeof(*r->lod_bvhs);
+        for (uint32_t k = 0; k < n; k++)
+            r->bytes_cpu += r->lod_bvhs[k]->bytes;
+    }
     return;
 out:
+    tw_stream_job_free_levels(&r->lods, &r->lod_bvhs);
     tw_bvh_destroy(r->bvh);
     r->bvh = NULL;
     tw_tileset_destroy(r->ts);
     r->ts = NULL;
 }
 
+void tw_stream_job_free_levels(struct tw_lods *lods, struct tw_bvh ***bvhs)
+{
+    const uint32_t n = lods->levels ? lods->levels->prototype_count : 0;
+    for (uint32_t k = 0; *bvhs && k < n; k++)
+        tw_bvh_destroy((*bvhs)[k]);
+    free(*bvhs);
+    *bvhs = NULL;
+    tw_lods_free(lods);
+}
+
 void tw_stream_job_free(struct job_result *r)
 {
+    tw_stream_job_free_levels(&r->lods, &r->lod_bvhs);
     tw_bvh_destroy(r->bvh);
     tw_tileset_destroy(r->ts);
     r->bvh = NULL;
@@ -297,6 +330,7 @@ int tw_stream_workers_start(struct tw_stream *s)
     s->inline_worker.pool = s->pool;
     s->inline_worker.provider = *s->p;
     s->inline_worker.bvh = s->set.bvh;
+    s->inline_worker.lods = s->set.lods;
     err = tw_bvh_builder_create(&(struct tw_log){capture_log, &s->inline_worker}, 0,
                                 &s->inline_worker.builder);
     if (!err && s->set.workers > 0) {

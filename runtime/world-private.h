@@ -49,6 +49,16 @@ struct tw_oracle {
     int err;                        /* of the ID backend's draws */
 };
 
+/* What levels of detail change in the image (lod-image.c). */
+struct tw_lod_image {
+    struct tw_cull_driver *vfc;     /* draws the full-detail image */
+    uint64_t frame;
+    uint8_t *rgb;                   /* the full-detail image, top row first */
+    float *depth;                   /* its window depth, bottom row first */
+    uint8_t *frame_rgb;             /* the method's, likewise */
+    float *frame_depth;
+};
+
 /* Per-method state: its driver (tile cache, CHC++, propagation) and frame count. */
 struct method_state {
     struct tw_cull_driver *driver;
@@ -78,6 +88,14 @@ struct tw_world {
     struct tw_bvh **bvhs;           /* one per shared prototype */
     uint32_t shared_count;          /* shared prototypes (contents 0 .. shared_count - 1) */
     uint64_t shared_cpu, shared_gpu;/* bytes of the shared content, counted once */
+    /* Levels of detail (DESIGN §17): on when max_screen_error > 0. */
+    bool lod_on;
+    bool lod_full;                  /* a full-detail pass is drawing: level 0 everywhere */
+    float lod_px_per_m;             /* the view's pixels per metre at a distance of 1 m */
+    struct tw_lods lods;            /* of the shared prototypes */
+    struct tw_bvh **lod_bvhs;       /* one per level */
+    uint32_t lod_count;             /* levels of the shared prototypes */
+    uint32_t lod_first;             /* the renderer's content of the first level */
     struct tw_stream *stream;       /* tiles of their own (NULL: none can exist) */
     uint64_t frame_serial;          /* every frame of every method: the streaming clock */
     struct tw_tile_event *events;   /* of the last frame */
@@ -97,6 +115,7 @@ struct tw_world {
     size_t fixed_order_cap;
     bool record_draws;
     struct tw_oracle oracle;
+    struct tw_lod_image lod_image;  /* with verify and levels of detail */
 
     struct tw_view last_view;
     bool has_view;
@@ -133,6 +152,14 @@ int tw_oracle_order(struct tw_world *w, const struct tw_view *v, struct tw_drawn
 int tw_oracle_box_set(struct tw_world *w, const struct tw_view *v);
 /* Compares what the last frame drew with the last ID pass. */
 void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st);
+
+/* lod-image.c */
+/* Draws v at full detail (untimed) and keeps its image and depth. */
+int tw_lod_image_full_pass(struct tw_world *w, const struct tw_view *v);
+/* Compares the frame just drawn with the last full-detail pass: st's
+ * lod_pixels and lod_depth_m. */
+int tw_lod_image_compare(struct tw_world *w, const struct tw_view *v, struct tw_frame_stats *st);
+void tw_lod_image_finish(struct tw_lod_image *li);
 
 /* world-tiles.c */
 /* The provider the world shows, checked: the host's, or one made of the

@@ -76,10 +76,9 @@ int tw_world_resolve_provider(struct tw_world *w)
 }
 
 /* The stream's tile sink: the renderer's GPU store. */
-static int sink_upload(void *user, const struct tw_tileset *ts, const struct tw_bvh *bvh,
+static int sink_upload(void *user, const struct tw_tileset *ts, const struct tw_bvh *const *bvhs,
                        uint32_t *content, uint64_t *bytes_gpu)
 {
-    const struct tw_bvh *bvhs[1] = {bvh};
     return tw_renderer_upload(user, ts, bvhs, content, bytes_gpu);
 }
 
@@ -115,7 +114,8 @@ int tw_world_start_stream(struct tw_world *w)
         .upload_ms = w->s.upload_budget_ms,
         .evict_after = w->s.evict_after_frames,
         .budget = w->s.cache_budget_bytes,
-        .key_base = w->shared_count,
+        .key_base = w->shared_count + w->lod_count,
+        .lods = w->lod_on,
         .stop_ms = w->s.shutdown_timeout_ms,
         .log = &w->s.log,
     };
@@ -144,6 +144,21 @@ static int content_of(struct tw_world *w, struct tw_cell cell, uint32_t *content
     return TW_OK;
 }
 
+/* The geometric error, in metres, that cell's tile may have in the current
+ * view: max_screen_error pixels at the distance of the cell's common box
+ * (the nearest any of its content can be: conservative). 0 without levels
+ * of detail, and in a full-detail pass. */
+static float max_error_of(const struct tw_world *w, struct tw_cell cell)
+{
+    if (!w->lod_on || w->lod_full || !w->has_view || !(w->lod_px_per_m > 0.0f))
+        return 0.0f;
+    const struct tw_view *v = &w->last_view;
+    float off[3];
+    tw_tiles_cell_offset(cell, v->cell, w->grid.footprint[0], w->grid.footprint[1], off);
+    const float d = tw_cull_box_distance(v, &w->grid.common_box, off);
+    return d * w->s.max_screen_error / w->lod_px_per_m;
+}
+
 int tw_world_get_tile(void *ctx, struct tw_cell cell, float distance, unsigned flags,
                       struct tw_cull_tile *out)
 {
@@ -152,18 +167,28 @@ int tw_world_get_tile(void *ctx, struct tw_cell cell, float distance, unsigned f
     int err = content_of(w, cell, &c);
     if (err)
         return err;
+    const float max_error = max_error_of(w, cell);
     if (c != TW_TILE_OWN) {
         /* A cell that had a tile of its own and now shows a shared one: the
          * provider's answer changed, which is an invalidation. */
         if (w->stream && tw_stream_has(w->stream, cell))
             tw_stream_invalidate(w->stream, cell);
+        const uint32_t level = tw_lods_pick(&w->lods, c, max_error);
+        if (level > 0) {
+            const uint32_t k = w->lods.first[c] + level - 1;
+            out->proto = &w->lods.levels->prototypes[k];
+            out->bvh = w->lod_bvhs[k];
+            out->content = w->lod_first + k;
+            out->key = w->shared_count + k;
+            return TW_OK;
+        }
         out->proto = &w->provider.shared->prototypes[c];
         out->bvh = w->bvhs[c];
         out->content = c;
         out->key = c;
         return TW_OK;
     }
-    return tw_stream_get(w->stream, cell, distance, flags, out);
+    return tw_stream_get(w->stream, cell, distance, flags, max_error, out);
 }
 
 void tw_world_prefetch_tile(void *ctx, struct tw_cell cell, float distance)

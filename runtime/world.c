@@ -102,6 +102,8 @@ void tw_world_default_settings(struct tw_world_settings *s)
         s->near_plane = 0.2f;
     if (!(s->view_distance > 0.0f))
         s->view_distance = 600.0f;
+    if (s->max_screen_error == 0.0f)
+        s->max_screen_error = 1.0f;
     if (s->evict_after_frames == 0)
         s->evict_after_frames = 60;
     if (s->workers == 0)
@@ -163,6 +165,8 @@ static const char *out_of_range(const struct tw_world_settings *s, int methods)
         return "the field of view is not a finite angle below 179 degrees";
     if (!isfinite(s->view_distance) || !isfinite(s->near_plane))
         return "the view distance or the near plane is not a finite number";
+    if (!isfinite(s->max_screen_error) || s->max_screen_error > 1000.0f)
+        return "the max screen error is not a finite number of pixels up to 1000";
     if ((unsigned)s->method >= (unsigned)methods)
         return "the method is unknown";
     if (!(s->verify_tolerance >= 0.0f && s->verify_tolerance < 1.0f))
@@ -178,6 +182,38 @@ static const char *out_of_range(const struct tw_world_settings *s, int methods)
 
 static int create(const struct tw_world_settings *settings, const struct tw_world_tuning *tuning,
                   int methods, struct tw_world **out);
+
+/* The levels of detail of the shared prototypes (DESIGN §17): built,
+ * their BVHs too, uploaded and counted with the shared content. */
+static int shared_levels(struct tw_world *w, const struct tw_tileset *ts)
+{
+    int err = tw_lods_build(ts, ts->max_cluster_triangles, &w->lods);
+    if (err) {
+        tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot build the levels of detail of %s: %s",
+                      ts->name, tw_error_to_str(err));
+        return err;
+    }
+    const struct tw_tileset *levels = w->lods.levels;
+    if (!levels)
+        return TW_OK;   /* nothing simplifies */
+    w->lod_bvhs = calloc(levels->prototype_count, sizeof(*w->lod_bvhs));
+    struct tw_bvh_builder *builder = NULL;
+    err = w->lod_bvhs ? tw_bvh_builder_create(&w->s.log, 0, &builder) : TW_ERR_NOMEM;
+    if (!err)
+        w->lod_count = levels->prototype_count;
+    for (uint32_t k = 0; k < w->lod_count && !err; k++)
+        err = tw_bvh_build(builder, &levels->prototypes[k], &w->t.bvh, &w->lod_bvhs[k]);
+    tw_bvh_builder_destroy(builder);
+    uint64_t gpu = 0;
+    if (!err)
+        err = tw_renderer_upload(w->renderer, levels, (const struct tw_bvh *const *)w->lod_bvhs,
+                                 &w->lod_first, &gpu);
+    w->shared_gpu += gpu;
+    w->shared_cpu += tw_lods_bytes(&w->lods);
+    for (uint32_t k = 0; k < w->lod_count && !err; k++)
+        w->shared_cpu += w->lod_bvhs[k]->bytes;
+    return err;
+}
 
 /* A host's world draws with a method; the tools' may draw a limit too. */
 int tw_world_create(const struct tw_world_settings *settings, struct tw_world **out)
@@ -228,6 +264,7 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
     }
     w->s = *settings;
     tw_world_default_settings(&w->s);
+    w->lod_on = w->s.max_screen_error > 0.0f;
     if (tuning)
         w->t = *tuning;
     tw_world_default_tuning(&w->t);
@@ -278,6 +315,8 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
         for (uint32_t p = 0; p < ts->prototype_count && !err; p++)
             w->shared_cpu += w->bvhs[p]->bytes;
         w->calibration_first = first;
+        if (!err && w->lod_on)
+            err = shared_levels(w, ts);
     }
     /* What queries and draws cost here (DESIGN §14). */
     if (!err && w->t.calibration.query_ms > 0.0) {
@@ -329,6 +368,7 @@ uint32_t tw_world_destroy(struct tw_world *w)
     tw_cull_driver_destroy(w->fixed_set);
     free(w->fixed_order);
     tw_oracle_finish(&w->oracle);
+    tw_lod_image_finish(&w->lod_image);
     tw_debug_finish(w);
     tw_cull_cells_finish(&w->cells);
     tw_cull_cells_finish(&w->ahead);
@@ -347,9 +387,13 @@ uint32_t tw_world_destroy(struct tw_world *w)
         for (uint32_t p = 0; p < w->shared_count; p++)
             tw_bvh_destroy(w->bvhs[p]);
     free(w->bvhs);
+    for (uint32_t k = 0; w->lod_bvhs && k < w->lod_count; k++)
+        tw_bvh_destroy(w->lod_bvhs[k]);
+    free(w->lod_bvhs);
     free(w->events);
     free(w->next_events);
     tw_renderer_destroy(w->renderer);
+    tw_lods_free(&w->lods);     /* after the renderer, which held its tileset */
     free(w);
     return left_behind;
 }
@@ -420,6 +464,8 @@ static int setup_view(struct tw_world *w, const struct tw_camera *cam, struct tw
                        (float)w->s.width / (float)w->s.height, w->s.near_plane,
                        w->s.view_distance + diag);
     v->view_distance = w->s.view_distance;
+    /* proj[5] = 1 / tan(fov_y / 2): the focal length in half-heights. */
+    w->lod_px_per_m = 0.5f * v->proj[5] * (float)w->s.height;
     return TW_OK;
 }
 
@@ -487,6 +533,16 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
         cpu0 += tw_renderer_cpu_ms() - cs0;
         tw_gputime_mark(&w->gputime, TW_GPUTIME_FRAME_BEGIN);
     }
+    if (verify && w->lod_on) {
+        /* The full-detail image that the frame's is compared with: not the
+         * method's work, untimed. */
+        const double ts0 = tw_clock_monotonic_ms(), cs0 = tw_renderer_cpu_ms();
+        err = tw_lod_image_full_pass(w, &v);
+        if (err)
+            return err;
+        t0 += tw_clock_monotonic_ms() - ts0;
+        cpu0 += tw_renderer_cpu_ms() - cs0;
+    }
     struct tw_cost_model costs;
     tw_calibrate_model(&w->calibration, w->s.width, w->s.height, &costs);
     tw_cull_driver_set_costs(ms->driver, &costs);
@@ -527,7 +583,9 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
         tw_renderer_finish(w->renderer);
         st.ms_frame = tw_clock_monotonic_ms() - t0;
         st.cpu_ms = tw_renderer_cpu_ms() - cpu0;
-        if (!oracle) {
+        if (w->lod_on)
+            err = tw_lod_image_compare(w, &v, &st);
+        if (!err && !oracle) {
             tw_gputime_mark(&w->gputime, TW_GPUTIME_ID_BEGIN);
             err = tw_oracle_pass(w, &v);
             tw_gputime_mark(&w->gputime, TW_GPUTIME_ID_END);

@@ -2,7 +2,7 @@
 # Installs the Debian 12 packages tileworld needs to build, test and run.
 # Does nothing when they are all present already.
 set -euo pipefail
-packages=(build-essential meson ninja-build pkg-config libembree-dev libosmesa6-dev
+packages=(build-essential meson ninja-build pkg-config libembree-dev libmeshoptimizer-dev libosmesa6-dev
           mesa-common-dev libgl-dev libglfw3-dev libpng-dev libjson-c-dev gnuplot-nox
           libegl-dev libegl1 libegl-mesa0 # EGL: headers, glvnd's loader, Mesa's vendor (llvmpipe)
           g++ libtinygltf-dev nlohmann-json3-dev

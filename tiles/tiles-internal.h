@@ -99,6 +99,43 @@ void tw_tiles_cell_offset(struct tw_cell cell, struct tw_cell origin, float w,
 double tw_tiles_cells_in_reach(const struct tw_box *common_box, float w, float d,
                                float view_distance);
 
+/* ---- levels of detail (DESIGN §17) ---------------------------------------- */
+
+/* The most levels a prototype has besides its full detail. */
+#define TW_LOD_MAX_LEVELS 8u
+
+/* The coarser levels of a finished tileset's prototypes, built by
+ * meshoptimizer: each prototype baked into one tile-local mesh (colours
+ * baked into its vertices), then simplified to about half the triangles of
+ * the level before, by edge collapse and, where that stalls (many small
+ * closed meshes), by vertex clustering; each level's indices ordered for the
+ * vertex cache and for overdraw. Level k of prototype p (k = 1 ..
+ * count[p]) is levels->prototypes[first[p] + k - 1], with geometric error
+ * error[first[p] + k - 1] in metres (meshoptimizer's measure of how far the
+ * simplified surface departs from full detail; it never decreases with k).
+ * Every level lies within its prototype's box: simplification keeps
+ * original vertex positions. */
+struct tw_lods {
+    struct tw_tileset *levels;  /* finished and packed; NULL: no prototype has a level */
+    uint32_t source_count;      /* the source tileset's prototypes */
+    uint32_t *first;            /* per source prototype */
+    uint32_t *count;            /* per source prototype: its levels, 0 .. TW_LOD_MAX_LEVELS */
+    float *error;               /* per level */
+};
+
+/* Builds the levels of ts (finished), their clusters of at most
+ * max_cluster_triangles. Zeroes *out first; on an error nothing is left to
+ * free. */
+int tw_lods_build(const struct tw_tileset *ts, uint32_t max_cluster_triangles,
+                  struct tw_lods *out);
+/* Accepts a zeroed struct. */
+void tw_lods_free(struct tw_lods *l);
+/* Heap bytes held. */
+uint64_t tw_lods_bytes(const struct tw_lods *l);
+/* The coarsest level of source prototype p whose error is at most
+ * max_error metres: 0 (full detail) when none is, or max_error <= 0. */
+uint32_t tw_lods_pick(const struct tw_lods *l, uint32_t p, float max_error);
+
 /* ---- tilesets ------------------------------------------------------------ */
 
 /* Moves a finished tileset, its struct and every array it owns, into one

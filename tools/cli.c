@@ -425,6 +425,7 @@ void tw_cli_init(struct tw_cli *c, const char *program)
     c->world.selection.seed = 1;
     c->world.method = TW_METHOD_TILEQUERY_CHC;
     c->world.view_distance = 600.0f;
+    c->world.max_screen_error = 1.0f;
 }
 
 /* Applies a shared option; false for a program's own. */
@@ -445,6 +446,12 @@ static bool apply_common(struct tw_cli *c, int opt, const char *place, const cha
         break;
     case TW_CLI_OPT_VIEW_DISTANCE:
         ws->view_distance = tw_cli_float(p, place, arg, 1.0f, 100000.0f);
+        break;
+    case TW_CLI_OPT_MAX_SCREEN_ERROR:
+        /* 0 on the command line is full detail; the library reads 0 as its default. */
+        ws->max_screen_error = tw_cli_float(p, place, arg, 0.0f, 1000.0f);
+        if (ws->max_screen_error == 0.0f)
+            ws->max_screen_error = TW_FULL_DETAIL;
         break;
     case TW_CLI_OPT_QUIET: c->quiet = true; break;
     case TW_CLI_OPT_WORKERS: ws->workers = (uint32_t)tw_cli_u64(p, place, arg, 1, 64); break;

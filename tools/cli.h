@@ -46,6 +46,7 @@ enum {
     TW_CLI_OPT_POLICY,
     TW_CLI_OPT_BUDGET,
     TW_CLI_OPT_UPLOAD_BUDGET,
+    TW_CLI_OPT_MAX_SCREEN_ERROR,
     TW_CLI_OPT_PROGRAM = 512,
 };
 
@@ -65,6 +66,7 @@ enum {
     {"policy", required_argument, NULL, TW_CLI_OPT_POLICY}, \
     {"budget", required_argument, NULL, TW_CLI_OPT_BUDGET}, \
     {"upload-budget", required_argument, NULL, TW_CLI_OPT_UPLOAD_BUDGET}, \
+    {"max-screen-error", required_argument, NULL, TW_CLI_OPT_MAX_SCREEN_ERROR}, \
     {"help", no_argument, NULL, 'h'}
 
 /* What the shared options set. */

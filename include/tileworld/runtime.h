@@ -105,6 +105,11 @@ struct tw_world_settings {
     float fov_y;                       /* vertical field of view, degrees; default 60 */
     float near_plane;                  /* metres; default 0.2 */
     float view_distance;               /* metres; default 600 */
+    float max_screen_error;            /* levels of detail (DESIGN §17): a tile is drawn at
+                                          the coarsest of its levels whose geometric error
+                                          projects to at most this many pixels; default (0)
+                                          1; TW_FULL_DETAIL (negative): full detail always,
+                                          and no levels are built */
     uint32_t evict_after_frames;       /* tile cache; default 60 */
     bool verify;                       /* run the oracle's ID pass every frame (untimed) and
                                           count what the method missed (missed_pixels) */
@@ -118,6 +123,9 @@ struct tw_world_settings {
     tw_gl_get_proc_fn get_proc;        /* loader of the current context; required */
     struct tw_log log;                 /* copied; zeroed: silent */
 };
+
+/* tw_world_settings.max_screen_error: no levels of detail. */
+#define TW_FULL_DETAIL (-1.0f)
 
 /* The default of tw_world_settings.verify_tolerance: two surfaces whose eye
  * distances differ by less than this fraction are one surface to a user (a
@@ -206,6 +214,13 @@ struct tw_frame_stats {
      * applied in this frame were (0: none yet, or the CPU's pyramid). */
     uint32_t tiles_late;
     uint32_t hzb_lag;
+    /* Levels of detail (DESIGN §17), with verify and max_screen_error > 0:
+     * what they change against the same frame drawn at full detail. */
+    uint64_t lod_pixels;     /* pixels whose colour differs (a channel by more than 2
+                                of 255) */
+    double lod_depth_m;      /* the mean distance, metres along the view axis, between
+                                the surfaces the two images show at those of these
+                                pixels where both show one */
 };
 
 struct tw_world;

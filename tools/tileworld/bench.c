@@ -155,6 +155,7 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     about->verified = ws.verify;
     about->bench = run->bench;
     about->verify_tolerance = tw_world_settings(world)->verify_tolerance;
+    about->max_screen_error = tw_world_settings(world)->max_screen_error;
     about->deterministic = ws.deterministic;
     about->mutate_query_shrink = run->tuning.mutate_query_shrink;
     struct tw_context_info info;
@@ -259,10 +260,12 @@ out:
 
 /* ---- sweeps ---------------------------------------------------------------------- */
 
-enum sweep_param { P_NAV, P_B, P_T, P_CLUSTER, P_EVICT, P_DISTANCE, P_NEIGHBOURS, P_COUNT };
+enum sweep_param { P_NAV, P_B, P_T, P_CLUSTER, P_EVICT, P_DISTANCE, P_NEIGHBOURS, P_SCREEN_ERROR,
+                   P_COUNT };
 
 static const char *const sweep_names[P_COUNT] = {
     "n_av", "b", "T", "cluster_triangles", "evict_after", "view_distance", "neighbours",
+    "max_screen_error",
 };
 
 /* Parses "PARAM=v1,v2,..." into a parameter and up to 32 values. */
@@ -282,7 +285,7 @@ static int parse_sweep(const char *spec, enum sweep_param *param, double *values
     if (p < 0) {
         snprintf(err, err_size,
                  "--sweep: unknown parameter '%.*s' (n_av, b, T, cluster_triangles, evict_after, "
-                 "view_distance, neighbours)", (int)n, spec);
+                 "view_distance, neighbours, max_screen_error)", (int)n, spec);
         return TW_ERR_INVALID;
     }
     *param = (enum sweep_param)p;
@@ -315,6 +318,7 @@ static int parse_sweep(const char *spec, enum sweep_param *param, double *values
         case P_EVICT: ok = whole && v >= 1 && v <= 1e6; break;
         case P_DISTANCE: ok = v >= 1 && v <= 100000; break;
         case P_NEIGHBOURS: ok = v == 4 || v == 8; break;
+        case P_SCREEN_ERROR: ok = v >= 0 && v <= 1000; break;
         default: break;
         }
         if (!ok) {
@@ -386,6 +390,7 @@ static void apply_sweep(struct tw_world_settings *ws, struct tw_world_tuning *wt
     case P_EVICT: ws->evict_after_frames = (uint32_t)v; break;
     case P_DISTANCE: ws->view_distance = (float)v; break;
     case P_NEIGHBOURS: wt->tilequery.neighbours = (uint32_t)v; break;
+    case P_SCREEN_ERROR: ws->max_screen_error = v > 0.0 ? (float)v : TW_FULL_DETAIL; break;
     default: break;
     }
 }
@@ -488,7 +493,7 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
     /* Speed-ups are against T=0 when T is swept through 0, else against
      * the run with the defaults (T=0 too). */
     uint32_t reference = UINT32_MAX;
-    for (uint32_t k = 0; k < count && param == P_T; k++)
+    for (uint32_t k = 0; k < count && (param == P_T || param == P_SCREEN_ERROR); k++)
         if (values[k] == 0.0)
             reference = k;
     const uint32_t npoints = count * run->method_count;
@@ -496,7 +501,10 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
         tw_pareto_points(values, count, (const struct tw_method_figures(*)[TW_METHOD_ALL])figures,
                          (const bool(*)[TW_METHOD_ALL])conservative, run->methods,
                          run->method_count, run->figures, reference, points);
-        rc = write_sweep_md(run, sweep_names[param], reference == UINT32_MAX ? "defaults" : "T=0",
+        rc = write_sweep_md(run, sweep_names[param],
+                            reference == UINT32_MAX ? "defaults"
+                            : param == P_T          ? "T=0"
+                                                    : "max_screen_error=0",
                             points, npoints, err, err_size);
     }
     if (!rc && run->bench) {

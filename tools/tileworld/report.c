@@ -43,7 +43,7 @@ static const char *const csv_header =
     "loads_done,evictions,bytes_cpu,bytes_gpu,bytes_state,bytes_needed,over_budget,ms_upload,"
     "blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read,bytes_loading,"
     "tiles_loading,set_cpu_ms,set_ms,set_triangles,set_draws,overdraw_box_triangles,gpu_ms,"
-    "gpu_ms_id,waits,flushes,bytes_read_back,tiles_late,hzb_lag\n";
+    "gpu_ms_id,waits,flushes,bytes_read_back,tiles_late,hzb_lag,lod_pixels,lod_depth_m\n";
 
 /* A row of frames.csv as the row of a gnuplot data file: blank-separated,
  * without the method (its file says it). */
@@ -119,7 +119,8 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
     snprintf(row, sizeof(row),
              "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu,%.3f,%llu,"
              "%u,%u,%u,%u,%llu,%llu,%llu,%llu,%d,%.3f,"
-             "%u,%u,%u,%.3f,%.3f,%llu,%u,%.3f,%.3f,%llu,%u,%llu,%.3f,%.3f,%u,%u,%llu,%u,%u\n",
+             "%u,%u,%u,%.3f,%.3f,%llu,%u,%.3f,%.3f,%llu,%u,%llu,%.3f,%.3f,%u,%u,%llu,%u,%u,%llu,"
+             "%.4f\n",
              (unsigned long long)st->frame, tw_method_name(st->method), st->ms_frame, st->ms_cull,
              st->ms_wait, (unsigned long long)st->triangles, st->clusters, st->draws, st->queries,
              st->tiles_queried, st->tiles_visible, st->tiles_new, st->tiles_cached,
@@ -134,7 +135,8 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
              st->ms_hzb_read, (unsigned long long)st->bytes_loading, st->tiles_loading,
              sv->cpu_ms, sv->ms, (unsigned long long)sv->triangles, sv->draws,
              (unsigned long long)st->overdraw_box_triangles, st->gpu_ms, st->gpu_ms_id, st->waits,
-             st->flushes, (unsigned long long)st->bytes_read_back, st->tiles_late, st->hzb_lag);
+             st->flushes, (unsigned long long)st->bytes_read_back, st->tiles_late, st->hzb_lag,
+             (unsigned long long)st->lod_pixels, st->lod_depth_m);
     if (!tw_outfile_printf(&r->frames_csv, "%s", row))
         return tw_outfile_report(&r->frames_csv, err, err_size);
     if (r->chart_data) {
@@ -176,6 +178,8 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
     m->missed_clusters_total += st->missed_clusters;
     m->depth_errors_total += st->depth_errors;
     m->frames_with_depth_errors += st->depth_errors > 0;
+    m->lod_pixels_total += st->lod_pixels;
+    m->lod_depth_sum += st->lod_depth_m;
     m->tiles_new_total += st->tiles_new;
     if (st->cache_bytes > m->peak_instance_bytes)
         m->peak_instance_bytes = st->cache_bytes;
@@ -688,6 +692,22 @@ void tw_report_verdict(const struct tw_report_about *about,
                     fg->frames);
         }
     }
+    if (about->verified && about->max_screen_error > 0.0f) {
+        add(line, " Levels of detail (--max-screen-error %g): pixels differing from full "
+                  "detail,", about->max_screen_error);
+        bool comma = false;
+        for (int k = 0; k < TW_METHOD_ALL; k++) {
+            const struct tw_method_figures *fg = &figures[k];
+            if (!fg->used)
+                continue;
+            add(line, "%s %s %.3f %%", comma ? "," : "", tw_method_name((enum tw_method)k),
+                100.0 * fg->lod_pixel_fraction);
+            comma = true;
+        }
+        add(line, " of the image a frame.");
+    } else if (about->verified) {
+        add(line, " Full detail (--max-screen-error 0).");
+    }
     if (about->mutate_query_shrink > 0.0f)
         add(line, " %sTesting only: every query box shrunk by %g of its size "
                   "(--mutate-query-shrink), a deliberately broken culler.%s",
@@ -771,6 +791,17 @@ int tw_report_close(struct tw_report *r, bool markdown,
         json_object_object_add(o, "frames_with_missed_pixels",
                                verified ? json_object_new_int64(m->frames_with_missed_pixels)
                                         : NULL);
+        /* What levels of detail change against full detail (with verify). */
+        const bool lod = verified && r->about.max_screen_error > 0.0f && m->frames;
+        const double npix = (double)r->about.width * r->about.height;
+        json_object_object_add(o, "lod_pixels_per_frame",
+                               lod ? number((double)m->lod_pixels_total / m->frames, 1) : NULL);
+        json_object_object_add(o, "lod_pixel_fraction",
+                               lod && npix > 0 ? number((double)m->lod_pixels_total /
+                                                            m->frames / npix, 7)
+                                               : NULL);
+        json_object_object_add(o, "lod_depth_m_mean",
+                               lod ? number(m->lod_depth_sum / m->frames, 4) : NULL);
         json_object_object_add(o, "tiles_new_total", json_object_new_int64((int64_t)m->tiles_new_total));
         json_object_object_add(o, "peak_instance_bytes",
                                json_object_new_int64((int64_t)m->peak_instance_bytes));
@@ -856,6 +887,11 @@ int tw_report_close(struct tw_report *r, bool markdown,
             fg->missed_clusters_total = m->missed_clusters_total;
             fg->depth_errors_total = m->depth_errors_total;
             fg->frames_with_depth_errors = m->frames_with_depth_errors;
+            fg->lod_pixels_total = m->lod_pixels_total;
+            fg->lod_pixel_fraction =
+                m->frames && r->about.width ? (double)m->lod_pixels_total / m->frames /
+                                                ((double)r->about.width * r->about.height)
+                                          : 0.0;
             fg->predict_fail_rate = m->tiles_queried ? (double)m->predict_fail / m->tiles_queried : 0.0;
             fg->peak_instance_bytes = m->peak_instance_bytes;
             fg->mean_gpu_ms = row->gpu_mean;

@@ -66,6 +66,8 @@ struct tw_method_summary {
     uint64_t missed_clusters_total;
     uint64_t depth_errors_total;
     uint32_t frames_with_depth_errors;
+    uint64_t lod_pixels_total;
+    double lod_depth_sum;     /* of the frames' lod_depth_m */
     uint64_t tiles_new_total;
     uint64_t peak_instance_bytes;  /* this method's tile instances (frames.csv cache_bytes) */
     uint64_t predict_fail, tiles_queried;
@@ -97,6 +99,8 @@ struct tw_method_figures {
     uint64_t missed_clusters_total;
     uint64_t depth_errors_total;
     uint32_t frames_with_depth_errors;
+    uint64_t lod_pixels_total;   /* pixels differing from full detail (verify, LOD on) */
+    double lod_pixel_fraction;   /* their mean share of the image a frame */
     double predict_fail_rate;
     uint64_t peak_instance_bytes;
     double mean_gpu_ms;       /* over the frames whose GPU time came back; -1: none did */
@@ -116,6 +120,7 @@ struct tw_report_about {
     bool bench;                 /* a bench run (else a walk): the summaries' title */
     bool verified;
     float verify_tolerance;
+    float max_screen_error;     /* resolved; <= 0: full detail */
     bool deterministic;
     float mutate_query_shrink;
     /* What ran (DESIGN §15): the context's kind ("osmesa", "egl-device", ...),

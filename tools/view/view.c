@@ -51,6 +51,7 @@ static void usage(FILE *f)
 {
     fputs("usage: tileworld view [--tileset NAME|FILE.json] [--seed N] [--method M] [--size WxH]\n"
           "                      [--start-cell I,J] [--repeat P] [--view-distance M]\n"
+          "                      [--max-screen-error PX]\n"
           "                      [--debug cells,nodes,queries|all] [--no-overlay]\n"
           "                      [--path NAME|FILE.csv] [--frames N] [--screenshot FILE.png]\n"
           "                      [--freeze-at N] [--quiet] [--workers N] [--policy wait|skip]\n"
@@ -66,6 +67,9 @@ static void usage(FILE *f)
           "--start-cell I,J      the cell the camera starts in (with --path: moves the path)\n"
           "--repeat P            the selection repeats every P cells\n"
           "--view-distance M     metres, 1..100000 (default 600)\n"
+          "--max-screen-error PX  levels of detail: each tile drawn at its coarsest level whose\n"
+          "                      error projects to at most PX pixels, 0..1000; 0: full detail\n"
+          "                      (default 1)\n"
           "--debug cells,nodes,queries|all  debug views shown at the start (keys C, B, X)\n"
           "--no-overlay          no text overlay at the start (key O)\n"
           "--path NAME|FILE.csv  play a camera path (built-in name or CSV) instead of flying\n"

@@ -1,0 +1,156 @@
+/*
+ * Levels of detail (tiles/lod.c, DESIGN §17): each level coarser than the
+ * one before, its error never smaller, within its prototype's box, its
+ * colours those of its instances' materials; the pick by error.
+ */
+#include "check.h"
+#include "tiles/tiles-internal.h"
+#include "tileworld/tiles.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* A box mesh with a face's own vertices (flat normals, as buildings are):
+ * 24 vertices, 12 triangles, unit cube [0, 1]^3. */
+static int add_cube(struct tw_tileset *ts)
+{
+    static const float corners[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
+                                        {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+    static const int faces[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4},
+                                    {3, 7, 6, 2}, {0, 4, 7, 3}, {1, 2, 6, 5}};
+    float pos[24 * 3];
+    uint32_t idx[36];
+    for (int f = 0; f < 6; f++) {
+        for (int v = 0; v < 4; v++)
+            memcpy(pos + 3 * (4 * f + v), corners[faces[f][v]], sizeof(float) * 3);
+        const uint32_t b = 4u * (uint32_t)f;
+        const uint32_t tri[6] = {b, b + 1, b + 2, b, b + 2, b + 3};
+        memcpy(idx + 6 * f, tri, sizeof(tri));
+    }
+    return tw_tileset_add_mesh(ts, pos, NULL, 24, idx, 12);
+}
+
+/* A wavy height field of n x n quads over [0, 40]^2. */
+static int add_terrain(struct tw_tileset *ts, uint32_t n)
+{
+    const uint32_t nv = (n + 1) * (n + 1);
+    float *pos = malloc(sizeof(float) * 3 * nv);
+    uint32_t *idx = malloc(sizeof(uint32_t) * 6 * n * n);
+    for (uint32_t j = 0; j <= n; j++)
+        for (uint32_t i = 0; i <= n; i++) {
+            float *p = pos + 3 * (j * (n + 1) + i);
+            p[0] = 40.0f * (float)i / (float)n;
+            p[2] = 40.0f * (float)j / (float)n;
+            p[1] = 0.5f * sinf(p[0] * 0.3f) * cosf(p[2] * 0.2f);
+        }
+    uint32_t t = 0;
+    for (uint32_t j = 0; j < n; j++)
+        for (uint32_t i = 0; i < n; i++) {
+            const uint32_t a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
+            const uint32_t q[6] = {a, c, b, b, c, d};
+            memcpy(idx + 6 * t++, q, sizeof(q));
+        }
+    const int m = tw_tileset_add_mesh(ts, pos, NULL, nv, idx, 2 * n * n);
+    free(pos);
+    free(idx);
+    return m;
+}
+
+static bool box_inside(const struct tw_box *in, const struct tw_box *out)
+{
+    for (int a = 0; a < 3; a++)
+        if (in->min[a] < out->min[a] || in->max[a] > out->max[a])
+            return false;
+    return true;
+}
+
+int main(void)
+{
+    struct tw_tileset *ts;
+    CHECK(tw_tileset_create("lod", 40, 40, &ts) == TW_OK);
+    const int red = tw_tileset_add_material(ts, (const float[4]){1, 0, 0, 1});
+    const int green = tw_tileset_add_material(ts, (const float[4]){0, 1, 0, 1});
+    const int cube = add_cube(ts);
+    const int terrain = add_terrain(ts, 64);
+    CHECK(red >= 0 && green >= 0 && cube >= 0 && terrain >= 0);
+    /* 0: a block of 400 small buildings (edge collapse stalls on closed boxes) */
+    const int block = tw_tileset_add_prototype(ts, "block", 1.0f);
+    for (int k = 0; k < 400; k++) {
+        const float x = 2.0f * (float)(k % 20), z = 2.0f * (float)(k / 20);
+        const float h = 1.0f + (float)(k % 7);
+        const float m[12] = {1, 0, 0, x, 0, h, 0, 0, 0, 0, 1, z};
+        CHECK(tw_tileset_add_instance(ts, (uint32_t)block, (uint32_t)cube, (uint32_t)red, m) >= 0);
+    }
+    /* 1: terrain, green */
+    const int field = tw_tileset_add_prototype(ts, "field", 1.0f);
+    CHECK(tw_tileset_add_instance(ts, (uint32_t)field, (uint32_t)terrain, (uint32_t)green, NULL) >= 0);
+    /* 2: one cube: too small to simplify */
+    const int lone = tw_tileset_add_prototype(ts, "lone", 1.0f);
+    CHECK(tw_tileset_add_instance(ts, (uint32_t)lone, (uint32_t)cube, (uint32_t)red, NULL) >= 0);
+    ts->merge_triangles = 1;
+    CHECK(tw_tileset_finish(ts, 256) == TW_OK);
+
+    struct tw_lods l;
+    CHECK(tw_lods_build(ts, 256, &l) == TW_OK);
+    CHECK(l.levels != NULL && l.source_count == 3);
+    CHECK_MSG(l.count[0] >= 2, "%u levels of the block", l.count[0]);
+    CHECK_MSG(l.count[1] >= 3, "%u levels of the field", l.count[1]);
+    CHECK(l.count[2] == 0);
+    for (uint32_t p = 0; p < 2 && l.levels; p++) {
+        uint64_t previous = ts->prototypes[p].triangle_count;
+        float previous_error = 0.0f;
+        for (uint32_t k = 0; k < l.count[p]; k++) {
+            const struct tw_prototype *lv = &l.levels->prototypes[l.first[p] + k];
+            const float e = l.error[l.first[p] + k];
+            CHECK_MSG((double)lv->triangle_count <= 0.75 * (double)previous,
+                      "prototype %u level %u: %llu triangles after %llu", p, k + 1,
+                      (unsigned long long)lv->triangle_count, (unsigned long long)previous);
+            CHECK_MSG(e >= previous_error && isfinite(e) && e > 0.0f,
+                      "prototype %u level %u: error %g after %g", p, k + 1, e, previous_error);
+            CHECK(box_inside(&lv->box, &ts->prototypes[p].box));
+            CHECK(lv->cluster_count >= 1);
+            for (uint32_t c = 0; c < lv->cluster_count; c++)
+                CHECK(lv->clusters[c].triangle_count <= 256);
+            /* Colours baked from the material: every vertex red, or green. */
+            const struct tw_mesh *m = &l.levels->meshes[lv->instances[0].mesh];
+            CHECK(m->colors != NULL);
+            bool colour_ok = true;
+            for (uint32_t v = 0; m->colors && v < m->vertex_count; v++) {
+                const uint8_t *c = m->colors + 4 * v;
+                colour_ok &= p == 0 ? c[0] == 255 && c[1] == 0 : c[0] == 0 && c[1] == 255;
+            }
+            CHECK_MSG(colour_ok, "prototype %u level %u: a vertex not of its material", p, k + 1);
+            previous = lv->triangle_count;
+            previous_error = e;
+        }
+        /* The field's first level keeps its shape within a fraction of a
+         * metre; its coarsest is much coarser. */
+        if (p == 1 && l.count[1] >= 3) {
+            CHECK_MSG(l.error[l.first[1]] < 0.2f, "first level error %g", l.error[l.first[1]]);
+            CHECK(l.error[l.first[1] + l.count[1] - 1] > l.error[l.first[1]]);
+        }
+    }
+    /* The pick: 0 without an error to spend, every level with a large one,
+     * level k + 1 at exactly level k + 1's error. */
+    CHECK(tw_lods_pick(&l, 1, 0.0f) == 0);
+    CHECK(tw_lods_pick(&l, 1, -1.0f) == 0);
+    CHECK(tw_lods_pick(&l, 1, 1e9f) == l.count[1]);
+    CHECK(tw_lods_pick(&l, 2, 1e9f) == 0);
+    CHECK(tw_lods_pick(&l, 7, 1e9f) == 0);
+    for (uint32_t k = 0; k < l.count[1]; k++)
+        CHECK(tw_lods_pick(&l, 1, l.error[l.first[1] + k]) >= k + 1);
+    CHECK(tw_lods_pick(&l, 1, 0.5f * l.error[l.first[1]]) == 0 || l.error[l.first[1]] == 0.0f);
+    CHECK(tw_lods_bytes(&l) > tw_tileset_geometry_bytes(l.levels) / 2);
+    tw_lods_free(&l);
+    tw_lods_free(&l);   /* twice: zeroed */
+    CHECK(l.levels == NULL && l.first == NULL);
+
+    /* Unfinished: refused. */
+    struct tw_tileset *raw;
+    CHECK(tw_tileset_create("raw", 10, 10, &raw) == TW_OK);
+    CHECK(tw_lods_build(raw, 256, &l) == TW_ERR_INVALID && l.levels == NULL);
+    tw_tileset_destroy(raw);
+    tw_tileset_destroy(ts);
+    return check_summary("test-lod");
+}

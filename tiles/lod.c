@@ -1,0 +1,377 @@
+/* Levels of detail of a tileset's prototypes (tiles-internal.h, DESIGN §17):
+ * each prototype baked into one tile-local mesh and simplified by
+ * meshoptimizer, level after level, each with its geometric error. */
+#include "tiles/tiles-internal.h"
+#include "tileworld/tiles.h"
+
+#include <float.h>
+#include <math.h>
+#include <meshoptimizer.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* A level is kept only if it has at most this share of the previous one's
+ * triangles: a level that saves little costs memory and a BVH for nothing. */
+#define LOD_KEEP_RATIO 0.75
+/* No level below this many triangles: what is left is a few boxes. */
+#define LOD_MIN_TRIANGLES 8u
+
+/* One prototype baked: tile-local positions, normals and colours (the
+ * material's colour times the vertex colour), every instance drawn. */
+struct baked {
+    float *pos;
+    float *nrm;
+    uint8_t *rgba;
+    uint32_t *idx;
+    uint32_t vertices;
+    uint32_t triangles;
+};
+
+static void baked_free(struct baked *b)
+{
+    free(b->pos);
+    free(b->nrm);
+    free(b->rgba);
+    free(b->idx);
+    memset(b, 0, sizeof(*b));
+}
+
+static uint8_t unorm8(float x)
+{
+    return (uint8_t)lrintf(fminf(fmaxf(x, 0.0f), 1.0f) * 255.0f);
+}
+
+static int bake(const struct tw_tileset *ts, const struct tw_prototype *p, struct baked *b)
+{
+    uint64_t vertices = 0, triangles = 0;
+    for (uint32_t k = 0; k < p->instance_count; k++) {
+        const struct tw_instance *in = &p->instances[k];
+        if (in->merged_into != TW_INSTANCE_NONE)
+            continue;   /* drawn by the merged instance that holds it */
+        vertices += ts->meshes[in->mesh].vertex_count;
+        triangles += ts->meshes[in->mesh].triangle_count;
+    }
+    if (vertices > UINT32_MAX || triangles > UINT32_MAX / 3)
+        return TW_ERR_LIMIT;
+    memset(b, 0, sizeof(*b));
+    if (vertices == 0 || triangles == 0)
+        return TW_OK;
+    b->pos = malloc(sizeof(float) * 3 * (size_t)vertices);
+    b->nrm = malloc(sizeof(float) * 3 * (size_t)vertices);
+    b->rgba = malloc(4 * (size_t)vertices);
+    b->idx = malloc(sizeof(uint32_t) * 3 * (size_t)triangles);
+    if (!b->pos || !b->nrm || !b->rgba || !b->idx) {
+        baked_free(b);
+        return TW_ERR_NOMEM;
+    }
+    uint32_t vbase = 0, tbase = 0;
+    for (uint32_t k = 0; k < p->instance_count; k++) {
+        const struct tw_instance *in = &p->instances[k];
+        if (in->merged_into != TW_INSTANCE_NONE)
+            continue;
+        const struct tw_mesh *m = &ts->meshes[in->mesh];
+        const float *x = in->transform;
+        const float *color = ts->materials[in->material].base_color;
+        for (uint32_t v = 0; v < m->vertex_count; v++) {
+            const float *a = m->positions + 3 * (size_t)v, *n = m->normals + 3 * (size_t)v;
+            float *q = b->pos + 3 * (size_t)(vbase + v), *r = b->nrm + 3 * (size_t)(vbase + v);
+            for (int row = 0; row < 3; row++) {
+                const float *t = x + 4 * row;
+                q[row] = t[0] * a[0] + t[1] * a[1] + t[2] * a[2] + t[3];
+                r[row] = t[0] * n[0] + t[1] * n[1] + t[2] * n[2];
+            }
+            const float len = sqrtf(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+            for (int c = 0; c < 3; c++)
+                r[c] = len > 0.0f ? r[c] / len : (c == 1 ? 1.0f : 0.0f);
+            for (int c = 0; c < 4; c++) {
+                const float vc = m->colors ? m->colors[4 * (size_t)v + c] / 255.0f : 1.0f;
+                b->rgba[4 * (size_t)(vbase + v) + c] = unorm8(vc * color[c]);
+            }
+        }
+        for (uint32_t i = 0; i < 3 * m->triangle_count; i++)
+            b->idx[3 * (size_t)tbase + i] = m->indices[i] + vbase;
+        vbase += m->vertex_count;
+        tbase += m->triangle_count;
+    }
+    b->vertices = vbase;
+    b->triangles = tbase;
+    return TW_OK;
+}
+
+/* Adds the level whose indices (into b's vertices) are idx[0 .. 3 n) to
+ * levels as a prototype of one identity instance: the indices ordered for
+ * the vertex cache and for overdraw, the vertices compacted to those used. */
+static int add_level(struct tw_tileset *levels, uint32_t white, const char *name,
+                     const struct baked *b, uint32_t *idx, size_t n)
+{
+    meshopt_optimizeVertexCache(idx, idx, 3 * n, b->vertices);
+    meshopt_optimizeOverdraw(idx, idx, 3 * n, b->pos, b->vertices, sizeof(float) * 3, 1.05f);
+    unsigned int *remap = malloc(sizeof(*remap) * b->vertices);
+    if (!remap)
+        return TW_ERR_NOMEM;
+    const size_t used = meshopt_optimizeVertexFetchRemap(remap, idx, 3 * n, b->vertices);
+    float *pos = malloc(sizeof(float) * 3 * (size_t)b->vertices);
+    float *nrm = malloc(sizeof(float) * 3 * (size_t)b->vertices);
+    uint8_t *rgba = malloc(4 * (size_t)b->vertices);
+    int err = TW_OK;
+    if (!pos || !nrm || !rgba) {
+        err = TW_ERR_NOMEM;
+        goto out;
+    }
+    meshopt_remapIndexBuffer(idx, idx, 3 * n, remap);
+    meshopt_remapVertexBuffer(pos, b->pos, b->vertices, sizeof(float) * 3, remap);
+    meshopt_remapVertexBuffer(nrm, b->nrm, b->vertices, sizeof(float) * 3, remap);
+    meshopt_remapVertexBuffer(rgba, b->rgba, b->vertices, 4, remap);
+    const int mesh = tw_tileset_add_mesh(levels, pos, nrm, (uint32_t)used, idx, (uint32_t)n);
+    if (mesh < 0) {
+        err = mesh;
+        goto out;
+    }
+    levels->meshes[mesh].colors = rgba;     /* the tileset's now */
+    rgba = NULL;
+    const int proto = tw_tileset_add_prototype(levels, name, 1.0f);
+    if (proto < 0) {
+        err = proto;
+        goto out;
+    }
+    const int inst = tw_tileset_add_instance(levels, (uint32_t)proto, (uint32_t)mesh, white, NULL);
+    if (inst < 0)
+        err = inst;
+out:
+    free(remap);
+    free(pos);
+    free(nrm);
+    free(rgba);
+    return err;
+}
+
+/* The baked mesh welded by position: what the simplifier sees (a box
+ * whose faces have vertices of their own is a closed surface to it, not six
+ * loose quads), and for each welded vertex the baked vertices it stands
+ * for, to give each corner of a simplified triangle back its own normal
+ * and colour. */
+struct welded {
+    float *pos;
+    uint32_t *idx;
+    uint32_t vertices;
+    uint32_t *first;    /* welded vertex w stands for baked vertices of[first[w] .. first[w + 1]) */
+    uint32_t *of;
+};
+
+static void welded_free(struct welded *w)
+{
+    free(w->pos);
+    free(w->idx);
+    free(w->first);
+    free(w->of);
+    memset(w, 0, sizeof(*w));
+}
+
+static int weld(const struct baked *b, struct welded *w)
+{
+    memset(w, 0, sizeof(*w));
+    unsigned int *remap = malloc(sizeof(*remap) * b->vertices);
+    w->idx = malloc(sizeof(uint32_t) * 3 * (size_t)b->triangles);
+    if (!remap || !w->idx) {
+        free(remap);
+        welded_free(w);
+        return TW_ERR_NOMEM;
+    }
+    w->vertices = (uint32_t)meshopt_generateVertexRemap(remap, b->idx, 3 * (size_t)b->triangles,
+                                                        b->pos, b->vertices, sizeof(float) * 3);
+    w->pos = malloc(sizeof(float) * 3 * (size_t)w->vertices);
+    w->first = calloc((size_t)w->vertices + 1, sizeof(*w->first));
+    w->of = malloc(sizeof(*w->of) * b->vertices);
+    if (!w->pos || !w->first || !w->of) {
+        free(remap);
+        welded_free(w);
+        return TW_ERR_NOMEM;
+    }
+    meshopt_remapIndexBuffer(w->idx, b->idx, 3 * (size_t)b->triangles, remap);
+    meshopt_remapVertexBuffer(w->pos, b->pos, b->vertices, sizeof(float) * 3, remap);
+    /* Vertices no triangle uses have no welded vertex (~0u). */
+    for (uint32_t v = 0; v < b->vertices; v++)
+        if (remap[v] != ~0u)
+            w->first[remap[v] + 1]++;
+    for (uint32_t k = 0; k < w->vertices; k++)
+        w->first[k + 1] += w->first[k];
+    uint32_t *fill = calloc(w->vertices ? w->vertices : 1, sizeof(*fill));
+    if (!fill) {
+        free(remap);
+        welded_free(w);
+        return TW_ERR_NOMEM;
+    }
+    for (uint32_t v = 0; v < b->vertices; v++)
+        if (remap[v] != ~0u)
+            w->of[w->first[remap[v]] + fill[remap[v]]++] = v;
+    free(fill);
+    free(remap);
+    return TW_OK;
+}
+
+/* Triangles widx[0 .. 3 n) of welded vertices back into baked vertices:
+ * each corner the one of its welded vertex's whose normal is nearest the
+ * triangle's own (a box corner takes the vertex of the face it lies on). */
+static void unweld(const struct baked *b, const struct welded *w, const uint32_t *widx, size_t n,
+                   uint32_t *out)
+{
+    for (size_t t = 0; t < n; t++) {
+        const float *p0 = w->pos + 3 * (size_t)widx[3 * t], *p1 = w->pos + 3 * (size_t)widx[3 * t + 1],
+                    *p2 = w->pos + 3 * (size_t)widx[3 * t + 2];
+        const float e1[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+        const float e2[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
+        const float fn[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                             e1[0] * e2[1] - e1[1] * e2[0]};
+        for (int c = 0; c < 3; c++) {
+            const uint32_t wv = widx[3 * t + c];
+            uint32_t best = w->of[w->first[wv]];
+            float best_dot = -INFINITY;
+            for (uint32_t k = w->first[wv]; k < w->first[wv + 1]; k++) {
+                const float *nv = b->nrm + 3 * (size_t)w->of[k];
+                const float d = nv[0] * fn[0] + nv[1] * fn[1] + nv[2] * fn[2];
+                if (d > best_dot) {
+                    best_dot = d;
+                    best = w->of[k];
+                }
+            }
+            out[3 * t + c] = best;
+        }
+    }
+}
+
+/* The levels of prototype p of ts, added to levels: their number into
+ * *count and their errors (metres) into errors. */
+static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_tileset *levels,
+                           uint32_t white, float *errors, uint32_t *count)
+{
+    *count = 0;
+    struct baked b;
+    int err = bake(ts, &ts->prototypes[p], &b);
+    if (err || b.triangles < 2 * LOD_MIN_TRIANGLES) {
+        baked_free(&b);
+        return err;
+    }
+    struct welded w;
+    err = weld(&b, &w);
+    uint32_t *widx = malloc(sizeof(uint32_t) * 3 * (size_t)b.triangles);
+    uint32_t *idx = malloc(sizeof(uint32_t) * 3 * (size_t)b.triangles);
+    if (err || !idx || !widx) {
+        free(idx);
+        free(widx);
+        welded_free(&w);
+        baked_free(&b);
+        return err ? err : TW_ERR_NOMEM;
+    }
+    const float scale = meshopt_simplifyScale(w.pos, w.vertices, sizeof(float) * 3);
+    size_t previous = b.triangles;
+    float previous_error = 0.0f;
+    for (uint32_t level = 1; level <= TW_LOD_MAX_LEVELS; level++) {
+        const size_t target = previous / 2;
+        if (target < LOD_MIN_TRIANGLES)
+            break;
+        /* Edge collapses first: they keep the surface's topology and its
+         * attribute seams. Many small closed meshes (buildings, trees)
+         * soon stop collapsing; then clustering, which may merge or
+         * remove whole components. Both report their error relative to
+         * the mesh's extent; each level starts from full detail, so that
+         * its error is measured against it. */
+        float rel = 0.0f;
+        size_t n = meshopt_simplify(widx, w.idx, 3 * (size_t)b.triangles, w.pos, w.vertices,
+                                    sizeof(float) * 3, 3 * target, 1.0f, 0, &rel) / 3;
+        if ((double)n > LOD_KEEP_RATIO * (double)previous)
+            n = meshopt_simplifySloppy(widx, w.idx, 3 * (size_t)b.triangles, w.pos, w.vertices,
+                                       sizeof(float) * 3, 3 * target, 1.0f, &rel) / 3;
+        if (n < LOD_MIN_TRIANGLES / 2 || (double)n > LOD_KEEP_RATIO * (double)previous)
+            break;
+        unweld(&b, &w, widx, n, idx);
+        float error = rel * scale;
+        if (!(error >= previous_error))
+            error = previous_error;   /* a coarser level is never called more exact */
+        char name[48];
+        snprintf(name, sizeof(name), "%.36s/lod%u", ts->prototypes[p].name, level);
+        err = add_level(levels, white, name, &b, idx, n);
+        if (err)
+            break;
+        errors[(*count)++] = error;
+        previous = n;
+        previous_error = error;
+    }
+    free(idx);
+    free(widx);
+    welded_free(&w);
+    baked_free(&b);
+    return err;
+}
+
+int tw_lods_build(const struct tw_tileset *ts, uint32_t max_cluster_triangles, struct tw_lods *out)
+{
+    memset(out, 0, sizeof(*out));
+    if (!ts || !ts->finished)
+        return TW_ERR_INVALID;
+    const uint32_t np = ts->prototype_count;
+    out->source_count = np;
+    out->first = calloc(np, sizeof(*out->first));
+    out->count = calloc(np, sizeof(*out->count));
+    out->error = malloc(sizeof(*out->error) * (size_t)np * TW_LOD_MAX_LEVELS + 1);
+    int err = out->first && out->count && out->error ? TW_OK : TW_ERR_NOMEM;
+    struct tw_tileset *levels = NULL;
+    if (!err)
+        err = tw_tileset_create(ts->name, ts->footprint[0], ts->footprint[1], &levels);
+    const int white = err ? err : tw_tileset_add_material(levels, (const float[4]){1, 1, 1, 1});
+    if (white < 0)
+        err = white;
+    uint32_t total = 0;
+    for (uint32_t p = 0; p < np && !err; p++) {
+        out->first[p] = total;
+        err = build_prototype(ts, p, levels, (uint32_t)white, out->error + total, &out->count[p]);
+        total += out->count[p];
+    }
+    if (!err && total > 0) {
+        levels->merge_triangles = 1;   /* one instance each: nothing to merge */
+        err = tw_tileset_finish(levels, max_cluster_triangles);
+        if (!err)
+            err = tw_tileset_pack(&levels);
+    }
+    if (err || total == 0) {
+        tw_tileset_destroy(levels);
+        levels = NULL;
+        for (uint32_t p = 0; p < np && out->count; p++)
+            out->count[p] = 0;
+    }
+    out->levels = levels;
+    if (err)
+        tw_lods_free(out);
+    return err;
+}
+
+void tw_lods_free(struct tw_lods *l)
+{
+    if (!l)
+        return;
+    tw_tileset_destroy(l->levels);
+    free(l->first);
+    free(l->count);
+    free(l->error);
+    memset(l, 0, sizeof(*l));
+}
+
+uint64_t tw_lods_bytes(const struct tw_lods *l)
+{
+    if (!l || !l->first)
+        return 0;
+    return tw_tileset_bytes(l->levels) +
+           (uint64_t)l->source_count * (sizeof(*l->first) + sizeof(*l->count)) +
+           (uint64_t)(l->levels ? l->levels->prototype_count : 0) * sizeof(*l->error);
+}
+
+uint32_t tw_lods_pick(const struct tw_lods *l, uint32_t p, float max_error)
+{
+    if (!l || !l->levels || p >= l->source_count || !(max_error > 0.0f))
+        return 0;
+    const float *e = l->error + l->first[p];
+    uint32_t level = 0;
+    while (level < l->count[p] && e[level] <= max_error)
+        level++;
+    return level;
+}
