@@ -195,7 +195,9 @@ int tw_renderer_upload(struct tw_renderer *r, const struct tw_tileset *ts,
     b->first_content = first;
     b->live = true;
     for (uint32_t p = 0; p < ts->prototype_count; p++)
-        r->contents[first + p] = (struct tw_gpu_content){bi, p, bvhs ? bvhs[p] : NULL, true};
+        r->contents[first + p] = (struct tw_gpu_content){
+            .buffers = bi, .proto = p, .bvh = bvhs ? bvhs[p] : NULL, .live = true,
+            .base = first + p};
     *first_content = first;
     if (bytes)
         *bytes = b->bytes;
@@ -225,6 +227,44 @@ const struct tw_prototype *tw_renderer_content(const struct tw_renderer *r, uint
     if (bvh)
         *bvh = c->bvh;
     return &r->buffers[c->buffers].ts->prototypes[c->proto];
+}
+
+const struct tw_tileset *tw_renderer_content_tileset(const struct tw_renderer *r, uint32_t content)
+{
+    if (content >= r->content_count || !r->contents[content].live)
+        return NULL;
+    return r->buffers[r->contents[content].buffers].ts;
+}
+
+void tw_renderer_tag_levels(struct tw_renderer *r, uint32_t base, uint32_t first, uint32_t count)
+{
+    if (base >= r->content_count || (count && first + count > r->content_count))
+        return;
+    r->contents[base].levels_first = first;
+    r->contents[base].levels_count = count;
+    for (uint32_t k = 0; k < count; k++) {
+        r->contents[first + k].base = base;
+        r->contents[first + k].level = k + 1;
+    }
+}
+
+uint32_t tw_renderer_content_base(const struct tw_renderer *r, uint32_t content, uint32_t *level)
+{
+    *level = 0;
+    if (content >= r->content_count || !r->contents[content].live)
+        return content;
+    *level = r->contents[content].level;
+    return r->contents[content].base;
+}
+
+uint32_t tw_renderer_level_content(const struct tw_renderer *r, uint32_t base, uint32_t level)
+{
+    if (base >= r->content_count || !r->contents[base].live)
+        return UINT32_MAX;
+    const struct tw_gpu_content *c = &r->contents[base];
+    if (level == 0)
+        return base;
+    return level <= c->levels_count ? c->levels_first + level - 1 : UINT32_MAX;
 }
 
 const struct tw_gpu_buffers *tw_renderer_bind_content(struct tw_renderer *r, uint32_t content,

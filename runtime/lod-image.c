@@ -71,6 +71,31 @@ int tw_lod_image_full_pass(struct tw_world *w, const struct tw_view *v)
     return err;
 }
 
+static bool same(const uint8_t *a, const uint8_t *b)
+{
+    for (int c = 0; c < 3; c++)
+        if (abs((int)a[c] - (int)b[c]) > LOD_COLOUR_TOLERANCE)
+            return false;
+    return true;
+}
+
+/* Whether pixel (x, y) of a has its colour in b at (x, y) or a neighbour
+ * of it (8 around). */
+static bool near_match(const uint8_t *a, const uint8_t *b, uint32_t width, uint32_t height,
+                       uint32_t x, uint32_t y)
+{
+    const uint8_t *p = a + 3 * ((size_t)y * width + x);
+    for (int dy = -1; dy <= 1; dy++)
+        for (int dx = -1; dx <= 1; dx++) {
+            const int64_t qx = (int64_t)x + dx, qy = (int64_t)y + dy;
+            if (qx < 0 || qy < 0 || qx >= width || qy >= height)
+                continue;
+            if (same(p, b + 3 * ((size_t)qy * width + (size_t)qx)))
+                return true;
+        }
+    return false;
+}
+
 /* Eye distance (metres along the view axis) of window depth d: the
  * renderer's projection inverted, depth reversed or not. */
 static double eye_distance(double d, double n, double f, bool reversed)
@@ -90,26 +115,33 @@ int tw_lod_image_compare(struct tw_world *w, const struct tw_view *v, struct tw_
     tw_renderer_read_depth(w->renderer, li->frame_depth);
     const bool reversed = tw_renderer_reversed_z(w->renderer);
     const float sky = reversed ? 0.0f : 1.0f;
-    const size_t npix = (size_t)w->s.width * w->s.height;
-    uint64_t differ = 0, both = 0;
+    const uint32_t width = w->s.width, height = w->s.height;
+    uint64_t differ = 0, exact = 0, both = 0;
     double depth_sum = 0.0;
-    for (size_t k = 0; k < npix; k++) {
-        const uint8_t *a = li->rgb + 3 * k, *b = li->frame_rgb + 3 * k;
-        bool d = false;
-        for (int c = 0; c < 3; c++)
-            d |= abs((int)a[c] - (int)b[c]) > LOD_COLOUR_TOLERANCE;
-        if (!d)
-            continue;
-        differ++;
-        /* How far the surface moved, where both images show one. */
-        const float za = li->depth[k], zb = li->frame_depth[k];
-        if (za == sky || zb == sky)
-            continue;
-        both++;
-        depth_sum += fabs(eye_distance(za, v->near_plane, v->far_plane, reversed) -
-                          eye_distance(zb, v->near_plane, v->far_plane, reversed));
-    }
+    for (uint32_t y = 0; y < height; y++)
+        for (uint32_t x = 0; x < width; x++) {
+            const size_t k = (size_t)y * width + x;
+            if (same(li->rgb + 3 * k, li->frame_rgb + 3 * k))
+                continue;
+            exact++;
+            /* A difference a shift of one pixel explains is within the
+             * bound: a level's edge may lie up to max_screen_error away. */
+            if (near_match(li->rgb, li->frame_rgb, width, height, x, y) &&
+                near_match(li->frame_rgb, li->rgb, width, height, x, y))
+                continue;
+            differ++;
+            /* How far the surface moved, where both images show one (depth
+             * rows are bottom first). */
+            const size_t kd = (size_t)(height - 1 - y) * width + x;
+            const float za = li->depth[kd], zb = li->frame_depth[kd];
+            if (za == sky || zb == sky)
+                continue;
+            both++;
+            depth_sum += fabs(eye_distance(za, v->near_plane, v->far_plane, reversed) -
+                              eye_distance(zb, v->near_plane, v->far_plane, reversed));
+        }
     st->lod_pixels = differ;
+    st->lod_pixels_exact = exact;
     st->lod_depth_m = both ? depth_sum / (double)both : 0.0;
     return TW_OK;
 }

@@ -86,7 +86,8 @@ static void id_draw(void *ctx, struct tw_cell cell, uint32_t content, const floa
         return;
     tw_renderer_id_draw(w->renderer, content, offset, clusters, count, (uint32_t)o->count);
     for (uint32_t c = 0; c < count; c++)
-        o->entries[o->count++] = (struct tw_drawn_cluster){cell, content, clusters[c]};
+        o->entries[o->count++] = (struct tw_drawn_cluster){
+            .cell = cell, .prototype = content, .cluster = clusters[c]};
 }
 
 /* vfc issues no query; these are never called. */

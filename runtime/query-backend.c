@@ -55,7 +55,8 @@ void tw_renderer_record_clusters(struct tw_renderer *r, struct tw_cell cell, uin
         return;
     }
     for (uint32_t k = 0; k < count; k++)
-        r->drawn[r->drawn_count++] = (struct tw_drawn_cluster){cell, prototype, clusters[k]};
+        r->drawn[r->drawn_count++] = (struct tw_drawn_cluster){
+            .cell = cell, .prototype = prototype, .cluster = clusters[k]};
 }
 
 bool tw_renderer_instance_map(struct tw_renderer *r, uint32_t instances)

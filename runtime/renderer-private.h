@@ -36,6 +36,10 @@ struct tw_gpu_content {
     uint32_t proto;
     const struct tw_bvh *bvh;       /* the prototype's, borrowed */
     bool live;
+    /* Levels of detail (tw_renderer_tag_levels): the full-detail content
+     * this one is a level of (itself: level 0), and for a full-detail
+     * one, its levels' contents levels_first .. + levels_count - 1. */
+    uint32_t base, level, levels_first, levels_count;
 };
 
 /* What one indirect command draws with (draws.c): its instance's

@@ -50,6 +50,16 @@ int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_pr
  * are borrowed until tw_renderer_release(). Between enter and leave. */
 int tw_renderer_upload(struct tw_renderer *r, const struct tw_tileset *ts,
                        const struct tw_bvh *const *bvhs, uint32_t *first_content, uint64_t *bytes);
+/* The tileset a live content is a prototype of, or NULL. */
+const struct tw_tileset *tw_renderer_content_tileset(const struct tw_renderer *r, uint32_t content);
+/* Says that contents first .. first + count - 1 are levels 1 .. count of
+ * content base (DESIGN §17), for what a host is told it drew. */
+void tw_renderer_tag_levels(struct tw_renderer *r, uint32_t base, uint32_t first, uint32_t count);
+/* The full-detail content that content is a level of, and which (0: it
+ * is one itself). */
+uint32_t tw_renderer_content_base(const struct tw_renderer *r, uint32_t content, uint32_t *level);
+/* The content of base's level level (0: base), or UINT32_MAX if it has none. */
+uint32_t tw_renderer_level_content(const struct tw_renderer *r, uint32_t base, uint32_t level);
 /* Frees the buffers of the tileset whose first content is first_content;
  * its contents' ids may be reused. Between enter and leave. */
 void tw_renderer_release(struct tw_renderer *r, uint32_t first_content);

@@ -149,6 +149,9 @@ static int make_ready(struct tw_stream *s, uint32_t k)
                                        &lod_gpu);
             if (r.err)
                 s->set.sink.release(s->set.sink.user, e->content);
+            else
+                s->set.sink.levels(s->set.sink.user, e->content, e->lod_content,
+                                   r.lods.levels->prototype_count);
         }
         e->bytes_gpu += lod_gpu;
         if (r.err)

@@ -27,6 +27,8 @@ struct tw_tile_sink {
     int (*upload)(void *user, const struct tw_tileset *ts, const struct tw_bvh *const *bvhs,
                   uint32_t *content, uint64_t *bytes_gpu);
     void (*release)(void *user, uint32_t content);
+    /* Contents first .. first + count - 1 are base's levels of detail. */
+    void (*levels)(void *user, uint32_t base, uint32_t first, uint32_t count);
     void *user;
 };
 

@@ -114,6 +114,9 @@ struct tw_world {
     struct tw_drawn_cluster *fixed_order;  /* its set, grouped tile by tile */
     size_t fixed_order_cap;
     bool record_draws;
+    struct tw_drawn_cluster *drawn; /* with levels of detail: the last frame's draws as
+                                       tw_world_drawn() gives them */
+    size_t drawn_count, drawn_cap;
     struct tw_oracle oracle;
     struct tw_lod_image lod_image;  /* with verify and levels of detail */
 

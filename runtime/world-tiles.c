@@ -87,6 +87,11 @@ static void sink_release(void *user, uint32_t content)
     tw_renderer_release(user, content);
 }
 
+static void sink_levels(void *user, uint32_t base, uint32_t first, uint32_t count)
+{
+    tw_renderer_tag_levels(user, base, first, count);
+}
+
 
 
 static void push_event(struct tw_world *w, const struct tw_tile_event *ev)
@@ -106,7 +111,7 @@ int tw_world_start_stream(struct tw_world *w)
 {
     const struct tw_stream_settings ss = {
         .provider = &w->provider,
-        .sink = {sink_upload, sink_release, w->renderer},
+        .sink = {sink_upload, sink_release, sink_levels, w->renderer},
         .bvh = w->t.bvh,
         .workers = w->s.workers,
         .policy = w->s.policy,

@@ -212,6 +212,9 @@ static int shared_levels(struct tw_world *w, const struct tw_tileset *ts)
     w->shared_cpu += tw_lods_bytes(&w->lods);
     for (uint32_t k = 0; k < w->lod_count && !err; k++)
         w->shared_cpu += w->lod_bvhs[k]->bytes;
+    for (uint32_t p = 0; p < ts->prototype_count && !err; p++)
+        tw_renderer_tag_levels(w->renderer, w->calibration_first + p,
+                               w->lod_first + w->lods.first[p], w->lods.count[p]);
     return err;
 }
 
@@ -390,6 +393,7 @@ uint32_t tw_world_destroy(struct tw_world *w)
     for (uint32_t k = 0; w->lod_bvhs && k < w->lod_count; k++)
         tw_bvh_destroy(w->lod_bvhs[k]);
     free(w->lod_bvhs);
+    free(w->drawn);
     free(w->events);
     free(w->next_events);
     tw_renderer_destroy(w->renderer);
@@ -484,6 +488,8 @@ static void collect_counters(const struct tw_world *w, struct tw_frame_stats *st
     st->bytes_read_back = rc->bytes_read_back;
 }
 
+static int public_draws(struct tw_world *w);
+
 static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_frame_stats *out)
 {
     struct tw_view v;
@@ -510,6 +516,13 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     tw_gputime_late(&w->gputime, w->method, &st.gpu_late_frame, &st.gpu_late_ms);
     st.gpu_ms = -1.0;
     st.gpu_ms_id = oracle || verify ? -1.0 : 0.0;
+    if (verify && w->lod_on) {
+        /* The full-detail image that the frame's is compared with: not the
+         * method's work, before its clocks (GPU time included) start. */
+        err = tw_lod_image_full_pass(w, &v);
+        if (err)
+            return err;
+    }
     double t0 = tw_clock_monotonic_ms(), cpu0 = tw_renderer_cpu_ms();
     if (!oracle)
         tw_gputime_mark(&w->gputime, TW_GPUTIME_FRAME_BEGIN);
@@ -532,16 +545,6 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
         t0 += tw_clock_monotonic_ms() - ts0;
         cpu0 += tw_renderer_cpu_ms() - cs0;
         tw_gputime_mark(&w->gputime, TW_GPUTIME_FRAME_BEGIN);
-    }
-    if (verify && w->lod_on) {
-        /* The full-detail image that the frame's is compared with: not the
-         * method's work, untimed. */
-        const double ts0 = tw_clock_monotonic_ms(), cs0 = tw_renderer_cpu_ms();
-        err = tw_lod_image_full_pass(w, &v);
-        if (err)
-            return err;
-        t0 += tw_clock_monotonic_ms() - ts0;
-        cpu0 += tw_renderer_cpu_ms() - cs0;
     }
     struct tw_cost_model costs;
     tw_calibrate_model(&w->calibration, w->s.width, w->s.height, &costs);
@@ -593,6 +596,11 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
         if (err)
             return err;
         tw_oracle_compare(w, &st);
+    }
+    if (w->lod_on && w->record_draws) {
+        err = public_draws(w);
+        if (err)
+            return err;
     }
     if (debug) {
         err = tw_debug_collect(w, ms, &v);
@@ -667,7 +675,40 @@ const struct tw_drawn_cluster *tw_world_drawn(const struct tw_world *w, size_t *
             *count = 0;
         return NULL;
     }
-    return tw_renderer_drawn(w->renderer, count);
+    if (!w->lod_on)
+        return tw_renderer_drawn(w->renderer, count);
+    *count = w->drawn_count;
+    return w->drawn;
+}
+
+const struct tw_prototype *tw_world_level(const struct tw_world *w, uint32_t prototype,
+                                          uint32_t level, const struct tw_tileset **ts)
+{
+    if (!w)
+        return NULL;
+    const uint32_t content = tw_renderer_level_content(w->renderer, prototype, level);
+    const struct tw_prototype *p = tw_renderer_content(w->renderer, content, NULL);
+    if (ts)
+        *ts = p ? tw_renderer_content_tileset(w->renderer, content) : NULL;
+    return p;
+}
+
+/* The frame's recorded draws as a host reads them: each content named by
+ * its full-detail content and the level drawn. */
+static int public_draws(struct tw_world *w)
+{
+    size_t n;
+    const struct tw_drawn_cluster *d = tw_renderer_drawn(w->renderer, &n);
+    w->drawn_count = 0;
+    if (tw_array_reserve((void **)&w->drawn, &w->drawn_cap, n, sizeof(*w->drawn), 256))
+        return TW_ERR_NOMEM;
+    for (size_t k = 0; k < n; k++) {
+        w->drawn[k] = d[k];
+        w->drawn[k].prototype = tw_renderer_content_base(w->renderer, d[k].prototype,
+                                                         &w->drawn[k].level);
+    }
+    w->drawn_count = n;
+    return TW_OK;
 }
 
 int tw_world_last_view(const struct tw_world *w, struct tw_world_view *out)
@@ -709,7 +750,9 @@ static int frame_fixed(struct tw_world *w, const struct tw_camera *cam,
     if (err)
         return err;
     for (size_t k = 0; k < count; k++) {
-        const struct tw_prototype *proto = tw_renderer_content(w->renderer, clusters[k].prototype, NULL);
+        const uint32_t content =
+            tw_renderer_level_content(w->renderer, clusters[k].prototype, clusters[k].level);
+        const struct tw_prototype *proto = tw_renderer_content(w->renderer, content, NULL);
         if (!proto || clusters[k].cluster >= proto->cluster_count) {
             tw_log_printf(&w->s.log, TW_LOG_ERROR,
                           "cannot draw the given set: its entry %zu names no cluster of the "
@@ -730,7 +773,13 @@ static int frame_fixed(struct tw_world *w, const struct tw_camera *cam,
     err = tw_array_reserve((void **)&w->fixed_order, &w->fixed_order_cap, count,
                            sizeof(*w->fixed_order), 256);
     if (!err && count) {
-        memcpy(w->fixed_order, clusters, sizeof(*clusters) * count);
+        /* Each level by its own content, as the backend draws it. */
+        for (size_t k = 0; k < count; k++) {
+            w->fixed_order[k] = clusters[k];
+            w->fixed_order[k].prototype =
+                tw_renderer_level_content(w->renderer, clusters[k].prototype, clusters[k].level);
+            w->fixed_order[k].level = 0;
+        }
         err = tw_oracle_order(w, &v, w->fixed_order, count, false);
     }
     if (err)

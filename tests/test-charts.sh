@@ -2,7 +2,7 @@
 # Charts of a bench run (tools/tileworld/charts.h): a small bench draws PNGs
 # that decode, plotting CPU time (llvmpipe is a software renderer) with wall
 # time in charts of its own; its charts.gp re-runs in the folder; a sweep
-# adds the sweep charts; gnuplot missing or failing is one warning line and
+# adds the sweep charts, a sweep of max_screen_error chart-lod.png; gnuplot missing or failing is one warning line and
 # the run still succeeds, with no chart under its final name; a full disk
 # (a small tmpfs, where mounting is permitted) fails the run with one line
 # and leaves no chart that is not whole.
@@ -128,7 +128,7 @@ split="$tmp/split"
 if "$tw" bench --frames 3 "${small[@]}" --split --out "$split" 2>"$tmp/err"; then
     expect_chart "$split/chart-split.png" 1000x600
     grep -q '^split = 1' "$split/chart-data/run.gp" && ok || bad "run.gp: split"
-    head -2 "$split/chart-data/frames-chc.dat" | tail -1 | grep -q ' set_cpu_ms set_ms set_triangles set_draws overdraw_box_triangles gpu_ms gpu_ms_id waits flushes bytes_read_back tiles_late hzb_lag lod_pixels lod_depth_m$' &&
+    head -2 "$split/chart-data/frames-chc.dat" | tail -1 | grep -q ' set_cpu_ms set_ms set_triangles set_draws overdraw_box_triangles gpu_ms gpu_ms_id waits flushes bytes_read_back tiles_late hzb_lag lod_pixels lod_pixels_exact lod_depth_m$' &&
         ok || bad "frames-chc.dat: no set_* columns"
 else
     bad "bench --split: $(head -c 400 "$tmp/err")"
@@ -161,7 +161,7 @@ if "$tw" bench --frames 3 "${small[@]}" --sweep T=0,10 --out "$sweep" 2>"$tmp/er
     expect_chart "$sweep/chart-pareto.png" 1200x600
     grep -q '^pareto = 1' "$sweep/chart-data/run.gp" && ok || bad "run.gp: pareto"
     f="$sweep/chart-data/pareto.dat"
-    head -2 "$f" | tail -1 | grep -q '^method value mean_cpu_ms missed_per_frame depth_errors_per_frame conservative front front_depth speedup time_ms mean_gpu_ms$' &&
+    head -2 "$f" | tail -1 | grep -q '^method value mean_cpu_ms missed_per_frame depth_errors_per_frame conservative front front_depth speedup time_ms mean_gpu_ms lod_fraction front_lod$' &&
         ok || bad "$f: header"
     [ "$(grep -vc '^#' "$f")" -eq 7 ] && ok || bad "$f: expected a header and 6 points"
     # T=0 is conservative, T=10 not, for chc; vfc and the oracle always.
@@ -178,8 +178,50 @@ if "$tw" bench --frames 3 "${small[@]}" --sweep T=0,10 --out "$sweep" 2>"$tmp/er
     grep -q '^| method | T | mean CPU ms | speed-up vs T=0 |' "$sweep/sweep.md" && ok || bad "sweep.md table"
     grep -q '^\*\*The front of CPU time against missed pixels\*\*' "$sweep/sweep.md" && ok || bad "sweep.md front"
     grep -q '^mean_cpu_ms\|,mean_cpu_ms,' "$sweep/sweep.csv" && ok || bad "sweep.csv: mean_cpu_ms"
+    # chart-lod.png is a sweep of max_screen_error's only.
+    [ ! -e "$sweep/chart-lod.png" ] && [ ! -e "$sweep/chart-data/pareto-lod.dat" ] &&
+        [ ! -e "$sweep/chart-data/labels-lod.dat" ] && grep -q '^lod = 0$' "$sweep/chart-data/run.gp" &&
+        ok || bad "chart-lod.png or its data drawn for a sweep of T"
 else
     bad "bench --sweep failed: $(head -c 400 "$tmp/err")"
+fi
+
+# ---- a sweep of max_screen_error adds chart-lod.png ------------------------------------
+# Speed against image error: a point per method and value, each method's
+# joined by value, the front of time against the pixels differing from full
+# detail.
+lod="$tmp/lod"
+if "$tw" bench --frames 2 "${small[@]}" --sweep max_screen_error=0,4 --out "$lod" 2>"$tmp/err"; then
+    ok
+    expect_chart "$lod/chart-lod.png" 1200x600
+    expect_chart "$lod/chart-pareto.png" 1200x600
+    grep -q '^lod = 1$' "$lod/chart-data/run.gp" && ok || bad "run.gp: lod"
+    f="$lod/chart-data/pareto.dat"
+    # Full detail differs from itself nowhere; 4 px of error somewhere.
+    awk '$1 == "chc" && $2 == "0" && $12 == 0 { a++ } $1 == "chc" && $2 == "4" && $12 > 0 { b++ }
+         END { exit !(a == 1 && b == 1) }' "$f" && ok || bad "$f: lod_fraction: $(cat "$f")"
+    awk '$1 == "oracle" && $13 == 1 { exit 1 }' "$f" && ok || bad "$f: the oracle on the image-error front"
+    # pareto-lod.dat: every point, by method in the run's order and value.
+    got=$(awk 'NR > 2 { printf "%s %s,", $1, $2 }' "$lod/chart-data/pareto-lod.dat")
+    [ "$got" = "vfc 0,vfc 4,chc 0,chc 4,oracle 0,oracle 4," ] && ok || bad "pareto-lod.dat order: $got"
+    # pareto-front-lod.dat: the front_lod rows of pareto.dat, by image error.
+    g="$lod/chart-data/pareto-front-lod.dat"
+    [ -n "$(awk 'NR > 2 && $13 == 1' "$f")" ] &&
+        [ "$(awk 'NR > 2 && $13 == 1' "$f" | sort)" = "$(tail -n +3 "$g" | sort)" ] &&
+        awk 'NR > 2 { if (NR > 3 && $12 < last) exit 1; last = $12 }' "$g" && ok ||
+        bad "$g does not hold the image-error front of pareto.dat by lod_fraction: $(cat "$g")"
+    [ "$(awk 'NR > 2 && $2 == 2' "$lod/chart-data/labels-lod.dat" | wc -l)" -eq 6 ] && ok ||
+        bad "labels-lod.dat: expected a label per point"
+    grep -q '^| method | max_screen_error | mean CPU ms | speed-up vs max_screen_error=0 | missed pixels / frame | depth errors / frame | pixels differing from full detail (%) |' \
+        "$lod/sweep.md" && ok || bad "sweep.md: no image error column"
+    grep -q '^\*\*The front of CPU time against image error (pixels differing from full detail)\*\*' \
+        "$lod/sweep.md" && ok || bad "sweep.md: the image-error front not named"
+    head -1 "$lod/sweep.csv" | grep -q ',conservative,lod_pixels_total,lod_pixel_fraction$' &&
+        awk -F, 'NR > 1 && NF != 19 { exit 1 }' "$lod/sweep.csv" && ok || bad "sweep.csv: lod columns"
+    awk -F, '$1 == "chc" && $3 == "0" && $18 == 0 && $19 == 0 { a++ } $1 == "chc" && $3 == "4" && $18 > 0 && $19 > 0 { b++ }
+             END { exit !(a == 1 && b == 1) }' "$lod/sweep.csv" && ok || bad "sweep.csv: lod figures: $(cat "$lod/sweep.csv")"
+else
+    bad "bench --sweep max_screen_error failed: $(head -c 400 "$tmp/err")"
 fi
 
 # A later run without a sweep in the same folder leaves no sweep chart or

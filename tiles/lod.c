@@ -44,6 +44,7 @@ static uint8_t unorm8(float x)
 
 static int bake(const struct tw_tileset *ts, const struct tw_prototype *p, struct baked *b)
 {
+    memset(b, 0, sizeof(*b));
     uint64_t vertices = 0, triangles = 0;
     for (uint32_t k = 0; k < p->instance_count; k++) {
         const struct tw_instance *in = &p->instances[k];
@@ -54,7 +55,6 @@ static int bake(const struct tw_tileset *ts, const struct tw_prototype *p, struc
     }
     if (vertices > UINT32_MAX || triangles > UINT32_MAX / 3)
         return TW_ERR_LIMIT;
-    memset(b, 0, sizeof(*b));
     if (vertices == 0 || triangles == 0)
         return TW_OK;
     b->pos = malloc(sizeof(float) * 3 * (size_t)vertices);
@@ -178,8 +178,14 @@ static int weld(const struct baked *b, struct welded *w)
         welded_free(w);
         return TW_ERR_NOMEM;
     }
-    w->vertices = (uint32_t)meshopt_generateVertexRemap(remap, b->idx, 3 * (size_t)b->triangles,
-                                                        b->pos, b->vertices, sizeof(float) * 3);
+    /* Welded by position and colour: a colour's edge (a window on a
+     * facade) is a seam the simplifier keeps, or it would go for the
+     * little its depth costs in geometric error, and a patch many pixels
+     * wide would change colour. */
+    const struct meshopt_Stream streams[2] = {{b->pos, sizeof(float) * 3, sizeof(float) * 3},
+                                              {b->rgba, 4, 4}};
+    w->vertices = (uint32_t)meshopt_generateVertexRemapMulti(
+        remap, b->idx, 3 * (size_t)b->triangles, b->vertices, streams, 2);
     w->pos = malloc(sizeof(float) * 3 * (size_t)w->vertices);
     w->first = calloc((size_t)w->vertices + 1, sizeof(*w->first));
     w->of = malloc(sizeof(*w->of) * b->vertices);
@@ -240,6 +246,224 @@ static void unweld(const struct baked *b, const struct welded *w, const uint32_t
     }
 }
 
+/* ---- the error a level has: measured ------------------------------------------- */
+
+/* meshoptimizer's error is an estimate from its quadrics, and it
+ * underestimates what the eye sees (a roof edge moved, a window gone): on
+ * city/flyover, levels picked for 1 px changed as many pixels as levels
+ * picked for 0.25 px should. A level's error is therefore measured: the
+ * largest distance from a full-detail vertex to the level's surface (a
+ * part removed whole is as far as the nearest surface left), found with a
+ * uniform grid over the level's triangles. */
+
+#define GRID_MAX 48
+
+struct grid {
+    float lo[3], cell;
+    int dim[3];
+    uint32_t *first;    /* per cell + 1: its triangles in tri[first[c] .. first[c + 1]) */
+    uint32_t *tri;
+};
+
+static int cell_of(const struct grid *g, int a, float x)
+{
+    const int c = (int)floorf((x - g->lo[a]) / g->cell);
+    return c < 0 ? 0 : c >= g->dim[a] ? g->dim[a] - 1 : c;
+}
+
+static void tri_cells(const struct grid *g, const float *p0, const float *p1, const float *p2,
+                      int c0[3], int c1[3])
+{
+    for (int a = 0; a < 3; a++) {
+        c0[a] = cell_of(g, a, fminf(p0[a], fminf(p1[a], p2[a])));
+        c1[a] = cell_of(g, a, fmaxf(p0[a], fmaxf(p1[a], p2[a])));
+    }
+}
+
+static void grid_free(struct grid *g)
+{
+    free(g->first);
+    free(g->tri);
+}
+
+/* Bins triangles idx[0 .. 3 n) of pos into a grid over box. */
+static int grid_build(struct grid *g, const struct tw_box *box, const float *pos,
+                      const uint32_t *idx, size_t n, float min_cell)
+{
+    memset(g, 0, sizeof(*g));
+    float extent = 0.0f;
+    for (int a = 0; a < 3; a++)
+        extent = fmaxf(extent, box->max[a] - box->min[a]);
+    g->cell = fmaxf(fmaxf(extent / GRID_MAX, min_cell), 1e-3f);
+    size_t cells = 1;
+    for (int a = 0; a < 3; a++) {
+        g->lo[a] = box->min[a];
+        g->dim[a] = (int)ceilf((box->max[a] - box->min[a]) / g->cell) + 1;
+        if (g->dim[a] > GRID_MAX + 1)
+            g->dim[a] = GRID_MAX + 1;
+        cells *= (size_t)g->dim[a];
+    }
+    g->first = calloc(cells + 1, sizeof(*g->first));
+    if (!g->first)
+        return TW_ERR_NOMEM;
+    size_t refs = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        for (size_t t = 0; t < n; t++) {
+            int c0[3], c1[3];
+            tri_cells(g, pos + 3 * (size_t)idx[3 * t], pos + 3 * (size_t)idx[3 * t + 1],
+                      pos + 3 * (size_t)idx[3 * t + 2], c0, c1);
+            for (int z = c0[2]; z <= c1[2]; z++)
+                for (int y = c0[1]; y <= c1[1]; y++)
+                    for (int x = c0[0]; x <= c1[0]; x++) {
+                        const size_t c = ((size_t)z * g->dim[1] + y) * g->dim[0] + x;
+                        if (pass == 0)
+                            g->first[c + 1]++;
+                        else
+                            g->tri[g->first[c]++] = (uint32_t)t;
+                    }
+        }
+        if (pass == 0) {
+            for (size_t c = 0; c < cells; c++)
+                g->first[c + 1] += g->first[c];
+            refs = g->first[cells];
+            g->tri = malloc(sizeof(*g->tri) * (refs ? refs : 1));
+            if (!g->tri) {
+                grid_free(g);
+                return TW_ERR_NOMEM;
+            }
+        }
+    }
+    /* The second pass advanced each cell's start to the next one's: back. */
+    for (size_t c = cells; c > 0; c--)
+        g->first[c] = g->first[c - 1];
+    g->first[0] = 0;
+    return TW_OK;
+}
+
+static float dot3(const float *a, const float *b)
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+/* Squared distance from p to triangle (a, b, c) (Ericson, Real-Time
+ * Collision Detection, 5.1.5). */
+static float point_triangle2(const float *p, const float *a, const float *b, const float *c)
+{
+    const float ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    const float ac[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const float ap[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
+    float q[3];
+    const float d1 = dot3(ab, ap), d2 = dot3(ac, ap);
+    const float bp[3] = {p[0] - b[0], p[1] - b[1], p[2] - b[2]};
+    const float d3 = dot3(ab, bp), d4 = dot3(ac, bp);
+    const float cp[3] = {p[0] - c[0], p[1] - c[1], p[2] - c[2]};
+    const float d5 = dot3(ab, cp), d6 = dot3(ac, cp);
+    const float va = d3 * d6 - d5 * d4, vb = d5 * d2 - d1 * d6, vc = d1 * d4 - d3 * d2;
+    if (d1 <= 0.0f && d2 <= 0.0f) {
+        memcpy(q, a, sizeof(q));
+    } else if (d3 >= 0.0f && d4 <= d3) {
+        memcpy(q, b, sizeof(q));
+    } else if (vc <= 0.0f && d1 >= 0.0f && d3 <= 0.0f) {
+        const float v = d1 / (d1 - d3);
+        for (int k = 0; k < 3; k++)
+            q[k] = a[k] + v * ab[k];
+    } else if (d6 >= 0.0f && d5 <= d6) {
+        memcpy(q, c, sizeof(q));
+    } else if (vb <= 0.0f && d2 >= 0.0f && d6 <= 0.0f) {
+        const float w = d2 / (d2 - d6);
+        for (int k = 0; k < 3; k++)
+            q[k] = a[k] + w * ac[k];
+    } else if (va <= 0.0f && (d4 - d3) >= 0.0f && (d5 - d6) >= 0.0f) {
+        const float w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        for (int k = 0; k < 3; k++)
+            q[k] = b[k] + w * (c[k] - b[k]);
+    } else {
+        const float denom = 1.0f / (va + vb + vc);
+        const float v = vb * denom, w = vc * denom;
+        for (int k = 0; k < 3; k++)
+            q[k] = a[k] + ab[k] * v + ac[k] * w;
+    }
+    const float d[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
+    return dot3(d, d);
+}
+
+/* The largest distance from the welded vertices of w to the triangles
+ * idx[0 .. 3 n) of w.pos, or at_least if that is larger: rings of grid
+ * cells searched outwards until no farther ring can hold a nearer
+ * triangle. */
+static int measure_error(const struct welded *w, const struct tw_box *box, const uint32_t *idx,
+                         size_t n, float at_least, float *out)
+{
+    struct grid g;
+    /* Cells of half the error already known: a search rarely goes past
+     * the second ring. */
+    int err = grid_build(&g, box, w->pos, idx, n, 0.5f * at_least);
+    uint8_t *kept = calloc(w->vertices ? w->vertices : 1, 1);
+    if (err || !kept) {
+        grid_free(&g);
+        free(kept);
+        return err ? err : TW_ERR_NOMEM;
+    }
+    /* A vertex the level kept lies on it. */
+    for (size_t k = 0; k < 3 * n; k++)
+        kept[idx[k]] = 1;
+    /* Nothing below at_least is asked: a vertex nearer than that to some
+     * triangle is done. */
+    float worst2 = at_least * at_least;
+    for (uint32_t v = 0; v < w->vertices; v++) {
+        if (kept[v])
+            continue;
+        const float *p = w->pos + 3 * (size_t)v;
+        int c[3];
+        for (int a = 0; a < 3; a++)
+            c[a] = cell_of(&g, a, p[a]);
+        float best2 = INFINITY;
+        const int rmax = g.dim[0] + g.dim[1] + g.dim[2];
+        for (int r = 0; r <= rmax; r++) {
+            /* Every triangle in a cell beyond ring r lies at least r
+             * cells away. */
+            const float reach = (float)r * g.cell;
+            if (best2 <= reach * reach || best2 <= worst2)
+                break;
+            /* The shell of ring r only: cost grows as r^2, not r^3. */
+            for (int z = c[2] - r; z <= c[2] + r; z++) {
+                if (z < 0 || z >= g.dim[2])
+                    continue;
+                for (int y = c[1] - r; y <= c[1] + r; y++) {
+                    if (y < 0 || y >= g.dim[1])
+                        continue;
+                    const bool face = abs(z - c[2]) == r || abs(y - c[1]) == r;
+                    const int step = face || r == 0 ? 1 : 2 * r;
+                    for (int x = c[0] - r; x <= c[0] + r; x += step) {
+                        if (x < 0 || x >= g.dim[0])
+                            continue;
+                        const size_t cell = ((size_t)z * g.dim[1] + y) * g.dim[0] + x;
+                        for (uint32_t k = g.first[cell]; k < g.first[cell + 1]; k++) {
+                            const uint32_t t = g.tri[k];
+                            const float d2 = point_triangle2(
+                                p, w->pos + 3 * (size_t)idx[3 * t], w->pos + 3 * (size_t)idx[3 * t + 1],
+                                w->pos + 3 * (size_t)idx[3 * t + 2]);
+                            if (d2 < best2)
+                                best2 = d2;
+                        }
+                        if (best2 <= worst2)
+                            goto next;  /* cannot raise the worst */
+                    }
+                }
+            }
+        }
+        /* A vertex no nearer than the worst so far cannot raise it: the
+         * search stopped early for it, and best2 only bounds from above. */
+        if (best2 > worst2 && isfinite(best2))
+            worst2 = best2;
+next:;
+    }
+    grid_free(&g);
+    free(kept);
+    *out = sqrtf(worst2);
+    return TW_OK;
+}
+
 /* The levels of prototype p of ts, added to levels: their number into
  * *count and their errors (metres) into errors. */
 static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_tileset *levels,
@@ -285,7 +509,12 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
         if (n < LOD_MIN_TRIANGLES / 2 || (double)n > LOD_KEEP_RATIO * (double)previous)
             break;
         unweld(&b, &w, widx, n, idx);
-        float error = rel * scale;
+        float measured = 0.0f;
+        err = measure_error(&w, &ts->prototypes[p].box, widx, n,
+                            fmaxf(rel * scale, previous_error), &measured);
+        if (err)
+            break;
+        float error = fmaxf(rel * scale, measured);
         if (!(error >= previous_error))
             error = previous_error;   /* a coarser level is never called more exact */
         char name[48];

@@ -217,10 +217,15 @@ struct tw_frame_stats {
     /* Levels of detail (DESIGN §17), with verify and max_screen_error > 0:
      * what they change against the same frame drawn at full detail. */
     uint64_t lod_pixels;     /* pixels whose colour differs (a channel by more than 2
-                                of 255) */
+                                of 255) from the other image's at the same place and at
+                                its 8 neighbours, either way: what a shift of one pixel
+                                (the bound of a level's edges at 1 px) does not explain */
+    uint64_t lod_pixels_exact; /* pixels whose colour differs at the same place (far
+                                sub-pixel detail aliases: a camera moved 5 cm changes
+                                about 2 % of them at full detail) */
     double lod_depth_m;      /* the mean distance, metres along the view axis, between
-                                the surfaces the two images show at those of these
-                                pixels where both show one */
+                                the surfaces the two images show at the lod_pixels where
+                                both show one */
 };
 
 struct tw_world;
@@ -323,6 +328,15 @@ void tw_world_record_draws(struct tw_world *w, bool on);
 /* The clusters drawn by the last frame, in draw order, while recording is
  * on. The array belongs to the world and lives until the next frame. */
 const struct tw_drawn_cluster *tw_world_drawn(const struct tw_world *w, size_t *count);
+/* Level level of content prototype (as tw_drawn_cluster names them; 0: the
+ * content itself): its prototype (instances, clusters: what a drawn
+ * cluster's index counts in) and, into *ts, the tileset whose meshes and
+ * materials its instances name (the world's own for a level). NULL when the
+ * content has no such level or is not live. Valid while the content is:
+ * a shared content's for the world's life, a generated tile's until it is
+ * evicted. */
+const struct tw_prototype *tw_world_level(const struct tw_world *w, uint32_t prototype,
+                                          uint32_t level, const struct tw_tileset **ts);
 
 /* The world's resolved settings. */
 const struct tw_world_settings *tw_world_settings(const struct tw_world *w);

@@ -278,7 +278,9 @@ struct tw_drawn_cluster {
     uint32_t prototype;                 /* the tile's content: a prototype of the tileset, or
                                            of the provider's shared one; a generated
                                            tile's own content is numbered after them */
-    uint32_t cluster;
+    uint32_t cluster;                   /* of the level drawn */
+    uint32_t level;                     /* 0: full detail; k: the content's k-th coarser
+                                           level of detail (DESIGN §17) */
 };
 
 /* ---- tile providers (DESIGN §12) ------------------------------------------------- */

@@ -440,7 +440,8 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
         tw_outfile_printf(&csv, "method,param,value,mean_ms,median_ms,p95_ms,mean_triangles,"
                                 "mean_queries,missed_pixels_total,mean_overdraw_triangles,"
                                 "mean_cpu_ms,median_cpu_ms,p99_cpu_ms,frames_with_missed_pixels,"
-                                "missed_clusters_total,depth_errors_total,conservative\n");
+                                "missed_clusters_total,depth_errors_total,conservative,"
+                                "lod_pixels_total,lod_pixel_fraction\n");
     for (uint32_t k = 0; k < count && !rc; k++) {
         char dir[1100];
         snprintf(dir, sizeof(dir), "%s/sweep-%s-%g", run->out, sweep_names[param], values[k]);
@@ -477,14 +478,15 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
             const struct tw_method_figures *fg = &r.figures[me];
             conservative[k][me] = tw_method_conservative(me, &r.tuning);
             tw_outfile_printf(&csv, "%s,%s,%g,%.3f,%.3f,%.3f,%.1f,%.2f,%llu,%.1f,%.3f,%.3f,%.3f,%u,"
-                              "%llu,%llu,%d\n",
+                              "%llu,%llu,%d,%llu,%.6g\n",
                               tw_method_name(me), sweep_names[param], values[k],
                               fg->mean_ms, fg->median_ms, fg->p95_ms, fg->mean_triangles,
                               fg->mean_queries, (unsigned long long)fg->missed_pixels_total,
                               fg->mean_overdraw_triangles, fg->mean_cpu_ms, fg->median_cpu_ms,
                               fg->p99_cpu_ms, fg->frames_with_missed_pixels,
                               (unsigned long long)fg->missed_clusters_total,
-                              (unsigned long long)fg->depth_errors_total, conservative[k][me]);
+                              (unsigned long long)fg->depth_errors_total, conservative[k][me],
+                              (unsigned long long)fg->lod_pixels_total, fg->lod_pixel_fraction);
         }
     }
     if (!rc)

@@ -29,6 +29,7 @@ extern char **environ;
 struct chart_data {
     const struct tw_chart_run *run;
     bool gpu;                                   /* the primary time is GPU time */
+    bool lod;                                   /* chart-lod.png is drawn (lod_drawn) */
     uint32_t order[64];                         /* the sweep's values in ascending order */
 };
 
@@ -308,8 +309,9 @@ void tw_charts_label_anchor(const struct tw_chart_label *l, double *x, double *y
 
 /* ---- the panels of the speed-accuracy and Pareto charts -------------------------------- */
 
-/* Both are 1200x600, two panels side by side, the keys below them; charts.gp
- * sets these margins (screen fractions) from run.gp. */
+/* Both are 1200x600, two panels side by side, the keys below them (and
+ * chart-lod.png, one panel over both places); charts.gp sets these margins
+ * (screen fractions) from run.gp. */
 enum { CHART_W = 1200, CHART_H = 600 };
 static const double panel_left[2] = {0.075, 0.575}, panel_right[2] = {0.475, 0.975};
 static const double panel_bottom = 0.22, panel_top = 0.84;
@@ -369,10 +371,11 @@ struct panel {
     uint32_t obstacle_count;
 };
 
-static void panel_init(struct panel *p, int k, double x_lo, double x_hi, double y_lo, double y_hi,
-                       bool log_y)
+/* A panel from left to right (screen fractions) of the chart's width. */
+static void panel_init(struct panel *p, double left, double right, double x_lo, double x_hi,
+                       double y_lo, double y_hi, bool log_y)
 {
-    p->x = (struct axis){x_lo, x_hi, false, panel_left[k] * CHART_W, panel_right[k] * CHART_W};
+    p->x = (struct axis){x_lo, x_hi, false, left * CHART_W, right * CHART_W};
     p->y = (struct axis){y_lo, y_hi, log_y, (1.0 - panel_bottom) * CHART_H,
                          (1.0 - panel_top) * CHART_H};
     p->area = (struct tw_chart_box){p->x.p0 + 2.0, p->y.p1 + 2.0, p->x.p1 - 2.0, p->y.p0 - 2.0};
@@ -465,15 +468,18 @@ static void symlog_range(double max, double factor, double *lo, double *hi)
     *lo = pow(*hi, -1.0 / 9.0);
 }
 
-/* The geometry of chart-speed-accuracy.png and chart-pareto.png, for run.gp. */
+/* The geometry of chart-speed-accuracy.png, chart-pareto.png and
+ * chart-lod.png, for run.gp. */
 struct geometry {
     double sa_x_hi;
     double sa_y_lo[2], sa_y_hi[2], sa_y_scale[2];
     bool sa_y_log[2];
     uint32_t sa_labels[2];
-    double pa_x_lo, pa_x_hi;
+    double pa_x_lo, pa_x_hi;            /* the primary time; chart-lod.png's y */
     double pa_y_lo[2], pa_y_hi[2];
     uint32_t pa_labels[2];
+    double lod_x_hi;                    /* pixels differing from full detail, % */
+    uint32_t lod_labels;
 };
 
 /* chart-speed-accuracy.png: one point per method (and per value of a sweep
@@ -520,8 +526,8 @@ static int write_speed_accuracy(const struct chart_data *d, struct geometry *g, 
     }
     int rc = TW_OK;
     for (int panel = 0; panel < 2 && !rc; panel++) {
-        panel_init(p, panel, 0.0, g->sa_x_hi, g->sa_y_lo[panel], g->sa_y_hi[panel],
-                   g->sa_y_log[panel]);
+        panel_init(p, panel_left[panel], panel_right[panel], 0.0, g->sa_x_hi, g->sa_y_lo[panel],
+                   g->sa_y_hi[panel], g->sa_y_log[panel]);
         const bool log_y = g->sa_y_log[panel];
         /* The methods' points first: they get the places beside them. */
         for (int kind = 1; kind <= 2; kind++)
@@ -568,30 +574,88 @@ static int write_speed_accuracy(const struct chart_data *d, struct geometry *g, 
     return rc;
 }
 
+/* Where method m comes in the run's order. */
+static uint32_t method_rank(const struct tw_chart_run *run, enum tw_method m)
+{
+    uint32_t k = 0;
+    while (k < run->method_count && run->methods[k] != m)
+        k++;
+    return k;
+}
+
+/* chart-lod.png's panel: each point at its image error (%) and primary
+ * time, labelled with its value, by method and value (by_value); the
+ * front's staircase, through its points by image error (order: by time,
+ * reversed), kept clear of labels. */
+static int write_lod_labels(const struct chart_data *d, struct geometry *g,
+                            const struct tw_pareto_point *points, const double *time,
+                            const uint32_t *order, const uint32_t *by_value, uint32_t n,
+                            struct panel *p, char *err, size_t err_size)
+{
+    double hi = 0.0;
+    for (uint32_t k = 0; k < n; k++)
+        hi = fmax(hi, 100.0 * points[k].lod_fraction);
+    g->lod_x_hi = hi > 0.0 ? hi * 1.15 : 1.0;
+    panel_init(p, panel_left[0], panel_right[1], 0.0, g->lod_x_hi, g->pa_x_lo, g->pa_x_hi, false);
+    double step_x = NAN, step_y = NAN;
+    for (uint32_t k = n; k-- > 0;) {
+        const struct tw_pareto_point *pt = &points[order[k]];
+        if (!pt->front_lod)
+            continue;
+        const double x = to_px(&p->x, 100.0 * pt->lod_fraction), y = to_px(&p->y, time[order[k]]);
+        if (!isnan(step_x)) {
+            add_obstacle(p, (struct tw_chart_box){step_x, step_y - 1.5, x, step_y + 1.5});
+            add_obstacle(p, (struct tw_chart_box){x - 1.5, step_y, x + 1.5, y});
+        }
+        step_x = x;
+        step_y = y;
+    }
+    for (uint32_t k = 0; k < n; k++) {
+        const struct tw_pareto_point *pt = &points[by_value[k]];
+        char text[32];
+        snprintf(text, sizeof(text), "%g", pt->value);
+        add_point(p, pt->method, 2, 100.0 * pt->lod_fraction, time[by_value[k]],
+                  pt->front_lod ? MARK_FRONT : MARK_SWEEP, text, FONT_VALUE);
+    }
+    g->lod_labels = p->count;
+    return write_labels(d->run->dir, "labels-lod.dat", "chart-lod.png", p, err, err_size);
+}
+
 /* Speed against accuracy over the sweep: chart-data/pareto.dat (every
  * point) and pareto-front.dat, pareto-front-depth.dat (the points of each
  * front), each by primary time, so that a front's points join in order;
- * and the labels of the fronts' points. On a GPU the fronts are those of
- * GPU time (pareto.h's are of CPU time, as sweep.md's). */
+ * and the labels of the fronts' points. For chart-lod.png also
+ * pareto-lod.dat (every point, by method and value: each method's points
+ * join in the order of value) and pareto-front-lod.dat (by image error:
+ * the front's staircase runs along its x), and every point's label. On a
+ * GPU the fronts are those of GPU time (pareto.h's are of CPU time, as
+ * sweep.md's). */
 static int write_pareto(const struct chart_data *d, struct geometry *g, char *err,
                         size_t err_size)
 {
-    static const char *const names[3] = {
+    static const char *const names[5] = {
         DATA "/pareto.dat", DATA "/pareto-front.dat", DATA "/pareto-front-depth.dat",
+        DATA "/pareto-lod.dat", DATA "/pareto-front-lod.dat",
     };
-    static const char *const what[3] = {
+    static const char *const what[5] = {
         "every point", "the front of %s against missed pixels",
-        "the front of %s against depth errors",
+        "the front of %s against depth errors", "every point",
+        "the front of %s against image error (lod_fraction)",
+    };
+    static const char *const sorted[5] = {
+        "by mean %s per frame (time_ms)", "by mean %s per frame (time_ms)",
+        "by mean %s per frame (time_ms)", "by method, in the order of the run, and value",
+        "by image error (lod_fraction)",
     };
     const struct tw_chart_run *run = d->run;
     const struct tw_chart_sweep *s = run->sweep;
     const uint32_t n = s->point_count < LABELS_MAX ? s->point_count : LABELS_MAX;
     struct tw_pareto_point *points = malloc(sizeof(*points) * n);
     double *time = malloc(sizeof(*time) * n), *gpu = malloc(sizeof(*gpu) * n);
-    uint32_t *order = malloc(sizeof(*order) * n);
+    uint32_t *order = malloc(sizeof(*order) * n), *by_value = malloc(sizeof(*by_value) * n);
     struct panel *p = malloc(sizeof(*p));
     int rc = TW_OK;
-    if (!points || !time || !gpu || !order || !p) {
+    if (!points || !time || !gpu || !order || !by_value || !p) {
         snprintf(err, err_size, "%s: out of memory writing the Pareto chart's data", run->dir);
         rc = TW_ERR_NOMEM;
         goto out;
@@ -606,36 +670,50 @@ static int write_pareto(const struct chart_data *d, struct geometry *g, char *er
     }
     if (d->gpu)
         tw_pareto_mark_fronts(points, n, time);
-    /* By time, the unknown last. */
+    /* By time, the unknown last; and by method and value. */
     for (uint32_t k = 0; k < n; k++) {
         uint32_t j = k;
         for (; j > 0 && (isnan(time[order[j - 1]]) ? !isnan(time[k])
                                                     : time[order[j - 1]] > time[k]); j--)
             order[j] = order[j - 1];
         order[j] = k;
+        const uint32_t rank = method_rank(run, points[k].method);
+        for (j = k; j > 0; j--) {
+            const struct tw_pareto_point *q = &points[by_value[j - 1]];
+            const uint32_t q_rank = method_rank(run, q->method);
+            if (q_rank < rank || (q_rank == rank && q->value <= points[k].value))
+                break;
+            by_value[j] = by_value[j - 1];
+        }
+        by_value[j] = k;
     }
     const char *time_name = d->gpu ? "GPU time" : "CPU time";
-    for (int file = 0; file < 3 && !rc; file++) {
+    for (int file = 0; file < (d->lod ? 5 : 3) && !rc; file++) {
         struct tw_outfile o;
         if ((rc = open_in(&o, run->dir, names[file], err, err_size)))
             break;
         tw_outfile_printf(&o, "# ");
         tw_outfile_printf(&o, what[file], time_name);
-        tw_outfile_printf(&o, " of the sweep of %s, by mean %s per frame (time_ms)\n"
-                              "method value mean_cpu_ms missed_per_frame depth_errors_per_frame "
-                              "conservative front front_depth speedup time_ms mean_gpu_ms\n",
-                          s->param, time_name);
+        tw_outfile_printf(&o, " of the sweep of %s, ", s->param);
+        tw_outfile_printf(&o, sorted[file], time_name);
+        tw_outfile_printf(&o, "\nmethod value mean_cpu_ms missed_per_frame depth_errors_per_frame "
+                              "conservative front front_depth speedup time_ms mean_gpu_ms "
+                              "lod_fraction front_lod\n");
         for (uint32_t k = 0; k < n; k++) {
-            const struct tw_pareto_point *pt = &points[order[k]];
-            if ((file == 1 && !pt->front) || (file == 2 && !pt->front_depth))
+            /* Along a front, the faster has more error: the front of image
+             * error by time from the slowest is by image error. */
+            const uint32_t i = file == 3 ? by_value[k] : file == 4 ? order[n - 1 - k] : order[k];
+            const struct tw_pareto_point *pt = &points[i];
+            if ((file == 1 && !pt->front) || (file == 2 && !pt->front_depth) ||
+                (file == 4 && !pt->front_lod))
                 continue;
             tw_outfile_printf(&o, "%s %g %.3f %.3f %.3f %d %d %d %.3f", tw_method_name(pt->method),
                               pt->value, pt->cpu_ms, pt->missed_per_frame,
                               pt->depth_errors_per_frame, pt->conservative, pt->front,
                               pt->front_depth, pt->speedup);
-            put_time(&o, time[order[k]]);
-            put_time(&o, gpu[order[k]]);
-            tw_outfile_printf(&o, "\n");
+            put_time(&o, time[i]);
+            put_time(&o, gpu[i]);
+            tw_outfile_printf(&o, " %.6g %d\n", pt->lod_fraction, pt->front_lod);
         }
         rc = tw_outfile_commit(&o, err, err_size);
     }
@@ -657,7 +735,8 @@ static int write_pareto(const struct chart_data *d, struct geometry *g, char *er
     symlog_range(missed_hi, 8.0, &g->pa_y_lo[0], &g->pa_y_hi[0]);
     symlog_range(depth_hi, 8.0, &g->pa_y_lo[1], &g->pa_y_hi[1]);
     for (int panel = 0; panel < 2 && !rc; panel++) {
-        panel_init(p, panel, g->pa_x_lo, g->pa_x_hi, g->pa_y_lo[panel], g->pa_y_hi[panel], true);
+        panel_init(p, panel_left[panel], panel_right[panel], g->pa_x_lo, g->pa_x_hi,
+                   g->pa_y_lo[panel], g->pa_y_hi[panel], true);
         for (uint32_t k = 0; k < n; k++) {
             const struct tw_pareto_point *pt = &points[order[k]];
             const bool front = panel == 0 ? pt->front : pt->front_depth;
@@ -677,8 +756,11 @@ static int write_pareto(const struct chart_data *d, struct geometry *g, char *er
         rc = write_labels(run->dir, name, title, p, err, err_size);
         g->pa_labels[panel] = p->count;
     }
+    if (!rc && d->lod)
+        rc = write_lod_labels(d, g, points, time, order, by_value, n, p, err, err_size);
 out:
     free(p);
+    free(by_value);
     free(order);
     free(gpu);
     free(time);
@@ -705,6 +787,13 @@ static void put_string(struct tw_outfile *o, const char *s)
 static int pareto_drawn(const struct tw_chart_run *run)
 {
     return run->sweep && run->sweep->points && run->sweep->point_count > 0 && run->verified;
+}
+
+/* chart-lod.png needs such a sweep of max_screen_error (bench's name for
+ * it): over other sweeps the image error is the same level of detail's. */
+static bool lod_drawn(const struct tw_chart_run *run)
+{
+    return pareto_drawn(run) && strcmp(run->sweep->param, "max_screen_error") == 0;
 }
 
 static void put_array(struct tw_outfile *o, const char *name, const double *v)
@@ -792,6 +881,9 @@ static int write_run(const struct chart_data *d, const struct geometry *g, char 
     }
     tw_outfile_printf(&o, "'\n# 1: chart-data/pareto*.dat hold the sweep's speed against "
                           "accuracy (--verify)\npareto = %d\n", pareto_drawn(run));
+    tw_outfile_printf(&o, "# 1: and it is a sweep of max_screen_error: chart-data/pareto-lod.dat,\n"
+                          "# pareto-front-lod.dat, labels-lod.dat for chart-lod.png\nlod = %d\n",
+                      d->lod ? 1 : 0);
     tw_outfile_printf(&o, "# 1: bench --split filled frames-*.dat's set_* columns\nsplit = %d\n",
                       run->split ? 1 : 0);
     tw_outfile_printf(&o, "# chart-speed-accuracy.png and chart-pareto.png (%dx%d): their panels'\n"
@@ -811,6 +903,10 @@ static int write_run(const struct chart_data *d, const struct geometry *g, char 
     put_array(&o, "pa_y_lo", g->pa_y_lo);
     put_array(&o, "pa_y_hi", g->pa_y_hi);
     tw_outfile_printf(&o, "array pa_labels[2] = [%u, %u]\n", g->pa_labels[0], g->pa_labels[1]);
+    tw_outfile_printf(&o, "# chart-lod.png: one panel from panel_left[1] to panel_right[2], x the\n"
+                          "# pixels differing from full detail (%% of the image) up to lod_x_hi,\n"
+                          "# y the time over pa_x_lo to pa_x_hi\nlod_x_hi = %.10g\n"
+                          "lod_labels = %u\n", g->lod_x_hi, g->lod_labels);
     return tw_outfile_commit(&o, err, err_size);
 }
 
@@ -1150,6 +1246,7 @@ int tw_charts_write(const struct tw_chart_run *run, char *err, size_t err_size)
         d.gpu |= run->figures[run->methods[k]].gpu_frames > 0;
     if (s)
         sort_values(s, d.order);
+    d.lod = lod_drawn(run);
     int rc = TW_OK;
     struct geometry g;
     memset(&g, 0, sizeof(g));

@@ -16,11 +16,11 @@
 # name ('ms_frame', column('triangles')):
 #   run.gp             what the run was: run_title, methods, frames_per_method,
 #                      verified, sweep_param, sweep_values, sweep_unaffected,
-#                      pareto, split; the time (time, frame_time_column,
+#                      pareto, lod, split; the time (time, frame_time_column,
 #                      mean_time_column, time_name, time_note) and each
 #                      method's mean_time, mean_wall and time_frames; the
-#                      panels and axis ranges of the speed-accuracy and Pareto
-#                      charts, for which tileworld placed their labels
+#                      panels and axis ranges of the speed-accuracy, Pareto
+#                      and LOD charts, for which tileworld placed their labels
 #   frames-METHOD.dat  one row per frame of METHOD: the columns of frames.csv
 #                      but method (frame, ms_frame, ms_cull, ms_wait, triangles,
 #                      clusters, draws, queries, tiles_*, cache_bytes,
@@ -42,11 +42,19 @@
 #                      method and value, by time_ms: method, value,
 #                      mean_cpu_ms, missed_per_frame, depth_errors_per_frame,
 #                      conservative, front, front_depth (0 or 1), speedup,
-#                      time_ms (the primary time), mean_gpu_ms
+#                      time_ms (the primary time), mean_gpu_ms, lod_fraction
+#                      (the share of the pixels differing from full detail,
+#                      mean per frame), front_lod (0 or 1)
 #   pareto-front.dat, pareto-front-depth.dat: the rows of pareto.dat on the
 #                      front of the primary time against missed pixels, depth
 #                      errors
-#   labels-speed-accuracy-1.dat, -2.dat, labels-pareto-1.dat, -2.dat: the
+#   pareto-lod.dat     with a sweep of max_screen_error under --verify
+#                      (lod = 1): the rows of pareto.dat by method (in the
+#                      order of `methods`) and value
+#   pareto-front-lod.dat (lod = 1): the rows of pareto.dat on the front of the
+#                      primary time against lod_fraction, by lod_fraction
+#   labels-speed-accuracy-1.dat, -2.dat, labels-pareto-1.dat, -2.dat,
+#                      labels-lod.dat: the
 #                      point labels of each panel, placed apart by tileworld:
 #                      method, kind (1: a method's point, 2: a sweep value's),
 #                      x, y (the point), label_x, label_y (the label's centre),
@@ -280,7 +288,6 @@ do for [panel = 1:2] {
     }
     log_y = sa_y_log[panel]
     scale = sa_y_scale[panel]
-    set yrange [sa_y_lo[panel]:sa_y_hi[panel]]
     if (log_y) {
         tic_axis = 'y'; tic_hi = sa_y_hi[panel]
         set logscale y
@@ -292,6 +299,9 @@ do for [panel = 1:2] {
         set format y '%g'
         set ylabel 'overdraw triangles per frame, mean'.(scale == 1e6 ? ' (millions)' : scale == 1e3 ? ' (thousands)' : '')
     }
+    # The range after the scale: a range from 0 set while the axis is still
+    # the left panel's log one makes gnuplot warn.
+    set yrange [sa_y_lo[panel]:sa_y_hi[panel]]
     y(v) = log_y ? v + 1 : v / scale
     y_column = missed_panel ? 'missed_pixels_total' : 'mean_overdraw_triangles'
     if (missed_panel) {
@@ -440,6 +450,45 @@ if (pareto) {
         unset label
     }
     unset multiplot
+}
+
+# ---- chart-lod.png: speed against image error over a sweep of max_screen_error ----
+# One point per method and value (--verify): the pixels differing from full
+# detail (% of the image, mean per frame) against the mean primary time per
+# frame; each method's points joined in order of value, each labelled with
+# its value; the points of the Pareto front of time against image error
+# (pareto.c) ringed and joined by a black staircase. The oracles are drawn
+# but never on the front.
+if (lod) {
+    reset
+    set terminal @png_term size 1200,600
+    set output out('chart-lod.png')
+    set lmargin at screen panel_left[1]
+    set rmargin at screen panel_right[2]
+    set tmargin at screen panel_top
+    set bmargin at screen panel_bottom
+    set title "Speed against image error over the sweep of ".sweep_param.", lower left is better\n". \
+        "one point per method and value, labelled with the value; ".run_title."\n". \
+        time_name.': '.time_note font ',13'
+    set grid xtics ytics lc rgb '#d8d8d8'
+    set border 3
+    set tics nomirror
+    set xlabel 'pixels differing from full detail, mean per frame (% of the image)'
+    set ylabel 'mean '.time_name.' per frame (ms)'
+    set xrange [0:lod_x_hi]
+    set yrange [pa_x_lo:pa_x_hi]
+    set key at graph 0.5, screen 0.01 center bottom horizontal maxcols 5 Left reverse samplen 1 width 1
+    mine(i) = strcol('method') eq method(i)
+    percent(c) = 100 * column(c)
+    front_file = 'chart-data/pareto-front-lod.dat'
+    label_file = 'chart-data/labels-lod.dat'
+    plot for [i = 1:n] 'chart-data/pareto-lod.dat' \
+             using (mine(i) ? percent('lod_fraction') : NaN):'time_ms' \
+             with linespoints lt line(i) pt 7 ps 1.3 lw 1 dt 3 title method(i), \
+         front_file using (percent('lod_fraction')):'time_ms' with steps lc rgb '#000000' lw 1.5 \
+             dt solid notitle, \
+         front_file using (percent('lod_fraction')):'time_ms' with points lc rgb '#000000' \
+             pt 6 ps 2.6 lw 1.2 dt solid title 'Pareto front' @label_elements
 }
 
 # ---- chart-split.png: with --split, each method's CPU time parted -------------------

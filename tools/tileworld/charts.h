@@ -18,6 +18,12 @@
  *                             against missed pixels and against depth errors
  *                             per frame, one point per method and value, the
  *                             Pareto fronts drawn (pareto.h) and named
+ *   chart-lod.png             with --sweep max_screen_error=... under
+ *                             --verify: mean primary time against the
+ *                             pixels differing from full detail (% of the
+ *                             image, mean per frame), one point per method
+ *                             and value, each method's joined by value and
+ *                             labelled with it, the Pareto front drawn
  *   chart-split.png           with --split: each method's CPU time, parted
  * Also written into the run's folder: charts.gp (to re-run or edit there:
  * `cd DIR && gnuplot charts.gp`), chart-data/ (what it plots, from the

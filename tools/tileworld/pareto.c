@@ -11,10 +11,25 @@ static bool dominates(double q_time, double q_error, double p_time, double p_err
     return q_time <= p_time && q_error <= p_error && (q_time < p_time || q_error < p_error);
 }
 
+/* The fronts: of time against missed pixels, depth errors, image error. */
+enum front { FRONT_MISSED, FRONT_DEPTH, FRONT_LOD, FRONT_COUNT };
+
+static double error_of(const struct tw_pareto_point *p, enum front f)
+{
+    return f == FRONT_MISSED ? p->missed_per_frame
+           : f == FRONT_DEPTH ? p->depth_errors_per_frame
+                              : p->lod_fraction;
+}
+
+static bool on_front(const struct tw_pareto_point *p, enum front f)
+{
+    return f == FRONT_MISSED ? p->front : f == FRONT_DEPTH ? p->front_depth : p->front_lod;
+}
+
 /* Marks the points of out that no other (realisable) point dominates, by
  * time[k] (NULL: cpu_ms); a point of unknown time (NaN) is on no front and
  * beats none. */
-static void mark_front(struct tw_pareto_point *points, uint32_t n, const double *time, bool depth)
+static void mark_front(struct tw_pareto_point *points, uint32_t n, const double *time, enum front f)
 {
     for (uint32_t p = 0; p < n; p++) {
         struct tw_pareto_point *pp = &points[p];
@@ -25,15 +40,14 @@ static void mark_front(struct tw_pareto_point *points, uint32_t n, const double 
             const double q_time = time ? time[q] : qp->cpu_ms;
             if (q == p || tw_method_limit(qp->method) || isnan(q_time))
                 continue;
-            beaten = depth ? dominates(q_time, qp->depth_errors_per_frame, p_time,
-                                       pp->depth_errors_per_frame)
-                           : dominates(q_time, qp->missed_per_frame, p_time,
-                                       pp->missed_per_frame);
+            beaten = dominates(q_time, error_of(qp, f), p_time, error_of(pp, f));
         }
-        if (depth)
+        if (f == FRONT_MISSED)
+            pp->front = !beaten;
+        else if (f == FRONT_DEPTH)
             pp->front_depth = !beaten;
         else
-            pp->front = !beaten;
+            pp->front_lod = !beaten;
     }
 }
 
@@ -58,18 +72,17 @@ void tw_pareto_points(const double *values, uint32_t count,
                 .speedup = fg->mean_cpu_ms > 0.0 ? ref->mean_cpu_ms / fg->mean_cpu_ms : 0.0,
                 .missed_per_frame = (double)fg->missed_pixels_total / frames,
                 .depth_errors_per_frame = (double)fg->depth_errors_total / frames,
+                .lod_fraction = fg->lod_pixel_fraction,
                 .conservative = conservative[k][me],
             };
         }
-    const uint32_t n = count * method_count;
-    mark_front(out, n, NULL, false);
-    mark_front(out, n, NULL, true);
+    tw_pareto_mark_fronts(out, count * method_count, NULL);
 }
 
 void tw_pareto_mark_fronts(struct tw_pareto_point *points, uint32_t n, const double *time)
 {
-    mark_front(points, n, time, false);
-    mark_front(points, n, time, true);
+    for (int f = 0; f < FRONT_COUNT; f++)
+        mark_front(points, n, time, (enum front)f);
 }
 
 /* The points' indices by CPU time, then by method and value. */
@@ -89,22 +102,30 @@ static uint32_t *by_time(const struct tw_pareto_point *points, uint32_t n)
 
 static void name_front(struct tw_outfile *o, const char *param, const char *reference,
                        const struct tw_pareto_point *points, const uint32_t *order, uint32_t n,
-                       bool depth)
+                       enum front f)
 {
+    static const char *const against[FRONT_COUNT] = {
+        "missed pixels", "depth errors", "image error (pixels differing from full detail)",
+    };
+    static const char *const as_few[FRONT_COUNT] = {
+        "as few missed pixels", "as few depth errors", "as little image error",
+    };
     tw_outfile_printf(o, "\n**The front of CPU time against %s** (no other point is as fast "
-                         "with as few %s, and better in one; the oracles are left out: they need "
-                         "the ID pass):\n\n", depth ? "depth errors" : "missed pixels",
-                      depth ? "depth errors" : "missed pixels");
+                         "with %s, and better in one; the oracles are left out: they need "
+                         "the ID pass):\n\n", against[f], as_few[f]);
     for (uint32_t k = 0; k < n; k++) {
         const struct tw_pareto_point *p = &points[order[k]];
-        if (!(depth ? p->front_depth : p->front))
+        if (!on_front(p, f))
             continue;
-        tw_outfile_printf(o, "- %s %s=%g: %.2f ms CPU per frame, speed-up %.2f over %s, "
-                             "%.1f %s per frame%s\n",
+        char error[96];
+        if (f == FRONT_LOD)
+            snprintf(error, sizeof(error), "%.3f %% of the pixels differing from full detail "
+                                           "per frame", 100.0 * p->lod_fraction);
+        else
+            snprintf(error, sizeof(error), "%.1f %s per frame", error_of(p, f), against[f]);
+        tw_outfile_printf(o, "- %s %s=%g: %.2f ms CPU per frame, speed-up %.2f over %s, %s%s\n",
                           tw_method_name(p->method), param, p->value, p->cpu_ms, p->speedup,
-                          reference, depth ? p->depth_errors_per_frame : p->missed_per_frame,
-                          depth ? "depth errors" : "missed pixels",
-                          p->conservative ? " (conservative)" : "");
+                          reference, error, p->conservative ? " (conservative)" : "");
     }
 }
 
@@ -117,25 +138,28 @@ void tw_pareto_write_md(struct tw_outfile *o, const char *param, const char *ref
         return;
     }
     tw_outfile_printf(o, "| method | %s | mean CPU ms | speed-up vs %s | missed pixels / frame | "
-                         "depth errors / frame | conservative | on the front |\n"
-                         "|---|---|---|---|---|---|---|---|\n", param, reference);
+                         "depth errors / frame | pixels differing from full detail (%%) | "
+                         "conservative | on the front |\n"
+                         "|---|---|---|---|---|---|---|---|---|\n", param, reference);
     for (uint32_t k = 0; k < n; k++) {
         const struct tw_pareto_point *p = &points[order[k]];
         const char *front = !verified ? "-"
                             : tw_method_limit(p->method) ? "no (a limit)"
                             : p->front && p->front_depth ? "yes (both)"
                             : p->front ? "yes" : p->front_depth ? "depth errors only" : "no";
-        char speedup[32] = "-";
+        char speedup[32] = "-", lod[32] = "-";
         if (p->speedup > 0.0)
             snprintf(speedup, sizeof(speedup), "%.2fx", p->speedup);
-        tw_outfile_printf(o, "| %s | %g | %.2f | %s | %.1f | %.1f | %s | %s |\n",
+        if (verified)
+            snprintf(lod, sizeof(lod), "%.3f", 100.0 * p->lod_fraction);
+        tw_outfile_printf(o, "| %s | %g | %.2f | %s | %.1f | %.1f | %s | %s | %s |\n",
                           tw_method_name(p->method), p->value, p->cpu_ms, speedup,
-                          p->missed_per_frame, p->depth_errors_per_frame,
+                          p->missed_per_frame, p->depth_errors_per_frame, lod,
                           p->conservative ? "yes" : "no", front);
     }
     if (verified) {
-        name_front(o, param, reference, points, order, n, false);
-        name_front(o, param, reference, points, order, n, true);
+        for (int f = 0; f < FRONT_COUNT; f++)
+            name_front(o, param, reference, points, order, n, (enum front)f);
     } else {
         tw_outfile_printf(o, "\nAccuracy not measured (no --verify): no front, missed pixels read "
                              "0.\n");

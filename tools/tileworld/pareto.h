@@ -1,14 +1,16 @@
 /*
  * Speed against accuracy over a sweep (DESIGN.md §8): one point per method
  * and value of the swept parameter, at its mean CPU time per frame and its
- * missed pixels (and depth errors) per frame; the Pareto front is the set
- * of points that no other point beats on both (as fast or faster and with
- * as few errors or fewer, better on one). The oracle is drawn, never on a
- * front: it needs the ID pass to know what to draw, so no host can have it.
+ * missed pixels (and depth errors, and image error of levels of detail) per
+ * frame; a Pareto front is the set of points that no other point beats on
+ * both (as fast or faster and with as few errors or fewer, better on one).
+ * The oracle is drawn, never on a front: it needs the ID pass to know what
+ * to draw, so no host can have it.
  *
- * bench --sweep writes sweep.md from these (the front named with its
- * speed-up and its error) and charts.h draws them as chart-pareto.png (on a
- * real GPU by GPU time, tw_pareto_mark_fronts).
+ * bench --sweep writes sweep.md from these (each front named with its
+ * speed-up and its error) and charts.h draws them as chart-pareto.png and,
+ * for a sweep of max_screen_error, chart-lod.png (on a real GPU by GPU
+ * time, tw_pareto_mark_fronts).
  */
 #ifndef TW_TOOLS_PARETO_H
 #define TW_TOOLS_PARETO_H
@@ -26,9 +28,12 @@ struct tw_pareto_point {
     double speedup;                /* reference's mean CPU time / cpu_ms (0: no reference) */
     double missed_per_frame;       /* missed pixels, mean per frame */
     double depth_errors_per_frame;
+    double lod_fraction;           /* image error: share of the pixels differing from full
+                                      detail, mean per frame (0: not measured) */
     bool conservative;             /* tw_method_conservative() at this value (T = 0) */
     bool front;                    /* on the front of CPU time against missed pixels */
     bool front_depth;              /* on the front of CPU time against depth errors */
+    bool front_lod;                /* on the front of CPU time against lod_fraction */
 };
 
 /* The points of a sweep: for each of count values (values[k], figures[k]
@@ -50,7 +55,7 @@ void tw_pareto_points(const double *values, uint32_t count,
 void tw_pareto_mark_fronts(struct tw_pareto_point *points, uint32_t n, const double *time);
 
 /* Writes the sweep's points as markdown into o: one table row per point
- * (by CPU time), then the fronts named. param: the parameter's name;
+ * (by CPU time), then the three fronts named. param: the parameter's name;
  * reference: what the speed-up is against ("T=0"); verified: accuracy was
  * measured (else no front is named). */
 void tw_pareto_write_md(struct tw_outfile *o, const char *param, const char *reference,

@@ -43,7 +43,8 @@ static const char *const csv_header =
     "loads_done,evictions,bytes_cpu,bytes_gpu,bytes_state,bytes_needed,over_budget,ms_upload,"
     "blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read,bytes_loading,"
     "tiles_loading,set_cpu_ms,set_ms,set_triangles,set_draws,overdraw_box_triangles,gpu_ms,"
-    "gpu_ms_id,waits,flushes,bytes_read_back,tiles_late,hzb_lag,lod_pixels,lod_depth_m\n";
+    "gpu_ms_id,waits,flushes,bytes_read_back,tiles_late,hzb_lag,lod_pixels,lod_pixels_exact,"
+    "lod_depth_m\n";
 
 /* A row of frames.csv as the row of a gnuplot data file: blank-separated,
  * without the method (its file says it). */
@@ -120,7 +121,7 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
              "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu,%.3f,%llu,"
              "%u,%u,%u,%u,%llu,%llu,%llu,%llu,%d,%.3f,"
              "%u,%u,%u,%.3f,%.3f,%llu,%u,%.3f,%.3f,%llu,%u,%llu,%.3f,%.3f,%u,%u,%llu,%u,%u,%llu,"
-             "%.4f\n",
+             "%llu,%.4f\n",
              (unsigned long long)st->frame, tw_method_name(st->method), st->ms_frame, st->ms_cull,
              st->ms_wait, (unsigned long long)st->triangles, st->clusters, st->draws, st->queries,
              st->tiles_queried, st->tiles_visible, st->tiles_new, st->tiles_cached,
@@ -136,7 +137,8 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
              sv->cpu_ms, sv->ms, (unsigned long long)sv->triangles, sv->draws,
              (unsigned long long)st->overdraw_box_triangles, st->gpu_ms, st->gpu_ms_id, st->waits,
              st->flushes, (unsigned long long)st->bytes_read_back, st->tiles_late, st->hzb_lag,
-             (unsigned long long)st->lod_pixels, st->lod_depth_m);
+             (unsigned long long)st->lod_pixels, (unsigned long long)st->lod_pixels_exact,
+             st->lod_depth_m);
     if (!tw_outfile_printf(&r->frames_csv, "%s", row))
         return tw_outfile_report(&r->frames_csv, err, err_size);
     if (r->chart_data) {

@@ -15,6 +15,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "tiles/clock.h"
 #include "tiles/tiles-internal.h"
 #include "tilesets/tilesets-private.h"
 #include "tools/tileworld/bench.h"
@@ -68,6 +69,7 @@ static const char bench_synopsis[] =
     "                        [--scenario NAME|all] [--split]\n";
 static const char info_synopsis[] =
     "usage: tileworld info   [--tileset NAME|FILE.json] [--seed N] [--cluster-triangles N]\n"
+    "                        [--max-screen-error PX]\n"
     "                        [--calibrate [--size WxH]] [--gl auto|egl|osmesa] [--gpu N]\n";
 static const char import_synopsis[] =
     "usage: tileworld import FILE.gltf|FILE.glb\n";
@@ -188,6 +190,9 @@ static void usage(FILE *f)
                 tw_gl_usage, exit_help);
     } else if (strcmp(c, "info") == 0) {
         fprintf(f, "%s\n%s%s--size WxH            the calibration's image size (default 640x360)\n"
+                   "--max-screen-error PX  also build the levels of detail a world would (0: none)\n"
+                   "                      and list each prototype's triangles and geometric\n"
+                   "                      errors (default 1)\n"
                    "%s%s", info_synopsis, info_help, world_help, tw_gl_usage, exit_help);
     } else if (strcmp(c, "import") == 0) {
         fprintf(f, "%s\n%s", import_synopsis, import_help);
@@ -701,6 +706,32 @@ static int info(const struct options *o)
            cb->min[2], cb->max[0], cb->max[1], cb->max[2]);
     printf("geometry: %llu bytes uploaded once\n",
            (unsigned long long)tw_tileset_geometry_bytes(ts));
+    if (o->cli.world.max_screen_error > 0.0f) {
+        /* What the world builds for --max-screen-error (DESIGN §17). */
+        struct tw_lods lods;
+        const double t0 = tw_clock_monotonic_ms();
+        err = tw_lods_build(ts, ts->max_cluster_triangles, &lods);
+        const double ms = tw_clock_monotonic_ms() - t0;
+        if (err) {
+            fprintf(stderr, "tileworld: cannot build the levels of detail: %s\n",
+                    tw_error_to_str(err));
+            tw_tileset_destroy(ts);
+            return 1;
+        }
+        printf("levels of detail (built in %.0f ms, %llu bytes with their geometry): triangles "
+               "(geometric error, m) of each level, full detail first\n", ms,
+               (unsigned long long)tw_lods_bytes(&lods));
+        for (uint32_t p = 0; p < ts->prototype_count; p++) {
+            printf("%-16s %llu", tw_cli_escape(ts->prototypes[p].name, name, sizeof(name)),
+                   (unsigned long long)ts->prototypes[p].triangle_count);
+            for (uint32_t k = 0; k < lods.count[p]; k++)
+                printf(", %llu (%.2g)",
+                       (unsigned long long)lods.levels->prototypes[lods.first[p] + k].triangle_count,
+                       lods.error[lods.first[p] + k]);
+            printf("\n");
+        }
+        tw_lods_free(&lods);
+    }
     int rc = 0;
     if (o->calibrate)
         rc = print_calibration(o, &shown, &log);
