@@ -440,9 +440,20 @@ static int measure_error(const struct welded *w, const struct tw_box *box, const
                         const size_t cell = ((size_t)z * g.dim[1] + y) * g.dim[0] + x;
                         for (uint32_t k = g.first[cell]; k < g.first[cell + 1]; k++) {
                             const uint32_t t = g.tri[k];
-                            const float d2 = point_triangle2(
-                                p, w->pos + 3 * (size_t)idx[3 * t], w->pos + 3 * (size_t)idx[3 * t + 1],
-                                w->pos + 3 * (size_t)idx[3 * t + 2]);
+                            const float *a = w->pos + 3 * (size_t)idx[3 * t],
+                                        *b = w->pos + 3 * (size_t)idx[3 * t + 1],
+                                        *cc = w->pos + 3 * (size_t)idx[3 * t + 2];
+                            /* The triangle's box first: most are farther. */
+                            float box2 = 0.0f;
+                            for (int q = 0; q < 3; q++) {
+                                const float lo = fminf(a[q], fminf(b[q], cc[q]));
+                                const float hi = fmaxf(a[q], fmaxf(b[q], cc[q]));
+                                const float d = p[q] < lo ? lo - p[q] : p[q] > hi ? p[q] - hi : 0.0f;
+                                box2 += d * d;
+                            }
+                            if (box2 >= best2)
+                                continue;
+                            const float d2 = point_triangle2(p, a, b, cc);
                             if (d2 < best2)
                                 best2 = d2;
                         }
@@ -479,10 +490,14 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
     struct welded w;
     err = weld(&b, &w);
     uint32_t *widx = malloc(sizeof(uint32_t) * 3 * (size_t)b.triangles);
+    uint32_t *pidx = malloc(sizeof(uint32_t) * 3 * (size_t)b.triangles);
     uint32_t *idx = malloc(sizeof(uint32_t) * 3 * (size_t)b.triangles);
-    if (err || !idx || !widx) {
+    if (!err && pidx)
+        memcpy(pidx, w.idx, sizeof(uint32_t) * 3 * (size_t)b.triangles);
+    if (err || !idx || !widx || !pidx) {
         free(idx);
         free(widx);
+        free(pidx);
         welded_free(&w);
         baked_free(&b);
         return err ? err : TW_ERR_NOMEM;
@@ -501,20 +516,22 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
          * the mesh's extent; each level starts from full detail, so that
          * its error is measured against it. */
         float rel = 0.0f;
-        size_t n = meshopt_simplify(widx, w.idx, 3 * (size_t)b.triangles, w.pos, w.vertices,
+        size_t n = meshopt_simplify(widx, pidx, 3 * previous, w.pos, w.vertices,
                                     sizeof(float) * 3, 3 * target, 1.0f, 0, &rel) / 3;
         if ((double)n > LOD_KEEP_RATIO * (double)previous)
-            n = meshopt_simplifySloppy(widx, w.idx, 3 * (size_t)b.triangles, w.pos, w.vertices,
+            n = meshopt_simplifySloppy(widx, pidx, 3 * previous, w.pos, w.vertices,
                                        sizeof(float) * 3, 3 * target, 1.0f, &rel) / 3;
         if (n < LOD_MIN_TRIANGLES / 2 || (double)n > LOD_KEEP_RATIO * (double)previous)
             break;
         unweld(&b, &w, widx, n, idx);
         float measured = 0.0f;
-        err = measure_error(&w, &ts->prototypes[p].box, widx, n,
-                            fmaxf(rel * scale, previous_error), &measured);
+        /* meshoptimizer's error is against the level before; the measure
+         * is against full detail, and never below the level before's. */
+        const float floor_error = fmaxf(previous_error, rel * scale);
+        err = measure_error(&w, &ts->prototypes[p].box, widx, n, floor_error, &measured);
         if (err)
             break;
-        float error = fmaxf(rel * scale, measured);
+        float error = fmaxf(floor_error, measured);
         if (!(error >= previous_error))
             error = previous_error;   /* a coarser level is never called more exact */
         char name[48];
@@ -523,11 +540,14 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
         if (err)
             break;
         errors[(*count)++] = error;
+        /* The next level simplifies this one: each costs half the last. */
+        memcpy(pidx, widx, sizeof(uint32_t) * 3 * n);
         previous = n;
         previous_error = error;
     }
     free(idx);
     free(widx);
+    free(pidx);
     welded_free(&w);
     baked_free(&b);
     return err;
