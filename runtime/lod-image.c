@@ -96,16 +96,6 @@ static bool near_match(const uint8_t *a, const uint8_t *b, uint32_t width, uint3
     return false;
 }
 
-/* Eye distance (metres along the view axis) of window depth d: the
- * renderer's projection inverted, depth reversed or not. */
-static double eye_distance(double d, double n, double f, bool reversed)
-{
-    if (reversed)
-        return f * n / (d * (f - n) + n);
-    const double z_ndc = 2.0 * d - 1.0;
-    return 2.0 * f * n / ((f + n) - z_ndc * (f - n));
-}
-
 int tw_lod_image_compare(struct tw_world *w, const struct tw_view *v, struct tw_frame_stats *st)
 {
     struct tw_lod_image *li = &w->lod_image;
@@ -137,8 +127,8 @@ int tw_lod_image_compare(struct tw_world *w, const struct tw_view *v, struct tw_
             if (za == sky || zb == sky)
                 continue;
             both++;
-            depth_sum += fabs(eye_distance(za, v->near_plane, v->far_plane, reversed) -
-                              eye_distance(zb, v->near_plane, v->far_plane, reversed));
+            depth_sum += fabs(tw_eye_distance(za, v->near_plane, v->far_plane, reversed) -
+                              tw_eye_distance(zb, v->near_plane, v->far_plane, reversed));
         }
     st->lod_pixels = differ;
     st->lod_pixels_exact = exact;

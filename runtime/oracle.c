@@ -177,8 +177,7 @@ int tw_oracle_order(struct tw_world *w, const struct tw_view *v, struct tw_drawn
     return TW_OK;
 }
 
-/* Eye distance (metres along the view axis) of window depth d. */
-static double eye_distance(double d, double n, double f, bool reversed)
+double tw_eye_distance(double d, double n, double f, bool reversed)
 {
     if (reversed)   /* d = n (f / z - 1) / (f - n) */
         return f * n / (d * (f - n) + n);
@@ -205,7 +204,7 @@ static void block_distances(struct tw_world *w, const struct tw_view *v)
                     far = reversed ? fminf(far, d) : fmaxf(far, d);
                 }
             o->block_far[(size_t)by * o->blocks_x + bx] =
-                (float)eye_distance(far, v->near_plane, v->far_plane, reversed);
+                (float)tw_eye_distance(far, v->near_plane, v->far_plane, reversed);
         }
 }
 
@@ -264,14 +263,14 @@ static bool same_surface(float a, float b, const struct tw_oracle_depth *dm)
 {
     if (a == b)
         return true;
-    const double za = eye_distance(a, dm->n, dm->f, dm->reversed);
-    const double zb = eye_distance(b, dm->n, dm->f, dm->reversed);
+    const double za = tw_eye_distance(a, dm->n, dm->f, dm->reversed);
+    const double zb = tw_eye_distance(b, dm->n, dm->f, dm->reversed);
     const double near = za < zb ? za : zb;
     double slack = dm->tol * near;
     if (!dm->reversed) {
         /* 24-bit depth: two steps of 2^-24, in metres at this distance. */
         const double step = 2.0 / 16777216.0;
-        slack += fabs(eye_distance(a + step, dm->n, dm->f, false) - za);
+        slack += fabs(tw_eye_distance(a + step, dm->n, dm->f, false) - za);
     }
     return fabs(za - zb) <= slack;
 }
@@ -306,7 +305,7 @@ static bool pixel_shows(const struct tw_view *v, const struct tw_box *q, uint32_
         t0 = fmax(t0, ta);
         t1 = fmin(t1, tb);
     }
-    return t0 <= t1 && t0 <= eye_distance(depth, dm->n, dm->f, dm->reversed) * (1.0 + dm->tol);
+    return t0 <= t1 && t0 <= tw_eye_distance(depth, dm->n, dm->f, dm->reversed) * (1.0 + dm->tol);
 }
 
 /* Whether an occlusion query of box b (tile-local, moved by offset), or of

@@ -137,6 +137,9 @@ struct tw_oracle_depth {
 };
 
 /* oracle.c */
+/* Eye distance (metres along the view axis) of window depth d, near and far
+ * planes n and f, depth reversed or not. */
+double tw_eye_distance(double d, double n, double f, bool reversed);
 int tw_oracle_init(struct tw_world *w);
 void tw_oracle_finish(struct tw_oracle *o);
 /* The ID pass of view v: which clusters have visible pixels, how many. Untimed. */

@@ -67,8 +67,9 @@ done
 # --quick: a CI-sized run that llvmpipe finishes, two scenes; options given
 # explicitly still win.
 methods=vfc,tilequery,chc,tilequery+chc,hzb,tilequery+hzb,box-oracle,oracle
-# name|tileset|path|view distance (empty: the default); a tileset starting
-# with @ is a folder of the pack (or of the repository, with --tileworld).
+# name|tileset|path|view distance (empty: the default)[|more bench options];
+# a tileset starting with @ is a folder of the pack (or of the repository,
+# with --tileworld).
 if $quick; then
     : "${size:=320x180}" "${frames:=5}" "${verify_frames:=1}" "${budget_s:=120}"
     scenes=(
@@ -88,6 +89,8 @@ else
         "city-flyover-vd400|city|flyover|400"
         "city-flyover-vd800|city|flyover|800"
         "city-flyover-vd1600|city|flyover|1600"
+        "city-flyover-vd6400|city|flyover|6400"
+        "city-flyover-vd1600-full-detail|city|flyover|1600|--max-screen-error 0"
     )
 fi
 [[ $budget_s =~ ^[1-9][0-9]*$ && $budget_s -ge 10 ]] || bad_input "--budget-s wants whole seconds, at least 10 (got '$budget_s')"
@@ -328,10 +331,13 @@ run_tileworld() {
 # scene I: sets name, tileset, path, vd and args (the bench's, less
 # --frames and --out) of scenes[I].
 scene() {
-    IFS='|' read -r name tileset path vd <<<"${scenes[$1]}"
+    local more
+    IFS='|' read -r name tileset path vd more <<<"${scenes[$1]}"
     [[ $tileset == @* ]] && tileset=$data/${tileset#@}
-    args=(bench --tileset "$tileset" --path "$path" ${vd:+--view-distance "$vd"} --methods "$methods"
-        --size "$size" --png-every 0 --quiet "${gl_args[@]}")
+    local -a extra=()
+    read -r -a extra <<<"$more"
+    args=(bench --tileset "$tileset" --path "$path" ${vd:+--view-distance "$vd"} "${extra[@]}"
+        --methods "$methods" --size "$size" --png-every 0 --quiet "${gl_args[@]}")
 }
 
 # A long suite's first scene is timed over a few frames first, so that the

@@ -179,9 +179,8 @@ static int weld(const struct baked *b, struct welded *w)
         return TW_ERR_NOMEM;
     }
     /* Welded by position and colour: a colour's edge (a window on a
-     * facade) is a seam the simplifier keeps, or it would go for the
-     * little its depth costs in geometric error, and a patch many pixels
-     * wide would change colour. */
+     * facade) is a seam the simplifier keeps, where it would otherwise go
+     * for the little its depth costs in distance. */
     const struct meshopt_Stream streams[2] = {{b->pos, sizeof(float) * 3, sizeof(float) * 3},
                                               {b->rgba, 4, 4}};
     w->vertices = (uint32_t)meshopt_generateVertexRemapMulti(
@@ -214,36 +213,6 @@ static int weld(const struct baked *b, struct welded *w)
     free(fill);
     free(remap);
     return TW_OK;
-}
-
-/* Triangles widx[0 .. 3 n) of welded vertices back into baked vertices:
- * each corner the one of its welded vertex's whose normal is nearest the
- * triangle's own (a box corner takes the vertex of the face it lies on). */
-static void unweld(const struct baked *b, const struct welded *w, const uint32_t *widx, size_t n,
-                   uint32_t *out)
-{
-    for (size_t t = 0; t < n; t++) {
-        const float *p0 = w->pos + 3 * (size_t)widx[3 * t], *p1 = w->pos + 3 * (size_t)widx[3 * t + 1],
-                    *p2 = w->pos + 3 * (size_t)widx[3 * t + 2];
-        const float e1[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
-        const float e2[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
-        const float fn[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
-                             e1[0] * e2[1] - e1[1] * e2[0]};
-        for (int c = 0; c < 3; c++) {
-            const uint32_t wv = widx[3 * t + c];
-            uint32_t best = w->of[w->first[wv]];
-            float best_dot = -INFINITY;
-            for (uint32_t k = w->first[wv]; k < w->first[wv + 1]; k++) {
-                const float *nv = b->nrm + 3 * (size_t)w->of[k];
-                const float d = nv[0] * fn[0] + nv[1] * fn[1] + nv[2] * fn[2];
-                if (d > best_dot) {
-                    best_dot = d;
-                    best = w->of[k];
-                }
-            }
-            out[3 * t + c] = best;
-        }
-    }
 }
 
 /* ---- the error a level has: measured ------------------------------------------- */
@@ -387,18 +356,106 @@ static float point_triangle2(const float *p, const float *a, const float *b, con
     return dot3(d, d);
 }
 
-/* The largest distance from the welded vertices of w to the triangles
- * idx[0 .. 3 n) of w.pos, or at_least if that is larger: rings of grid
- * cells searched outwards until no farther ring can hold a nearer
- * triangle. */
-static int measure_error(const struct welded *w, const struct tw_box *box, const uint32_t *idx,
-                         size_t n, float at_least, float *out)
+static uint32_t find_root(uint32_t *parent, uint32_t v)
+{
+    while (parent[v] != v) {
+        parent[v] = parent[parent[v]];
+        v = parent[v];
+    }
+    return v;
+}
+
+static void unite(uint32_t *parent, uint32_t a, uint32_t b)
+{
+    a = find_root(parent, a);
+    b = find_root(parent, b);
+    if (a != b)
+        parent[a < b ? b : a] = a < b ? a : b;
+}
+
+/* For each full-detail vertex, the squared size (box diagonal) of its
+ * patch: the triangles of its colour connected to it. Removing a patch
+ * whole changes colour over that size at most; a vertex no triangle uses
+ * gets 0. */
+static float *patch_sizes(const struct baked *b, const struct welded *w)
+{
+    uint32_t *parent = malloc(sizeof(*parent) * b->vertices);
+    float *box = malloc(sizeof(float) * 6 * b->vertices);
+    float *size2 = calloc(b->vertices ? b->vertices : 1, sizeof(*size2));
+    if (!parent || !box || !size2) {
+        free(parent);
+        free(box);
+        free(size2);
+        return NULL;
+    }
+    for (uint32_t v = 0; v < b->vertices; v++)
+        parent[v] = v;
+    for (uint32_t t = 0; t < b->triangles; t++) {
+        unite(parent, b->idx[3 * t], b->idx[3 * t + 1]);
+        unite(parent, b->idx[3 * t + 1], b->idx[3 * t + 2]);
+    }
+    /* Vertices at one place and of one colour join their patches. */
+    for (uint32_t wv = 0; wv < w->vertices; wv++)
+        for (uint32_t i = w->first[wv]; i < w->first[wv + 1]; i++)
+            for (uint32_t j = i + 1; j < w->first[wv + 1]; j++)
+                if (memcmp(b->rgba + 4 * (size_t)w->of[i], b->rgba + 4 * (size_t)w->of[j], 4) == 0)
+                    unite(parent, w->of[i], w->of[j]);
+    for (uint32_t v = 0; v < b->vertices; v++)
+        for (int a = 0; a < 3; a++) {
+            box[6 * (size_t)v + a] = INFINITY;
+            box[6 * (size_t)v + 3 + a] = -INFINITY;
+        }
+    for (uint32_t v = 0; v < b->vertices; v++) {
+        float *r = box + 6 * (size_t)find_root(parent, v);
+        for (int a = 0; a < 3; a++) {
+            r[a] = fminf(r[a], b->pos[3 * (size_t)v + a]);
+            r[3 + a] = fmaxf(r[3 + a], b->pos[3 * (size_t)v + a]);
+        }
+    }
+    for (size_t k = 0; k < 3 * (size_t)b->triangles; k++) {
+        const uint32_t v = b->idx[k];
+        const float *r = box + 6 * (size_t)find_root(parent, v);
+        float d2 = 0.0f;
+        for (int a = 0; a < 3; a++)
+            d2 += (r[3 + a] - r[a]) * (r[3 + a] - r[a]);
+        size2[v] = d2;
+    }
+    free(parent);
+    free(box);
+    return size2;
+}
+
+/* A difference of colour (of 255, any channel) that is not one: materials'
+ * colours rounded to bytes. */
+#define COLOUR_MATCH 8
+
+/* Whether a corner of triangle tri (indices into m) has colour c. */
+static bool colour_match(const struct baked *m, const uint32_t *tri, const uint8_t *c)
+{
+    for (int k = 0; k < 3; k++) {
+        const uint8_t *q = m->rgba + 4 * (size_t)tri[k];
+        if (abs((int)q[0] - c[0]) <= COLOUR_MATCH && abs((int)q[1] - c[1]) <= COLOUR_MATCH &&
+            abs((int)q[2] - c[2]) <= COLOUR_MATCH)
+            return true;
+    }
+    return false;
+}
+
+/* The largest distance from a full-detail vertex of m to a triangle of the
+ * level (idx[0 .. 3 n), into m) of the vertex's colour, at most the size of
+ * its patch (size2), or at_least if that is larger: rings of grid cells
+ * searched outwards until no farther ring can hold a nearer triangle. A
+ * window removed from a facade is as far as the nearest window left, or its
+ * own size, not as the wall behind it: what the eye misses is its colour,
+ * over its size. */
+static int measure_error(const struct baked *m, const float *size2, const struct tw_box *box,
+                         const uint32_t *idx, size_t n, float at_least, float *out)
 {
     struct grid g;
     /* Cells of half the error already known: a search rarely goes past
      * the second ring. */
-    int err = grid_build(&g, box, w->pos, idx, n, 0.5f * at_least);
-    uint8_t *kept = calloc(w->vertices ? w->vertices : 1, 1);
+    int err = grid_build(&g, box, m->pos, idx, n, 0.5f * at_least);
+    uint8_t *kept = calloc(m->vertices ? m->vertices : 1, 1);
     if (err || !kept) {
         grid_free(&g);
         free(kept);
@@ -410,14 +467,17 @@ static int measure_error(const struct welded *w, const struct tw_box *box, const
     /* Nothing below at_least is asked: a vertex nearer than that to some
      * triangle is done. */
     float worst2 = at_least * at_least;
-    for (uint32_t v = 0; v < w->vertices; v++) {
-        if (kept[v])
+    for (uint32_t v = 0; v < m->vertices; v++) {
+        /* Kept, or in a patch too small to raise the worst: done. */
+        if (kept[v] || size2[v] <= worst2)
             continue;
-        const float *p = w->pos + 3 * (size_t)v;
+        const float *p = m->pos + 3 * (size_t)v;
+        const uint8_t *colour = m->rgba + 4 * (size_t)v;
         int c[3];
         for (int a = 0; a < 3; a++)
             c[a] = cell_of(&g, a, p[a]);
-        float best2 = INFINITY;
+        /* Its patch gone, a vertex is off by its patch's size at most. */
+        float best2 = size2[v];
         const int rmax = g.dim[0] + g.dim[1] + g.dim[2];
         for (int r = 0; r <= rmax; r++) {
             /* Every triangle in a cell beyond ring r lies at least r
@@ -440,9 +500,11 @@ static int measure_error(const struct welded *w, const struct tw_box *box, const
                         const size_t cell = ((size_t)z * g.dim[1] + y) * g.dim[0] + x;
                         for (uint32_t k = g.first[cell]; k < g.first[cell + 1]; k++) {
                             const uint32_t t = g.tri[k];
-                            const float *a = w->pos + 3 * (size_t)idx[3 * t],
-                                        *b = w->pos + 3 * (size_t)idx[3 * t + 1],
-                                        *cc = w->pos + 3 * (size_t)idx[3 * t + 2];
+                            if (!colour_match(m, idx + 3 * (size_t)t, colour))
+                                continue;
+                            const float *a = m->pos + 3 * (size_t)idx[3 * t],
+                                        *b = m->pos + 3 * (size_t)idx[3 * t + 1],
+                                        *cc = m->pos + 3 * (size_t)idx[3 * t + 2];
                             /* The triangle's box first: most are farther. */
                             float box2 = 0.0f;
                             for (int q = 0; q < 3; q++) {
@@ -465,7 +527,7 @@ static int measure_error(const struct welded *w, const struct tw_box *box, const
         }
         /* A vertex no nearer than the worst so far cannot raise it: the
          * search stopped early for it, and best2 only bounds from above. */
-        if (best2 > worst2 && isfinite(best2))
+        if (best2 > worst2)
             worst2 = best2;
 next:;
     }
@@ -473,6 +535,36 @@ next:;
     free(kept);
     *out = sqrtf(worst2);
     return TW_OK;
+}
+
+/* Triangles widx[0 .. 3 n) of welded vertices back into baked vertices:
+ * each corner the one of its welded vertex's (all of one colour) whose
+ * normal is nearest the triangle's own (a box corner takes the vertex of
+ * the face it lies on). */
+static void unweld(const struct baked *b, const struct welded *w, const uint32_t *widx, size_t n,
+                   uint32_t *out)
+{
+    for (size_t t = 0; t < n; t++) {
+        const float *p0 = w->pos + 3 * (size_t)widx[3 * t], *p1 = w->pos + 3 * (size_t)widx[3 * t + 1],
+                    *p2 = w->pos + 3 * (size_t)widx[3 * t + 2];
+        const float e1[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+        const float e2[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
+        const float fn[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                             e1[0] * e2[1] - e1[1] * e2[0]};
+        for (int c = 0; c < 3; c++) {
+            const uint32_t wv = widx[3 * t + c];
+            uint32_t best = w->of[w->first[wv]];
+            float best_dot = -INFINITY;
+            for (uint32_t k = w->first[wv]; k < w->first[wv + 1]; k++) {
+                const float d = dot3(b->nrm + 3 * (size_t)w->of[k], fn);
+                if (d > best_dot) {
+                    best_dot = d;
+                    best = w->of[k];
+                }
+            }
+            out[3 * t + c] = best;
+        }
+    }
 }
 
 /* The levels of prototype p of ts, added to levels: their number into
@@ -492,9 +584,11 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
     uint32_t *widx = malloc(sizeof(uint32_t) * 3 * (size_t)b.triangles);
     uint32_t *pidx = malloc(sizeof(uint32_t) * 3 * (size_t)b.triangles);
     uint32_t *idx = malloc(sizeof(uint32_t) * 3 * (size_t)b.triangles);
+    float *size2 = err ? NULL : patch_sizes(&b, &w);
     if (!err && pidx)
         memcpy(pidx, w.idx, sizeof(uint32_t) * 3 * (size_t)b.triangles);
-    if (err || !idx || !widx || !pidx) {
+    if (err || !idx || !widx || !pidx || !size2) {
+        free(size2);
         free(idx);
         free(widx);
         free(pidx);
@@ -510,11 +604,10 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
         if (target < LOD_MIN_TRIANGLES)
             break;
         /* Edge collapses first: they keep the surface's topology and its
-         * attribute seams. Many small closed meshes (buildings, trees)
-         * soon stop collapsing; then clustering, which may merge or
-         * remove whole components. Both report their error relative to
-         * the mesh's extent; each level starts from full detail, so that
-         * its error is measured against it. */
+         * colour seams. Many small closed meshes (buildings, trees) soon
+         * stop collapsing; then clustering, which may merge or remove
+         * whole components. Each level simplifies the one before; its
+         * error is measured against full detail below. */
         float rel = 0.0f;
         size_t n = meshopt_simplify(widx, pidx, 3 * previous, w.pos, w.vertices,
                                     sizeof(float) * 3, 3 * target, 1.0f, 0, &rel) / 3;
@@ -528,7 +621,7 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
         /* meshoptimizer's error is against the level before; the measure
          * is against full detail, and never below the level before's. */
         const float floor_error = fmaxf(previous_error, rel * scale);
-        err = measure_error(&w, &ts->prototypes[p].box, widx, n, floor_error, &measured);
+        err = measure_error(&b, size2, &ts->prototypes[p].box, idx, n, floor_error, &measured);
         if (err)
             break;
         float error = fmaxf(floor_error, measured);
@@ -545,6 +638,7 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
         previous = n;
         previous_error = error;
     }
+    free(size2);
     free(idx);
     free(widx);
     free(pidx);

@@ -106,15 +106,17 @@ double tw_tiles_cells_in_reach(const struct tw_box *common_box, float w, float d
 
 /* The coarser levels of a finished tileset's prototypes, built by
  * meshoptimizer: each prototype baked into one tile-local mesh (colours
- * baked into its vertices), then simplified to about half the triangles of
- * the level before, by edge collapse and, where that stalls (many small
- * closed meshes), by vertex clustering; each level's indices ordered for the
- * vertex cache and for overdraw. Level k of prototype p (k = 1 ..
- * count[p]) is levels->prototypes[first[p] + k - 1], with geometric error
- * error[first[p] + k - 1] in metres (meshoptimizer's measure of how far the
- * simplified surface departs from full detail; it never decreases with k).
- * Every level lies within its prototype's box: simplification keeps
- * original vertex positions. */
+ * baked into its vertices), welded by position and colour, then simplified
+ * to about half the triangles of the level before, by edge collapse and,
+ * where that stalls (many small closed meshes), by vertex clustering; each
+ * corner given back the normal and colour of a full-detail vertex; each
+ * level's indices ordered for the vertex cache and for overdraw. Level k of
+ * prototype p (k = 1 .. count[p]) is levels->prototypes[first[p] + k - 1],
+ * with geometric error error[first[p] + k - 1] in metres: the largest
+ * distance from a full-detail vertex to the level's surface, or
+ * meshoptimizer's estimate where larger; it never decreases with k. Every
+ * level lies within its prototype's box: simplification keeps original
+ * vertex positions. */
 struct tw_lods {
     struct tw_tileset *levels;  /* finished and packed; NULL: no prototype has a level */
     uint32_t source_count;      /* the source tileset's prototypes */
