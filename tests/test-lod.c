@@ -57,6 +57,44 @@ static int add_terrain(struct tw_tileset *ts, uint32_t n)
     return m;
 }
 
+/* A 20 x 20 m wall in the plane z = 0 (its grid of n x n quads) with 100
+ * dark 1 x 1 m windows 5 cm in front of it, 2 m apart: the windows are
+ * mesh win, the wall mesh wall. */
+static void add_facade(struct tw_tileset *ts, uint32_t n, int *wall, int *win)
+{
+    const uint32_t nv = (n + 1) * (n + 1);
+    float *pos = malloc(sizeof(float) * 3 * nv);
+    uint32_t *idx = malloc(sizeof(uint32_t) * 6 * n * n);
+    for (uint32_t j = 0; j <= n; j++)
+        for (uint32_t i = 0; i <= n; i++) {
+            float *p = pos + 3 * (j * (n + 1) + i);
+            p[0] = 20.0f * (float)i / (float)n;
+            p[1] = 20.0f * (float)j / (float)n;
+            p[2] = 0.0f;
+        }
+    uint32_t t = 0;
+    for (uint32_t j = 0; j < n; j++)
+        for (uint32_t i = 0; i < n; i++) {
+            const uint32_t a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
+            const uint32_t q[6] = {a, b, c, b, d, c};
+            memcpy(idx + 6 * t++, q, sizeof(q));
+        }
+    *wall = tw_tileset_add_mesh(ts, pos, NULL, nv, idx, 2 * n * n);
+    free(pos);
+    free(idx);
+    float wpos[100 * 4 * 3];
+    uint32_t widx[100 * 6];
+    for (uint32_t k = 0; k < 100; k++) {
+        const float x = 0.5f + 2.0f * (float)(k % 10), y = 0.5f + 2.0f * (float)(k / 10);
+        const float corner[4][3] = {{x, y, 0.05f}, {x + 1, y, 0.05f}, {x, y + 1, 0.05f},
+                                    {x + 1, y + 1, 0.05f}};
+        memcpy(wpos + 12 * k, corner, sizeof(corner));
+        const uint32_t b = 4 * k, q[6] = {b, b + 1, b + 2, b + 1, b + 3, b + 2};
+        memcpy(widx + 6 * k, q, sizeof(q));
+    }
+    *win = tw_tileset_add_mesh(ts, wpos, NULL, 400, widx, 200);
+}
+
 static bool box_inside(const struct tw_box *in, const struct tw_box *out)
 {
     for (int a = 0; a < 3; a++)
@@ -88,12 +126,37 @@ int main(void)
     /* 2: one cube: too small to simplify */
     const int lone = tw_tileset_add_prototype(ts, "lone", 1.0f);
     CHECK(tw_tileset_add_instance(ts, (uint32_t)lone, (uint32_t)cube, (uint32_t)red, NULL) >= 0);
+    /* 3: a facade of grey wall and dark windows */
+    int wall_mesh, win_mesh;
+    add_facade(ts, 32, &wall_mesh, &win_mesh);
+    const int grey = tw_tileset_add_material(ts, (const float[4]){0.6f, 0.6f, 0.6f, 1});
+    const int dark = tw_tileset_add_material(ts, (const float[4]){0.1f, 0.1f, 0.2f, 1});
+    const int facade = tw_tileset_add_prototype(ts, "facade", 1.0f);
+    CHECK(wall_mesh >= 0 && win_mesh >= 0 && grey >= 0 && dark >= 0 && facade >= 0);
+    CHECK(tw_tileset_add_instance(ts, (uint32_t)facade, (uint32_t)wall_mesh, (uint32_t)grey, NULL) >= 0);
+    CHECK(tw_tileset_add_instance(ts, (uint32_t)facade, (uint32_t)win_mesh, (uint32_t)dark, NULL) >= 0);
     ts->merge_triangles = 1;
     CHECK(tw_tileset_finish(ts, 256) == TW_OK);
 
     struct tw_lods l;
     CHECK(tw_lods_build(ts, 256, &l) == TW_OK);
-    CHECK(l.levels != NULL && l.source_count == 3);
+    CHECK(l.levels != NULL && l.source_count == 4);
+    /* The facade: a level that takes windows out says so. A window gone
+     * is off by the distance to the next one or its own size (at least
+     * 1 m here), not by the 5 cm it stands out of the wall: a level of
+     * less error keeps every window's two triangles. */
+    CHECK_MSG(l.count[3] >= 1, "%u levels of the facade", l.count[3]);
+    for (uint32_t k = 0; l.levels && k < l.count[3]; k++) {
+        const struct tw_prototype *lv = &l.levels->prototypes[l.first[3] + k];
+        const struct tw_mesh *m = &l.levels->meshes[lv->instances[0].mesh];
+        uint32_t dark_triangles = 0;
+        for (uint32_t t = 0; m->colors && t < m->triangle_count; t++)
+            dark_triangles += m->colors[4 * m->indices[3 * t] + 0] < 64;
+        const float e = l.error[l.first[3] + k];
+        CHECK_MSG(e >= 1.0f || dark_triangles >= 200,
+                  "facade level %u: error %g m with %u of 200 window triangles", k + 1, e,
+                  dark_triangles);
+    }
     CHECK_MSG(l.count[0] >= 2, "%u levels of the block", l.count[0]);
     CHECK_MSG(l.count[1] >= 3, "%u levels of the field", l.count[1]);
     CHECK(l.count[2] == 0);
