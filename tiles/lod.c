@@ -240,12 +240,27 @@ static int cell_of(const struct grid *g, int a, float x)
     return c < 0 ? 0 : c >= g->dim[a] ? g->dim[a] - 1 : c;
 }
 
+
+
+/* Plain comparisons: fminf and fmaxf, which must order NaNs, are calls. */
+static float min3(float a, float b, float c)
+{
+    const float m = a < b ? a : b;
+    return m < c ? m : c;
+}
+
+static float max3(float a, float b, float c)
+{
+    const float m = a > b ? a : b;
+    return m > c ? m : c;
+}
+
 static void tri_cells(const struct grid *g, const float *p0, const float *p1, const float *p2,
                       int c0[3], int c1[3])
 {
     for (int a = 0; a < 3; a++) {
-        c0[a] = cell_of(g, a, fminf(p0[a], fminf(p1[a], p2[a])));
-        c1[a] = cell_of(g, a, fmaxf(p0[a], fmaxf(p1[a], p2[a])));
+        c0[a] = cell_of(g, a, min3(p0[a], p1[a], p2[a]));
+        c1[a] = cell_of(g, a, max3(p0[a], p1[a], p2[a]));
     }
 }
 
@@ -508,8 +523,8 @@ static int measure_error(const struct baked *m, const float *size2, const struct
                             /* The triangle's box first: most are farther. */
                             float box2 = 0.0f;
                             for (int q = 0; q < 3; q++) {
-                                const float lo = fminf(a[q], fminf(b[q], cc[q]));
-                                const float hi = fmaxf(a[q], fmaxf(b[q], cc[q]));
+                                const float lo = min3(a[q], b[q], cc[q]);
+                                const float hi = max3(a[q], b[q], cc[q]);
                                 const float d = p[q] < lo ? lo - p[q] : p[q] > hi ? p[q] - hi : 0.0f;
                                 box2 += d * d;
                             }
