@@ -168,6 +168,9 @@ int tw_lod_image_compare(struct tw_world *w, const struct tw_view *v, struct tw_
 void tw_lod_image_finish(struct tw_lod_image *li);
 
 /* world-tiles.c */
+/* Whether a cell in view of v may be drawn at a coarser level (always, for
+ * a world with generated tiles). */
+int tw_world_levels_in_view(struct tw_world *w, const struct tw_view *v, bool *any);
 /* The provider the world shows, checked: the host's, or one made of the
  * fixed tileset and its selection. */
 int tw_world_resolve_provider(struct tw_world *w);

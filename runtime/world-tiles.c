@@ -164,6 +164,24 @@ static float max_error_of(const struct tw_world *w, struct tw_cell cell)
     return d * w->s.max_screen_error / w->lod_px_per_m;
 }
 
+int tw_world_levels_in_view(struct tw_world *w, const struct tw_view *v, bool *any)
+{
+    *any = true;
+    if (w->stream)
+        return TW_OK;   /* a generated tile's levels are known once it is made */
+    float least = INFINITY;
+    for (uint32_t p = 0; p < w->lods.source_count; p++)
+        if (w->lods.count[p] > 0 && w->lods.error[w->lods.first[p]] < least)
+            least = w->lods.error[w->lods.first[p]];
+    int err = tw_cull_cells_of_frame(&w->cells, v, &w->grid);
+    if (err)
+        return err;
+    /* Front to back: the last cell is the farthest. */
+    const float farthest = w->cells.count ? w->cells.cells[w->cells.count - 1].distance : 0.0f;
+    *any = farthest * w->s.max_screen_error / w->lod_px_per_m >= least;
+    return TW_OK;
+}
+
 int tw_world_get_tile(void *ctx, struct tw_cell cell, float distance, unsigned flags,
                       struct tw_cull_tile *out)
 {

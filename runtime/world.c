@@ -516,10 +516,15 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     tw_gputime_late(&w->gputime, w->method, &st.gpu_late_frame, &st.gpu_late_ms);
     st.gpu_ms = -1.0;
     st.gpu_ms_id = oracle || verify ? -1.0 : 0.0;
+    /* The full-detail image that the frame's is compared with: not the
+     * method's work, before its clocks (GPU time included) start; none
+     * where no cell in view can be drawn coarser (the image is then full
+     * detail already). */
+    bool lod_compare = false;
     if (verify && w->lod_on) {
-        /* The full-detail image that the frame's is compared with: not the
-         * method's work, before its clocks (GPU time included) start. */
-        err = tw_lod_image_full_pass(w, &v);
+        err = tw_world_levels_in_view(w, &v, &lod_compare);
+        if (!err && lod_compare)
+            err = tw_lod_image_full_pass(w, &v);
         if (err)
             return err;
     }
@@ -586,7 +591,7 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
         tw_renderer_finish(w->renderer);
         st.ms_frame = tw_clock_monotonic_ms() - t0;
         st.cpu_ms = tw_renderer_cpu_ms() - cpu0;
-        if (w->lod_on)
+        if (lod_compare)
             err = tw_lod_image_compare(w, &v, &st);
         if (!err && !oracle) {
             tw_gputime_mark(&w->gputime, TW_GPUTIME_ID_BEGIN);
