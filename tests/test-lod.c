@@ -31,8 +31,9 @@ static int add_cube(struct tw_tileset *ts)
     return tw_tileset_add_mesh(ts, pos, NULL, 24, idx, 12);
 }
 
-/* A wavy height field of n x n quads over [0, 40]^2. */
-static int add_terrain(struct tw_tileset *ts, uint32_t n)
+/* A grid of n x n quads, size metres across: a wavy height field over
+ * [0, size]^2 in x and z, or (upright) a flat wall in the plane z = 0. */
+static int add_grid(struct tw_tileset *ts, uint32_t n, float size, bool upright)
 {
     const uint32_t nv = (n + 1) * (n + 1);
     float *pos = malloc(sizeof(float) * 3 * nv);
@@ -40,9 +41,10 @@ static int add_terrain(struct tw_tileset *ts, uint32_t n)
     for (uint32_t j = 0; j <= n; j++)
         for (uint32_t i = 0; i <= n; i++) {
             float *p = pos + 3 * (j * (n + 1) + i);
-            p[0] = 40.0f * (float)i / (float)n;
-            p[2] = 40.0f * (float)j / (float)n;
-            p[1] = 0.5f * sinf(p[0] * 0.3f) * cosf(p[2] * 0.2f);
+            const float u = size * (float)i / (float)n, v = size * (float)j / (float)n;
+            p[0] = u;
+            p[1] = upright ? v : 0.5f * sinf(u * 0.3f) * cosf(v * 0.2f);
+            p[2] = upright ? 0.0f : v;
         }
     uint32_t t = 0;
     for (uint32_t j = 0; j < n; j++)
@@ -57,31 +59,12 @@ static int add_terrain(struct tw_tileset *ts, uint32_t n)
     return m;
 }
 
-/* A 20 x 20 m wall in the plane z = 0 (its grid of n x n quads) with 100
- * dark 1 x 1 m windows 5 cm in front of it, 2 m apart: the windows are
- * mesh win, the wall mesh wall. */
+/* A 20 x 20 m wall (a grid of n x n quads) with 100 dark 1 x 1 m windows
+ * 5 cm in front of it, 2 m apart: the windows are mesh win, the wall mesh
+ * wall. */
 static void add_facade(struct tw_tileset *ts, uint32_t n, int *wall, int *win)
 {
-    const uint32_t nv = (n + 1) * (n + 1);
-    float *pos = malloc(sizeof(float) * 3 * nv);
-    uint32_t *idx = malloc(sizeof(uint32_t) * 6 * n * n);
-    for (uint32_t j = 0; j <= n; j++)
-        for (uint32_t i = 0; i <= n; i++) {
-            float *p = pos + 3 * (j * (n + 1) + i);
-            p[0] = 20.0f * (float)i / (float)n;
-            p[1] = 20.0f * (float)j / (float)n;
-            p[2] = 0.0f;
-        }
-    uint32_t t = 0;
-    for (uint32_t j = 0; j < n; j++)
-        for (uint32_t i = 0; i < n; i++) {
-            const uint32_t a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
-            const uint32_t q[6] = {a, b, c, b, d, c};
-            memcpy(idx + 6 * t++, q, sizeof(q));
-        }
-    *wall = tw_tileset_add_mesh(ts, pos, NULL, nv, idx, 2 * n * n);
-    free(pos);
-    free(idx);
+    *wall = add_grid(ts, n, 20.0f, true);
     float wpos[100 * 4 * 3];
     uint32_t widx[100 * 6];
     for (uint32_t k = 0; k < 100; k++) {
@@ -110,7 +93,7 @@ int main(void)
     const int red = tw_tileset_add_material(ts, (const float[4]){1, 0, 0, 1});
     const int green = tw_tileset_add_material(ts, (const float[4]){0, 1, 0, 1});
     const int cube = add_cube(ts);
-    const int terrain = add_terrain(ts, 64);
+    const int terrain = add_grid(ts, 64, 40.0f, false);
     CHECK(red >= 0 && green >= 0 && cube >= 0 && terrain >= 0);
     /* 0: a block of 400 small buildings (edge collapse stalls on closed boxes) */
     const int block = tw_tileset_add_prototype(ts, "block", 1.0f);
