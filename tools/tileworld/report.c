@@ -193,6 +193,9 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
     if (st->tiles_visible > m->max_tiles_visible)
         m->max_tiles_visible = st->tiles_visible;
     m->ms_wait += st->ms_wait;
+    m->waits += st->waits;
+    m->flushes += st->flushes;
+    m->bytes_read_back += (double)st->bytes_read_back;
     m->overdraw_triangles += (double)st->overdraw_triangles;
     m->overdraw_box_triangles += (double)st->overdraw_box_triangles;
     if (st->ms_frame > m->ms_max)
@@ -812,6 +815,12 @@ int tw_report_close(struct tw_report *r, bool markdown,
                                                              (double)m->tiles_queried : 0.0, 6));
         json_object_object_add(o, "mean_tiles_visible",
                                number(m->frames ? (double)m->tiles_visible / m->frames : 0.0, 3));
+        json_object_object_add(o, "mean_waits",
+                               number(m->frames ? (double)m->waits / m->frames : 0.0, 2));
+        json_object_object_add(o, "mean_flushes",
+                               number(m->frames ? (double)m->flushes / m->frames : 0.0, 2));
+        json_object_object_add(o, "mean_bytes_read_back",
+                               number(m->frames ? m->bytes_read_back / m->frames : 0.0, 1));
         json_object_object_add(o, "mean_ms_wait",
                                number(m->frames ? m->ms_wait / m->frames : 0.0, 3));
         json_object_object_add(o, "max_ms", number(m->ms_max, 3));

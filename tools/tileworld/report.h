@@ -74,6 +74,8 @@ struct tw_method_summary {
     uint64_t tiles_visible;
     uint32_t max_tiles_visible;
     double ms_wait;
+    uint64_t waits, flushes;  /* the frames' round trips to the GPU, summed */
+    double bytes_read_back;
     double overdraw_triangles;
     double overdraw_box_triangles;
     double ms_max;
