@@ -645,6 +645,10 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
         char name[48];
         snprintf(name, sizeof(name), "%.36s/lod%u", ts->prototypes[p].name, level);
         err = add_level(levels, white, name, &b, idx, n);
+        if (err == TW_ERR_INVALID || err == TW_ERR_LIMIT) {
+            err = TW_OK;    /* a level the tileset refuses: the prototype stops at the last */
+            break;
+        }
         if (err)
             break;
         errors[(*count)++] = error;
@@ -688,7 +692,13 @@ int tw_lods_build(const struct tw_tileset *ts, uint32_t max_cluster_triangles, s
     if (!err && total > 0) {
         levels->merge_triangles = 1;   /* one instance each: nothing to merge */
         err = tw_tileset_finish(levels, max_cluster_triangles);
-        if (!err)
+        /* A level left with no triangle of any area, or out of reach: no
+         * levels rather than no world. */
+        if (err == TW_ERR_INVALID || err == TW_ERR_LIMIT) {
+            err = TW_OK;
+            total = 0;
+        }
+        if (!err && total > 0)
             err = tw_tileset_pack(&levels);
     }
     if (err || total == 0) {

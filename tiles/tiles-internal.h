@@ -126,8 +126,10 @@ struct tw_lods {
 };
 
 /* Builds the levels of ts (finished), their clusters of at most
- * max_cluster_triangles. Zeroes *out first; on an error nothing is left to
- * free. */
+ * max_cluster_triangles. Zeroes *out first; on an error (memory, or ts
+ * unfinished) nothing is left to free. A level the tileset builder refuses
+ * (out of reach, or no triangle with area once finished) ends its
+ * prototype's levels, or leaves the tileset without levels: not an error. */
 int tw_lods_build(const struct tw_tileset *ts, uint32_t max_cluster_triangles,
                   struct tw_lods *out);
 /* Accepts a zeroed struct. */
