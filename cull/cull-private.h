@@ -431,6 +431,10 @@ uint32_t *tw_cull_frame_clusters(struct tw_cull_frame *fr, struct tw_cull_cluste
 bool tw_cull_frame_tile(struct tw_cull_frame *fr, struct tw_cell cell, float distance,
                         struct tw_cull_tile *tile);
 
+/* The eye's distance to the common box placed at cell (what
+ * tw_tile_source.get() is given). */
+float tw_cull_frame_cell_distance(const struct tw_cull_frame *fr, struct tw_cell cell);
+
 /* True if the common box placed at cell (at off, which this fills, with
  * the eye's distance to it in *distance) meets the frustum within the view
  * distance. */

@@ -330,8 +330,10 @@ struct tw_tile_source {
      * TW_TILE_PENDING when the tile is not ready (it is then drawn as a
      * hole: its query box still counts for propagation, its geometry
      * occludes nothing), or a negative error (the frame stops with it).
-     * distance: eye to the cell's common box (a priority). Called on the
-     * frame's thread. */
+     * distance: eye to the cell's common box placed at cell, always: a
+     * priority, and what the level of detail drawn depends on (the same
+     * cell must get the same content wherever in the frame it is asked
+     * for). Called on the frame's thread. */
     int (*get)(void *ctx, struct tw_cell cell, float distance, unsigned flags,
                struct tw_cull_tile *out);
     /* A hint that cell will soon be needed (its tile query is about to be

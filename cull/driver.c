@@ -254,6 +254,13 @@ bool tw_cull_frame_tile(struct tw_cull_frame *fr, struct tw_cell cell, float dis
     return err == TW_OK && tile->proto != NULL;
 }
 
+float tw_cull_frame_cell_distance(const struct tw_cull_frame *fr, struct tw_cell cell)
+{
+    float off[3];
+    tw_tiles_cell_offset(cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], off);
+    return tw_cull_box_distance(fr->v, &fr->g->common_box, off);
+}
+
 bool tw_cull_frame_cell_in_view(const struct tw_cull_frame *fr, struct tw_cell cell,
                                 float off[3], float *distance)
 {

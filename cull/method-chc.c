@@ -32,8 +32,9 @@ static struct tw_chc_node_state *resolve_tag(void *user, uint64_t tag, const str
     const struct tw_tile_info *info = tw_tile_cache_info(fr->cache, h);
     struct tw_cull_tile tile;
     if (!info ||
-        fr->g->source.get(fr->g->source.ctx, info->cell, 0.0f, TW_TILE_SOURCE_RESIDENT, &tile) !=
-            TW_OK ||
+        fr->g->source.get(fr->g->source.ctx, info->cell,
+                          tw_cull_frame_cell_distance(fr, info->cell), TW_TILE_SOURCE_RESIDENT,
+                          &tile) != TW_OK ||
         tile.key != info->prototype)
         return NULL;
     *bvh = tile.bvh;

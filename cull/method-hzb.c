@@ -538,7 +538,7 @@ static void retest(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
         struct tw_tile_handle h;
         const struct tw_tile_info *info;
         /* The tile was at hand a moment ago: never wait, never request. */
-        if (g->source.get(g->source.ctx, cell, 0.0f,
+        if (g->source.get(g->source.ctx, cell, tw_cull_frame_cell_distance(fr, cell),
                           fr->source_flags | TW_TILE_SOURCE_RESIDENT | TW_TILE_SOURCE_QUIET,
                           &tile) != TW_OK ||
             !tile.proto || !tw_tile_cache_find(fr->cache, cell, &h) ||

@@ -96,6 +96,8 @@ struct tw_world {
     struct tw_bvh **lod_bvhs;       /* one per level */
     uint32_t lod_count;             /* levels of the shared prototypes */
     uint32_t lod_first;             /* the renderer's content of the first level */
+    float lod_least_error;          /* the least error of any shared prototype's first
+                                       level (INFINITY: none has one) */
     struct tw_stream *stream;       /* tiles of their own (NULL: none can exist) */
     uint64_t frame_serial;          /* every frame of every method: the streaming clock */
     struct tw_tile_event *events;   /* of the last frame */

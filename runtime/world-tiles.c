@@ -149,19 +149,15 @@ static int content_of(struct tw_world *w, struct tw_cell cell, uint32_t *content
     return TW_OK;
 }
 
-/* The geometric error, in metres, that cell's tile may have in the current
- * view: max_screen_error pixels at the distance of the cell's common box
- * (the nearest any of its content can be: conservative). 0 without levels
- * of detail, and in a full-detail pass. */
-static float max_error_of(const struct tw_world *w, struct tw_cell cell)
+/* The geometric error, in metres, that a tile may have in the current view
+ * at distance (the eye's to its cell's common box, the nearest any of its
+ * content can be: conservative): max_screen_error pixels there. 0 without
+ * levels of detail, and in a full-detail pass. */
+static float max_error_of(const struct tw_world *w, float distance)
 {
-    if (!w->lod_on || w->lod_full || !w->has_view || !(w->lod_px_per_m > 0.0f))
+    if (!w->lod_on || w->lod_full || !(w->lod_px_per_m > 0.0f))
         return 0.0f;
-    const struct tw_view *v = &w->last_view;
-    float off[3];
-    tw_tiles_cell_offset(cell, v->cell, w->grid.footprint[0], w->grid.footprint[1], off);
-    const float d = tw_cull_box_distance(v, &w->grid.common_box, off);
-    return d * w->s.max_screen_error / w->lod_px_per_m;
+    return distance * w->s.max_screen_error / w->lod_px_per_m;
 }
 
 int tw_world_levels_in_view(struct tw_world *w, const struct tw_view *v, bool *any)
@@ -169,16 +165,12 @@ int tw_world_levels_in_view(struct tw_world *w, const struct tw_view *v, bool *a
     *any = true;
     if (w->stream)
         return TW_OK;   /* a generated tile's levels are known once it is made */
-    float least = INFINITY;
-    for (uint32_t p = 0; p < w->lods.source_count; p++)
-        if (w->lods.count[p] > 0 && w->lods.error[w->lods.first[p]] < least)
-            least = w->lods.error[w->lods.first[p]];
     int err = tw_cull_cells_of_frame(&w->cells, v, &w->grid);
     if (err)
         return err;
     /* Front to back: the last cell is the farthest. */
     const float farthest = w->cells.count ? w->cells.cells[w->cells.count - 1].distance : 0.0f;
-    *any = farthest * w->s.max_screen_error / w->lod_px_per_m >= least;
+    *any = max_error_of(w, farthest) >= w->lod_least_error;
     return TW_OK;
 }
 
@@ -190,7 +182,7 @@ int tw_world_get_tile(void *ctx, struct tw_cell cell, float distance, unsigned f
     int err = content_of(w, cell, &c);
     if (err)
         return err;
-    const float max_error = max_error_of(w, cell);
+    const float max_error = max_error_of(w, distance);
     if (c != TW_TILE_OWN) {
         /* A cell that had a tile of its own and now shows a shared one: the
          * provider's answer changed, which is an invalidation. */

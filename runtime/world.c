@@ -212,9 +212,12 @@ static int shared_levels(struct tw_world *w, const struct tw_tileset *ts)
     w->shared_cpu += tw_lods_bytes(&w->lods);
     for (uint32_t k = 0; k < w->lod_count && !err; k++)
         w->shared_cpu += w->lod_bvhs[k]->bytes;
-    for (uint32_t p = 0; p < ts->prototype_count && !err; p++)
+    for (uint32_t p = 0; p < ts->prototype_count && !err; p++) {
         tw_renderer_tag_levels(w->renderer, w->calibration_first + p,
                                w->lod_first + w->lods.first[p], w->lods.count[p]);
+        if (w->lods.count[p] > 0)
+            w->lod_least_error = fminf(w->lod_least_error, w->lods.error[w->lods.first[p]]);
+    }
     return err;
 }
 
@@ -268,6 +271,7 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
     w->s = *settings;
     tw_world_default_settings(&w->s);
     w->lod_on = w->s.max_screen_error > 0.0f;
+    w->lod_least_error = INFINITY;
     if (tuning)
         w->t = *tuning;
     tw_world_default_tuning(&w->t);
