@@ -37,66 +37,50 @@ static void baked_free(struct baked *b)
     memset(b, 0, sizeof(*b));
 }
 
-static uint8_t unorm8(float x)
-{
-    return (uint8_t)lrintf(fminf(fmaxf(x, 0.0f), 1.0f) * 255.0f);
-}
-
-static int bake(const struct tw_tileset *ts, const struct tw_prototype *p, struct baked *b)
+static int bake(const struct tw_tileset *ts, uint32_t p, struct baked *b)
 {
     memset(b, 0, sizeof(*b));
+    const struct tw_prototype *proto = &ts->prototypes[p];
+    uint32_t *list = malloc(sizeof(*list) * (proto->instance_count ? proto->instance_count : 1));
+    if (!list)
+        return TW_ERR_NOMEM;
+    /* Every instance drawn: those merged into another are drawn by it. */
+    uint32_t count = 0;
     uint64_t vertices = 0, triangles = 0;
-    for (uint32_t k = 0; k < p->instance_count; k++) {
-        const struct tw_instance *in = &p->instances[k];
+    for (uint32_t k = 0; k < proto->instance_count; k++) {
+        const struct tw_instance *in = &proto->instances[k];
         if (in->merged_into != TW_INSTANCE_NONE)
-            continue;   /* drawn by the merged instance that holds it */
+            continue;
+        list[count++] = k;
         vertices += ts->meshes[in->mesh].vertex_count;
         triangles += ts->meshes[in->mesh].triangle_count;
     }
+    int err = TW_OK;
     if (vertices > UINT32_MAX || triangles > UINT32_MAX / 3)
-        return TW_ERR_LIMIT;
-    if (vertices == 0 || triangles == 0)
-        return TW_OK;
+        err = TW_ERR_LIMIT;
+    if (err || vertices == 0 || triangles == 0)
+        goto out;
     b->pos = malloc(sizeof(float) * 3 * (size_t)vertices);
     b->nrm = malloc(sizeof(float) * 3 * (size_t)vertices);
     b->rgba = malloc(4 * (size_t)vertices);
     b->idx = malloc(sizeof(uint32_t) * 3 * (size_t)triangles);
     if (!b->pos || !b->nrm || !b->rgba || !b->idx) {
         baked_free(b);
-        return TW_ERR_NOMEM;
+        err = TW_ERR_NOMEM;
+        goto out;
     }
-    uint32_t vbase = 0, tbase = 0;
-    for (uint32_t k = 0; k < p->instance_count; k++) {
-        const struct tw_instance *in = &p->instances[k];
-        if (in->merged_into != TW_INSTANCE_NONE)
-            continue;
-        const struct tw_mesh *m = &ts->meshes[in->mesh];
-        const float *x = in->transform;
-        const float *color = ts->materials[in->material].base_color;
-        for (uint32_t v = 0; v < m->vertex_count; v++) {
-            const float *a = m->positions + 3 * (size_t)v, *n = m->normals + 3 * (size_t)v;
-            float *q = b->pos + 3 * (size_t)(vbase + v), *r = b->nrm + 3 * (size_t)(vbase + v);
-            for (int row = 0; row < 3; row++) {
-                const float *t = x + 4 * row;
-                q[row] = t[0] * a[0] + t[1] * a[1] + t[2] * a[2] + t[3];
-                r[row] = t[0] * n[0] + t[1] * n[1] + t[2] * n[2];
-            }
-            const float len = sqrtf(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
-            for (int c = 0; c < 3; c++)
-                r[c] = len > 0.0f ? r[c] / len : (c == 1 ? 1.0f : 0.0f);
-            for (int c = 0; c < 4; c++) {
-                const float vc = m->colors ? m->colors[4 * (size_t)v + c] / 255.0f : 1.0f;
-                b->rgba[4 * (size_t)(vbase + v) + c] = unorm8(vc * color[c]);
-            }
-        }
-        for (uint32_t i = 0; i < 3 * m->triangle_count; i++)
-            b->idx[3 * (size_t)tbase + i] = m->indices[i] + vbase;
-        vbase += m->vertex_count;
-        tbase += m->triangle_count;
+    tw_tileset_bake(ts, p, list, count, b->pos, b->nrm, b->rgba, b->idx, &b->vertices,
+                    &b->triangles);
+    /* Unit normals: the level's corners take the one nearest a face's. */
+    for (uint32_t v = 0; v < b->vertices; v++) {
+        float *r = b->nrm + 3 * (size_t)v;
+        const float len = sqrtf(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+        for (int c = 0; c < 3; c++)
+            r[c] = len > 0.0f ? r[c] / len : (c == 1 ? 1.0f : 0.0f);
     }
-    b->vertices = vbase;
-    b->triangles = tbase;
-    return TW_OK;
+out:
+    free(list);
+    return err;
 }
 
 /* Adds the level whose indices (into b's vertices) are idx[0 .. 3 n) to
@@ -146,11 +130,11 @@ out:
     return err;
 }
 
-/* The baked mesh welded by position: what the simplifier sees (a box
- * whose faces have vertices of their own is a closed surface to it, not six
- * loose quads), and for each welded vertex the baked vertices it stands
- * for, to give each corner of a simplified triangle back its own normal
- * and colour. */
+/* The baked mesh welded by position and colour: what the simplifier sees
+ * (a box whose faces have vertices of their own is a closed surface to it,
+ * not six loose quads), and for each welded vertex the baked vertices it
+ * stands for (one place, one colour), to give each corner of a simplified
+ * triangle back its own normal. */
 struct welded {
     float *pos;
     uint32_t *idx;
@@ -217,13 +201,10 @@ static int weld(const struct baked *b, struct welded *w)
 
 /* ---- the error a level has: measured ------------------------------------------- */
 
-/* meshoptimizer's error is an estimate from its quadrics, and it
- * underestimates what the eye sees (a roof edge moved, a window gone): on
- * city/flyover, levels picked for 1 px changed as many pixels as levels
- * picked for 0.25 px should. A level's error is therefore measured: the
- * largest distance from a full-detail vertex to the level's surface (a
- * part removed whole is as far as the nearest surface left), found with a
- * uniform grid over the level's triangles. */
+/* meshoptimizer's error is an estimate from its quadrics, of positions
+ * only: it underestimates what the eye sees (a roof edge moved, a window
+ * gone). A level's error is therefore measured (measure_error below), with
+ * a uniform grid over the level's triangles. */
 
 #define GRID_MAX 48
 
@@ -232,6 +213,7 @@ struct grid {
     int dim[3];
     uint32_t *first;    /* per cell + 1: its triangles in tri[first[c] .. first[c + 1]) */
     uint32_t *tri;
+    struct tw_box *box; /* per triangle: a search visits one from many vertices */
 };
 
 static int cell_of(const struct grid *g, int a, float x)
@@ -239,8 +221,6 @@ static int cell_of(const struct grid *g, int a, float x)
     const int c = (int)floorf((x - g->lo[a]) / g->cell);
     return c < 0 ? 0 : c >= g->dim[a] ? g->dim[a] - 1 : c;
 }
-
-
 
 /* Plain comparisons: fminf and fmaxf, which must order NaNs, are calls. */
 static float min3(float a, float b, float c)
@@ -255,19 +235,11 @@ static float max3(float a, float b, float c)
     return m > c ? m : c;
 }
 
-static void tri_cells(const struct grid *g, const float *p0, const float *p1, const float *p2,
-                      int c0[3], int c1[3])
-{
-    for (int a = 0; a < 3; a++) {
-        c0[a] = cell_of(g, a, min3(p0[a], p1[a], p2[a]));
-        c1[a] = cell_of(g, a, max3(p0[a], p1[a], p2[a]));
-    }
-}
-
 static void grid_free(struct grid *g)
 {
     free(g->first);
     free(g->tri);
+    free(g->box);
 }
 
 /* Bins triangles idx[0 .. 3 n) of pos into a grid over box. */
@@ -288,14 +260,27 @@ static int grid_build(struct grid *g, const struct tw_box *box, const float *pos
         cells *= (size_t)g->dim[a];
     }
     g->first = calloc(cells + 1, sizeof(*g->first));
-    if (!g->first)
+    g->box = malloc(sizeof(*g->box) * (n ? n : 1));
+    if (!g->first || !g->box) {
+        grid_free(g);
         return TW_ERR_NOMEM;
+    }
+    for (size_t t = 0; t < n; t++) {
+        const float *a = pos + 3 * (size_t)idx[3 * t], *b = pos + 3 * (size_t)idx[3 * t + 1],
+                    *c = pos + 3 * (size_t)idx[3 * t + 2];
+        for (int k = 0; k < 3; k++) {
+            g->box[t].min[k] = min3(a[k], b[k], c[k]);
+            g->box[t].max[k] = max3(a[k], b[k], c[k]);
+        }
+    }
     size_t refs = 0;
     for (int pass = 0; pass < 2; pass++) {
         for (size_t t = 0; t < n; t++) {
             int c0[3], c1[3];
-            tri_cells(g, pos + 3 * (size_t)idx[3 * t], pos + 3 * (size_t)idx[3 * t + 1],
-                      pos + 3 * (size_t)idx[3 * t + 2], c0, c1);
+            for (int a = 0; a < 3; a++) {
+                c0[a] = cell_of(g, a, g->box[t].min[a]);
+                c1[a] = cell_of(g, a, g->box[t].max[a]);
+            }
             for (int z = c0[2]; z <= c1[2]; z++)
                 for (int y = c0[1]; y <= c1[1]; y++)
                     for (int x = c0[0]; x <= c1[0]; x++) {
@@ -409,12 +394,11 @@ static float *patch_sizes(const struct baked *b, const struct welded *w)
         unite(parent, b->idx[3 * t], b->idx[3 * t + 1]);
         unite(parent, b->idx[3 * t + 1], b->idx[3 * t + 2]);
     }
-    /* Vertices at one place and of one colour join their patches. */
+    /* Vertices at one place and of one colour (a welded vertex) join
+     * their patches. */
     for (uint32_t wv = 0; wv < w->vertices; wv++)
-        for (uint32_t i = w->first[wv]; i < w->first[wv + 1]; i++)
-            for (uint32_t j = i + 1; j < w->first[wv + 1]; j++)
-                if (memcmp(b->rgba + 4 * (size_t)w->of[i], b->rgba + 4 * (size_t)w->of[j], 4) == 0)
-                    unite(parent, w->of[i], w->of[j]);
+        for (uint32_t i = w->first[wv] + 1; i < w->first[wv + 1]; i++)
+            unite(parent, w->of[w->first[wv]], w->of[i]);
     for (uint32_t v = 0; v < b->vertices; v++)
         for (int a = 0; a < 3; a++) {
             box[6 * (size_t)v + a] = INFINITY;
@@ -517,20 +501,12 @@ static int measure_error(const struct baked *m, const float *size2, const struct
                             const uint32_t t = g.tri[k];
                             if (!colour_match(m, idx + 3 * (size_t)t, colour))
                                 continue;
-                            const float *a = m->pos + 3 * (size_t)idx[3 * t],
-                                        *b = m->pos + 3 * (size_t)idx[3 * t + 1],
-                                        *cc = m->pos + 3 * (size_t)idx[3 * t + 2];
                             /* The triangle's box first: most are farther. */
-                            float box2 = 0.0f;
-                            for (int q = 0; q < 3; q++) {
-                                const float lo = min3(a[q], b[q], cc[q]);
-                                const float hi = max3(a[q], b[q], cc[q]);
-                                const float d = p[q] < lo ? lo - p[q] : p[q] > hi ? p[q] - hi : 0.0f;
-                                box2 += d * d;
-                            }
-                            if (box2 >= best2)
+                            if (tw_box_distance2(&g.box[t], p) >= best2)
                                 continue;
-                            const float d2 = point_triangle2(p, a, b, cc);
+                            const float d2 = point_triangle2(p, m->pos + 3 * (size_t)idx[3 * t],
+                                                             m->pos + 3 * (size_t)idx[3 * t + 1],
+                                                             m->pos + 3 * (size_t)idx[3 * t + 2]);
                             if (d2 < best2)
                                 best2 = d2;
                         }
@@ -589,7 +565,7 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
 {
     *count = 0;
     struct baked b;
-    int err = bake(ts, &ts->prototypes[p], &b);
+    int err = bake(ts, p, &b);
     if (err || b.triangles < 2 * LOD_MIN_TRIANGLES) {
         baked_free(&b);
         return err;

@@ -99,6 +99,17 @@ void tw_tiles_cell_offset(struct tw_cell cell, struct tw_cell origin, float w,
 double tw_tiles_cells_in_reach(const struct tw_box *common_box, float w, float d,
                                float view_distance);
 
+/* Bakes instances list[0 .. count) of prototype p into tile-local arrays
+ * the caller sized for their meshes' vertices and triangles: positions,
+ * normals (the transform's linear part applied, not renormalised), colours
+ * (the mesh's vertex colour, white where it has none, times the
+ * instance's material) and indices (each mesh's after the last); their
+ * numbers into *vertices and *triangles. What merging small instances and
+ * levels of detail both start from. */
+void tw_tileset_bake(const struct tw_tileset *ts, uint32_t p, const uint32_t *list, uint32_t count,
+                     float *pos, float *nrm, uint8_t *rgba, uint32_t *idx, uint32_t *vertices,
+                     uint32_t *triangles);
+
 /* ---- levels of detail (DESIGN §17) ---------------------------------------- */
 
 /* The most levels a prototype has besides its full detail. */

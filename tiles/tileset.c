@@ -434,6 +434,38 @@ static uint8_t unorm8(float x)
     return (uint8_t)lrintf(fminf(fmaxf(x, 0.0f), 1.0f) * 255.0f);
 }
 
+void tw_tileset_bake(const struct tw_tileset *ts, uint32_t p, const uint32_t *list, uint32_t count,
+                     float *pos, float *nrm, uint8_t *rgba, uint32_t *idx, uint32_t *vertices,
+                     uint32_t *triangles)
+{
+    uint32_t vbase = 0, tbase = 0;
+    for (uint32_t k = 0; k < count; k++) {
+        const struct tw_instance *in = &ts->prototypes[p].instances[list[k]];
+        const struct tw_mesh *m = &ts->meshes[in->mesh];
+        const float *x = in->transform;
+        const float *color = ts->materials[in->material].base_color;
+        for (uint32_t v = 0; v < m->vertex_count; v++) {
+            const float *a = m->positions + 3 * (size_t)v, *n = m->normals + 3 * (size_t)v;
+            float *q = pos + 3 * (size_t)(vbase + v), *r = nrm + 3 * (size_t)(vbase + v);
+            for (int row = 0; row < 3; row++) {
+                const float *t = x + 4 * row;
+                q[row] = t[0] * a[0] + t[1] * a[1] + t[2] * a[2] + t[3];
+                r[row] = t[0] * n[0] + t[1] * n[1] + t[2] * n[2];
+            }
+            for (int c = 0; c < 4; c++) {
+                const float vc = m->colors ? m->colors[4 * (size_t)v + c] / 255.0f : 1.0f;
+                rgba[4 * (size_t)(vbase + v) + c] = unorm8(vc * color[c]);
+            }
+        }
+        for (uint32_t i = 0; i < 3 * m->triangle_count; i++)
+            idx[3 * (size_t)tbase + i] = m->indices[i] + vbase;
+        vbase += m->vertex_count;
+        tbase += m->triangle_count;
+    }
+    *vertices = vbase;
+    *triangles = tbase;
+}
+
 /* The bytes that baking instance in copies. */
 static uint64_t baked_bytes(const struct tw_tileset *ts, const struct tw_instance *in)
 {
@@ -464,28 +496,8 @@ static int merge_group(struct tw_tileset *ts, uint32_t p, const uint32_t *list, 
         err = TW_ERR_NOMEM;
         goto out;
     }
-    uint32_t vbase = 0, tbase = 0;
-    for (uint32_t k = 0; k < count; k++) {
-        const struct tw_instance *in = &ts->prototypes[p].instances[list[k]];
-        const struct tw_mesh *m = &ts->meshes[in->mesh];
-        const float *x = in->transform;
-        const float *color = ts->materials[in->material].base_color;
-        for (uint32_t v = 0; v < m->vertex_count; v++) {
-            const float *a = m->positions + 3 * (size_t)v, *n = m->normals + 3 * (size_t)v;
-            float *q = pos + 3 * (size_t)(vbase + v), *r = nrm + 3 * (size_t)(vbase + v);
-            for (int row = 0; row < 3; row++) {
-                const float *t = x + 4 * row;
-                q[row] = t[0] * a[0] + t[1] * a[1] + t[2] * a[2] + t[3];
-                r[row] = t[0] * n[0] + t[1] * n[1] + t[2] * n[2];
-            }
-            for (int c = 0; c < 4; c++)
-                rgba[4 * (size_t)(vbase + v) + c] = unorm8(color[c]);
-        }
-        for (uint32_t i = 0; i < 3 * m->triangle_count; i++)
-            idx[3 * (size_t)tbase + i] = m->indices[i] + vbase;
-        vbase += m->vertex_count;
-        tbase += m->triangle_count;
-    }
+    uint32_t vbase, tbase;
+    tw_tileset_bake(ts, p, list, count, pos, nrm, rgba, idx, &vbase, &tbase);
     const int mesh = tw_tileset_add_mesh(ts, pos, nrm, vbase, idx, tbase);
     if (mesh == TW_ERR_INVALID || mesh == TW_ERR_LIMIT)
         goto out;   /* not finite, or out of reach, once transformed: left alone */
