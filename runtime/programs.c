@@ -122,6 +122,20 @@ static const char *const color_fs =
     "out vec4 o_color;\n"
     "void main() { o_color = u_color; }\n";
 
+/* Logs why a shader did not compile or a program did not link (doing:
+ * "compiling a shader", what: "a shader does not compile"): the driver out
+ * of memory, once, else a bug with the driver's message. */
+static void report(const struct tw_gl *gl, const struct tw_log *log, bool *out_of_memory,
+                   const char *doing, const char *what, const char *msg)
+{
+    if (gl->GetError() == GL_OUT_OF_MEMORY && !*out_of_memory) {
+        *out_of_memory = true;
+        tw_log_printf(log, TW_LOG_ERROR, "the OpenGL driver ran out of memory %s", doing);
+    } else if (!*out_of_memory) {
+        tw_log_printf(log, TW_LOG_ERROR, "%s (a bug): %s", what, msg);
+    }
+}
+
 static GLuint compile(const struct tw_gl *gl, const struct tw_log *log, GLenum type,
                       const char *src, bool *out_of_memory)
 {
@@ -133,13 +147,7 @@ static GLuint compile(const struct tw_gl *gl, const struct tw_log *log, GLenum t
     if (!ok) {
         char msg[1024] = "";
         gl->GetShaderInfoLog(s, sizeof(msg), NULL, msg);
-        if (gl->GetError() == GL_OUT_OF_MEMORY && !*out_of_memory) {
-            *out_of_memory = true;
-            tw_log_printf(log, TW_LOG_ERROR, "the OpenGL driver ran out of memory "
-                          "compiling a shader");
-        } else if (!*out_of_memory) {
-            tw_log_printf(log, TW_LOG_ERROR, "a shader does not compile (a bug): %s", msg);
-        }
+        report(gl, log, out_of_memory, "compiling a shader", "a shader does not compile", msg);
         gl->DeleteShader(s);
         return 0;
     }
@@ -160,13 +168,8 @@ static GLuint link_shaders(const struct tw_gl *gl, const struct tw_log *log, con
     if (!ok) {
         char msg[1024] = "";
         gl->GetProgramInfoLog(p, sizeof(msg), NULL, msg);
-        if (gl->GetError() == GL_OUT_OF_MEMORY && !*out_of_memory) {
-            *out_of_memory = true;
-            tw_log_printf(log, TW_LOG_ERROR, "the OpenGL driver ran out of memory "
-                          "linking a shader program");
-        } else if (!*out_of_memory) {
-            tw_log_printf(log, TW_LOG_ERROR, "a shader program does not link (a bug): %s", msg);
-        }
+        report(gl, log, out_of_memory, "linking a shader program",
+               "a shader program does not link", msg);
         gl->DeleteProgram(p);
         p = 0;
     }
