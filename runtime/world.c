@@ -510,8 +510,8 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
 
     const bool verify = w->s.verify;
     const unsigned debug = w->debug.flags;
-    tw_renderer_record_draws(w->renderer,
-                             verify || w->record_draws || (debug & (TW_DEBUG_CELLS | TW_DEBUG_NODES)));
+    const bool recording = verify || w->record_draws || (debug & (TW_DEBUG_CELLS | TW_DEBUG_NODES));
+    tw_renderer_record_draws(w->renderer, recording);
     if (debug)
         tw_renderer_record_queries(w->renderer, (debug & TW_DEBUG_QUERIES) != 0);
     w->frame_serial++;
@@ -606,7 +606,7 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
             return err;
         tw_oracle_compare(w, &st);
     }
-    if (w->lod_on && w->record_draws) {
+    if (w->lod_on && recording) {
         err = public_draws(w);
         if (err)
             return err;

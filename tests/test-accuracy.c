@@ -90,6 +90,8 @@ static void walk(struct tw_context *ctx, const struct tw_tileset *ts, const char
     const struct tw_world_settings s = base_settings(ctx, ts);
     struct tw_world *w = NULL;
     CHECK(tw_world_create(&s, &w) == TW_OK);
+    if (w)
+        tw_world_record_draws(w, true);  /* the box oracle's draws are the floor */
     const enum tw_method methods[METHODS] = {
         TW_METHOD_VFC, TW_METHOD_CHC, TW_METHOD_TILEQUERY, TW_METHOD_TILEQUERY_CHC,
         TW_METHOD_ORACLE, TW_METHOD_HZB, TW_METHOD_TILEQUERY_HZB, TW_METHOD_BOX_ORACLE};
@@ -125,7 +127,7 @@ static void walk(struct tw_context *ctx, const struct tw_tileset *ts, const char
                 CHECK(floor != NULL);
                 if (!floor)
                     floor_count = 0;
-                else
+                else if (floor_count)
                     memcpy(floor, d, sizeof(*floor) * floor_count);
                 qsort(floor, floor_count, sizeof(*floor), cmp_drawn);
                 floor_clusters += floor_count;
@@ -173,6 +175,7 @@ static void walk(struct tw_context *ctx, const struct tw_tileset *ts, const char
         below += below_floor[m];
     printf("; box oracle %llu clusters, %llu of them not drawn by a method\n",
            (unsigned long long)floor_clusters, (unsigned long long)below);
+    CHECK(floor_clusters > 0);
     free(floor);
     tw_world_destroy(w);
     tw_path_finish(&path);
