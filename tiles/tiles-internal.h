@@ -281,4 +281,36 @@ static inline bool tw_renderer_name_is_software(const char *renderer)
     return false;
 }
 
+/* ---- hierarchical levels of detail (blocks of cells) ---- */
+
+/* A cell of a block that shows nothing. */
+#define TW_HLOD_EMPTY UINT32_MAX
+
+/* Builds the proxy of a block of side x side cells of the finished tileset
+ * ts (side >= 1): one content that stands for the whole block, for the
+ * runtime to simplify further with tw_lods_build(). Cell (x, z) of the
+ * block, x and z in [0, side), shows prototype protos[z * side + x] of ts
+ * (TW_HLOD_EMPTY: nothing) at its coarsest level of lods (built from ts; may
+ * be NULL or have no levels: full detail) whose error is at most
+ * max_input_error metres (tw_lods_pick), placed at (x * W, 0, z * D) where
+ * W, D is ts's footprint. *out gets a finished, packed tileset of footprint
+ * (side * W, side * D) with exactly one prototype: every instance of every
+ * chosen level or prototype, its transform translated to its cell, its
+ * material's colour kept; meshes and materials copied once each however
+ * many cells use them; small instances merged as ts's merge_triangles says;
+ * clusters of at most max_cluster_triangles. *input_error gets the largest
+ * error of the levels used (0 if all are full detail). A block with no
+ * triangles (all empty) gives TW_OK with *out = NULL. Deterministic: the
+ * same inputs give the same meshes, instances and clusters, byte for byte.
+ * TW_ERR_INVALID for side 0, a NULL argument, an unfinished ts, lods not of
+ * ts, a prototype out of range; TW_ERR_LIMIT when the block's vertices or
+ * triangles would not fit 32 bits, or it lies out of reach
+ * (TW_TILES_MAX_COORD); TW_ERR_NOMEM. On an error *out is NULL and nothing
+ * is left to free. The caller owns *out (tw_tileset_destroy()). Thread-safe
+ * for distinct outputs: reads ts and lods only. */
+int tw_hlod_block_build(const struct tw_tileset *ts, const struct tw_lods *lods,
+                        const uint32_t *protos, uint32_t side, float max_input_error,
+                        uint32_t max_cluster_triangles, struct tw_tileset **out,
+                        float *input_error);
+
 #endif

@@ -1,0 +1,230 @@
+/* Hierarchical levels of detail (tiles-internal.h): the proxy of a block of
+ * cells, each cell's prototype at a coarse level, gathered into one
+ * prototype of one tileset for tw_lods_build() to simplify as a whole. */
+#include "tiles/tiles-internal.h"
+#include "tileworld/tiles.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* What a source tileset (ts, or its levels) has already given the block:
+ * the block's index of each of its meshes and materials, UINT32_MAX where
+ * none yet, so that a mesh shown by many cells is copied once. */
+struct source {
+    const struct tw_tileset *ts;
+    uint32_t *mesh;
+    uint32_t *material;
+};
+
+static int source_init(struct source *s, const struct tw_tileset *ts)
+{
+    s->ts = ts;
+    s->mesh = malloc(sizeof(*s->mesh) * (ts->mesh_count ? ts->mesh_count : 1));
+    s->material = malloc(sizeof(*s->material) * (ts->material_count ? ts->material_count : 1));
+    if (!s->mesh || !s->material)
+        return TW_ERR_NOMEM;
+    memset(s->mesh, 0xff, sizeof(*s->mesh) * ts->mesh_count);
+    memset(s->material, 0xff, sizeof(*s->material) * ts->material_count);
+    return TW_OK;
+}
+
+static void source_free(struct source *s)
+{
+    free(s->mesh);
+    free(s->material);
+}
+
+/* What one cell shows: prototype proto of tileset ts (ts itself, or its
+ * levels), with that level's error. */
+struct shown {
+    const struct tw_tileset *ts;
+    uint32_t proto;
+    float error;
+};
+
+static struct shown shown_at(const struct tw_tileset *ts, const struct tw_lods *lods, uint32_t p,
+                             float max_input_error)
+{
+    const uint32_t level = tw_lods_pick(lods, p, max_input_error);
+    if (level == 0)
+        return (struct shown){ts, p, 0.0f};
+    const uint32_t k = lods->first[p] + level - 1;
+    return (struct shown){lods->levels, k, lods->error[k]};
+}
+
+/* Whether instance in is copied into the block. tw_tileset_finish() leaves
+ * in a prototype both the instances it was given and, for its small ones,
+ * a `merged` identity instance of a baked mesh that draws them (those are
+ * marked merged_into). The block copies the instances it was given, every
+ * one, and none of the merged ones: the originals are exactly the drawn
+ * triangles (a merged mesh is a bake of its originals, nothing more), they
+ * share their meshes between cells (a merged mesh is per prototype), and
+ * the block's own tw_tileset_finish() merges them again, block-wide, as
+ * it expects to: an unfinished tileset of plain instances. Copying the
+ * merged meshes instead would bake baked meshes again, and would run the
+ * dropping of triangles without area over tile-local triangles that were
+ * never checked so. An instance whose mesh lost every triangle to that
+ * dropping draws nothing (and a mesh needs a triangle to be added). */
+static bool copied(const struct tw_tileset *ts, const struct tw_instance *in)
+{
+    return !in->merged && ts->meshes[in->mesh].triangle_count > 0;
+}
+
+/* The block's index of source mesh k, copied (colours too) the first time. */
+static int block_mesh(struct tw_tileset *block, struct source *s, uint32_t k)
+{
+    if (s->mesh[k] != UINT32_MAX)
+        return (int)s->mesh[k];
+    const struct tw_mesh *m = &s->ts->meshes[k];
+    const int mesh = tw_tileset_add_mesh(block, m->positions, m->normals, m->vertex_count,
+                                         m->indices, m->triangle_count);
+    if (mesh < 0)
+        return mesh;
+    if (m->colors) {
+        uint8_t *rgba = malloc(4 * (size_t)m->vertex_count);
+        if (!rgba)
+            return TW_ERR_NOMEM;
+        memcpy(rgba, m->colors, 4 * (size_t)m->vertex_count);
+        block->meshes[mesh].colors = rgba;     /* the block's now */
+    }
+    s->mesh[k] = (uint32_t)mesh;
+    return mesh;
+}
+
+/* The block's index of source material k, copied the first time. */
+static int block_material(struct tw_tileset *block, struct source *s, uint32_t k)
+{
+    if (s->material[k] != UINT32_MAX)
+        return (int)s->material[k];
+    const int material = tw_tileset_add_material(block, s->ts->materials[k].base_color);
+    if (material >= 0)
+        s->material[k] = (uint32_t)material;
+    return material;
+}
+
+/* Copies the instances of prototype shown of s into prototype proto of the
+ * block, moved by (dx, 0, dz). */
+static int add_cell(struct tw_tileset *block, uint32_t proto, struct source *s, uint32_t shown,
+                    float dx, float dz)
+{
+    const struct tw_prototype *pr = &s->ts->prototypes[shown];
+    for (uint32_t k = 0; k < pr->instance_count; k++) {
+        const struct tw_instance *in = &pr->instances[k];
+        if (!copied(s->ts, in))
+            continue;
+        const int mesh = block_mesh(block, s, in->mesh);
+        if (mesh < 0)
+            return mesh;
+        const int material = block_material(block, s, in->material);
+        if (material < 0)
+            return material;
+        float transform[12];
+        memcpy(transform, in->transform, sizeof(transform));
+        transform[3] += dx;
+        transform[11] += dz;
+        const int added =
+            tw_tileset_add_instance(block, proto, (uint32_t)mesh, (uint32_t)material, transform);
+        if (added < 0)
+            return added;
+    }
+    return TW_OK;
+}
+
+int tw_hlod_block_build(const struct tw_tileset *ts, const struct tw_lods *lods,
+                        const uint32_t *protos, uint32_t side, float max_input_error,
+                        uint32_t max_cluster_triangles, struct tw_tileset **out,
+                        float *input_error)
+{
+    if (out)
+        *out = NULL;
+    if (input_error)
+        *input_error = 0.0f;
+    if (!ts || !protos || !out || !input_error || side == 0 || !ts->finished)
+        return TW_ERR_INVALID;
+    if ((uint64_t)side * side > UINT32_MAX)
+        return TW_ERR_LIMIT;
+    /* Levels of another tileset would name other prototypes. */
+    if (lods && lods->levels && lods->source_count != ts->prototype_count)
+        return TW_ERR_INVALID;
+    const uint32_t cells = side * side;
+
+    /* What the block holds, counted before anything is built: its baked
+     * whole (what tw_lods_build() makes of it) must fit 32-bit counts. */
+    uint64_t vertices = 0, triangles = 0, instances = 0;
+    float largest_error = 0.0f;
+    for (uint32_t c = 0; c < cells; c++) {
+        if (protos[c] == TW_HLOD_EMPTY)
+            continue;
+        if (protos[c] >= ts->prototype_count)
+            return TW_ERR_INVALID;
+        const struct shown sh = shown_at(ts, lods, protos[c], max_input_error);
+        if (sh.error > largest_error)
+            largest_error = sh.error;
+        const struct tw_prototype *pr = &sh.ts->prototypes[sh.proto];
+        for (uint32_t k = 0; k < pr->instance_count; k++) {
+            const struct tw_instance *in = &pr->instances[k];
+            if (!copied(sh.ts, in))
+                continue;
+            vertices += sh.ts->meshes[in->mesh].vertex_count;
+            triangles += sh.ts->meshes[in->mesh].triangle_count;
+            instances++;
+        }
+    }
+    if (vertices > UINT32_MAX || triangles > UINT32_MAX / 3 || instances >= TW_INSTANCE_NONE)
+        return TW_ERR_LIMIT;
+    if (triangles == 0)
+        return TW_OK;   /* all empty: nothing to stand for */
+
+    struct source full = {0}, coarse = {0};
+    struct tw_tileset *block = NULL;
+    int proto = 0;
+    char name[64];
+    snprintf(name, sizeof(name), "%.40s/block%u", ts->name, side);
+    int err = tw_tileset_create(name, (float)side * ts->footprint[0],
+                                (float)side * ts->footprint[1], &block);
+    if (!err)
+        err = source_init(&full, ts);
+    if (!err && lods && lods->levels)
+        err = source_init(&coarse, lods->levels);
+    if (err)
+        goto fail;
+    /* Small instances merged as the source merges its own. */
+    block->merge_triangles = ts->merge_triangles;
+    snprintf(name, sizeof(name), "block%ux%u", side, side);
+    proto = tw_tileset_add_prototype(block, name, 1.0f);
+    if (proto < 0) {
+        err = proto;
+        goto fail;
+    }
+    /* Cells in a fixed order, row by row: the same inputs, the same block. */
+    for (uint32_t z = 0; z < side && !err; z++)
+        for (uint32_t x = 0; x < side && !err; x++) {
+            const uint32_t p = protos[z * side + x];
+            if (p == TW_HLOD_EMPTY)
+                continue;
+            const struct shown sh = shown_at(ts, lods, p, max_input_error);
+            /* The offset in double, rounded once, like tw_tiles_cell_offset(). */
+            const float dx = (float)((double)x * ts->footprint[0]);
+            const float dz = (float)((double)z * ts->footprint[1]);
+            err = add_cell(block, (uint32_t)proto, sh.ts == ts ? &full : &coarse, sh.proto, dx,
+                           dz);
+        }
+    if (!err)
+        err = tw_tileset_finish(block, max_cluster_triangles);
+    if (!err)
+        err = tw_tileset_pack(&block);
+    if (err)
+        goto fail;
+    source_free(&full);
+    source_free(&coarse);
+    *out = block;
+    *input_error = largest_error;
+    return TW_OK;
+
+fail:
+    source_free(&full);
+    source_free(&coarse);
+    tw_tileset_destroy(block);
+    return err;
+}
