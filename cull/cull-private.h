@@ -105,6 +105,7 @@ static inline uint32_t tw_distance_pop(struct tw_distance_entry *heap, size_t *c
  * and the per-node state that the local method keeps in the tile cache. */
 struct tw_cull_instance {
     struct tw_cell cell;
+    uint32_t level;                     /* of the node whose base is cell (0: a cell) */
     uint32_t content;                   /* handed to be->draw */
     const struct tw_prototype *proto;
     const struct tw_bvh *bvh;
@@ -355,13 +356,14 @@ struct tw_tilequery_stats {
     uint32_t fronts;            /* wavefronts: the GPU was flushed once for each */
 };
 
-/* Renders the tile at cell, placed at offset (view-relative), with the local
- * method, before its neighbours are queried. condition: 0, or the cell's
- * own query, issued and not read yet, when it is drawn on last frame's word
- * (postponed): a local method may draw under it (be->draw_if), the GPU
- * skipping what it finds hidden; the engine reads it. */
-typedef void (*tw_tilequery_render_fn)(void *user, struct tw_cell cell, const float offset[3],
-                                       uint32_t condition);
+/* Renders the tile of node (cell, level; level 0: the cell's), placed at
+ * offset (view-relative), with the local method, before its neighbours are
+ * queried. condition: 0, or the node's own query, issued and not read yet,
+ * when it is drawn on last frame's word (postponed): a local method may
+ * draw under it (be->draw_if), the GPU skipping what it finds hidden; the
+ * engine reads it. */
+typedef void (*tw_tilequery_render_fn)(void *user, struct tw_cell cell, uint32_t level,
+                                       const float offset[3], uint32_t condition);
 
 /* Called once per wavefront, right after its flush: everything drawn and
  * issued so far has gone to the GPU, so the local method may now read what
@@ -376,17 +378,18 @@ int tw_tilequery_create(const struct tw_tilequery_settings *s, struct tw_tileque
 void tw_tilequery_destroy(struct tw_tilequery *tq);
 
 /* Runs one frame (v->frame, increasing by one each call): spreads visibility
- * from the camera across the grid of footprint w x d, front to back,
- * querying common_box (tile-local) placed at each candidate cell, and calls
- * render for every cell found visible. It goes a wavefront at a time: the
- * cells rendered in one wavefront have their neighbours queried, then
- * be->flush() is called once (the only flush it makes), front (may be NULL)
- * is called, and the wavefront's answers are read; the visible cells are
- * the next wavefront's to render. */
+ * from the camera across grid g (its footprint; its hierarchy's cut, where
+ * it has one: a node stands for its cells), front to back, querying the
+ * node box (tw_cull_node_box; a cell's: the common box) placed at each
+ * candidate, and calls render for every node found visible. It goes a
+ * wavefront at a time: the nodes rendered in one wavefront have their
+ * neighbours (tw_cull_node_neighbours) queried, then be->flush() is called
+ * once (the only flush it makes), front (may be NULL) is called, and the
+ * wavefront's answers are read; the visible nodes are the next wavefront's
+ * to render. g->source is not used. */
 int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
-                       const struct tw_query_backend *be, const struct tw_box *common_box,
-                       float w, float d, tw_tilequery_render_fn render,
-                       tw_tilequery_front_fn front, void *user,
+                       const struct tw_query_backend *be, const struct tw_cull_grid *g,
+                       tw_tilequery_render_fn render, tw_tilequery_front_fn front, void *user,
                        struct tw_tilequery_stats *stats);
 
 /* True if cell was found visible in frame (only the last two frames are kept). */
@@ -428,18 +431,19 @@ uint32_t *tw_cull_frame_clusters(struct tw_cull_frame *fr, struct tw_cull_cluste
 /* Fills *tile with the tile at cell (distance: eye to the cell's common
  * box) and returns true when it is ready and not empty. A tile not ready is
  * counted in st->tiles_pending; an error becomes the frame's. */
-bool tw_cull_frame_tile(struct tw_cull_frame *fr, struct tw_cell cell, float distance,
-                        struct tw_cull_tile *tile);
+bool tw_cull_frame_tile(struct tw_cull_frame *fr, struct tw_cell cell, uint32_t level,
+                        float distance, struct tw_cull_tile *tile);
 
 /* The eye's distance to the common box placed at cell (what
  * tw_tile_source.get() is given). */
-float tw_cull_frame_cell_distance(const struct tw_cull_frame *fr, struct tw_cell cell);
+float tw_cull_frame_cell_distance(const struct tw_cull_frame *fr, struct tw_cell cell,
+                                  uint32_t level);
 
 /* True if the common box placed at cell (at off, which this fills, with
  * the eye's distance to it in *distance) meets the frustum within the view
  * distance. */
 bool tw_cull_frame_cell_in_view(const struct tw_cull_frame *fr, struct tw_cell cell,
-                                float off[3], float *distance);
+                                uint32_t level, float off[3], float *distance);
 
 /* The tile instance of a cell found visible, from fr->cache: made on first
  * sight (and afresh for content other than its own) with state_bytes of
@@ -576,17 +580,18 @@ size_t tw_hzb_phases_bytes(const struct tw_hzb_phases *p);
 /* Phase 1 and the pyramid of its depth; returns how many clusters phase 1
  * drew. */
 uint32_t tw_hzb_phases_begin(struct tw_hzb_phases *p, struct tw_cull_frame *fr);
-/* Phase 2's verdict on a cell in view, placed at off: visible without a
- * test (free_pass: where propagation starts, the near-plane rule) or as its
- * common box tests against the pyramid. Counts a failed prediction and
- * records the verdict; *prev receives what phase 1 recorded of the cell. */
+/* Phase 2's verdict on a node of the cut in view (cell, level; a cell:
+ * level 0), placed at off: visible without a test (free_pass: where
+ * propagation starts, the near-plane rule) or as its box tests against the
+ * pyramid. Counts a failed prediction and records the verdict; *prev
+ * receives what phase 1 recorded of the node. */
 bool tw_hzb_phases_decide(struct tw_hzb_phases *p, struct tw_cull_frame *fr, struct tw_cell cell,
-                          const float off[3], bool free_pass, uint64_t *prev);
-/* Phase 2 in a visible cell: its BVH against the pyramid, drawing what
- * phase 1 did not (prev: what phase 1 recorded); the cell is kept for the
- * next frame's phase 1 if a node of it was found visible. */
+                          uint32_t level, const float off[3], bool free_pass, uint64_t *prev);
+/* Phase 2 in a visible node: its tile's BVH against the pyramid, drawing
+ * what phase 1 did not (prev: what phase 1 recorded); the node is kept for
+ * the next frame's phase 1 if a BVH node of it was found visible. */
 void tw_hzb_phases_visit(struct tw_hzb_phases *p, struct tw_cull_frame *fr, struct tw_cell cell,
-                         float distance, const float off[3], uint64_t prev);
+                         uint32_t level, float distance, const float off[3], uint64_t prev);
 /* What this frame has recorded of cell so far (0: nothing), for
  * tw_hzb_phases_visit(). */
 uint64_t tw_hzb_phases_verdict(const struct tw_hzb_phases *p, struct tw_cell cell);

@@ -128,10 +128,13 @@ float tw_cull_box_distance(const struct tw_view *v, const struct tw_box *b,
                            const float offset[3]);
 
 /* A cell considered for drawing, with its distance (eye to the nearest
- * point of the common box placed there). */
+ * point of the common box placed there). With a hierarchy of cells
+ * (struct tw_cull_levels), a node of it: the block of 2^level x 2^level
+ * cells whose first cell is cell, its distance to the node's box. */
 struct tw_cull_cell {
     struct tw_cell cell;
     float distance;
+    uint32_t level;
 };
 
 /* Every cell whose common box (tile-local, footprint w x d) placed at that
@@ -161,6 +164,16 @@ size_t tw_cull_cells_in_view_scan(const struct tw_view *v,
                                   const struct tw_box *common_box, float w, float d,
                                   struct tw_cull_cell *out, size_t cap,
                                   struct tw_cull_scan *scan);
+
+/* The nodes of the cut (struct tw_cull_levels) whose box, placed at their
+ * base, meets the frustum within the view distance, front to back, as
+ * tw_cull_cells_in_view_scan() gives cells (what it is without a
+ * hierarchy): up to cap into out, returning how many there are in all. The
+ * work is bounded the same way: at most TW_TILES_MAX_CELLS_IN_VIEW nodes
+ * tested, at every level, those around the camera first. */
+struct tw_cull_grid;
+size_t tw_cull_nodes_in_view(const struct tw_view *v, const struct tw_cull_grid *g,
+                             struct tw_cull_cell *out, size_t cap, struct tw_cull_scan *scan);
 
 /* ---- the query backend (DESIGN §5) ----------------------------------------- */
 
@@ -312,6 +325,8 @@ struct tw_cull_tile {
                                            instance: an instance made for another key
                                            is made afresh (a fixed tileset: the
                                            prototype index) */
+    uint32_t level;                     /* of the node it is the tile of (0: a cell's);
+                                           the frame sets it, not the source */
 };
 
 /* tw_tile_source.get() flags. */
@@ -330,24 +345,69 @@ struct tw_tile_source {
      * TW_TILE_PENDING when the tile is not ready (it is then drawn as a
      * hole: its query box still counts for propagation, its geometry
      * occludes nothing), or a negative error (the frame stops with it).
-     * distance: eye to the cell's common box placed at cell, always: a
-     * priority, and what the level of detail drawn depends on (the same
-     * cell must get the same content wherever in the frame it is asked
-     * for). Called on the frame's thread. */
-    int (*get)(void *ctx, struct tw_cell cell, float distance, unsigned flags,
+     * level: 0 for a cell's tile; with a hierarchy (struct tw_cull_levels),
+     * the node of that level whose base is cell, its tile standing for all
+     * of its cells (placed at the base, inside the node's box). distance:
+     * eye to the node's box placed at cell, always: a priority, and what
+     * the level of detail drawn depends on (the same node must get the
+     * same content wherever in the frame it is asked for). Called on the
+     * frame's thread. */
+    int (*get)(void *ctx, struct tw_cell cell, uint32_t level, float distance, unsigned flags,
                struct tw_cull_tile *out);
-    /* A hint that cell will soon be needed (its tile query is about to be
-     * issued); may be NULL. */
-    void (*prefetch)(void *ctx, struct tw_cell cell, float distance);
+    /* A hint that the node (cell, level) will soon be needed (its tile
+     * query is about to be issued); may be NULL. */
+    void (*prefetch)(void *ctx, struct tw_cell cell, uint32_t level, float distance);
+};
+
+/* The hierarchy of cells a frame culls over (DESIGN §17): a node of level k
+ * is the block of 2^k x 2^k cells whose first cell has i and j multiples of
+ * 2^k (level 0: a cell); it is named by that cell, its base. Its box is the
+ * common box placed at each of its cells, joined (tw_cull_node_box). A node
+ * of level k >= 1 is refined into its four children while the eye is nearer
+ * its box than refine[k] metres; the nodes of the top level, count - 1, tile
+ * the plane. What a frame culls is the cut this makes: every cell lies in
+ * exactly one node of it, found from the top down (tw_cull_cover), so a
+ * base names one node of the cut in a frame. count 0 or 1: cells only. */
+#define TW_CULL_MAX_LEVELS 12u
+struct tw_cull_levels {
+    uint32_t count;
+    float refine[TW_CULL_MAX_LEVELS];
 };
 
 /* The grid a frame culls: footprint, the common box (tile-local; every tile
- * lies inside it: it is the tile query's box) and the source of its tiles. */
+ * lies inside it: it is the tile query's box), the hierarchy of its cells
+ * (zero: none) and the source of its tiles. */
 struct tw_cull_grid {
     float footprint[2];
     struct tw_box common_box;
+    struct tw_cull_levels levels;
     struct tw_tile_source source;
 };
+
+/* The box of a node of level (base-local: the base cell's placement moves
+ * it, tw_tiles_cell_offset): the common box stretched over 2^level cells
+ * each way. Level 0: the common box. */
+struct tw_box tw_cull_node_box(const struct tw_cull_grid *g, uint32_t level);
+
+/* The node of the frame's cut that holds cell (its base in *base, may be
+ * NULL) and its level. */
+uint32_t tw_cull_cover(const struct tw_view *v, const struct tw_cull_grid *g, struct tw_cell cell,
+                       struct tw_cell *base);
+
+/* Whether the grid has a hierarchy (more than one level). */
+static inline bool tw_cull_grid_hierarchical(const struct tw_cull_grid *g)
+{
+    return g->levels.count > 1;
+}
+
+/* The nodes of the frame's cut next to node (base, level): those holding a
+ * cell that shares an edge with one of its cells (neighbours 8: or a
+ * corner), each once, none of them node itself. Writes up to cap of them
+ * (cell, level; distance 0) into out and returns how many there are in all.
+ * Without a hierarchy, the 4 or 8 cells of tw_cell_neighbour() in its order. */
+size_t tw_cull_node_neighbours(const struct tw_view *v, const struct tw_cull_grid *g,
+                               struct tw_cell base, uint32_t level, uint32_t neighbours,
+                               struct tw_cull_cell *out, size_t cap);
 
 /* A fixed tileset as a tile source: cell -> prototype by selection, drawn as
  * content = prototype index. Borrowed pointers, which must outlive the
@@ -373,6 +433,7 @@ struct tw_cull_cells {
     struct tw_cell cell;                /* the view they are for */
     float view_proj[16];
     float view_distance;
+    struct tw_cull_levels levels;
 };
 /* The cells in view of v, front to back: enumerated on the first call for
  * a view, then given back until the view (cell, matrix, view distance)

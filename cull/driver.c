@@ -28,10 +28,14 @@ struct tw_cull_driver {
 
 /* ---- a fixed tileset as a tile source -------------------------------------------------- */
 
-static int fixed_get(void *ctx, struct tw_cell cell, float distance, unsigned flags,
-                     struct tw_cull_tile *out)
+static int fixed_get(void *ctx, struct tw_cell cell, uint32_t level, float distance,
+                     unsigned flags, struct tw_cull_tile *out)
 {
     const struct tw_cull_fixed *f = ctx;
+    if (level > 0) {
+        tw_log_printf(f->log, TW_LOG_ERROR, "a fixed tileset has no tiles for blocks of cells");
+        return TW_ERR_INVALID;
+    }
     const uint32_t p = tw_tiles_select(f->tileset, f->selection, cell);
     if (p >= f->tileset->prototype_count) {
         tw_log_printf(f->log, TW_LOG_ERROR,
@@ -68,17 +72,18 @@ int tw_cull_cells_of_frame(struct tw_cull_cells *c, const struct tw_view *v,
 {
     if (c->valid && c->cell.i == v->cell.i && c->cell.j == v->cell.j &&
         c->view_distance == v->view_distance &&
-        memcmp(c->view_proj, v->view_proj, sizeof(c->view_proj)) == 0)
+        memcmp(c->view_proj, v->view_proj, sizeof(c->view_proj)) == 0 &&
+        memcmp(&c->levels, &g->levels, sizeof(c->levels)) == 0)
         return TW_OK;
     for (;;) {
-        const size_t n = tw_cull_cells_in_view(v, &g->common_box, g->footprint[0],
-                                               g->footprint[1], c->cells, c->cap);
+        const size_t n = tw_cull_nodes_in_view(v, g, c->cells, c->cap, NULL);
         if (n <= c->cap) {
             c->count = n;
             c->valid = true;
             c->cell = v->cell;
             c->view_distance = v->view_distance;
             memcpy(c->view_proj, v->view_proj, sizeof(c->view_proj));
+            c->levels = g->levels;
             return TW_OK;
         }
         struct tw_cull_cell *cells = realloc(c->cells, sizeof(*cells) * n);
@@ -242,10 +247,12 @@ uint32_t *tw_cull_frame_clusters(struct tw_cull_frame *fr, struct tw_cull_cluste
                : NULL;
 }
 
-bool tw_cull_frame_tile(struct tw_cull_frame *fr, struct tw_cell cell, float distance,
-                        struct tw_cull_tile *tile)
+bool tw_cull_frame_tile(struct tw_cull_frame *fr, struct tw_cell cell, uint32_t level,
+                        float distance, struct tw_cull_tile *tile)
 {
-    const int err = fr->g->source.get(fr->g->source.ctx, cell, distance, fr->source_flags, tile);
+    const int err =
+        fr->g->source.get(fr->g->source.ctx, cell, level, distance, fr->source_flags, tile);
+    tile->level = level;
     if (err == TW_TILE_PENDING)
         fr->st->tiles_pending++;
     else if (err)
@@ -254,21 +261,24 @@ bool tw_cull_frame_tile(struct tw_cull_frame *fr, struct tw_cell cell, float dis
     return err == TW_OK && tile->proto != NULL;
 }
 
-float tw_cull_frame_cell_distance(const struct tw_cull_frame *fr, struct tw_cell cell)
+float tw_cull_frame_cell_distance(const struct tw_cull_frame *fr, struct tw_cell cell,
+                                  uint32_t level)
 {
     float off[3];
     tw_tiles_cell_offset(cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], off);
-    return tw_cull_box_distance(fr->v, &fr->g->common_box, off);
+    const struct tw_box box = tw_cull_node_box(fr->g, level);
+    return tw_cull_box_distance(fr->v, &box, off);
 }
 
 bool tw_cull_frame_cell_in_view(const struct tw_cull_frame *fr, struct tw_cell cell,
-                                float off[3], float *distance)
+                                uint32_t level, float off[3], float *distance)
 {
     const struct tw_cull_grid *g = fr->g;
     tw_tiles_cell_offset(cell, fr->v->cell, g->footprint[0], g->footprint[1], off);
-    *distance = tw_cull_box_distance(fr->v, &g->common_box, off);
+    const struct tw_box box = tw_cull_node_box(g, level);
+    *distance = tw_cull_box_distance(fr->v, &box, off);
     return *distance <= fr->v->view_distance &&
-           tw_cull_frustum_box(&fr->v->frustum, &g->common_box, off) != TW_CULL_OUTSIDE;
+           tw_cull_frustum_box(&fr->v->frustum, &box, off) != TW_CULL_OUTSIDE;
 }
 
 void *tw_cull_frame_instance(struct tw_cull_frame *fr, struct tw_cell cell,
@@ -284,7 +294,7 @@ void *tw_cull_frame_instance(struct tw_cull_frame *fr, struct tw_cell cell,
         return NULL;
     }
     *inst = (struct tw_cull_instance){
-        .cell = cell, .content = tile->content, .proto = tile->proto, .bvh = tile->bvh,
+        .cell = cell, .level = tile->level, .content = tile->content, .proto = tile->proto, .bvh = tile->bvh,
         .state = tw_tile_cache_state(fr->cache, h), .tag = tw_tile_handle_pack(h),
     };
     memcpy(inst->offset, offset, sizeof(inst->offset));
@@ -303,7 +313,8 @@ int tw_cull_frame_each_cell(struct tw_cull_method_base *m, struct tw_cull_frame 
     for (size_t k = 0; k < cells->count && !fr->err; k++) {
         const struct tw_cell cell = cells->cells[k].cell;
         struct tw_cull_tile tile;
-        if (!tw_cull_frame_tile(fr, cell, cells->cells[k].distance, &tile)) {
+        if (!tw_cull_frame_tile(fr, cell, cells->cells[k].level, cells->cells[k].distance,
+                                &tile)) {
             if (fr->err)
                 break;
             continue;

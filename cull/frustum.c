@@ -302,6 +302,7 @@ size_t tw_cull_cells_in_view_scan(const struct tw_view *v, const struct tw_box *
             if (n < cap) {
                 out[n].cell = cell;
                 out[n].distance = dist;
+                out[n].level = 0;
             }
             n++;
         }

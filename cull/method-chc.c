@@ -24,17 +24,22 @@ static struct chc_method *chc_from_method(struct tw_cull_method_base *m)
 }
 
 /* A deferred V-query names its tile instance by handle; the instance is
- * still that tile only if the cell still shows the content it was made for. */
+ * still that tile only if its cell is still the base of a node of the cut
+ * and that node still shows the content it was made for. */
 static struct tw_chc_node_state *resolve_tag(void *user, uint64_t tag, const struct tw_bvh **bvh)
 {
     struct tw_cull_frame *fr = user;
     const struct tw_tile_handle h = tw_tile_handle_unpack(tag);
     const struct tw_tile_info *info = tw_tile_cache_info(fr->cache, h);
+    if (!info)
+        return NULL;
+    struct tw_cell base;
+    const uint32_t level = tw_cull_cover(fr->v, fr->g, info->cell, &base);
     struct tw_cull_tile tile;
-    if (!info ||
-        fr->g->source.get(fr->g->source.ctx, info->cell,
-                          tw_cull_frame_cell_distance(fr, info->cell), TW_TILE_SOURCE_RESIDENT,
-                          &tile) != TW_OK ||
+    if (base.i != info->cell.i || base.j != info->cell.j ||
+        fr->g->source.get(fr->g->source.ctx, info->cell, level,
+                          tw_cull_frame_cell_distance(fr, info->cell, level),
+                          TW_TILE_SOURCE_RESIDENT, &tile) != TW_OK ||
         tile.key != info->prototype)
         return NULL;
     *bvh = tile.bvh;

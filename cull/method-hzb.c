@@ -21,6 +21,7 @@
 enum { GPU_CELL_TAKEN, GPU_CELL_NOT_TAKEN, GPU_LEAF };
 struct tw_hzb_gpu_candidate {
     struct tw_cell cell;
+    uint32_t level;                     /* of the node whose base is cell */
     uint64_t tag;                       /* leaf: the tile instance's handle */
     uint32_t node;                      /* leaf: its BVH node */
     uint32_t kind;
@@ -109,11 +110,11 @@ bool tw_hzb_phases_reached(const struct tw_hzb_phases *p, const struct tw_cull_f
 /* The HZB state of the cell's tile instance, made on first sight; *t is set
  * up for the traversals. NULL when the tile is not there (pending, refused). */
 static struct tw_hzb_node_state *instance(struct tw_cull_frame *fr, struct tw_cell cell,
-                                          float distance, const float off[3],
+                                          uint32_t level, float distance, const float off[3],
                                           struct tw_cull_instance *t)
 {
     struct tw_cull_tile tile;
-    if (!tw_cull_frame_tile(fr, cell, distance, &tile))
+    if (!tw_cull_frame_tile(fr, cell, level, distance, &tile))
         return NULL;
     bool created;
     /* A new instance's state starts zeroed: never visible, never drawn. */
@@ -121,15 +122,23 @@ static struct tw_hzb_node_state *instance(struct tw_cull_frame *fr, struct tw_ce
                                   &created);
 }
 
-/* Keeps of p->last the cells still in view, with their distance, front to
- * back; returns how many. */
+/* Keeps of p->last the nodes still in view and still in the frame's cut
+ * (a node the cut has refined or merged since shows other content: what
+ * the frame draws there is phase 2's to decide), with their distance,
+ * front to back; returns how many. */
 static size_t last_in_view(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
 {
     size_t n = 0;
+    const bool cut = tw_cull_grid_hierarchical(fr->g);
     for (size_t k = 0; k < p->last_count; k++) {
+        const struct tw_cull_cell c = p->last[k];
         float off[3], dist;
-        if (tw_cull_frame_cell_in_view(fr, p->last[k].cell, off, &dist))
-            p->last[n++] = (struct tw_cull_cell){p->last[k].cell, dist};
+        struct tw_cell base;
+        if (cut && (tw_cull_cover(fr->v, fr->g, c.cell, &base) != c.level ||
+                    base.i != c.cell.i || base.j != c.cell.j))
+            continue;
+        if (tw_cull_frame_cell_in_view(fr, c.cell, c.level, off, &dist))
+            p->last[n++] = (struct tw_cull_cell){c.cell, dist, c.level};
     }
     if (n > 1) /* qsort() wants a valid pointer even for no elements */
         qsort(p->last, n, sizeof(*p->last), compare_cells);
@@ -226,7 +235,8 @@ static void gpu_apply(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
                      * showed: hidden there says nothing of the rest, which a
                      * turn may bring in (no verdict). */
                     if ((passed || c->inside) &&
-                        tw_cell_map_set(p->gpu_verdict, c->cell, passed ? 1u : 0u))
+                        tw_cell_map_set(p->gpu_verdict, c->cell,
+                                        (uint64_t)c->level << 1 | (passed ? 1u : 0u)))
                         fr->err = TW_ERR_NOMEM;
                     if (passed && c->kind == GPU_CELL_NOT_TAKEN)
                         fr->st->tiles_late++;
@@ -243,7 +253,8 @@ static void gpu_apply(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
                     /* A tile's leaves are consecutive: one entry per tile. */
                     if (tw_cull_frame_reserve(fr, (void **)&p->last, &p->last_cap,
                                               p->last_count + 1, sizeof(*p->last)))
-                        p->last[p->last_count++] = (struct tw_cull_cell){c->cell, 0.0f};
+                        p->last[p->last_count++] =
+                            (struct tw_cull_cell){c->cell, 0.0f, c->level};
                     last_cell = c->cell;
                     have_last = true;
                 }
@@ -265,27 +276,33 @@ static void gpu_apply(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
     p->lists[free_list].count = 0;
 }
 
-/* The GPU's latest verdict on cell: -1 none in the latest answers, 0
- * hidden, 1 visible. */
-static int gpu_verdict(const struct tw_hzb_phases *p, struct tw_cell cell)
+/* The GPU's latest verdict on node (cell, level): -1 none in the latest
+ * answers (or one on another node of that base: a verdict on a smaller box
+ * says nothing of a larger one), 0 hidden, 1 visible. */
+static int gpu_verdict(const struct tw_hzb_phases *p, struct tw_cell cell, uint32_t level)
 {
     const uint64_t *v = tw_cell_map_find(p->gpu_verdict, cell);
-    return v ? (int)*v : -1;
+    if (!v || *v >> 1 != level)
+        return -1;
+    return (int)(*v & 1u);
 }
 
-/* Taken (its tile instantiated and its leaves tested): a cell the GPU
+/* Taken (its tile instantiated and its leaves tested): a node the GPU
  * found visible in its latest answers, or did not test, or next to one it
  * found visible (the paper's remedy for late answers, applied to the
- * ring of eight). */
-static bool gpu_take(const struct tw_hzb_phases *p, struct tw_cell cell)
+ * ring of eight: the nodes of the cut around it). */
+static bool gpu_take(const struct tw_hzb_phases *p, struct tw_cull_frame *fr, struct tw_cell cell,
+                     uint32_t level)
 {
-    if (gpu_verdict(p, cell) != 0)
+    if (gpu_verdict(p, cell, level) != 0)
         return true;
-    for (int dj = -1; dj <= 1; dj++)
-        for (int di = -1; di <= 1; di++)
-            if ((di || dj) &&
-                gpu_verdict(p, (struct tw_cell){cell.i + di, cell.j + dj}) == 1)
-                return true;
+    struct tw_cull_cell ring[64];
+    const size_t n = tw_cull_node_neighbours(fr->v, fr->g, cell, level, 8, ring, 64);
+    if (n > 64)
+        return true;    /* too many to look at: taken, which is always safe */
+    for (size_t k = 0; k < n; k++)
+        if (gpu_verdict(p, ring[k].cell, ring[k].level) == 1)
+            return true;
     return false;
 }
 
@@ -352,7 +369,7 @@ static void phase2_leaf(struct tw_hzb_phases *p, struct tw_cull_frame *fr,
     const bool drawn = state[node].drawn_frame == fr->v->frame;
     state[node].drawn_frame = fr->v->frame;
     const struct tw_box q = tw_cull_query_box(fr->v->eye, &n->box, t->offset);
-    const struct tw_hzb_gpu_candidate c = {t->cell, t->tag, node, GPU_LEAF, false};
+    const struct tw_hzb_gpu_candidate c = {t->cell, t->level, t->tag, node, GPU_LEAF, false};
     if (!gpu_queue(p, fr, &q, tw_cull_near_box(fr->v, &n->box, t->offset), &c, t->content,
                    t->offset, &t->bvh->cluster_order[n->first_cluster],
                    drawn ? 0 : n->cluster_count))
@@ -380,10 +397,10 @@ static uint32_t gpu_draw_last_visible(struct tw_hzb_phases *p, struct tw_cull_fr
 /* Phase 2 on the GPU in a taken cell: every leaf in the frustum that phase
  * 1 did not draw, queued for the GPU's test. */
 static void gpu_visit(struct tw_hzb_phases *p, struct tw_cull_frame *fr, struct tw_cell cell,
-                      float distance, const float off[3])
+                      uint32_t level, float distance, const float off[3])
 {
     struct tw_cull_instance t;
-    if (!instance(fr, cell, distance, off, &t) || !t.bvh || t.bvh->node_count == 0)
+    if (!instance(fr, cell, level, distance, off, &t) || !t.bvh || t.bvh->node_count == 0)
         return;
     gpu_traverse(p, fr, &t, phase2_leaf);
 }
@@ -402,7 +419,7 @@ static uint32_t phase1(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
         tw_tiles_cell_offset(cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], off);
         struct tw_cull_instance t;
         uint32_t c = 0;
-        if (instance(fr, cell, p->last[k].distance, off, &t))
+        if (instance(fr, cell, p->last[k].level, p->last[k].distance, off, &t))
             c = p->gpu ? gpu_draw_last_visible(p, fr, &t)
                        : tw_hzb_draw_last_visible(p->hzb, fr->v, fr->be, &t);
         if (c > 0)
@@ -442,27 +459,29 @@ uint32_t tw_hzb_phases_begin(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
 }
 
 bool tw_hzb_phases_decide(struct tw_hzb_phases *p, struct tw_cull_frame *fr, struct tw_cell cell,
-                          const float off[3], bool free_pass, uint64_t *prev)
+                          uint32_t level, const float off[3], bool free_pass, uint64_t *prev)
 {
     const uint64_t f = fr->v->frame;
     const uint64_t old = tw_hzb_phases_verdict(p, cell);
+    const struct tw_box box = tw_cull_node_box(fr->g, level);
     if (p->gpu) {
         /* The GPU tests the common box; the cell is taken on its latest
          * answers (gpu_take), its box's answer applies to later frames. */
         fr->st->tiles_queried++;
-        const bool taken = free_pass || gpu_take(p, cell);
+        const bool taken = free_pass || gpu_take(p, fr, cell, level);
         /* A cell not taken whose tile is at hand anyway has its leaves
          * tested all the same (nothing requested, nothing waited for):
          * late answers then cost only tiles never loaded. */
         bool resident = false;
         if (!taken) {
             struct tw_cull_tile tile;
-            const float dist = tw_cull_box_distance(fr->v, &fr->g->common_box, off);
-            if (fr->g->source.get(fr->g->source.ctx, cell, dist,
+            const float dist = tw_cull_box_distance(fr->v, &box, off);
+            if (fr->g->source.get(fr->g->source.ctx, cell, level, dist,
                                   fr->source_flags | TW_TILE_SOURCE_RESIDENT |
                                       TW_TILE_SOURCE_QUIET,
                                   &tile) == TW_OK) {
                 resident = true;
+                tile.level = level;
                 struct tw_cull_instance t;
                 bool created;
                 if (tile.proto && tile.bvh && tile.bvh->node_count > 0 &&
@@ -471,12 +490,11 @@ bool tw_hzb_phases_decide(struct tw_hzb_phases *p, struct tw_cull_frame *fr, str
                     gpu_traverse(p, fr, &t, phase2_leaf);
             }
         }
-        const struct tw_box q = tw_cull_query_box(fr->v->eye, &fr->g->common_box, off);
+        const struct tw_box q = tw_cull_query_box(fr->v->eye, &box, off);
         const struct tw_hzb_gpu_candidate c = {
-            cell, 0, 0, taken || resident ? GPU_CELL_TAKEN : GPU_CELL_NOT_TAKEN,
-            tw_cull_frustum_box(&fr->v->frustum, &fr->g->common_box, off) == TW_CULL_INSIDE};
-        if (!gpu_queue(p, fr, &q, tw_cull_near_box(fr->v, &fr->g->common_box, off), &c, 0, off,
-                       NULL, 0))
+            cell, level, 0, 0, taken || resident ? GPU_CELL_TAKEN : GPU_CELL_NOT_TAKEN,
+            tw_cull_frustum_box(&fr->v->frustum, &box, off) == TW_CULL_INSIDE};
+        if (!gpu_queue(p, fr, &q, tw_cull_near_box(fr->v, &box, off), &c, 0, off, NULL, 0))
             fr->err = TW_ERR_NOMEM;
         const bool this_frame = old >> HZ_SHIFT == f;
         *prev = this_frame ? old : 0;
@@ -488,7 +506,7 @@ bool tw_hzb_phases_decide(struct tw_hzb_phases *p, struct tw_cull_frame *fr, str
     if (!free_pass) {
         fr->st->tiles_queried++;
         fr->st->hzb_boxes++;
-        visible = tw_hzb_visible(p->hzb, fr->v, &fr->g->common_box, off);
+        visible = tw_hzb_visible(p->hzb, fr->v, &box, off);
     }
     /* A prediction: phase 1 drew the cell (predicted visible), or last
      * frame's phase 2 decided on it. */
@@ -504,14 +522,14 @@ bool tw_hzb_phases_decide(struct tw_hzb_phases *p, struct tw_cull_frame *fr, str
 }
 
 void tw_hzb_phases_visit(struct tw_hzb_phases *p, struct tw_cull_frame *fr, struct tw_cell cell,
-                         float distance, const float off[3], uint64_t prev)
+                         uint32_t level, float distance, const float off[3], uint64_t prev)
 {
     if (p->gpu) {
-        gpu_visit(p, fr, cell, distance, off);
+        gpu_visit(p, fr, cell, level, distance, off);
         return;
     }
     struct tw_cull_instance t;
-    struct tw_hzb_node_state *state = instance(fr, cell, distance, off, &t);
+    struct tw_hzb_node_state *state = instance(fr, cell, level, distance, off, &t);
     if (!state)
         return;
     const uint32_t tested = tw_hzb_stats(p->hzb)->boxes_tested;
@@ -522,7 +540,7 @@ void tw_hzb_phases_visit(struct tw_hzb_phases *p, struct tw_cull_frame *fr, stru
     if (state[0].visible_frame == fr->v->frame &&
         tw_cull_frame_reserve(fr, (void **)&p->next, &p->next_cap, p->next_count + 1,
                               sizeof(*p->next)))
-        p->next[p->next_count++] = (struct tw_cull_cell){cell, distance};
+        p->next[p->next_count++] = (struct tw_cull_cell){cell, distance, level};
 }
 
 /* The visible set for the next frame, decided again against the frame's
@@ -534,11 +552,12 @@ static void retest(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
     size_t n = 0;
     for (size_t k = 0; k < p->next_count; k++) {
         const struct tw_cell cell = p->next[k].cell;
+        const uint32_t level = p->next[k].level;
         struct tw_cull_tile tile;
         struct tw_tile_handle h;
         const struct tw_tile_info *info;
         /* The tile was at hand a moment ago: never wait, never request. */
-        if (g->source.get(g->source.ctx, cell, tw_cull_frame_cell_distance(fr, cell),
+        if (g->source.get(g->source.ctx, cell, level, tw_cull_frame_cell_distance(fr, cell, level),
                           fr->source_flags | TW_TILE_SOURCE_RESIDENT | TW_TILE_SOURCE_QUIET,
                           &tile) != TW_OK ||
             !tile.proto || !tw_tile_cache_find(fr->cache, cell, &h) ||
@@ -547,7 +566,7 @@ static void retest(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
             continue;
         }
         struct tw_cull_instance t = {
-            .cell = cell, .content = tile.content, .proto = tile.proto, .bvh = tile.bvh,
+            .cell = cell, .level = level, .content = tile.content, .proto = tile.proto, .bvh = tile.bvh,
             .state = tw_tile_cache_state(fr->cache, h), .tag = tw_tile_handle_pack(h),
         };
         tw_tiles_cell_offset(cell, fr->v->cell, g->footprint[0], g->footprint[1], t.offset);
@@ -568,15 +587,17 @@ int tw_hzb_phases_end(struct tw_hzb_phases *p, struct tw_cull_frame *fr, uint32_
          * waits for an answer. */
         int err = fr->err ? fr->err : tw_cull_cells_of_frame(fr->cells, fr->v, fr->g);
         for (size_t k = 0; !err && k < fr->cells->count && !fr->err; k++) {
-            const struct tw_cell cell = fr->cells->cells[k].cell;
-            if (tw_hzb_phases_reached(p, fr, cell))
+            const struct tw_cull_cell *c = &fr->cells->cells[k];
+            if (tw_hzb_phases_reached(p, fr, c->cell))
                 continue;
             float off[3];
             uint64_t prev;
-            tw_tiles_cell_offset(cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], off);
-            if (tw_hzb_phases_decide(p, fr, cell, off,
-                                     tw_cull_near_box(fr->v, &fr->g->common_box, off), &prev))
-                gpu_visit(p, fr, cell, fr->cells->cells[k].distance, off);
+            tw_tiles_cell_offset(c->cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1],
+                                 off);
+            const struct tw_box box = tw_cull_node_box(fr->g, c->level);
+            if (tw_hzb_phases_decide(p, fr, c->cell, c->level, off,
+                                     tw_cull_near_box(fr->v, &box, off), &prev))
+                gpu_visit(p, fr, c->cell, c->level, c->distance, off);
         }
         if (err)
             fr->err = err;
@@ -631,13 +652,14 @@ static void phase2(struct tw_hzb_phases *p, struct tw_cull_frame *fr)
     }
     const struct tw_cull_cells *cells = fr->cells;
     for (size_t k = 0; k < cells->count && !fr->err; k++) {
-        const struct tw_cell cell = cells->cells[k].cell;
+        const struct tw_cull_cell *c = &cells->cells[k];
         float off[3];
-        tw_tiles_cell_offset(cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], off);
+        tw_tiles_cell_offset(c->cell, fr->v->cell, fr->g->footprint[0], fr->g->footprint[1], off);
+        const struct tw_box box = tw_cull_node_box(fr->g, c->level);
         uint64_t prev;
-        if (tw_hzb_phases_decide(p, fr, cell, off,
-                                 tw_cull_near_box(fr->v, &fr->g->common_box, off), &prev))
-            tw_hzb_phases_visit(p, fr, cell, cells->cells[k].distance, off, prev);
+        if (tw_hzb_phases_decide(p, fr, c->cell, c->level, off, tw_cull_near_box(fr->v, &box, off),
+                                 &prev))
+            tw_hzb_phases_visit(p, fr, c->cell, c->level, c->distance, off, prev);
     }
 }
 

@@ -20,16 +20,20 @@
 
 #include <stdlib.h>
 
-/* Asks the tile source for the tiles of cell's neighbours in view. */
+/* Asks the tile source for the tiles of the neighbours in view of node
+ * (cell, level): at most the first 64 of them (a hint). */
 static void prefetch_neighbours(struct tw_cull_frame *fr, uint32_t neighbours,
-                                struct tw_cell cell)
+                                struct tw_cell cell, uint32_t level)
 {
     const struct tw_cull_grid *g = fr->g;
-    for (uint32_t k = 0; k < neighbours; k++) {
-        const struct tw_cell c = tw_cell_neighbour(cell, k);
+    struct tw_cull_cell near[64];
+    size_t n = tw_cull_node_neighbours(fr->v, g, cell, level, neighbours, near, 64);
+    if (n > 64)
+        n = 64;
+    for (size_t k = 0; k < n; k++) {
         float off[3], dist;
-        if (tw_cull_frame_cell_in_view(fr, c, off, &dist))
-            g->source.prefetch(g->source.ctx, c, dist);
+        if (tw_cull_frame_cell_in_view(fr, near[k].cell, near[k].level, off, &dist))
+            g->source.prefetch(g->source.ctx, near[k].cell, near[k].level, dist);
     }
 }
 
@@ -59,28 +63,28 @@ static struct tilequery_method *tilequery_from_method(struct tw_cull_method_base
 
 /* The tile of a cell found visible, when it is ready; its neighbours'
  * tiles are asked for first. */
-static bool visible_tile(const struct propagation *pr, struct tw_cell cell, const float offset[3],
+static bool visible_tile(const struct propagation *pr, struct tw_cell cell, uint32_t level,
                          struct tw_cull_tile *tile)
 {
     struct tw_cull_frame *fr = pr->fr;
     if (fr->err)
         return false;
     if (fr->g->source.prefetch)
-        prefetch_neighbours(fr, pr->m->neighbours, cell);
-    return tw_cull_frame_tile(fr, cell, tw_cull_box_distance(fr->v, &fr->g->common_box, offset),
-                              tile);
+        prefetch_neighbours(fr, pr->m->neighbours, cell, level);
+    return tw_cull_frame_tile(fr, cell, level, tw_cull_frame_cell_distance(fr, cell, level), tile);
 }
 
 /* tilequery's local method. It keeps an instance per visible tile, as the
  * system does, with no state in it. A cell drawn on last frame's word is
  * drawn under its own query where the backend can (the GPU skips it if it
  * is hidden now, and nothing waits). */
-static void render_vfc(void *user, struct tw_cell cell, const float offset[3], uint32_t condition)
+static void render_vfc(void *user, struct tw_cell cell, uint32_t level, const float offset[3],
+                       uint32_t condition)
 {
     const struct propagation *pr = user;
     struct tw_cull_frame *fr = pr->fr;
     struct tw_cull_tile tile;
-    if (!visible_tile(pr, cell, offset, &tile))
+    if (!visible_tile(pr, cell, level, &tile))
         return;
     struct tw_cull_instance inst;
     bool created;
@@ -99,13 +103,13 @@ static void render_vfc(void *user, struct tw_cell cell, const float offset[3], u
 
 /* tilequery+chc's local method. The tile query already found the cell
  * visible: while a tile's pass waits, the next tiles' work goes to the GPU. */
-static void render_chc(void *user, struct tw_cell cell, const float offset[3],
+static void render_chc(void *user, struct tw_cell cell, uint32_t level, const float offset[3],
                        uint32_t condition)
 {
     (void)condition;
     const struct propagation *pr = user;
     struct tw_cull_tile tile;
-    if (visible_tile(pr, cell, offset, &tile))
+    if (visible_tile(pr, cell, level, &tile))
         tw_cull_chc_draw(pr->m->chc, pr->fr, cell, &tile, offset, true);
 }
 
@@ -121,10 +125,8 @@ static int propagate(struct tilequery_method *m, struct tw_cull_frame *fr,
                      tw_tilequery_render_fn render, tw_tilequery_front_fn front)
 {
     struct tw_tilequery_stats tq;
-    const struct tw_cull_grid *g = fr->g;
     struct propagation pr = {m, fr};
-    const int err = tw_tilequery_frame(m->tq, fr->v, fr->be, &g->common_box, g->footprint[0],
-                                       g->footprint[1], render, front, &pr, &tq);
+    const int err = tw_tilequery_frame(m->tq, fr->v, fr->be, fr->g, render, front, &pr, &tq);
     fr->st->tiles_queried = tq.tiles_queried;
     fr->st->predict_fail = tq.predict_fail;
     fr->st->tiles_visible = tq.tiles_visible;
@@ -235,6 +237,8 @@ struct tilequery_hzb_method {
     size_t found_count, found_cap;
     struct tw_distance_entry *heap;     /* of them, those to visit, nearest first */
     size_t heap_count, heap_cap;
+    struct tw_cull_cell *near;          /* a node's neighbours */
+    size_t near_cap;
 };
 
 static const struct tw_cull_method_ops tilequery_hzb_ops;
@@ -247,15 +251,30 @@ static struct tilequery_hzb_method *tilequery_hzb_from_method(struct tw_cull_met
 
 /* A cell found visible, queued for its visit. */
 static void queue_visible(struct tilequery_hzb_method *hm, struct tw_cull_frame *fr,
-                          struct tw_cell cell, float distance)
+                          struct tw_cell cell, uint32_t level, float distance)
 {
     const size_t n = hm->found_count;
     if (!tw_cull_frame_reserve(fr, (void **)&hm->found, &hm->found_cap, n + 1,
                                sizeof(*hm->found)) ||
         !tw_cull_frame_reserve(fr, (void **)&hm->heap, &hm->heap_cap, n + 1, sizeof(*hm->heap)))
         return;
-    hm->found[hm->found_count++] = (struct tw_cull_cell){cell, distance};
+    hm->found[hm->found_count++] = (struct tw_cull_cell){cell, distance, level};
     tw_distance_push(hm->heap, &hm->heap_count, distance, (uint32_t)n);
+}
+
+/* The neighbours of node (cell, level) in the frame's cut, in hm->near:
+ * how many (0 and the frame's error when out of memory). */
+static size_t neighbours_of(struct tilequery_hzb_method *hm, struct tw_cull_frame *fr,
+                            struct tw_cell cell, uint32_t level)
+{
+    for (;;) {
+        const size_t n = tw_cull_node_neighbours(fr->v, fr->g, cell, level, hm->neighbours,
+                                                 hm->near, hm->near_cap);
+        if (n <= hm->near_cap)
+            return n;
+        if (!tw_cull_frame_reserve(fr, (void **)&hm->near, &hm->near_cap, n, sizeof(*hm->near)))
+            return 0;
+    }
 }
 
 /* Phase 2 as §4 with immediate answers. From the camera's cell (or the
@@ -270,9 +289,8 @@ static void propagate_now(struct tilequery_hzb_method *hm, struct tw_cull_frame 
     const struct tw_cull_grid *g = fr->g;
     struct tw_cull_cell start;
     float off[3];
-    if (tw_cull_frame_cell_in_view(fr, fr->v->cell, off, &start.distance)) {
-        start.cell = fr->v->cell;
-    } else {
+    start.level = tw_cull_cover(fr->v, g, fr->v->cell, &start.cell);
+    if (!tw_cull_frame_cell_in_view(fr, start.cell, start.level, off, &start.distance)) {
         const int err = tw_cull_cells_of_frame(fr->cells, fr->v, g);
         if (err) {
             fr->err = err;
@@ -285,25 +303,28 @@ static void propagate_now(struct tilequery_hzb_method *hm, struct tw_cull_frame 
     hm->found_count = hm->heap_count = 0;
     uint64_t prev;
     tw_tiles_cell_offset(start.cell, fr->v->cell, g->footprint[0], g->footprint[1], off);
-    tw_hzb_phases_decide(p, fr, start.cell, off, true, &prev);
-    queue_visible(hm, fr, start.cell, start.distance);
+    tw_hzb_phases_decide(p, fr, start.cell, start.level, off, true, &prev);
+    queue_visible(hm, fr, start.cell, start.level, start.distance);
     while (hm->heap_count > 0 && !fr->err) {
         const struct tw_cull_cell c = hm->found[tw_distance_pop(hm->heap, &hm->heap_count)];
         tw_tiles_cell_offset(c.cell, fr->v->cell, g->footprint[0], g->footprint[1], off);
         if (g->source.prefetch)
-            prefetch_neighbours(fr, hm->neighbours, c.cell);
-        tw_hzb_phases_visit(p, fr, c.cell, c.distance, off, tw_hzb_phases_verdict(p, c.cell));
-        for (uint32_t k = 0; k < hm->neighbours && !fr->err; k++) {
-            const struct tw_cell nc = tw_cell_neighbour(c.cell, k);
+            prefetch_neighbours(fr, hm->neighbours, c.cell, c.level);
+        tw_hzb_phases_visit(p, fr, c.cell, c.level, c.distance, off,
+                            tw_hzb_phases_verdict(p, c.cell));
+        const size_t n = neighbours_of(hm, fr, c.cell, c.level);
+        for (size_t k = 0; k < n && !fr->err; k++) {
+            const struct tw_cull_cell nc = hm->near[k];
             float noff[3], dist;
-            if (tw_hzb_phases_reached(p, fr, nc) ||
-                !tw_cull_frame_cell_in_view(fr, nc, noff, &dist))
+            if (tw_hzb_phases_reached(p, fr, nc.cell) ||
+                !tw_cull_frame_cell_in_view(fr, nc.cell, nc.level, noff, &dist))
                 continue;
             /* Decided once per frame (tw_hzb_phases_reached), so queued at
              * most once. */
-            const bool free_pass = tw_cull_near_box(fr->v, &g->common_box, noff);
-            if (tw_hzb_phases_decide(p, fr, nc, noff, free_pass, &prev))
-                queue_visible(hm, fr, nc, dist);
+            const struct tw_box box = tw_cull_node_box(g, nc.level);
+            const bool free_pass = tw_cull_near_box(fr->v, &box, noff);
+            if (tw_hzb_phases_decide(p, fr, nc.cell, nc.level, noff, free_pass, &prev))
+                queue_visible(hm, fr, nc.cell, nc.level, dist);
         }
     }
 }
@@ -321,7 +342,7 @@ static size_t tilequery_hzb_bytes(const struct tw_cull_method_base *m)
 {
     const struct tilequery_hzb_method *hm = (const struct tilequery_hzb_method *)m;
     return sizeof(*hm) + tw_hzb_phases_bytes(&hm->phases) + sizeof(*hm->found) * hm->found_cap +
-           sizeof(*hm->heap) * hm->heap_cap;
+           sizeof(*hm->heap) * hm->heap_cap + sizeof(*hm->near) * hm->near_cap;
 }
 
 static void tilequery_hzb_destroy(struct tw_cull_method_base *m)
@@ -330,6 +351,7 @@ static void tilequery_hzb_destroy(struct tw_cull_method_base *m)
     tw_hzb_phases_finish(&hm->phases);
     free(hm->found);
     free(hm->heap);
+    free(hm->near);
     free(hm);
 }
 

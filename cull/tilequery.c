@@ -13,7 +13,8 @@ struct pending {
     bool known;              /* last frame had a verdict on the cell (a prediction exists) */
     bool visible;            /* this frame's verdict, once its wavefront is read */
     bool postponed;          /* drawn on last frame's word, its query read at the end */
-    struct tw_cell cell;
+    struct tw_cell cell;     /* a node of the cut: its base and level */
+    uint32_t level;
 };
 
 struct tw_tilequery {
@@ -26,7 +27,7 @@ struct tw_tilequery {
     uint32_t postponed_count, postponed_cap;
     uint32_t *stale;               /* unread queries of last frame, drained next frame */
     uint32_t stale_count, stale_cap;
-    struct tw_cull_cell *cells;    /* scratch for finding the start cell */
+    struct tw_cull_cell *cells;    /* scratch: finding the start node, a node's neighbours */
     size_t cell_cap;
     uint64_t last_prune;
     /* For tw_tilequery_last_cells(): the last frame and its start cell. */
@@ -96,8 +97,8 @@ struct frame_ctx {
     struct tw_tilequery *tq;
     const struct tw_view *v;
     const struct tw_query_backend *be;
-    const struct tw_box *common_box;
-    float w, d;
+    const struct tw_cull_grid *g;
+    struct tw_box box[TW_CULL_MAX_LEVELS];  /* each level's node box */
     tw_tilequery_render_fn render;
     tw_tilequery_front_fn front;
     void *user;
@@ -107,83 +108,105 @@ struct frame_ctx {
 
 static void offset_of(const struct frame_ctx *fc, struct tw_cell cell, float out[3])
 {
-    tw_tiles_cell_offset(cell, fc->v->cell, fc->w, fc->d, out);
+    tw_tiles_cell_offset(cell, fc->v->cell, fc->g->footprint[0], fc->g->footprint[1], out);
 }
 
-/* Cell c is a candidate: its common box meets the frustum within view distance. */
-static bool in_view(const struct frame_ctx *fc, struct tw_cell cell, float *distance)
+/* Node (cell, level) is a candidate: its box meets the frustum within view
+ * distance. */
+static bool in_view(const struct frame_ctx *fc, struct tw_cell cell, uint32_t level,
+                    float *distance)
 {
     float off[3];
     offset_of(fc, cell, off);
-    *distance = tw_cull_box_distance(fc->v, fc->common_box, off);
+    *distance = tw_cull_box_distance(fc->v, &fc->box[level], off);
     if (*distance > fc->v->view_distance)
         return false;
-    return tw_cull_frustum_box(&fc->v->frustum, fc->common_box, off) != TW_CULL_OUTSIDE;
+    return tw_cull_frustum_box(&fc->v->frustum, &fc->box[level], off) != TW_CULL_OUTSIDE;
 }
 
-/* Step 3: query the neighbours of a rendered cell, nearest first. */
-static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell)
+/* The nodes next to node (cell, level) in the frame's cut, in tq->cells:
+ * how many, or 0 with fc->err set. */
+static size_t neighbours_of(struct frame_ctx *fc, struct tw_cell cell, uint32_t level)
+{
+    struct tw_tilequery *tq = fc->tq;
+    for (;;) {
+        const size_t n = tw_cull_node_neighbours(fc->v, fc->g, cell, level, tq->s.neighbours,
+                                                 tq->cells, tq->cell_cap);
+        if (n <= tq->cell_cap)
+            return n;
+        if (!tw_cull_reserve((void **)&tq->cells, &tq->cell_cap, n, sizeof(*tq->cells))) {
+            fc->err = TW_ERR_NOMEM;
+            return 0;
+        }
+    }
+}
+
+/* Step 3: query the neighbours of a rendered node, nearest first. */
+static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell, uint32_t level)
 {
     struct tw_tilequery *tq = fc->tq;
     const uint64_t f = fc->v->frame;
-    struct {
-        struct tw_cell cell;
-        float distance;
-        bool known;
-    } todo[TW_CELL_NEIGHBOURS];
-    uint32_t n = 0;
-    for (uint32_t k = 0; k < tq->s.neighbours; k++) {
-        const struct tw_cell c = tw_cell_neighbour(cell, k);
-        const uint64_t *q = tw_cell_map_find(tq->queried, c);
+    const size_t count = neighbours_of(fc, cell, level);
+    /* Those to query, moved to the front of tq->cells, nearest first
+     * (insertion sort: a handful of entries; ties keep their order). */
+    size_t n = 0;
+    for (size_t k = 0; k < count; k++) {
+        const struct tw_cull_cell c = tq->cells[k];
+        const uint64_t *q = tw_cell_map_find(tq->queried, c.cell);
         if (q && *q == f)
             continue;
-        const bool known = q && *q + 1 == f;
-        if (tw_cell_map_set(tq->queried, c, f)) {
-            fc->err = TW_ERR_NOMEM;
-            return;
-        }
         float dist;
-        if (!in_view(fc, c, &dist))
+        if (!in_view(fc, c.cell, c.level, &dist)) {
+            if (tw_cell_map_set(tq->queried, c.cell, f)) {
+                fc->err = TW_ERR_NOMEM;
+                return;
+            }
             continue;
-        /* Insertion sort by distance: at most eight entries. */
-        uint32_t at = n++;
-        while (at > 0 && todo[at - 1].distance > dist) {
-            todo[at] = todo[at - 1];
+        }
+        size_t at = n++;
+        while (at > 0 && tq->cells[at - 1].distance > dist) {
+            tq->cells[at] = tq->cells[at - 1];
             at--;
         }
-        todo[at].cell = c;
-        todo[at].distance = dist;
-        todo[at].known = known;
+        tq->cells[at] = (struct tw_cull_cell){c.cell, dist, c.level};
     }
     if (n == 0)
         return;
-    if (tw_array_reserve_u32((void **)&tq->queue, &tq->queue_cap, tq->tail + n, sizeof(*tq->queue),
-                             64)) {
+    if (tw_array_reserve_u32((void **)&tq->queue, &tq->queue_cap, tq->tail + (uint32_t)n,
+                             sizeof(*tq->queue), 64)) {
         fc->err = TW_ERR_NOMEM;
         return;
     }
-    for (uint32_t k = 0; k < n; k++) {
+    for (size_t k = 0; k < n; k++) {
+        const struct tw_cull_cell c = tq->cells[k];
+        const uint64_t *q = tw_cell_map_find(tq->queried, c.cell);
+        const bool known = q && *q + 1 == f;
+        if (tw_cell_map_set(tq->queried, c.cell, f)) {
+            fc->err = TW_ERR_NOMEM;
+            return;
+        }
         struct pending *p = &tq->queue[tq->tail++];
-        const uint64_t *vis = tw_cell_map_find(tq->visible, todo[k].cell);
-        p->cell = todo[k].cell;
+        const uint64_t *vis = tw_cell_map_find(tq->visible, c.cell);
+        p->cell = c.cell;
+        p->level = c.level;
         p->predicted = vis && *vis + 1 == f;
-        p->known = todo[k].known || p->predicted;
+        p->known = known || p->predicted;
         float off[3];
-        offset_of(fc, todo[k].cell, off);
-        if (tw_cull_near_box(fc->v, fc->common_box, off)) {
+        offset_of(fc, c.cell, off);
+        if (tw_cull_near_box(fc->v, &fc->box[c.level], off)) {
             /* The near plane may cut this box: a query could lie. */
             p->query = 0;
             fc->st->tiles_free++;
         } else {
-            p->query = fc->be->issue(fc->be->ctx, fc->common_box, 1, off);
+            p->query = fc->be->issue(fc->be->ctx, &fc->box[c.level], 1, off);
             fc->st->tiles_queried++;
         }
     }
 }
 
-/* Step 2 then 3: render a visible cell (condition: its unread query, when
+/* Step 2 then 3: render a visible node (condition: its unread query, when
  * it is drawn on last frame's word), then query its neighbours. */
-static void visit(struct frame_ctx *fc, struct tw_cell cell, uint32_t condition)
+static void visit(struct frame_ctx *fc, struct tw_cell cell, uint32_t level, uint32_t condition)
 {
     float off[3];
     offset_of(fc, cell, off);
@@ -191,28 +214,27 @@ static void visit(struct frame_ctx *fc, struct tw_cell cell, uint32_t condition)
         fc->err = TW_ERR_NOMEM;
         return;
     }
-    fc->render(fc->user, cell, off, condition);
+    fc->render(fc->user, cell, level, off, condition);
     fc->st->tiles_visible++;
-    query_neighbours(fc, cell);
+    query_neighbours(fc, cell, level);
 }
 
-/* Step 1: the camera's cell if its common box meets the frustum, else the
- * nearest cell whose common box does. */
-static bool find_start(struct frame_ctx *fc, struct tw_cell *start)
+/* Step 1: the node holding the camera's cell if its box meets the frustum,
+ * else the nearest node of the cut whose box does. */
+static bool find_start(struct frame_ctx *fc, struct tw_cell *start, uint32_t *level)
 {
     float dist;
-    if (in_view(fc, fc->v->cell, &dist)) {
-        *start = fc->v->cell;
+    *level = tw_cull_cover(fc->v, fc->g, fc->v->cell, start);
+    if (in_view(fc, *start, *level, &dist))
         return true;
-    }
     struct tw_tilequery *tq = fc->tq;
     for (;;) {
-        const size_t n = tw_cull_cells_in_view(fc->v, fc->common_box, fc->w, fc->d, tq->cells,
-                                               tq->cell_cap);
+        const size_t n = tw_cull_nodes_in_view(fc->v, fc->g, tq->cells, tq->cell_cap, NULL);
         if (n == 0)
             return false;
         if (n <= tq->cell_cap) {
             *start = tq->cells[0].cell;
+            *level = tq->cells[0].level;
             return true;
         }
         struct tw_cull_cell *c = realloc(tq->cells, sizeof(*c) * n);
@@ -268,18 +290,21 @@ static void run_front(struct frame_ctx *fc, uint32_t end)
     for (uint32_t k = first; k < end && fc->err == TW_OK; k++) {
         const struct pending p = tq->queue[k];
         if (p.visible)
-            visit(fc, p.cell, p.postponed ? p.query : 0);
+            visit(fc, p.cell, p.level, p.postponed ? p.query : 0);
     }
 }
 
 int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
-                       const struct tw_query_backend *be, const struct tw_box *common_box,
-                       float w, float d, tw_tilequery_render_fn render,
-                       tw_tilequery_front_fn front, void *user,
+                       const struct tw_query_backend *be, const struct tw_cull_grid *g,
+                       tw_tilequery_render_fn render, tw_tilequery_front_fn front, void *user,
                        struct tw_tilequery_stats *stats)
 {
     struct tw_tilequery_stats st = {0};
-    struct frame_ctx fc = {tq, v, be, common_box, w, d, render, front, user, &st, TW_OK};
+    struct frame_ctx fc = {.tq = tq, .v = v, .be = be, .g = g, .render = render, .front = front,
+                           .user = user, .st = &st, .err = TW_OK};
+    const uint32_t levels = tw_cull_grid_hierarchical(g) ? g->levels.count : 1;
+    for (uint32_t k = 0; k < levels && k < TW_CULL_MAX_LEVELS; k++)
+        fc.box[k] = tw_cull_node_box(g, k);
     const uint64_t f = v->frame;
 
     /* Last frame's unresolved postponed queries: read and dropped (their
@@ -298,14 +323,15 @@ int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
     }
 
     struct tw_cell start;
+    uint32_t start_level;
     tq->last_frame = f;
     tq->last_started = false;
-    if (find_start(&fc, &start)) {
+    if (find_start(&fc, &start, &start_level)) {
         tq->last_start = start;
         tq->last_started = true;
         tw_cell_map_set(tq->queried, start, f);
         st.tiles_free++;
-        visit(&fc, start, 0);
+        visit(&fc, start, start_level, 0);
     }
     /* Step 4, a wavefront at a time: what the last one drew and issued (its
      * visible cells' tiles, their neighbours' queries, the local method's

@@ -180,9 +180,10 @@ int tw_world_resolve_provider(struct tw_world *w);
  * renderer's GPU store. Between enter and leave. */
 int tw_world_start_stream(struct tw_world *w);
 /* The tile source the culling reads (struct tw_cull_source; ctx is the world). */
-int tw_world_get_tile(void *ctx, struct tw_cell cell, float distance, unsigned flags,
+int tw_world_get_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float distance,
+                      unsigned flags,
                       struct tw_cull_tile *out);
-void tw_world_prefetch_tile(void *ctx, struct tw_cell cell, float distance);
+void tw_world_prefetch_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float distance);
 /* Requests the tiles the camera would need a second ahead along its motion
  * (DESIGN §12), nearest first, behind everything the frame asked for. */
 void tw_world_look_ahead(struct tw_world *w, const struct tw_view *v);

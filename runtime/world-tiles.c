@@ -174,10 +174,12 @@ int tw_world_levels_in_view(struct tw_world *w, const struct tw_view *v, bool *a
     return TW_OK;
 }
 
-int tw_world_get_tile(void *ctx, struct tw_cell cell, float distance, unsigned flags,
-                      struct tw_cull_tile *out)
+int tw_world_get_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float distance,
+                      unsigned flags, struct tw_cull_tile *out)
 {
     struct tw_world *w = ctx;
+    if (node_level > 0)
+        return TW_ERR_INVALID;  /* the world's grid has no hierarchy */
     uint32_t c;
     int err = content_of(w, cell, &c);
     if (err)
@@ -206,9 +208,11 @@ int tw_world_get_tile(void *ctx, struct tw_cell cell, float distance, unsigned f
     return tw_stream_get(w->stream, cell, distance, flags, max_error, out);
 }
 
-void tw_world_prefetch_tile(void *ctx, struct tw_cell cell, float distance)
+void tw_world_prefetch_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float distance)
 {
     struct tw_world *w = ctx;
+    if (node_level > 0)
+        return;
     const struct tw_tile_provider *p = &w->provider;
     if (!p->content || p->content(p->user, cell) == TW_TILE_OWN)
         tw_stream_prefetch(w->stream, cell, distance);
@@ -260,7 +264,7 @@ void tw_world_look_ahead(struct tw_world *w, const struct tw_view *v)
         const struct tw_cell cell = w->ahead.cells[k].cell;
         float off[3];
         tw_tiles_cell_offset(cell, v->cell, fp[0], fp[1], off);
-        tw_world_prefetch_tile(w, cell, v->view_distance + tw_cull_box_distance(v, &w->grid.common_box, off));
+        tw_world_prefetch_tile(w, cell, 0, v->view_distance + tw_cull_box_distance(v, &w->grid.common_box, off));
     }
 }
 

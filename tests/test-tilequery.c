@@ -111,7 +111,8 @@ static void fake_flush(void *ctx)
     fk->flushes_total++;
 }
 
-static void render(void *user, struct tw_cell cell, const float off[3], uint32_t condition)
+static void render(void *user, struct tw_cell cell, uint32_t level, const float off[3],
+                   uint32_t condition)
 {
     (void)off;
     (void)condition;
@@ -164,7 +165,8 @@ static int run_frame(struct tw_tilequery *tq, struct fake *fk, uint64_t frame, f
     fk->flushes = 0;
     fk->unsent_reads = 0;
     fk->frame = frame;
-    return tw_tilequery_frame(tq, &v, &be, &common, 10.0f, 10.0f, render, NULL, fk, st);
+    const struct tw_cull_grid grid = {.footprint = {10.0f, 10.0f}, .common_box = common};
+    return tw_tilequery_frame(tq, &v, &be, &grid, render, NULL, fk, st);
 }
 
 /* A fake backend (no wall until the test sets one) and a tilequery engine
