@@ -61,6 +61,14 @@ struct tw_world_tuning {
     float mutate_query_shrink;         /* testing only: every query box shrunk by this
                                           fraction of its size, a deliberately broken
                                           culler that the accuracy checks must catch */
+    uint32_t hlod_levels;              /* hierarchical cells (README "Hierarchical
+                                          cells"): levels, cells included, up to
+                                          TW_CULL_MAX_LEVELS; 0 or 1: none. Needs
+                                          levels of detail and a tileset whose cells
+                                          show shared prototypes */
+    float hlod_block_px;               /* a block is drawn as one proxy where it
+                                          projects to at most this many pixels across;
+                                          default 16 */
 };
 
 /* Resolves the defaults of every zero field of t. */

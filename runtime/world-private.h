@@ -78,6 +78,22 @@ struct tw_debug_state {
     size_t draw_cap;
 };
 
+/* Hierarchical cells (world-hlod.c): per level k >= 1, the stream of its
+ * blocks' proxies, over a grid whose cells are those blocks. */
+struct tw_world_hlod_level {
+    const struct tw_world *w;
+    uint32_t level;
+    float error;                    /* E_k: the error a proxy of this level may have */
+    uint64_t input_triangles;       /* the most a proxy could be made of */
+    char name[48];
+    struct tw_tile_provider provider;
+    struct tw_stream *stream;
+};
+struct tw_world_hlod {
+    uint32_t count;                 /* levels, cells included; < 2: none */
+    struct tw_world_hlod_level levels[TW_CULL_MAX_LEVELS];
+};
+
 struct tw_world {
     struct tw_world_settings s;
     struct tw_world_tuning t;      /* the methods' parameters (runtime/internal.h) */
@@ -99,6 +115,7 @@ struct tw_world {
     float lod_least_error;          /* the least error of any shared prototype's first
                                        level (INFINITY: none has one) */
     struct tw_stream *stream;       /* tiles of their own (NULL: none can exist) */
+    struct tw_world_hlod hlod;      /* blocks' proxies (none unless tuned) */
     uint64_t frame_serial;          /* every frame of every method: the streaming clock */
     struct tw_tile_event *events;   /* of the last frame */
     size_t event_count, event_cap;
@@ -184,6 +201,34 @@ int tw_world_get_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float
                       unsigned flags,
                       struct tw_cull_tile *out);
 void tw_world_prefetch_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float distance);
+/* The sink every stream of the world hands its tiles to: the GPU store. */
+struct tw_tile_sink tw_world_sink(struct tw_world *w);
+
+/* world-hlod.c */
+/* Makes the streams of the blocks' proxies when the tuning asks for levels
+ * (and levels of detail are on). Between enter and leave. */
+int tw_world_hlod_start(struct tw_world *w);
+/* Stops them; returns how many of their threads were left behind. */
+uint32_t tw_world_hlod_stop(struct tw_world *w);
+/* Before a frame, after the view (its focal length) is known: the grid's
+ * levels and their radii, and the proxy streams' frame. */
+void tw_world_hlod_begin_frame(struct tw_world *w);
+/* The tile of node (cell, level >= 1): its block's proxy. */
+int tw_world_hlod_get(struct tw_world *w, struct tw_cell cell, uint32_t level, float distance,
+                      unsigned flags, float max_error, struct tw_cull_tile *out);
+void tw_world_hlod_prefetch(struct tw_world *w, struct tw_cell cell, uint32_t level,
+                            float distance);
+/* Adds the proxies' bytes. */
+void tw_world_hlod_bytes(const struct tw_world *w, uint64_t *cpu, uint64_t *gpu);
+/* Evicts proxies not drawn this frame until excess bytes are freed; returns
+ * the bytes freed. */
+uint64_t tw_world_hlod_trim(struct tw_world *w, uint64_t excess);
+/* Adds the proxy streams' counters of the frame to st (loads, evictions,
+ * uploads, tiles on their way) and counts in bytes_needed only the proxies
+ * the frame used. */
+void tw_world_hlod_stats(const struct tw_world *w, struct tw_frame_stats *st);
+/* Drops the proxies of the blocks holding a cell of [lo, hi]. */
+void tw_world_hlod_invalidate(struct tw_world *w, struct tw_cell lo, struct tw_cell hi);
 /* Requests the tiles the camera would need a second ahead along its motion
  * (DESIGN §12), nearest first, behind everything the frame asked for. */
 void tw_world_look_ahead(struct tw_world *w, const struct tw_view *v);

@@ -107,11 +107,16 @@ static void stream_event(void *user, const struct tw_tile_event *e)
     push_event(user, e);
 }
 
+struct tw_tile_sink tw_world_sink(struct tw_world *w)
+{
+    return (struct tw_tile_sink){sink_upload, sink_release, sink_levels, w->renderer};
+}
+
 int tw_world_start_stream(struct tw_world *w)
 {
     const struct tw_stream_settings ss = {
         .provider = &w->provider,
-        .sink = {sink_upload, sink_release, sink_levels, w->renderer},
+        .sink = tw_world_sink(w),
         .bvh = w->t.bvh,
         .workers = w->s.workers,
         .policy = w->s.policy,
@@ -178,13 +183,13 @@ int tw_world_get_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float
                       unsigned flags, struct tw_cull_tile *out)
 {
     struct tw_world *w = ctx;
+    const float max_error = max_error_of(w, distance);
     if (node_level > 0)
-        return TW_ERR_INVALID;  /* the world's grid has no hierarchy */
+        return tw_world_hlod_get(w, cell, node_level, distance, flags, max_error, out);
     uint32_t c;
     int err = content_of(w, cell, &c);
     if (err)
         return err;
-    const float max_error = max_error_of(w, distance);
     if (c != TW_TILE_OWN) {
         /* A cell that had a tile of its own and now shows a shared one: the
          * provider's answer changed, which is an invalidation. */
@@ -211,8 +216,10 @@ int tw_world_get_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float
 void tw_world_prefetch_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float distance)
 {
     struct tw_world *w = ctx;
-    if (node_level > 0)
+    if (node_level > 0) {
+        tw_world_hlod_prefetch(w, cell, node_level, distance);
         return;
+    }
     const struct tw_tile_provider *p = &w->provider;
     if (!p->content || p->content(p->user, cell) == TW_TILE_OWN)
         tw_stream_prefetch(w->stream, cell, distance);
@@ -261,10 +268,12 @@ void tw_world_look_ahead(struct tw_world *w, const struct tw_view *v)
         return;
     const size_t n = w->ahead.count < LOOK_AHEAD_CELLS ? w->ahead.count : LOOK_AHEAD_CELLS;
     for (size_t k = 0; k < n; k++) {
-        const struct tw_cell cell = w->ahead.cells[k].cell;
+        const struct tw_cull_cell *c = &w->ahead.cells[k];
         float off[3];
-        tw_tiles_cell_offset(cell, v->cell, fp[0], fp[1], off);
-        tw_world_prefetch_tile(w, cell, 0, v->view_distance + tw_cull_box_distance(v, &w->grid.common_box, off));
+        tw_tiles_cell_offset(c->cell, v->cell, fp[0], fp[1], off);
+        const struct tw_box box = tw_cull_node_box(&w->grid, c->level);
+        tw_world_prefetch_tile(w, c->cell, c->level,
+                               v->view_distance + tw_cull_box_distance(v, &box, off));
     }
 }
 
@@ -275,6 +284,7 @@ static void count_bytes(const struct tw_world *w, uint64_t *cpu, uint64_t *gpu, 
     uint64_t scpu = 0, sgpu = 0, culling = 0;
     if (w->stream)
         tw_stream_bytes(w->stream, &scpu, &sgpu);
+    tw_world_hlod_bytes(w, &scpu, &sgpu);
     for (int m = 0; m < TW_METHOD_ALL; m++)
         if (w->methods[m].driver)
             culling += tw_cull_driver_bytes(w->methods[m].driver);
@@ -294,6 +304,8 @@ void tw_world_keep_budget(struct tw_world *w, const struct method_state *ms,
     /* Evicting can grow a table (the record of evictions): count again. */
     while (budget && cpu + gpu > budget && w->stream &&
            tw_stream_trim(w->stream, cpu + gpu - budget, w->frame_serial, NULL, NULL) > 0)
+        count_bytes(w, &cpu, &gpu, NULL);
+    while (budget && cpu + gpu > budget && tw_world_hlod_trim(w, cpu + gpu - budget) > 0)
         count_bytes(w, &cpu, &gpu, NULL);
     for (int pass = 0; pass < 2 && budget && cpu + gpu > budget; pass++)
         for (int m = 0; m < TW_METHOD_ALL && cpu + gpu > budget; m++) {
@@ -321,6 +333,7 @@ void tw_world_keep_budget(struct tw_world *w, const struct method_state *ms,
         st->bytes_loading = ss->bytes_loading;
         st->tiles_loading = ss->tiles_loading;
     }
+    tw_world_hlod_stats(w, st);
     st->evictions += instances;
 }
 
@@ -346,6 +359,7 @@ int tw_world_invalidate_rect(struct tw_world *w, struct tw_cell lo, struct tw_ce
         else
             tw_stream_invalidate_rect(w->stream, lo, hi);
     }
+    tw_world_hlod_invalidate(w, lo, hi);
     tw_renderer_leave(w->renderer);
     /* Every method's culling state of those cells: made for what they showed. */
     for (int m = 0; m < TW_METHOD_ALL; m++) {

@@ -125,6 +125,8 @@ void tw_world_default_tuning(struct tw_world_tuning *t)
     tw_chc_default_settings(&t->chc);
     tw_tilequery_default_settings(&t->tilequery);
     tw_bvh_default_settings(&t->bvh);
+    if (!(t->hlod_block_px > 0.0f) || !isfinite(t->hlod_block_px))
+        t->hlod_block_px = 16.0f;
 }
 
 /* The driver of method m (the oracles' timed parts draw a given set). */
@@ -278,7 +280,7 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
     int err = tw_world_resolve_provider(w);
     /* Every frame's cost is bounded: tile-query propagation may visit every
      * cell within reach, so the reach must stay within the per-frame limit. */
-    if (!err) {
+    if (!err && !(w->lod_on && w->t.hlod_levels > 1)) {
         const double reach = tw_tiles_cells_in_reach(&w->provider.bound, w->provider.footprint[0],
                                                      w->provider.footprint[1], w->s.view_distance);
         if (!(reach <= TW_TILES_MAX_CELLS_IN_VIEW)) {
@@ -337,6 +339,8 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
     }
     if (!err && w->provider.generate)
         err = tw_world_start_stream(w);
+    if (!err)
+        err = tw_world_hlod_start(w);
     tw_renderer_leave(w->renderer);
     if (err)
         goto fail;
@@ -381,7 +385,7 @@ uint32_t tw_world_destroy(struct tw_world *w)
     tw_cull_cells_finish(&w->ahead);
     if (w->renderer) {
         tw_renderer_enter(w->renderer);
-        left_behind = tw_stream_destroy(w->stream);
+        left_behind = tw_stream_destroy(w->stream) + tw_world_hlod_stop(w);
         tw_gputime_finish(&w->gputime);
         tw_renderer_leave(w->renderer);
         if (w->gputime.dropped)
@@ -508,6 +512,7 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     w->last_view = v;
     w->has_view = true;
 
+    tw_world_hlod_begin_frame(w);
     const bool verify = w->s.verify;
     const unsigned debug = w->debug.flags;
     const bool recording = verify || w->record_draws || (debug & (TW_DEBUG_CELLS | TW_DEBUG_NODES));

@@ -131,26 +131,18 @@ static int add_cell(struct tw_tileset *block, uint32_t proto, struct source *s, 
     return TW_OK;
 }
 
-int tw_hlod_block_build(const struct tw_tileset *ts, const struct tw_lods *lods,
-                        const uint32_t *protos, uint32_t side, float max_input_error,
-                        uint32_t max_cluster_triangles, struct tw_tileset **out,
-                        float *input_error)
+/* What the block holds, counted before anything is built: its baked whole
+ * (what tw_lods_build() makes of it) must fit 32-bit counts. */
+static int count_block(const struct tw_tileset *ts, const struct tw_lods *lods,
+                       const uint32_t *protos, uint32_t side, float max_input_error,
+                       uint64_t *triangles_out, float *largest_out)
 {
-    if (out)
-        *out = NULL;
-    if (input_error)
-        *input_error = 0.0f;
-    if (!ts || !protos || !out || !input_error || side == 0 || !ts->finished)
-        return TW_ERR_INVALID;
     if ((uint64_t)side * side > UINT32_MAX)
         return TW_ERR_LIMIT;
     /* Levels of another tileset would name other prototypes. */
     if (lods && lods->levels && lods->source_count != ts->prototype_count)
         return TW_ERR_INVALID;
     const uint32_t cells = side * side;
-
-    /* What the block holds, counted before anything is built: its baked
-     * whole (what tw_lods_build() makes of it) must fit 32-bit counts. */
     uint64_t vertices = 0, triangles = 0, instances = 0;
     float largest_error = 0.0f;
     for (uint32_t c = 0; c < cells; c++) {
@@ -173,30 +165,38 @@ int tw_hlod_block_build(const struct tw_tileset *ts, const struct tw_lods *lods,
     }
     if (vertices > UINT32_MAX || triangles > UINT32_MAX / 3 || instances >= TW_INSTANCE_NONE)
         return TW_ERR_LIMIT;
-    if (triangles == 0)
-        return TW_OK;   /* all empty: nothing to stand for */
+    *triangles_out = triangles;
+    *largest_out = largest_error;
+    return TW_OK;
+}
 
+int tw_hlod_block_fill(const struct tw_tileset *ts, const struct tw_lods *lods,
+                       const uint32_t *protos, uint32_t side, float max_input_error,
+                       struct tw_tileset *block, float *input_error)
+{
+    if (input_error)
+        *input_error = 0.0f;
+    if (!ts || !protos || !block || !input_error || side == 0 || !ts->finished ||
+        block->finished || block->prototype_count != 0 ||
+        block->footprint[0] != (float)side * ts->footprint[0] ||
+        block->footprint[1] != (float)side * ts->footprint[1])
+        return TW_ERR_INVALID;
+    uint64_t triangles;
+    float largest_error;
+    int err = count_block(ts, lods, protos, side, max_input_error, &triangles, &largest_error);
+    if (err)
+        return err;
     struct source full = {0}, coarse = {0};
-    struct tw_tileset *block = NULL;
-    int proto = 0;
-    char name[64];
-    snprintf(name, sizeof(name), "%.40s/block%u", ts->name, side);
-    int err = tw_tileset_create(name, (float)side * ts->footprint[0],
-                                (float)side * ts->footprint[1], &block);
-    if (!err)
-        err = source_init(&full, ts);
+    err = source_init(&full, ts);
     if (!err && lods && lods->levels)
         err = source_init(&coarse, lods->levels);
-    if (err)
-        goto fail;
     /* Small instances merged as the source merges its own. */
     block->merge_triangles = ts->merge_triangles;
+    char name[64];
     snprintf(name, sizeof(name), "block%ux%u", side, side);
-    proto = tw_tileset_add_prototype(block, name, 1.0f);
-    if (proto < 0) {
+    const int proto = err ? err : tw_tileset_add_prototype(block, name, 1.0f);
+    if (proto < 0)
         err = proto;
-        goto fail;
-    }
     /* Cells in a fixed order, row by row: the same inputs, the same block. */
     for (uint32_t z = 0; z < side && !err; z++)
         for (uint32_t x = 0; x < side && !err; x++) {
@@ -210,21 +210,48 @@ int tw_hlod_block_build(const struct tw_tileset *ts, const struct tw_lods *lods,
             err = add_cell(block, (uint32_t)proto, sh.ts == ts ? &full : &coarse, sh.proto, dx,
                            dz);
         }
+    source_free(&full);
+    source_free(&coarse);
+    if (!err)
+        *input_error = largest_error;
+    return err;
+}
+
+int tw_hlod_block_build(const struct tw_tileset *ts, const struct tw_lods *lods,
+                        const uint32_t *protos, uint32_t side, float max_input_error,
+                        uint32_t max_cluster_triangles, struct tw_tileset **out,
+                        float *input_error)
+{
+    if (out)
+        *out = NULL;
+    if (input_error)
+        *input_error = 0.0f;
+    if (!ts || !protos || !out || !input_error || side == 0 || !ts->finished)
+        return TW_ERR_INVALID;
+    uint64_t triangles;
+    float largest_error;
+    int err = count_block(ts, lods, protos, side, max_input_error, &triangles, &largest_error);
+    if (err)
+        return err;
+    if (triangles == 0)
+        return TW_OK;   /* all empty: nothing to stand for */
+    struct tw_tileset *block = NULL;
+    char name[64];
+    snprintf(name, sizeof(name), "%.40s/block%u", ts->name, side);
+    err = tw_tileset_create(name, (float)side * ts->footprint[0], (float)side * ts->footprint[1],
+                            &block);
+    if (!err)
+        err = tw_hlod_block_fill(ts, lods, protos, side, max_input_error, block, input_error);
     if (!err)
         err = tw_tileset_finish(block, max_cluster_triangles);
     if (!err)
         err = tw_tileset_pack(&block);
-    if (err)
-        goto fail;
-    source_free(&full);
-    source_free(&coarse);
+    if (err) {
+        tw_tileset_destroy(block);
+        if (input_error)
+            *input_error = 0.0f;
+        return err;
+    }
     *out = block;
-    *input_error = largest_error;
     return TW_OK;
-
-fail:
-    source_free(&full);
-    source_free(&coarse);
-    tw_tileset_destroy(block);
-    return err;
 }

@@ -313,4 +313,14 @@ int tw_hlod_block_build(const struct tw_tileset *ts, const struct tw_lods *lods,
                         uint32_t max_cluster_triangles, struct tw_tileset **out,
                         float *input_error);
 
+/* What tw_hlod_block_build() puts in its block, added instead to block: an
+ * unfinished tileset of footprint (side * W, side * D) with no prototype
+ * yet, which gets one prototype (no instances where every cell is empty)
+ * and ts's merge_triangles; the caller finishes it. For a tile whose
+ * tileset is made by someone else (a stream's worker). Same errors; on an
+ * error block may hold part of the content (the caller destroys it). */
+int tw_hlod_block_fill(const struct tw_tileset *ts, const struct tw_lods *lods,
+                       const uint32_t *protos, uint32_t side, float max_input_error,
+                       struct tw_tileset *block, float *input_error);
+
 #endif

@@ -56,7 +56,7 @@ static const uint32_t default_frames = 300;
 static const char walk_synopsis[] =
     "usage: tileworld walk   [--tileset NAME|FILE.json] [--seed N] [--path NAME|FILE.csv] [--frames N]\n"
     "                        [--method M] [--size WxH] [--start-cell I,J] [--repeat P] [--view-distance M]\n"
-    "                        [--max-screen-error PX]\n"
+    "                        [--max-screen-error PX] [--hlod-levels N]\n"
     "                        [--verify] [--verify-tolerance X] [--allow-missed] [--deterministic]\n"
     "                        [--png-every N] [--out DIR] [--quiet] [--cluster-triangles N]\n"
     "                        [--tile-neighbours 4|8] [--evict-after N] [--chc-batch N] [--chc-nav N]\n"
@@ -97,6 +97,11 @@ static const char run_help[] =
     "--max-screen-error PX  levels of detail: each tile drawn at its coarsest level whose\n"
     "                      error projects to at most PX pixels, 0..1000; 0: full detail\n"
     "                      (default 1)\n"
+    "--hlod-levels N       hierarchical cells, experimental: far away, blocks of 2x2, 4x4, ...\n"
+    "                      up to 2^(N-1) cells each drawn as one merged proxy, made on the\n"
+    "                      workers, where the block projects to at most 64 pixels across;\n"
+    "                      1..12, 1: cells only (the default); needs a tileset of shared\n"
+    "                      prototypes (not city-gen, forest-gen) and levels of detail\n"
     "--method M            vfc, tilequery, chc, tilequery+chc (default), oracle, hzb,\n"
     "                      tilequery+hzb, box-oracle\n"
     "--tile-neighbours 4|8 the grid neighbours tile propagation visits (default 4)\n"
@@ -218,6 +223,7 @@ enum {
     OPT_CHC_BATCH,
     OPT_CHC_SUSPEND,
     OPT_HZB_PYRAMID,
+    OPT_HLOD_LEVELS,
     OPT_CHC_NAV,
     OPT_THRESHOLD,
     OPT_DETERMINISTIC,
@@ -244,6 +250,7 @@ static const struct option options_table[] = {
     {"chc-batch", required_argument, NULL, OPT_CHC_BATCH},
     {"chc-suspend", required_argument, NULL, OPT_CHC_SUSPEND},
     {"hzb-pyramid", required_argument, NULL, OPT_HZB_PYRAMID},
+    {"hlod-levels", required_argument, NULL, OPT_HLOD_LEVELS},
     {"chc-nav", required_argument, NULL, OPT_CHC_NAV},
     {"threshold", required_argument, NULL, OPT_THRESHOLD},
     {"deterministic", no_argument, NULL, OPT_DETERMINISTIC},
@@ -336,6 +343,7 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
         else
             tw_cli_fail(program, name, "'%s' is none of auto, gpu, cpu", v);
         break;
+    case OPT_HLOD_LEVELS: wt->hlod_levels = (uint32_t)tw_cli_u64(program, name, v, 1, 12); break;
     case OPT_CHC_NAV: wt->chc.assumed_visible = (uint32_t)tw_cli_u64(program, name, v, 1, 1000); break;
     case OPT_THRESHOLD:
         wt->chc.threshold = (uint32_t)tw_cli_u64(program, name, v, 0, 1000000);

@@ -1,0 +1,243 @@
+/*
+ * Hierarchical cells in the world (DESIGN §17, README "Hierarchical
+ * cells"): the culling runs over a cut of blocks of 2^k x 2^k cells
+ * (cull/hierarchy.c), and a block's tile is its proxy: every cell's shared
+ * prototype at its coarsest level whose error is within the block level's
+ * error, merged into one tile (tiles/hlod.c). Each level's proxies are
+ * made on worker threads by a stream of their own, whose "cells" are the
+ * blocks of that level; they count in the budget like any tile.
+ *
+ * A level-k block is used where it projects to at most block_px pixels
+ * across, that is from the distance r_k = 2^k W f / block_px (f: the focal
+ * length in pixels) on; there max_screen_error pixels are E_k = 2^k W
+ * max_screen_error / block_px metres, the error its proxy may have. E_k is
+ * fixed when the world is made; r_k follows the view's focal length, so a
+ * proxy stays valid whatever the image size.
+ */
+#include "runtime/world-private.h"
+#include "tiles/tiles-internal.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Instance keys of a level's proxies: above the shared contents and their
+ * levels, and below the stream's level bits. */
+#define HLOD_KEY_BASE 0x08000000u
+#define HLOD_KEY_SHIFT 22
+
+/* The most triangles a proxy is made of, before its own simplification
+ * (see tw_world_hlod_start). */
+#define HLOD_MAX_INPUT 65536u
+
+/* The base cell of the level's block with block coordinates b. */
+static struct tw_cell block_base(struct tw_cell b, uint32_t level)
+{
+    return (struct tw_cell){(int64_t)((uint64_t)b.i << level), (int64_t)((uint64_t)b.j << level)};
+}
+
+/* The block coordinates of the level's block whose base is cell (two's
+ * complement shifts round towards -inf). */
+static struct tw_cell block_of(struct tw_cell cell, uint32_t level)
+{
+    return (struct tw_cell){cell.i >> level, cell.j >> level};
+}
+
+/* A proxy, on a worker: the block's cells' prototypes at their coarsest
+ * level within the level's error, into ts (the block's footprint). */
+static int proxy_generate(void *user, struct tw_cell block, struct tw_tileset *ts)
+{
+    const struct tw_world_hlod_level *l = user;
+    const struct tw_world *w = l->w;
+    const uint32_t side = 1u << l->level;
+    const struct tw_cell base = block_base(block, l->level);
+    uint32_t *protos = malloc(sizeof(*protos) * side * side);
+    if (!protos)
+        return TW_ERR_NOMEM;
+    const struct tw_tile_provider *p = &w->provider;
+    for (uint32_t z = 0; z < side; z++)
+        for (uint32_t x = 0; x < side; x++) {
+            const struct tw_cell c = {(int64_t)((uint64_t)base.i + x),
+                                      (int64_t)((uint64_t)base.j + z)};
+            const uint32_t content = p->content(p->user, c);
+            protos[z * side + x] = content < w->shared_count ? content : TW_HLOD_EMPTY;
+        }
+    float input_error;
+    const int err = tw_hlod_block_fill(p->shared, w->lods.levels ? &w->lods : NULL, protos, side,
+                                       l->error, ts, &input_error);
+    free(protos);
+    return err;
+}
+
+int tw_world_hlod_start(struct tw_world *w)
+{
+    struct tw_world_hlod *h = &w->hlod;
+    const uint32_t count = w->t.hlod_levels;
+    if (count < 2 || !w->lod_on)
+        return TW_OK;
+    const struct tw_tile_provider *p = &w->provider;
+    if (count > TW_CULL_MAX_LEVELS) {
+        tw_log_printf(&w->s.log, TW_LOG_ERROR, "hierarchical cells: %u levels, at most %u",
+                      count, TW_CULL_MAX_LEVELS);
+        return TW_ERR_INVALID;
+    }
+    if (!p->content || !p->shared || p->generate) {
+        tw_log_printf(&w->s.log, TW_LOG_ERROR,
+                      "hierarchical cells need a tileset whose cells all show shared "
+                      "prototypes (%s makes tiles of its own)",
+                      p->name ? p->name : "the provider");
+        return TW_ERR_INVALID;
+    }
+    const float cell = fmaxf(p->footprint[0], p->footprint[1]);
+    h->count = count;
+    for (uint32_t k = 1; k < count; k++) {
+        struct tw_world_hlod_level *l = &h->levels[k];
+        l->w = w;
+        l->level = k;
+        l->error = (float)(1u << k) * cell * w->s.max_screen_error / w->t.hlod_block_px;
+        /* A proxy is unique geometry where cells share prototypes: a level
+         * whose proxies would be large (their cells still detailed at its
+         * error) costs memory and time for nothing, and is always refined
+         * (no stream). Large: 4^k cells of the heaviest prototype at its
+         * level for that error over HLOD_MAX_INPUT triangles. */
+        uint64_t heaviest = 0;
+        for (uint32_t q = 0; q < p->shared->prototype_count; q++) {
+            const uint32_t at = tw_lods_pick(&w->lods, q, l->error);
+            const uint64_t t =
+                at == 0 ? p->shared->prototypes[q].triangle_count
+                        : w->lods.levels->prototypes[w->lods.first[q] + at - 1].triangle_count;
+            heaviest = t > heaviest ? t : heaviest;
+        }
+        l->input_triangles = heaviest << (2 * k);
+        tw_log_printf(&w->s.log, TW_LOG_INFO,
+                      "hierarchical cells: blocks of %ux%u cells, error %.3g m, proxies of up "
+                      "to %llu triangles: %s",
+                      1u << k, 1u << k, (double)l->error, (unsigned long long)l->input_triangles,
+                      l->input_triangles > HLOD_MAX_INPUT ? "too many, always refined" : "used");
+        if (l->input_triangles > HLOD_MAX_INPUT)
+            continue;
+        struct tw_cull_grid g = {.footprint = {p->footprint[0], p->footprint[1]},
+                                 .common_box = p->bound};
+        snprintf(l->name, sizeof(l->name), "blocks of %ux%u cells", 1u << k, 1u << k);
+        l->provider = (struct tw_tile_provider){
+            .name = l->name,
+            .footprint = {(float)(1u << k) * p->footprint[0], (float)(1u << k) * p->footprint[1]},
+            .bound = tw_cull_node_box(&g, k),
+            .generate = proxy_generate,
+            .user = l,
+            .max_cluster_triangles = p->shared->max_cluster_triangles,
+        };
+        const struct tw_stream_settings ss = {
+            .provider = &l->provider,
+            .sink = tw_world_sink(w),
+            .bvh = w->t.bvh,
+            .workers = w->s.workers,
+            .policy = w->s.policy,
+            .upload_bytes = w->s.upload_budget_bytes,
+            .upload_ms = w->s.upload_budget_ms,
+            .evict_after = w->s.evict_after_frames,
+            .budget = w->s.cache_budget_bytes,
+            .key_base = HLOD_KEY_BASE + (k << HLOD_KEY_SHIFT),
+            .lods = true,
+            .log = &w->s.log,
+        };
+        const int err = tw_stream_create(&ss, &l->stream);
+        if (err)
+            return err;
+    }
+    return TW_OK;
+}
+
+uint32_t tw_world_hlod_stop(struct tw_world *w)
+{
+    uint32_t left = 0;
+    for (uint32_t k = 1; k < TW_CULL_MAX_LEVELS; k++) {
+        left += tw_stream_destroy(w->hlod.levels[k].stream);
+        w->hlod.levels[k].stream = NULL;
+    }
+    return left;
+}
+
+void tw_world_hlod_begin_frame(struct tw_world *w)
+{
+    struct tw_world_hlod *h = &w->hlod;
+    w->grid.levels = (struct tw_cull_levels){0};
+    if (h->count < 2)
+        return;
+    /* A full-detail pass draws cells only. */
+    w->grid.levels.count = h->count;
+    for (uint32_t k = 1; k < h->count; k++)
+        w->grid.levels.refine[k] =
+            h->levels[k].stream ? h->levels[k].error * w->lod_px_per_m / w->s.max_screen_error
+                                : INFINITY;
+    for (uint32_t k = 1; k < h->count; k++)
+        if (h->levels[k].stream)
+            tw_stream_begin_frame(h->levels[k].stream, w->frame_serial);
+}
+
+int tw_world_hlod_get(struct tw_world *w, struct tw_cell cell, uint32_t level, float distance,
+                      unsigned flags, float max_error, struct tw_cull_tile *out)
+{
+    if (level >= w->hlod.count || !w->hlod.levels[level].stream)
+        return TW_ERR_INVALID;
+    /* A proxy's levels are simplified from the proxy, whose cells already
+     * have up to the level's error: what is left for them. */
+    const float left = max_error - w->hlod.levels[level].error;
+    return tw_stream_get(w->hlod.levels[level].stream, block_of(cell, level), distance, flags,
+                         left > 0.0f ? left : 0.0f, out);
+}
+
+void tw_world_hlod_prefetch(struct tw_world *w, struct tw_cell cell, uint32_t level,
+                            float distance)
+{
+    if (level < w->hlod.count && w->hlod.levels[level].stream)
+        tw_stream_prefetch(w->hlod.levels[level].stream, block_of(cell, level), distance);
+}
+
+void tw_world_hlod_bytes(const struct tw_world *w, uint64_t *cpu, uint64_t *gpu)
+{
+    for (uint32_t k = 1; k < w->hlod.count; k++) {
+        uint64_t c = 0, g = 0;
+        if (w->hlod.levels[k].stream)
+            tw_stream_bytes(w->hlod.levels[k].stream, &c, &g);
+        *cpu += c;
+        *gpu += g;
+    }
+}
+
+uint64_t tw_world_hlod_trim(struct tw_world *w, uint64_t excess)
+{
+    uint64_t freed = 0;
+    /* Level by level, the finest first; each stream evicts its least
+     * recently drawn proxies. */
+    for (uint32_t k = 1; k < w->hlod.count && freed < excess; k++)
+        if (w->hlod.levels[k].stream)
+            freed += tw_stream_trim(w->hlod.levels[k].stream, excess - freed, w->frame_serial, NULL,
+                                NULL);
+    return freed;
+}
+
+void tw_world_hlod_invalidate(struct tw_world *w, struct tw_cell lo, struct tw_cell hi)
+{
+    for (uint32_t k = 1; k < w->hlod.count; k++)
+        if (w->hlod.levels[k].stream)
+            tw_stream_invalidate_rect(w->hlod.levels[k].stream, block_of(lo, k), block_of(hi, k));
+}
+
+void tw_world_hlod_stats(const struct tw_world *w, struct tw_frame_stats *st)
+{
+    for (uint32_t k = 1; k < w->hlod.count; k++) {
+        const struct tw_stream *s = w->hlod.levels[k].stream;
+        if (!s)
+            continue;
+        const struct tw_stream_stats *ss = tw_stream_stats(s);
+        st->bytes_needed = st->bytes_needed - tw_stream_tile_bytes(s) + ss->bytes_used;
+        st->loads_requested += ss->loads_requested;
+        st->loads_done += ss->loads_done;
+        st->evictions += ss->evictions;
+        st->ms_upload += ss->ms_upload;
+        st->bytes_loading += ss->bytes_loading;
+        st->tiles_loading += ss->tiles_loading;
+    }
+}
