@@ -4,6 +4,7 @@
 #include "tiles/tiles-internal.h"
 #include "tiles/neighbours.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -124,6 +125,43 @@ static bool in_view(const struct frame_ctx *fc, struct tw_cell cell, uint32_t le
     return tw_cull_frustum_box(&fc->v->frustum, &fc->box[level], off) != TW_CULL_OUTSIDE;
 }
 
+/* The box that a tile query of node (cell, level), placed at off, draws:
+ * its box, stretched towards the eye's height when the eye is above (or
+ * below) it, as far as a ray from the eye to a point of a common box within
+ * the view distance can pass over (or under) the node. A query is answered
+ * at pixel centres: seen from above, a far node's box may cover none of
+ * them where its content is hidden, while the ray of a pixel passes just
+ * above it to a visible cell beyond; without the stretch the propagation
+ * stops there and the cell beyond is never reached. With it, every ray
+ * from the eye to a visible point of a cell passes through the query box
+ * of every node on its way (the argument of DESIGN §4 at pixel centres).
+ * A ray from the eye at height e to a point at height h, horizontal
+ * distance t <= R, crosses horizontal distance d at e + (h - e) d / t: over
+ * a node at least d_min away, at most e - (e - top) d_min / R. */
+static struct tw_box query_box(const struct frame_ctx *fc, uint32_t level, const float off[3])
+{
+    struct tw_box b = fc->box[level];
+    const float *eye = fc->v->eye;
+    const float R = fc->v->view_distance;
+    float dx = 0.0f, dz = 0.0f;
+    if (eye[0] < b.min[0] + off[0])
+        dx = b.min[0] + off[0] - eye[0];
+    else if (eye[0] > b.max[0] + off[0])
+        dx = eye[0] - b.max[0] - off[0];
+    if (eye[2] < b.min[2] + off[2])
+        dz = b.min[2] + off[2] - eye[2];
+    else if (eye[2] > b.max[2] + off[2])
+        dz = eye[2] - b.max[2] - off[2];
+    const float d = sqrtf(dx * dx + dz * dz);
+    const float f = R > 0.0f && d < R ? d / R : 1.0f;
+    const float y = eye[1] - off[1];
+    if (y > b.max[1])
+        b.max[1] = y - (y - b.max[1]) * f;
+    else if (y < b.min[1])
+        b.min[1] = y + (b.min[1] - y) * f;
+    return b;
+}
+
 /* The nodes next to node (cell, level) in the frame's cut, in tq->cells:
  * how many, or 0 with fc->err set. */
 static size_t neighbours_of(struct frame_ctx *fc, struct tw_cell cell, uint32_t level)
@@ -193,12 +231,13 @@ static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell, uint32_t
         p->known = known || p->predicted;
         float off[3];
         offset_of(fc, c.cell, off);
-        if (tw_cull_near_box(fc->v, &fc->box[c.level], off)) {
+        const struct tw_box qb = query_box(fc, c.level, off);
+        if (tw_cull_near_box(fc->v, &qb, off)) {
             /* The near plane may cut this box: a query could lie. */
             p->query = 0;
             fc->st->tiles_free++;
         } else {
-            p->query = fc->be->issue(fc->be->ctx, &fc->box[c.level], 1, off);
+            p->query = fc->be->issue(fc->be->ctx, &qb, 1, off);
             fc->st->tiles_queried++;
         }
     }

@@ -37,7 +37,7 @@ static const struct tw_camera city_views[5] = {
 /* A headless context of width x height and the built-in tileset named
  * tileset, made with seed, both logging to test_log. False, after a message
  * and with nothing left to destroy, if either cannot be made. */
-static bool open_headless(uint32_t width, uint32_t height, const char *tileset, uint64_t seed,
+static inline bool open_headless(uint32_t width, uint32_t height, const char *tileset, uint64_t seed,
                           struct tw_context **ctx, struct tw_tileset **ts)
 {
     *ts = NULL;
@@ -57,7 +57,7 @@ static bool open_headless(uint32_t width, uint32_t height, const char *tileset, 
 /* A world of ts drawn into ctx at width x height, its cells chosen with
  * seed, out to view_distance metres, logging to test_log; the test sets the
  * rest (method, verify, ...). */
-static struct tw_world_settings world_settings(struct tw_context *ctx, const struct tw_tileset *ts,
+static inline struct tw_world_settings world_settings(struct tw_context *ctx, const struct tw_tileset *ts,
                                                uint32_t width, uint32_t height, uint64_t seed,
                                                float view_distance)
 {

@@ -99,7 +99,7 @@ static const char run_help[] =
     "                      (default 1)\n"
     "--hlod-levels N       hierarchical cells, experimental: far away, blocks of 2x2, 4x4, ...\n"
     "                      up to 2^(N-1) cells each drawn as one merged proxy, made on the\n"
-    "                      workers, where the block projects to at most 64 pixels across;\n"
+    "                      workers, where the block projects to at most 16 pixels across;\n"
     "                      1..12, 1: cells only (the default); needs a tileset of shared\n"
     "                      prototypes (not city-gen, forest-gen) and levels of detail\n"
     "--method M            vfc, tilequery, chc, tilequery+chc (default), oracle, hzb,\n"
