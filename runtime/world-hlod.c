@@ -82,11 +82,15 @@ int tw_world_hlod_start(struct tw_world *w)
                       count, TW_CULL_MAX_LEVELS);
         return TW_ERR_INVALID;
     }
-    if (!p->content || !p->shared || p->generate) {
+    /* A proxy needs the prototype of every cell of its block, on a worker:
+     * the tileset's own selection (a hash), not a host's callback, which
+     * is called on the render thread only. */
+    if (w->s.provider || w->s.selection.fn) {
         tw_log_printf(&w->s.log, TW_LOG_ERROR,
-                      "hierarchical cells need a tileset whose cells all show shared "
-                      "prototypes (%s makes tiles of its own)",
-                      p->name ? p->name : "the provider");
+                      "hierarchical cells need a tileset selected by the library (%s %s)",
+                      w->s.provider ? "provider" : "the selection of",
+                      w->s.provider ? (p->name ? p->name : "(unnamed)")
+                                    : "the tileset is a host's callback");
         return TW_ERR_INVALID;
     }
     const float cell = fmaxf(p->footprint[0], p->footprint[1]);

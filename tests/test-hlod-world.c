@@ -2,9 +2,10 @@
  * town of boxes seen 16 km out, which cells alone cannot reach, drawn with
  * block proxies far away; every method misses no pixel the oracle sees at
  * the same selection, and a broken culler is still caught; proxies are
- * drawn, at their blocks' first cells; a provider of tiles of their own is
- * refused. The town is light (14 to 110 triangles a cell) so that the
- * oracle's and the full-detail image's passes over 20 000 cells stay quick. */
+ * drawn, at their blocks' first cells; a provider, or a host's selection
+ * callback, is refused. The town is light (14 to 110 triangles a cell), so
+ * the oracle's and the full-detail image's passes over 20 000 cells stay
+ * quick. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -160,7 +161,15 @@ static void test_methods_over_blocks(struct tw_context *ctx, const struct tw_til
     tw_world_destroy(w);
 }
 
-static void test_refused_for_own_tiles(struct tw_context *ctx)
+static uint32_t host_select(void *user, struct tw_cell cell)
+{
+    (void)user;
+    return (uint32_t)((uint64_t)cell.i * 3u + (uint64_t)cell.j) % 5u;
+}
+
+/* A proxy needs every cell's content on a worker: a provider, or a host's
+ * selection callback (render thread only), is refused. */
+static void test_refused_for_host_callbacks(struct tw_context *ctx, const struct tw_tileset *ts)
 {
     struct tw_tilesets_provider *p = NULL;
     CHECK(tw_tilesets_provider_create("forest-gen", 1, 0, &test_log, &p) == TW_OK);
@@ -169,6 +178,16 @@ static void test_refused_for_own_tiles(struct tw_context *ctx)
     CHECK(!w && err == TW_ERR_INVALID);
     tw_world_destroy(w);
     tw_tilesets_provider_destroy(p);
+    struct tw_world_settings s = world_settings(ctx, ts, W, H, 1, 600.0f);
+    s.selection.fn = host_select;
+    struct tw_world_tuning t = {0};
+    t.hlod_levels = 4;
+    w = NULL;
+    CHECK(tw_world_create_tuned(&s, &t, &w) == TW_ERR_INVALID && !w);
+    /* The same world without blocks is fine. */
+    t.hlod_levels = 1;
+    CHECK(tw_world_create_tuned(&s, &t, &w) == TW_OK && w);
+    tw_world_destroy(w);
 }
 
 int main(void)
@@ -181,7 +200,8 @@ int main(void)
     struct tw_tileset *ts = make_town();
     if (ts)
         test_methods_over_blocks(ctx, ts);
-    test_refused_for_own_tiles(ctx);
+    if (ts)
+        test_refused_for_host_callbacks(ctx, ts);
     tw_tileset_destroy(ts);
     tw_context_destroy(ctx);
     return check_summary("hlod-world");
