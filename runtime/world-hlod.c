@@ -132,20 +132,8 @@ int tw_world_hlod_start(struct tw_world *w)
             .user = l,
             .max_cluster_triangles = p->shared->max_cluster_triangles,
         };
-        const struct tw_stream_settings ss = {
-            .provider = &l->provider,
-            .sink = tw_world_sink(w),
-            .bvh = w->t.bvh,
-            .workers = w->s.workers,
-            .policy = w->s.policy,
-            .upload_bytes = w->s.upload_budget_bytes,
-            .upload_ms = w->s.upload_budget_ms,
-            .evict_after = w->s.evict_after_frames,
-            .budget = w->s.cache_budget_bytes,
-            .key_base = HLOD_KEY_BASE + (k << HLOD_KEY_SHIFT),
-            .lods = true,
-            .log = &w->s.log,
-        };
+        const struct tw_stream_settings ss =
+            tw_world_stream_settings(w, &l->provider, HLOD_KEY_BASE + (k << HLOD_KEY_SHIFT));
         const int err = tw_stream_create(&ss, &l->stream);
         if (err)
             return err;

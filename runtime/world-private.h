@@ -201,8 +201,12 @@ int tw_world_get_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float
                       unsigned flags,
                       struct tw_cull_tile *out);
 void tw_world_prefetch_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float distance);
-/* The sink every stream of the world hands its tiles to: the GPU store. */
-struct tw_tile_sink tw_world_sink(struct tw_world *w);
+/* The settings of a stream of the world's: tiles of provider, handed to
+ * the GPU store, with the world's workers, policy, budgets and levels of
+ * detail; its instance keys from key_base on. */
+struct tw_stream_settings tw_world_stream_settings(struct tw_world *w,
+                                                   const struct tw_tile_provider *provider,
+                                                   uint32_t key_base);
 
 /* world-hlod.c */
 /* Makes the streams of the blocks' proxies when the tuning asks for levels

@@ -107,16 +107,13 @@ static void stream_event(void *user, const struct tw_tile_event *e)
     push_event(user, e);
 }
 
-struct tw_tile_sink tw_world_sink(struct tw_world *w)
+struct tw_stream_settings tw_world_stream_settings(struct tw_world *w,
+                                                   const struct tw_tile_provider *provider,
+                                                   uint32_t key_base)
 {
-    return (struct tw_tile_sink){sink_upload, sink_release, sink_levels, w->renderer};
-}
-
-int tw_world_start_stream(struct tw_world *w)
-{
-    const struct tw_stream_settings ss = {
-        .provider = &w->provider,
-        .sink = tw_world_sink(w),
+    return (struct tw_stream_settings){
+        .provider = provider,
+        .sink = {sink_upload, sink_release, sink_levels, w->renderer},
         .bvh = w->t.bvh,
         .workers = w->s.workers,
         .policy = w->s.policy,
@@ -124,11 +121,17 @@ int tw_world_start_stream(struct tw_world *w)
         .upload_ms = w->s.upload_budget_ms,
         .evict_after = w->s.evict_after_frames,
         .budget = w->s.cache_budget_bytes,
-        .key_base = w->shared_count + w->lod_count,
+        .key_base = key_base,
         .lods = w->lod_on,
         .stop_ms = w->s.shutdown_timeout_ms,
         .log = &w->s.log,
     };
+}
+
+int tw_world_start_stream(struct tw_world *w)
+{
+    const struct tw_stream_settings ss =
+        tw_world_stream_settings(w, &w->provider, w->shared_count + w->lod_count);
     int err = tw_stream_create(&ss, &w->stream);
     if (!err)
         tw_stream_set_events(w->stream, stream_event, w);

@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "tests/check.h"
+#include "tests/meshes.h"
 #include "tests/headless-world.h"
 
 enum { W = 160, H = 90 };
@@ -19,24 +20,6 @@ enum { W = 160, H = 90 };
 /* 150 m up, looking across the town to the horizon. */
 static const struct tw_camera high = {{{0, 0}, {20.0f, 150.0f, 20.0f}}, 35.0f, -3.0f};
 
-/* A unit cube [0, 1]^3, each face its own vertices. */
-static int add_cube(struct tw_tileset *ts)
-{
-    static const float corners[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
-                                        {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
-    static const int faces[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4},
-                                    {3, 7, 6, 2}, {0, 4, 7, 3}, {1, 2, 6, 5}};
-    float pos[24 * 3];
-    uint32_t idx[36];
-    for (int f = 0; f < 6; f++) {
-        for (int v = 0; v < 4; v++)
-            memcpy(pos + 3 * (4 * f + v), corners[faces[f][v]], sizeof(float) * 3);
-        const uint32_t b = 4u * (uint32_t)f;
-        const uint32_t tri[6] = {b, b + 1, b + 2, b, b + 2, b + 3};
-        memcpy(idx + 6 * f, tri, sizeof(tri));
-    }
-    return tw_tileset_add_mesh(ts, pos, NULL, 24, idx, 12);
-}
 
 /* Five prototypes on 100 m cells: a green ground and 1 to 9 towers each. */
 static struct tw_tileset *make_town(void)

@@ -7,6 +7,7 @@
  * built-in city's blocks as side doubles.
  */
 #include "check.h"
+#include "meshes.h"
 #include "tiles/clock.h"
 #include "tiles/tiles-internal.h"
 #include "tileworld/tiles.h"
@@ -19,25 +20,6 @@
 
 #define CLUSTER 256u
 
-/* A box mesh with a face's own vertices: 24 vertices, 12 triangles, unit
- * cube [0, 1]^3. */
-static int add_cube(struct tw_tileset *ts)
-{
-    static const float corners[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
-                                        {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
-    static const int faces[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4},
-                                    {3, 7, 6, 2}, {0, 4, 7, 3}, {1, 2, 6, 5}};
-    float pos[24 * 3];
-    uint32_t idx[36];
-    for (int f = 0; f < 6; f++) {
-        for (int v = 0; v < 4; v++)
-            memcpy(pos + 3 * (4 * f + v), corners[faces[f][v]], sizeof(float) * 3);
-        const uint32_t b = 4u * (uint32_t)f;
-        const uint32_t tri[6] = {b, b + 1, b + 2, b, b + 2, b + 3};
-        memcpy(idx + 6 * f, tri, sizeof(tri));
-    }
-    return tw_tileset_add_mesh(ts, pos, NULL, 24, idx, 12);
-}
 
 /* A grid of n x n quads, size metres across: a wavy height field over
  * [0, size]^2 in x and z, or (upright) a flat wall in the plane z = 0. */
