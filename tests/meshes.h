@@ -4,7 +4,10 @@
 #ifndef TW_TESTS_MESHES_H
 #define TW_TESTS_MESHES_H
 
+#include <math.h>
+#include <stdbool.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "tileworld/tiles.h"
@@ -28,6 +31,56 @@ static inline int add_cube(struct tw_tileset *ts)
         memcpy(idx + 6 * f, tri, sizeof(tri));
     }
     return tw_tileset_add_mesh(ts, pos, NULL, 24, idx, 12);
+}
+
+/* A grid of n x n quads, size metres across: a wavy height field over
+ * [0, size]^2 in x and z, or (upright) a flat wall in the plane z = 0.
+ * Returns the mesh's index in ts or a negative error. */
+static inline int add_grid(struct tw_tileset *ts, uint32_t n, float size, bool upright)
+{
+    const uint32_t nv = (n + 1) * (n + 1);
+    float *pos = malloc(sizeof(float) * 3 * nv);
+    uint32_t *idx = malloc(sizeof(uint32_t) * 6 * n * n);
+    if (!pos || !idx) {
+        free(pos);
+        free(idx);
+        return TW_ERR_NOMEM;
+    }
+    for (uint32_t j = 0; j <= n; j++)
+        for (uint32_t i = 0; i <= n; i++) {
+            float *p = pos + 3 * (j * (n + 1) + i);
+            const float u = size * (float)i / (float)n, v = size * (float)j / (float)n;
+            p[0] = u;
+            p[1] = upright ? v : 0.5f * sinf(u * 0.3f) * cosf(v * 0.2f);
+            p[2] = upright ? 0.0f : v;
+        }
+    uint32_t t = 0;
+    for (uint32_t j = 0; j < n; j++)
+        for (uint32_t i = 0; i < n; i++) {
+            const uint32_t a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
+            const uint32_t q[6] = {a, c, b, b, c, d};
+            memcpy(idx + 6 * t++, q, sizeof(q));
+        }
+    const int m = tw_tileset_add_mesh(ts, pos, NULL, nv, idx, 2 * n * n);
+    free(pos);
+    free(idx);
+    return m;
+}
+
+/* 400 small buildings on a 20 x 20 grid of 2 m (cube of mesh cube, heights
+ * 1 to 7 m) into prototype proto: what edge collapse stalls on. False if
+ * an instance was refused. */
+static inline bool add_houses(struct tw_tileset *ts, int proto, int cube, int material)
+{
+    bool ok = true;
+    for (int k = 0; k < 400; k++) {
+        const float x = 2.0f * (float)(k % 20), z = 2.0f * (float)(k / 20);
+        const float h = 1.0f + (float)(k % 7);
+        const float m[12] = {1, 0, 0, x, 0, h, 0, 0, 0, 0, 1, z};
+        ok &= tw_tileset_add_instance(ts, (uint32_t)proto, (uint32_t)cube, (uint32_t)material,
+                                      m) >= 0;
+    }
+    return ok;
 }
 
 #endif

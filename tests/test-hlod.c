@@ -21,39 +21,6 @@
 #define CLUSTER 256u
 
 
-/* A grid of n x n quads, size metres across: a wavy height field over
- * [0, size]^2 in x and z, or (upright) a flat wall in the plane z = 0. */
-static int add_grid(struct tw_tileset *ts, uint32_t n, float size, bool upright)
-{
-    const uint32_t nv = (n + 1) * (n + 1);
-    float *pos = malloc(sizeof(float) * 3 * nv);
-    uint32_t *idx = malloc(sizeof(uint32_t) * 6 * n * n);
-    if (!pos || !idx) {
-        free(pos);
-        free(idx);
-        return TW_ERR_NOMEM;
-    }
-    for (uint32_t j = 0; j <= n; j++)
-        for (uint32_t i = 0; i <= n; i++) {
-            float *p = pos + 3 * (j * (n + 1) + i);
-            const float u = size * (float)i / (float)n, v = size * (float)j / (float)n;
-            p[0] = u;
-            p[1] = upright ? v : 0.5f * sinf(u * 0.3f) * cosf(v * 0.2f);
-            p[2] = upright ? 0.0f : v;
-        }
-    uint32_t t = 0;
-    for (uint32_t j = 0; j < n; j++)
-        for (uint32_t i = 0; i < n; i++) {
-            const uint32_t a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
-            const uint32_t q[6] = {a, c, b, b, c, d};
-            memcpy(idx + 6 * t++, q, sizeof(q));
-        }
-    const int m = tw_tileset_add_mesh(ts, pos, NULL, nv, idx, 2 * n * n);
-    free(pos);
-    free(idx);
-    return m;
-}
-
 /* Five prototypes on 40 x 40 m cells, small instances merged (the default),
  * so that a block meets merged instances:
  * 0 houses: 400 small red cubes (merged by tw_tileset_finish into one mesh);
@@ -91,12 +58,7 @@ static struct tw_tileset *make_tileset(void)
           terrain >= 0 && small_terrain >= 0 && wall >= 0 && windows >= 0);
 
     const int houses = tw_tileset_add_prototype(ts, "houses", 1.0f);
-    for (int k = 0; k < 400; k++) {
-        const float x = 2.0f * (float)(k % 20), z = 2.0f * (float)(k / 20);
-        const float h = 1.0f + (float)(k % 7);
-        const float m[12] = {1, 0, 0, x, 0, h, 0, 0, 0, 0, 1, z};
-        CHECK(tw_tileset_add_instance(ts, (uint32_t)houses, (uint32_t)cube, (uint32_t)red, m) >= 0);
-    }
+    CHECK(add_houses(ts, houses, cube, red));
     const int field = tw_tileset_add_prototype(ts, "field", 1.0f);
     CHECK(tw_tileset_add_instance(ts, (uint32_t)field, (uint32_t)terrain, (uint32_t)green, NULL) >= 0);
     const int facade = tw_tileset_add_prototype(ts, "facade", 1.0f);

@@ -13,34 +13,6 @@
 #include <string.h>
 
 
-/* A grid of n x n quads, size metres across: a wavy height field over
- * [0, size]^2 in x and z, or (upright) a flat wall in the plane z = 0. */
-static int add_grid(struct tw_tileset *ts, uint32_t n, float size, bool upright)
-{
-    const uint32_t nv = (n + 1) * (n + 1);
-    float *pos = malloc(sizeof(float) * 3 * nv);
-    uint32_t *idx = malloc(sizeof(uint32_t) * 6 * n * n);
-    for (uint32_t j = 0; j <= n; j++)
-        for (uint32_t i = 0; i <= n; i++) {
-            float *p = pos + 3 * (j * (n + 1) + i);
-            const float u = size * (float)i / (float)n, v = size * (float)j / (float)n;
-            p[0] = u;
-            p[1] = upright ? v : 0.5f * sinf(u * 0.3f) * cosf(v * 0.2f);
-            p[2] = upright ? 0.0f : v;
-        }
-    uint32_t t = 0;
-    for (uint32_t j = 0; j < n; j++)
-        for (uint32_t i = 0; i < n; i++) {
-            const uint32_t a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
-            const uint32_t q[6] = {a, c, b, b, c, d};
-            memcpy(idx + 6 * t++, q, sizeof(q));
-        }
-    const int m = tw_tileset_add_mesh(ts, pos, NULL, nv, idx, 2 * n * n);
-    free(pos);
-    free(idx);
-    return m;
-}
-
 /* A 20 x 20 m wall (a grid of n x n quads) with 100 dark 1 x 1 m windows
  * 5 cm in front of it, 2 m apart: the windows are mesh win, the wall mesh
  * wall. */
@@ -79,12 +51,7 @@ int main(void)
     CHECK(red >= 0 && green >= 0 && cube >= 0 && terrain >= 0);
     /* 0: a block of 400 small buildings (edge collapse stalls on closed boxes) */
     const int block = tw_tileset_add_prototype(ts, "block", 1.0f);
-    for (int k = 0; k < 400; k++) {
-        const float x = 2.0f * (float)(k % 20), z = 2.0f * (float)(k / 20);
-        const float h = 1.0f + (float)(k % 7);
-        const float m[12] = {1, 0, 0, x, 0, h, 0, 0, 0, 0, 1, z};
-        CHECK(tw_tileset_add_instance(ts, (uint32_t)block, (uint32_t)cube, (uint32_t)red, m) >= 0);
-    }
+    CHECK(add_houses(ts, block, cube, red));
     /* 1: terrain, green */
     const int field = tw_tileset_add_prototype(ts, "field", 1.0f);
     CHECK(tw_tileset_add_instance(ts, (uint32_t)field, (uint32_t)terrain, (uint32_t)green, NULL) >= 0);
