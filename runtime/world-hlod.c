@@ -138,6 +138,24 @@ int tw_world_hlod_start(struct tw_world *w)
         if (err)
             return err;
     }
+    /* Levels above the coarsest that pays are refined always: none. */
+    while (h->count > 1 && !h->levels[h->count - 1].stream)
+        h->count--;
+    if (h->count > 1)
+        return TW_OK;
+    /* No level pays: cells only, and their reach within the bound. */
+    h->count = 0;
+    const double reach = tw_tiles_cells_in_reach(&p->bound, p->footprint[0], p->footprint[1],
+                                                 w->s.view_distance);
+    if (!(reach <= TW_TILES_MAX_CELLS_IN_VIEW)) {
+        tw_log_printf(&w->s.log, TW_LOG_ERROR,
+                      "cannot create the world: %s: no level of hierarchical cells pays (every "
+                      "block's proxy would hold more than %u triangles), and a view distance of "
+                      "%g m reaches about %.3g cells, more than the limit of %u a frame",
+                      p->name ? p->name : "the world", HLOD_MAX_INPUT,
+                      (double)w->s.view_distance, reach, TW_TILES_MAX_CELLS_IN_VIEW);
+        return TW_ERR_LIMIT;
+    }
     return TW_OK;
 }
 
@@ -157,7 +175,6 @@ void tw_world_hlod_begin_frame(struct tw_world *w)
     w->grid.levels = (struct tw_cull_levels){0};
     if (h->count < 2)
         return;
-    /* A full-detail pass draws cells only. */
     w->grid.levels.count = h->count;
     for (uint32_t k = 1; k < h->count; k++)
         w->grid.levels.refine[k] =
