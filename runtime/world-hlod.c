@@ -27,9 +27,6 @@
 #define HLOD_KEY_BASE 0x08000000u
 #define HLOD_KEY_SHIFT 22
 
-/* The most triangles a proxy is made of, before its own simplification
- * (see tw_world_hlod_start). */
-#define HLOD_MAX_INPUT 65536u
 
 /* The base cell of the level's block with block coordinates b. */
 static struct tw_cell block_base(struct tw_cell b, uint32_t level)
@@ -103,23 +100,15 @@ int tw_world_hlod_start(struct tw_world *w)
         /* A proxy is unique geometry where cells share prototypes: a level
          * whose proxies would be large (their cells still detailed at its
          * error) costs memory and time for nothing, and is always refined
-         * (no stream). Large: 4^k cells of the heaviest prototype at its
-         * level for that error over HLOD_MAX_INPUT triangles. */
-        uint64_t heaviest = 0;
-        for (uint32_t q = 0; q < p->shared->prototype_count; q++) {
-            const uint32_t at = tw_lods_pick(&w->lods, q, l->error);
-            const uint64_t t =
-                at == 0 ? p->shared->prototypes[q].triangle_count
-                        : w->lods.levels->prototypes[w->lods.first[q] + at - 1].triangle_count;
-            heaviest = t > heaviest ? t : heaviest;
-        }
-        l->input_triangles = heaviest << (2 * k);
+         * (no stream). */
+        const bool pays =
+            tw_hlod_level_pays(p->shared, &w->lods, k, l->error, &l->input_triangles);
         tw_log_printf(&w->s.log, TW_LOG_INFO,
                       "hierarchical cells: blocks of %ux%u cells, error %.3g m, proxies of up "
                       "to %llu triangles: %s",
                       1u << k, 1u << k, (double)l->error, (unsigned long long)l->input_triangles,
-                      l->input_triangles > HLOD_MAX_INPUT ? "too many, always refined" : "used");
-        if (l->input_triangles > HLOD_MAX_INPUT)
+                      pays ? "used" : "too many, always refined");
+        if (!pays)
             continue;
         struct tw_cull_grid g = {.footprint = {p->footprint[0], p->footprint[1]},
                                  .common_box = p->bound};
@@ -152,7 +141,7 @@ int tw_world_hlod_start(struct tw_world *w)
                       "cannot create the world: %s: no level of hierarchical cells pays (every "
                       "block's proxy would hold more than %u triangles), and a view distance of "
                       "%g m reaches about %.3g cells, more than the limit of %u a frame",
-                      p->name ? p->name : "the world", HLOD_MAX_INPUT,
+                      p->name ? p->name : "the world", TW_HLOD_MAX_INPUT,
                       (double)w->s.view_distance, reach, TW_TILES_MAX_CELLS_IN_VIEW);
         return TW_ERR_LIMIT;
     }

@@ -522,6 +522,27 @@ static void print_city(void)
     tw_tileset_destroy(city);
 }
 
+/* 9: whether a level pays: 4^level cells of the heaviest prototype at its
+ * level for the error, against TW_HLOD_MAX_INPUT; no overflow far up. */
+static void test_level_pays(const struct tw_tileset *ts, const struct tw_lods *l)
+{
+    uint64_t heaviest = 0;
+    for (uint32_t p = 0; p < ts->prototype_count; p++)
+        if (ts->prototypes[p].triangle_count > heaviest)
+            heaviest = ts->prototypes[p].triangle_count;
+    uint64_t input = 0;
+    /* No error allowed: every cell at full detail. */
+    const bool pays = tw_hlod_level_pays(ts, l, 1, 0.0f, &input);
+    CHECK(input == 4 * heaviest && pays == (input <= TW_HLOD_MAX_INPUT));
+    CHECK(tw_hlod_level_pays(ts, NULL, 1, 1000.0f, &input) && input == 4 * heaviest);
+    /* A large error picks each prototype's coarsest level: fewer. */
+    uint64_t coarse = 0;
+    tw_hlod_level_pays(ts, l, 1, 1e6f, &coarse);
+    CHECK(coarse < input);
+    CHECK(!tw_hlod_level_pays(ts, l, 12, 0.0f, &input) && input == heaviest << 24);
+    CHECK(!tw_hlod_level_pays(ts, l, 40, 0.0f, &input) && input == UINT64_MAX);
+}
+
 int main(int argc, char **argv)
 {
     if (argc > 1 && strcmp(argv[1], "city") == 0) {
@@ -546,6 +567,7 @@ int main(int argc, char **argv)
         test_block_levels(ts, &l);
         test_refused(ts, &l);
         test_deterministic(ts, &l);
+        test_level_pays(ts, &l);
         print_blocks(ts, &l);
     }
     tw_lods_free(&l);

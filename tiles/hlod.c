@@ -255,3 +255,22 @@ int tw_hlod_block_build(const struct tw_tileset *ts, const struct tw_lods *lods,
     *out = block;
     return TW_OK;
 }
+
+bool tw_hlod_level_pays(const struct tw_tileset *ts, const struct tw_lods *lods, uint32_t level,
+                        float error, uint64_t *input_triangles)
+{
+    uint64_t heaviest = 0;
+    for (uint32_t q = 0; q < ts->prototype_count; q++) {
+        const uint32_t at = lods && lods->levels ? tw_lods_pick(lods, q, error) : 0;
+        const uint64_t t =
+            at == 0 ? ts->prototypes[q].triangle_count
+                    : lods->levels->prototypes[lods->first[q] + at - 1].triangle_count;
+        heaviest = t > heaviest ? t : heaviest;
+    }
+    const uint64_t input = level < 31 && heaviest <= (UINT64_MAX >> (2 * level))
+                               ? heaviest << (2 * level)
+                               : UINT64_MAX;
+    if (input_triangles)
+        *input_triangles = input;
+    return input <= TW_HLOD_MAX_INPUT;
+}

@@ -313,6 +313,18 @@ int tw_hlod_block_build(const struct tw_tileset *ts, const struct tw_lods *lods,
                         uint32_t max_cluster_triangles, struct tw_tileset **out,
                         float *input_error);
 
+/* The most triangles a block's proxy is made of (before it is simplified)
+ * for its level to pay: above, the proxy copies what the cells draw from
+ * shared prototypes, for little. */
+#define TW_HLOD_MAX_INPUT 65536u
+
+/* What a block of 2^level x 2^level cells of ts, each at its coarsest
+ * level of lods (may be NULL) within error metres, can hold at most: 4^level
+ * cells of the heaviest prototype so drawn, in *input_triangles. Returns
+ * whether that is within TW_HLOD_MAX_INPUT. */
+bool tw_hlod_level_pays(const struct tw_tileset *ts, const struct tw_lods *lods, uint32_t level,
+                        float error, uint64_t *input_triangles);
+
 /* What tw_hlod_block_build() puts in its block, added instead to block: an
  * unfinished tileset of footprint (side * W, side * D) with no prototype
  * yet, which gets one prototype (no instances where every cell is empty)

@@ -69,7 +69,7 @@ static const char bench_synopsis[] =
     "                        [--scenario NAME|all] [--split]\n";
 static const char info_synopsis[] =
     "usage: tileworld info   [--tileset NAME|FILE.json] [--seed N] [--cluster-triangles N]\n"
-    "                        [--max-screen-error PX]\n"
+    "                        [--max-screen-error PX] [--hlod-levels N]\n"
     "                        [--calibrate [--size WxH]] [--gl auto|egl|osmesa] [--gpu N]\n";
 static const char import_synopsis[] =
     "usage: tileworld import FILE.gltf|FILE.glb\n";
@@ -198,6 +198,9 @@ static void usage(FILE *f)
                    "--max-screen-error PX  also build the levels of detail a world would (0: none)\n"
                    "                      and list each prototype's triangles and geometric\n"
                    "                      errors (default 1)\n"
+                   "--hlod-levels N       also say which levels of hierarchical cells a world\n"
+                   "                      would use, each one's error, from what distance at\n"
+                   "                      --size, and its proxies' size\n"
                    "%s%s", info_synopsis, info_help, world_help, tw_gl_usage, exit_help);
     } else if (strcmp(c, "import") == 0) {
         fprintf(f, "%s\n%s", import_synopsis, import_help);
@@ -737,6 +740,26 @@ static int info(const struct options *o)
                        (unsigned long long)lods.levels->prototypes[lods.first[p] + k].triangle_count,
                        lods.error[lods.first[p] + k]);
             printf("\n");
+        }
+        const uint32_t levels = o->cli.tuning.hlod_levels;
+        if (levels > 1) {
+            /* What --hlod-levels would do, as the world decides it: each
+             * level's error, where it starts at the run's size, whether it
+             * pays. */
+            const struct tw_world_settings *ws = &o->cli.world;
+            const double focal = 0.5 * ws->height / tan(30.0 * 3.14159265358979323846 / 180.0);
+            const double cell = fmax(ts->footprint[0], ts->footprint[1]);
+            printf("hierarchical cells (--hlod-levels %u; from where a block is 16 px across at "
+                   "%ux%u):\n", levels, ws->width, ws->height);
+            for (uint32_t k = 1; k < levels; k++) {
+                const float error = (float)((double)(1u << k) * cell * ws->max_screen_error / 16.0);
+                uint64_t input;
+                const bool pays = tw_hlod_level_pays(ts, &lods, k, error, &input);
+                printf("blocks of %ux%u cells: error %.3g m, from %.0f m, proxies of up to %llu "
+                       "triangles: %s\n", 1u << k, 1u << k, (double)error,
+                       error * focal / ws->max_screen_error, (unsigned long long)input,
+                       pays ? "used" : "too many, always refined");
+            }
         }
         tw_lods_free(&lods);
     }
