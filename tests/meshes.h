@@ -83,4 +83,23 @@ static inline bool add_houses(struct tw_tileset *ts, int proto, int cube, int ma
     return ok;
 }
 
+/* A 20 x 20 m wall (a grid of n x n quads) with 100 dark 1 x 1 m windows
+ * 5 cm in front of it, 2 m apart: the windows are mesh win, the wall mesh
+ * wall. */
+static inline void add_facade(struct tw_tileset *ts, uint32_t n, int *wall, int *win)
+{
+    *wall = add_grid(ts, n, 20.0f, true);
+    float wpos[100 * 4 * 3];
+    uint32_t widx[100 * 6];
+    for (uint32_t k = 0; k < 100; k++) {
+        const float x = 0.5f + 2.0f * (float)(k % 10), y = 0.5f + 2.0f * (float)(k / 10);
+        const float corner[4][3] = {{x, y, 0.05f}, {x + 1, y, 0.05f}, {x, y + 1, 0.05f},
+                                    {x + 1, y + 1, 0.05f}};
+        memcpy(wpos + 12 * k, corner, sizeof(corner));
+        const uint32_t b = 4 * k, q[6] = {b, b + 1, b + 2, b + 1, b + 3, b + 2};
+        memcpy(widx + 6 * k, q, sizeof(q));
+    }
+    *win = tw_tileset_add_mesh(ts, wpos, NULL, 400, widx, 200);
+}
+
 #endif

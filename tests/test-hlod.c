@@ -42,18 +42,8 @@ static struct tw_tileset *make_tileset(void)
     const int cube = add_cube(ts);
     const int terrain = add_grid(ts, 64, 40.0f, false);
     const int small_terrain = add_grid(ts, 32, 40.0f, false);
-    const int wall = add_grid(ts, 32, 20.0f, true);
-    float wpos[100 * 4 * 3];
-    uint32_t widx[100 * 6];
-    for (uint32_t k = 0; k < 100; k++) {
-        const float x = 0.5f + 2.0f * (float)(k % 10), y = 0.5f + 2.0f * (float)(k / 10);
-        const float corner[4][3] = {{x, y, 0.05f}, {x + 1, y, 0.05f}, {x, y + 1, 0.05f},
-                                    {x + 1, y + 1, 0.05f}};
-        memcpy(wpos + 12 * k, corner, sizeof(corner));
-        const uint32_t b = 4 * k, q[6] = {b, b + 1, b + 2, b + 1, b + 3, b + 2};
-        memcpy(widx + 6 * k, q, sizeof(q));
-    }
-    const int windows = tw_tileset_add_mesh(ts, wpos, NULL, 400, widx, 200);
+    int wall, windows;
+    add_facade(ts, 32, &wall, &windows);
     CHECK(red >= 0 && green >= 0 && grey >= 0 && dark >= 0 && blue >= 0 && cube >= 0 &&
           terrain >= 0 && small_terrain >= 0 && wall >= 0 && windows >= 0);
 

@@ -170,24 +170,13 @@ static int count_block(const struct tw_tileset *ts, const struct tw_lods *lods,
     return TW_OK;
 }
 
-int tw_hlod_block_fill(const struct tw_tileset *ts, const struct tw_lods *lods,
-                       const uint32_t *protos, uint32_t side, float max_input_error,
-                       struct tw_tileset *block, float *input_error)
+/* Adds the block's prototype to block, counted already (count_block):
+ * the cells' chosen prototypes, moved to their places. */
+static int fill(const struct tw_tileset *ts, const struct tw_lods *lods, const uint32_t *protos,
+                uint32_t side, float max_input_error, struct tw_tileset *block)
 {
-    if (input_error)
-        *input_error = 0.0f;
-    if (!ts || !protos || !block || !input_error || side == 0 || !ts->finished ||
-        block->finished || block->prototype_count != 0 ||
-        block->footprint[0] != (float)side * ts->footprint[0] ||
-        block->footprint[1] != (float)side * ts->footprint[1])
-        return TW_ERR_INVALID;
-    uint64_t triangles;
-    float largest_error;
-    int err = count_block(ts, lods, protos, side, max_input_error, &triangles, &largest_error);
-    if (err)
-        return err;
     struct source full = {0}, coarse = {0};
-    err = source_init(&full, ts);
+    int err = source_init(&full, ts);
     if (!err && lods && lods->levels)
         err = source_init(&coarse, lods->levels);
     /* Small instances merged as the source merges its own. */
@@ -212,6 +201,25 @@ int tw_hlod_block_fill(const struct tw_tileset *ts, const struct tw_lods *lods,
         }
     source_free(&full);
     source_free(&coarse);
+    return err;
+}
+
+int tw_hlod_block_fill(const struct tw_tileset *ts, const struct tw_lods *lods,
+                       const uint32_t *protos, uint32_t side, float max_input_error,
+                       struct tw_tileset *block, float *input_error)
+{
+    if (input_error)
+        *input_error = 0.0f;
+    if (!ts || !protos || !block || !input_error || side == 0 || !ts->finished ||
+        block->finished || block->prototype_count != 0 ||
+        block->footprint[0] != (float)side * ts->footprint[0] ||
+        block->footprint[1] != (float)side * ts->footprint[1])
+        return TW_ERR_INVALID;
+    uint64_t triangles;
+    float largest_error;
+    int err = count_block(ts, lods, protos, side, max_input_error, &triangles, &largest_error);
+    if (!err)
+        err = fill(ts, lods, protos, side, max_input_error, block);
     if (!err)
         *input_error = largest_error;
     return err;
@@ -241,18 +249,17 @@ int tw_hlod_block_build(const struct tw_tileset *ts, const struct tw_lods *lods,
     err = tw_tileset_create(name, (float)side * ts->footprint[0], (float)side * ts->footprint[1],
                             &block);
     if (!err)
-        err = tw_hlod_block_fill(ts, lods, protos, side, max_input_error, block, input_error);
+        err = fill(ts, lods, protos, side, max_input_error, block);
     if (!err)
         err = tw_tileset_finish(block, max_cluster_triangles);
     if (!err)
         err = tw_tileset_pack(&block);
     if (err) {
         tw_tileset_destroy(block);
-        if (input_error)
-            *input_error = 0.0f;
         return err;
     }
     *out = block;
+    *input_error = largest_error;
     return TW_OK;
 }
 
