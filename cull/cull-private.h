@@ -386,11 +386,26 @@ void tw_tilequery_destroy(struct tw_tilequery *tq);
  * neighbours (tw_cull_node_neighbours) queried, then be->flush() is called
  * once (the only flush it makes), front (may be NULL) is called, and the
  * wavefront's answers are read; the visible nodes are the next wavefront's
- * to render. g->source is not used. */
+ * to render. Before a visible node is rendered, g->source.prefetch (where
+ * there is one) is asked for its neighbours in view. */
 int tw_tilequery_frame(struct tw_tilequery *tq, const struct tw_view *v,
                        const struct tw_query_backend *be, const struct tw_cull_grid *g,
                        tw_tilequery_render_fn render, tw_tilequery_front_fn front, void *user,
                        struct tw_tilequery_stats *stats);
+
+/* The neighbours of node (base, level) in the frame's cut
+ * (tw_cull_node_neighbours) into *buf, grown as needed (*cap elements):
+ * their number in *count. TW_ERR_NOMEM when it cannot grow. */
+int tw_cull_neighbours_into(const struct tw_view *v, const struct tw_cull_grid *g,
+                            struct tw_cell base, uint32_t level, uint32_t neighbours,
+                            struct tw_cull_cell **buf, size_t *cap, size_t *count);
+
+/* Sets the distance of each of nodes[0, n): the eye's to its node's box
+ * when that box meets the frustum within the view distance, else
+ * INFINITY; and, where g's tile source has a prefetch, asks it for the
+ * tiles of those in view. */
+void tw_cull_nodes_in_view_prefetch(const struct tw_view *v, const struct tw_cull_grid *g,
+                                    struct tw_cull_cell *nodes, size_t n);
 
 /* True if cell was found visible in frame (only the last two frames are kept). */
 bool tw_tilequery_was_visible(const struct tw_tilequery *tq, struct tw_cell cell, uint64_t frame);
@@ -571,6 +586,8 @@ struct tw_hzb_phases {
     size_t stack_cap;
     uint32_t *render;                   /* phase 1's clusters of one tile */
     size_t render_count, render_cap;
+    struct tw_cull_cell *near;          /* a node's neighbours (gpu_take) */
+    size_t near_cap;
 };
 
 int tw_hzb_phases_init(struct tw_hzb_phases *p, float mutate_shrink);

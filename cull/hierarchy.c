@@ -150,6 +150,41 @@ size_t tw_cull_node_neighbours(const struct tw_view *v, const struct tw_cull_gri
     return n;
 }
 
+int tw_cull_neighbours_into(const struct tw_view *v, const struct tw_cull_grid *g,
+                            struct tw_cell base, uint32_t level, uint32_t neighbours,
+                            struct tw_cull_cell **buf, size_t *cap, size_t *count)
+{
+    for (;;) {
+        const size_t n = tw_cull_node_neighbours(v, g, base, level, neighbours, *buf, *cap);
+        if (n <= *cap) {
+            *count = n;
+            return TW_OK;
+        }
+        if (!tw_cull_reserve((void **)buf, cap, n, sizeof(**buf))) {
+            *count = 0;
+            return TW_ERR_NOMEM;
+        }
+    }
+}
+
+void tw_cull_nodes_in_view_prefetch(const struct tw_view *v, const struct tw_cull_grid *g,
+                                    struct tw_cull_cell *nodes, size_t n)
+{
+    for (size_t k = 0; k < n; k++) {
+        struct tw_cull_cell *c = &nodes[k];
+        const struct tw_box box = tw_cull_node_box(g, c->level);
+        float off[3];
+        tw_tiles_cell_offset(c->cell, v->cell, g->footprint[0], g->footprint[1], off);
+        const float d = tw_cull_box_distance(v, &box, off);
+        c->distance = d <= v->view_distance &&
+                              tw_cull_frustum_box(&v->frustum, &box, off) != TW_CULL_OUTSIDE
+                          ? d
+                          : INFINITY;
+        if (g->source.prefetch && c->distance != INFINITY)
+            g->source.prefetch(g->source.ctx, c->cell, c->level, c->distance);
+    }
+}
+
 /* ---- the nodes of the cut in view --------------------------------------------------- */
 
 struct scan {

@@ -60,6 +60,7 @@ void tw_hzb_phases_finish(struct tw_hzb_phases *p)
         free(p->lists[k].items);
     free(p->stack);
     free(p->render);
+    free(p->near);
     free(p->last);
     free(p->next);
     memset(p, 0, sizeof(*p));
@@ -73,7 +74,7 @@ size_t tw_hzb_phases_bytes(const struct tw_hzb_phases *p)
     return tw_hzb_bytes(p->hzb) + (p->verdict ? tw_cell_map_bytes(p->verdict) : 0) +
            (p->gpu_verdict ? tw_cell_map_bytes(p->gpu_verdict) : 0) + lists +
            sizeof(*p->stack) * p->stack_cap + sizeof(*p->render) * p->render_cap +
-           sizeof(*p->last) * (p->last_cap + p->next_cap);
+           sizeof(*p->last) * (p->last_cap + p->next_cap) + sizeof(*p->near) * p->near_cap;
 }
 
 static int compare_cells(const void *a, const void *b)
@@ -291,17 +292,16 @@ static int gpu_verdict(const struct tw_hzb_phases *p, struct tw_cell cell, uint3
  * found visible in its latest answers, or did not test, or next to one it
  * found visible (the paper's remedy for late answers, applied to the
  * ring of eight: the nodes of the cut around it). */
-static bool gpu_take(const struct tw_hzb_phases *p, struct tw_cull_frame *fr, struct tw_cell cell,
+static bool gpu_take(struct tw_hzb_phases *p, struct tw_cull_frame *fr, struct tw_cell cell,
                      uint32_t level)
 {
     if (gpu_verdict(p, cell, level) != 0)
         return true;
-    struct tw_cull_cell ring[64];
-    const size_t n = tw_cull_node_neighbours(fr->v, fr->g, cell, level, 8, ring, 64);
-    if (n > 64)
-        return true;    /* too many to look at: taken, which is always safe */
+    size_t n;
+    if (tw_cull_neighbours_into(fr->v, fr->g, cell, level, 8, &p->near, &p->near_cap, &n))
+        return true;    /* out of memory: taken, which is always safe */
     for (size_t k = 0; k < n; k++)
-        if (gpu_verdict(p, ring[k].cell, ring[k].level) == 1)
+        if (gpu_verdict(p, p->near[k].cell, p->near[k].level) == 1)
             return true;
     return false;
 }

@@ -15,33 +15,15 @@
  * queried).
  */
 #include "cull/cull-private.h"
-#include "tiles/neighbours.h"
 #include "tiles/tiles-internal.h"
 
+#include <math.h>
 #include <stdlib.h>
-
-/* Asks the tile source for the tiles of the neighbours in view of node
- * (cell, level): at most the first 64 of them (a hint). */
-static void prefetch_neighbours(struct tw_cull_frame *fr, uint32_t neighbours,
-                                struct tw_cell cell, uint32_t level)
-{
-    const struct tw_cull_grid *g = fr->g;
-    struct tw_cull_cell near[64];
-    size_t n = tw_cull_node_neighbours(fr->v, g, cell, level, neighbours, near, 64);
-    if (n > 64)
-        n = 64;
-    for (size_t k = 0; k < n; k++) {
-        float off[3], dist;
-        if (tw_cull_frame_cell_in_view(fr, near[k].cell, near[k].level, off, &dist))
-            g->source.prefetch(g->source.ctx, near[k].cell, near[k].level, dist);
-    }
-}
 
 /* ---- tilequery and tilequery+chc: hardware tile queries ----------------------------- */
 
 struct tilequery_method {
     struct tw_cull_method_base base;
-    uint32_t neighbours;
     struct tw_tilequery *tq;
     struct tw_chc *chc;                 /* tilequery+chc's local method */
     struct tw_cull_clusters clusters;   /* tilequery's local method's */
@@ -61,16 +43,14 @@ static struct tilequery_method *tilequery_from_method(struct tw_cull_method_base
     return (struct tilequery_method *)m;
 }
 
-/* The tile of a cell found visible, when it is ready; its neighbours'
- * tiles are asked for first. */
+/* The tile of a node found visible, when it is ready (the propagation has
+ * asked for its neighbours' tiles already). */
 static bool visible_tile(const struct propagation *pr, struct tw_cell cell, uint32_t level,
                          struct tw_cull_tile *tile)
 {
     struct tw_cull_frame *fr = pr->fr;
     if (fr->err)
         return false;
-    if (fr->g->source.prefetch)
-        prefetch_neighbours(fr, pr->m->neighbours, cell, level);
     return tw_cull_frame_tile(fr, cell, level, tw_cull_frame_cell_distance(fr, cell, level), tile);
 }
 
@@ -198,7 +178,6 @@ static int tilequery_create(const struct tw_cull_driver_settings *s,
     if (!tm)
         return TW_ERR_NOMEM;
     tm->base.impl = ops;
-    tm->neighbours = s->tilequery.neighbours;
     int err = TW_OK;
     if (ops == &tilequery_chc_ops) {
         err = tw_chc_create(&s->chc, &tm->chc);
@@ -262,21 +241,6 @@ static void queue_visible(struct tilequery_hzb_method *hm, struct tw_cull_frame 
     tw_distance_push(hm->heap, &hm->heap_count, distance, (uint32_t)n);
 }
 
-/* The neighbours of node (cell, level) in the frame's cut, in hm->near:
- * how many (0 and the frame's error when out of memory). */
-static size_t neighbours_of(struct tilequery_hzb_method *hm, struct tw_cull_frame *fr,
-                            struct tw_cell cell, uint32_t level)
-{
-    for (;;) {
-        const size_t n = tw_cull_node_neighbours(fr->v, fr->g, cell, level, hm->neighbours,
-                                                 hm->near, hm->near_cap);
-        if (n <= hm->near_cap)
-            return n;
-        if (!tw_cull_frame_reserve(fr, (void **)&hm->near, &hm->near_cap, n, sizeof(*hm->near)))
-            return 0;
-    }
-}
-
 /* Phase 2 as §4 with immediate answers. From the camera's cell (or the
  * nearest cell in view), visible cells are visited nearest first; each
  * visit traverses the cell's tile, then decides on its neighbours in view
@@ -308,23 +272,28 @@ static void propagate_now(struct tilequery_hzb_method *hm, struct tw_cull_frame 
     while (hm->heap_count > 0 && !fr->err) {
         const struct tw_cull_cell c = hm->found[tw_distance_pop(hm->heap, &hm->heap_count)];
         tw_tiles_cell_offset(c.cell, fr->v->cell, g->footprint[0], g->footprint[1], off);
-        if (g->source.prefetch)
-            prefetch_neighbours(fr, hm->neighbours, c.cell, c.level);
+        /* The neighbours' tiles are asked for before this one is drawn. */
+        size_t n;
+        if (tw_cull_neighbours_into(fr->v, g, c.cell, c.level, hm->neighbours, &hm->near,
+                                    &hm->near_cap, &n)) {
+            fr->err = TW_ERR_NOMEM;
+            break;
+        }
+        tw_cull_nodes_in_view_prefetch(fr->v, g, hm->near, n);
         tw_hzb_phases_visit(p, fr, c.cell, c.level, c.distance, off,
                             tw_hzb_phases_verdict(p, c.cell));
-        const size_t n = neighbours_of(hm, fr, c.cell, c.level);
         for (size_t k = 0; k < n && !fr->err; k++) {
             const struct tw_cull_cell nc = hm->near[k];
-            float noff[3], dist;
-            if (tw_hzb_phases_reached(p, fr, nc.cell) ||
-                !tw_cull_frame_cell_in_view(fr, nc.cell, nc.level, noff, &dist))
+            if (nc.distance == INFINITY || tw_hzb_phases_reached(p, fr, nc.cell))
                 continue;
             /* Decided once per frame (tw_hzb_phases_reached), so queued at
              * most once. */
+            float noff[3];
+            tw_tiles_cell_offset(nc.cell, fr->v->cell, g->footprint[0], g->footprint[1], noff);
             const struct tw_box box = tw_cull_node_box(g, nc.level);
             const bool free_pass = tw_cull_near_box(fr->v, &box, noff);
             if (tw_hzb_phases_decide(p, fr, nc.cell, nc.level, noff, free_pass, &prev))
-                queue_visible(hm, fr, nc.cell, nc.level, dist);
+                queue_visible(hm, fr, nc.cell, nc.level, nc.distance);
         }
     }
 }

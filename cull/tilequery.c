@@ -2,7 +2,6 @@
 #include "cull/cull-private.h"
 #include "tiles/array.h"
 #include "tiles/tiles-internal.h"
-#include "tiles/neighbours.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -162,29 +161,13 @@ static struct tw_box query_box(const struct frame_ctx *fc, uint32_t level, const
     return b;
 }
 
-/* The nodes next to node (cell, level) in the frame's cut, in tq->cells:
- * how many, or 0 with fc->err set. */
-static size_t neighbours_of(struct frame_ctx *fc, struct tw_cell cell, uint32_t level)
-{
-    struct tw_tilequery *tq = fc->tq;
-    for (;;) {
-        const size_t n = tw_cull_node_neighbours(fc->v, fc->g, cell, level, tq->s.neighbours,
-                                                 tq->cells, tq->cell_cap);
-        if (n <= tq->cell_cap)
-            return n;
-        if (!tw_cull_reserve((void **)&tq->cells, &tq->cell_cap, n, sizeof(*tq->cells))) {
-            fc->err = TW_ERR_NOMEM;
-            return 0;
-        }
-    }
-}
-
-/* Step 3: query the neighbours of a rendered node, nearest first. */
-static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell, uint32_t level)
+/* Step 3: query the neighbours of a rendered node, nearest first: the
+ * first count entries of tq->cells, their distances set
+ * (tw_cull_nodes_in_view_prefetch; INFINITY: out of view). */
+static void query_neighbours(struct frame_ctx *fc, size_t count)
 {
     struct tw_tilequery *tq = fc->tq;
     const uint64_t f = fc->v->frame;
-    const size_t count = neighbours_of(fc, cell, level);
     /* Those to query, moved to the front of tq->cells, nearest first
      * (insertion sort: a handful of entries; ties keep their order). */
     size_t n = 0;
@@ -193,8 +176,7 @@ static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell, uint32_t
         const uint64_t *q = tw_cell_map_find(tq->queried, c.cell);
         if (q && *q == f)
             continue;
-        float dist;
-        if (!in_view(fc, c.cell, c.level, &dist)) {
+        if (c.distance == INFINITY) {
             if (tw_cell_map_set(tq->queried, c.cell, f)) {
                 fc->err = TW_ERR_NOMEM;
                 return;
@@ -202,11 +184,11 @@ static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell, uint32_t
             continue;
         }
         size_t at = n++;
-        while (at > 0 && tq->cells[at - 1].distance > dist) {
+        while (at > 0 && tq->cells[at - 1].distance > c.distance) {
             tq->cells[at] = tq->cells[at - 1];
             at--;
         }
-        tq->cells[at] = (struct tw_cull_cell){c.cell, dist, c.level};
+        tq->cells[at] = c;
     }
     if (n == 0)
         return;
@@ -251,15 +233,22 @@ static void query_neighbours(struct frame_ctx *fc, struct tw_cell cell, uint32_t
  * it is drawn on last frame's word), then query its neighbours. */
 static void visit(struct frame_ctx *fc, struct tw_cell cell, uint32_t level, uint32_t condition)
 {
+    struct tw_tilequery *tq = fc->tq;
     float off[3];
     offset_of(fc, cell, off);
-    if (tw_cell_map_set(fc->tq->visible, cell, fc->v->frame)) {
+    size_t count;
+    if (tw_cell_map_set(tq->visible, cell, fc->v->frame) ||
+        tw_cull_neighbours_into(fc->v, fc->g, cell, level, tq->s.neighbours, &tq->cells,
+                                &tq->cell_cap, &count)) {
         fc->err = TW_ERR_NOMEM;
         return;
     }
+    /* The neighbours' tiles are asked for before this one is drawn (which
+     * may wait for it): DESIGN §12, prefetch when a neighbour is queried. */
+    tw_cull_nodes_in_view_prefetch(fc->v, fc->g, tq->cells, count);
     fc->render(fc->user, cell, level, off, condition);
     fc->st->tiles_visible++;
-    query_neighbours(fc, cell, level);
+    query_neighbours(fc, count);
 }
 
 /* Step 1: the node holding the camera's cell if its box meets the frustum,

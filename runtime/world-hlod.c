@@ -27,7 +27,6 @@
 #define HLOD_KEY_BASE 0x08000000u
 #define HLOD_KEY_SHIFT 22
 
-
 /* The base cell of the level's block with block coordinates b. */
 static struct tw_cell block_base(struct tw_cell b, uint32_t level)
 {
@@ -90,23 +89,23 @@ int tw_world_hlod_start(struct tw_world *w)
                                     : "the tileset is a host's callback");
         return TW_ERR_INVALID;
     }
-    const float cell = fmaxf(p->footprint[0], p->footprint[1]);
     h->count = count;
     for (uint32_t k = 1; k < count; k++) {
         struct tw_world_hlod_level *l = &h->levels[k];
         l->w = w;
         l->level = k;
-        l->error = (float)(1u << k) * cell * w->s.max_screen_error / w->t.hlod_block_px;
+        l->error = tw_hlod_level_error(p->footprint, k, w->s.max_screen_error,
+                                       w->t.hlod_block_px);
         /* A proxy is unique geometry where cells share prototypes: a level
          * whose proxies would be large (their cells still detailed at its
          * error) costs memory and time for nothing, and is always refined
          * (no stream). */
-        const bool pays =
-            tw_hlod_level_pays(p->shared, &w->lods, k, l->error, &l->input_triangles);
+        uint64_t input;
+        const bool pays = tw_hlod_level_pays(p->shared, &w->lods, k, l->error, &input);
         tw_log_printf(&w->s.log, TW_LOG_INFO,
                       "hierarchical cells: blocks of %ux%u cells, error %.3g m, proxies of up "
                       "to %llu triangles: %s",
-                      1u << k, 1u << k, (double)l->error, (unsigned long long)l->input_triangles,
+                      1u << k, 1u << k, (double)l->error, (unsigned long long)input,
                       pays ? "used" : "too many, always refined");
         if (!pays)
             continue;

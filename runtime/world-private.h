@@ -84,7 +84,6 @@ struct tw_world_hlod_level {
     const struct tw_world *w;
     uint32_t level;
     float error;                    /* E_k: the error a proxy of this level may have */
-    uint64_t input_triangles;       /* the most a proxy could be made of */
     char name[48];
     struct tw_tile_provider provider;
     struct tw_stream *stream;

@@ -179,6 +179,9 @@ int tw_world_levels_in_view(struct tw_world *w, const struct tw_view *v, bool *a
     /* Front to back: the last cell is the farthest. */
     const float farthest = w->cells.count ? w->cells.cells[w->cells.count - 1].distance : 0.0f;
     *any = max_error_of(w, farthest) >= w->lod_least_error;
+    /* A block's proxy is a level of detail of its cells, whatever its error. */
+    for (size_t k = 0; k < w->cells.count && !*any; k++)
+        *any = w->cells.cells[k].level > 0;
     return TW_OK;
 }
 

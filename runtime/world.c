@@ -126,7 +126,7 @@ void tw_world_default_tuning(struct tw_world_tuning *t)
     tw_tilequery_default_settings(&t->tilequery);
     tw_bvh_default_settings(&t->bvh);
     if (!(t->hlod_block_px > 0.0f) || !isfinite(t->hlod_block_px))
-        t->hlod_block_px = 16.0f;
+        t->hlod_block_px = TW_HLOD_BLOCK_PX;
 }
 
 /* The driver of method m (the oracles' timed parts draw a given set). */

@@ -531,6 +531,9 @@ static void test_level_pays(const struct tw_tileset *ts, const struct tw_lods *l
     CHECK(coarse < input);
     CHECK(!tw_hlod_level_pays(ts, l, 12, 0.0f, &input) && input == heaviest << 24);
     CHECK(!tw_hlod_level_pays(ts, l, 40, 0.0f, &input) && input == UINT64_MAX);
+    /* A 4x4 block of 80 x 60 m cells, 16 px across: 1 px is 20 m. */
+    CHECK(tw_hlod_level_error((const float[2]){80.0f, 60.0f}, 2, 1.0f, 16.0f) == 20.0f);
+    CHECK(tw_hlod_level_error((const float[2]){60.0f, 80.0f}, 2, 2.0f, 16.0f) == 40.0f);
 }
 
 int main(int argc, char **argv)

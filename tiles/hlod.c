@@ -281,3 +281,10 @@ bool tw_hlod_level_pays(const struct tw_tileset *ts, const struct tw_lods *lods,
         *input_triangles = input;
     return input <= TW_HLOD_MAX_INPUT;
 }
+
+float tw_hlod_level_error(const float footprint[2], uint32_t level, float max_screen_error,
+                          float block_px)
+{
+    const double cell = footprint[0] > footprint[1] ? footprint[0] : footprint[1];
+    return (float)((double)((uint64_t)1 << level) * cell * max_screen_error / block_px);
+}

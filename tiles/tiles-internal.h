@@ -318,6 +318,19 @@ int tw_hlod_block_build(const struct tw_tileset *ts, const struct tw_lods *lods,
  * shared prototypes, for little. */
 #define TW_HLOD_MAX_INPUT 65536u
 
+/* A block is drawn as one proxy where it projects to at most this many
+ * pixels across (the default of the world's tuning). */
+#define TW_HLOD_BLOCK_PX 16.0f
+
+/* The error, in metres, that the proxy of a block of 2^level x 2^level
+ * cells of footprint w x d may have: max_screen_error pixels where the
+ * block projects to block_px pixels across (2^level max(w, d)
+ * max_screen_error / block_px). It is used from max_screen_error pixels
+ * of that error on: the error times the focal length in pixels over
+ * max_screen_error. */
+float tw_hlod_level_error(const float footprint[2], uint32_t level, float max_screen_error,
+                          float block_px);
+
 /* What a block of 2^level x 2^level cells of ts, each at its coarsest
  * level of lods (may be NULL) within error metres, can hold at most: 4^level
  * cells of the heaviest prototype so drawn, in *input_triangles. Returns

@@ -746,18 +746,19 @@ static int info(const struct options *o)
             /* What --hlod-levels would do, as the world decides it: each
              * level's error, where it starts at the run's size, whether it
              * pays. */
-            const struct tw_world_settings *ws = &o->cli.world;
-            const double focal = 0.5 * ws->height / tan(30.0 * 3.14159265358979323846 / 180.0);
-            const double cell = fmax(ts->footprint[0], ts->footprint[1]);
-            printf("hierarchical cells (--hlod-levels %u; from where a block is 16 px across at "
-                   "%ux%u):\n", levels, ws->width, ws->height);
+            struct tw_world_settings ws = o->cli.world;
+            tw_world_default_settings(&ws);
+            const double focal = 0.5 * ws.height / tan(0.5 * ws.fov_y * 3.14159265358979323846 / 180.0);
+            printf("hierarchical cells (--hlod-levels %u; from where a block is %g px across at "
+                   "%ux%u):\n", levels, (double)TW_HLOD_BLOCK_PX, ws.width, ws.height);
             for (uint32_t k = 1; k < levels; k++) {
-                const float error = (float)((double)(1u << k) * cell * ws->max_screen_error / 16.0);
+                const float error =
+                    tw_hlod_level_error(ts->footprint, k, ws.max_screen_error, TW_HLOD_BLOCK_PX);
                 uint64_t input;
                 const bool pays = tw_hlod_level_pays(ts, &lods, k, error, &input);
                 printf("blocks of %ux%u cells: error %.3g m, from %.0f m, proxies of up to %llu "
                        "triangles: %s\n", 1u << k, 1u << k, (double)error,
-                       error * focal / ws->max_screen_error, (unsigned long long)input,
+                       error * focal / ws.max_screen_error, (unsigned long long)input,
                        pays ? "used" : "too many, always refined");
             }
         }
