@@ -4,6 +4,9 @@
 # installed header alone as C and as C++, and builds examples/host.c, and a
 # program that takes the address of every public function and object, with
 # pkg-config against the installed files, shared and static, and runs them.
+# A host runs without LD_LIBRARY_PATH: the .pc files give an rpath to their
+# libdir when the dynamic loader does not search it by itself, and the
+# headless library finds libtileworld through $ORIGIN.
 #
 # usage: test-install.sh BUILD_DIR SOURCE_DIR VERSION PUBLIC_API_SH DEFAULT_LIBRARY
 # (DEFAULT_LIBRARY: the build's default_library, both by default: which kinds
@@ -92,6 +95,25 @@ for lib in tileworld tileworld-headless; do
         fail "lib$lib.so: an rpath into the build directory survived the install"
     fi
 done
+# runpath FILE: its RUNPATH and RPATH, their folders joined by colons.
+runpath() { readelf -d "$1" | sed -n 's/.*(R\(UN\)\{0,1\}PATH).*\[\(.*\)\]$/\2/p' | paste -sd:; }
+# The headless library finds libtileworld.so in its own folder, wherever the
+# two are installed ($ORIGIN: a host's rpath does not reach the libraries'
+# own needs). It needs libtileworld.so only when it calls into it: then the
+# loader, without LD_LIBRARY_PATH, takes it from beside it.
+so=$root$libdir/libtileworld-headless.so.$version
+if [ -f "$so" ]; then
+    readelf -d "$so" >"$tmp/dyn"
+    case ":$(runpath "$so"):" in
+        *':$ORIGIN:'* | *':${ORIGIN}:'*) ;;
+        *) fail "libtileworld-headless.so: no \$ORIGIN in its RUNPATH ('$(runpath "$so")'), so it cannot find libtileworld.so beside it" ;;
+    esac
+    if grep -q 'NEEDED.*\[libtileworld\.so\.0\]' "$tmp/dyn"; then
+        env -u LD_LIBRARY_PATH ldd "$so" >"$tmp/ldd" 2>&1
+        grep -q "libtileworld.so.0 => $root$libdir/" "$tmp/ldd" ||
+            fail "libtileworld-headless.so does not load libtileworld.so.0 from its own folder: $(grep libtileworld "$tmp/ldd")"
+    fi
+fi
 # The world library links no GL: a program with a window loads libGL, the
 # headless one OSMesa, and the two never meet.
 if [ -f "$root$libdir/libtileworld.so.$version" ]; then
@@ -165,11 +187,50 @@ read -r -a slibs_a <<<"$slibs"
 mkdir "$tmp/static"
 ln -s "$root$libdir/libtileworld.a" "$root$libdir/libtileworld-headless.a" "$tmp/static/"
 
+# Does the dynamic loader search $libdir by itself? It says which folders it
+# does (glibc 2.33 and later: its "system search path"); else the usual ones:
+# /lib and /usr/lib with their multiarch folders, or without multiarch lib64.
+# Where it does not, the .pc files must give an rpath to $libdir.
+printf 'int main(void) { return 0; }\n' >"$tmp/empty.c"
+system_dirs=()
+if "${cc[@]}" "${hostflags[@]}" "$tmp/empty.c" -o "$tmp/empty" >"$tmp/cc.log" 2>&1; then
+    interp=$(readelf -l "$tmp/empty" | sed -n 's/.*Requesting program interpreter: \(.*\)\]$/\1/p')
+    [ -n "$interp" ] &&
+        mapfile -t system_dirs < <("$interp" --help 2>/dev/null | sed -n 's/^ *\(\/.*\) (system search path)$/\1/p')
+fi
+if [ ${#system_dirs[@]} -eq 0 ]; then
+    multiarch=$("${cc[@]}" -print-multiarch 2>/dev/null) || multiarch=
+    if [ -n "$multiarch" ]; then
+        system_dirs=(/lib /usr/lib "/lib/$multiarch" "/usr/lib/$multiarch")
+    else
+        system_dirs=(/lib /usr/lib /lib64 /usr/lib64)
+    fi
+fi
+need_rpath=1
+for d in "${system_dirs[@]}"; do
+    [ "$d" = "$libdir" ] && need_rpath=0
+done
+[ $need_rpath -eq 1 ] ||
+    echo "note: $libdir is searched by the dynamic loader: no rpath checked; shared hosts run with LD_LIBRARY_PATH into the DESTDIR"
+# The flags of the .pc files as they are after a real install (-L and rpath
+# to $libdir), and the same .pc files with their libdir where the files are
+# now, as pkg-config relocates an installed tree (-L and rpath to $root$libdir).
+libs_plain=$(pc_plain --libs tileworld tileworld-headless) || fail "pkg-config --libs failed"
+libs_moved=$(pc_plain --define-variable=libdir="$root$libdir" --libs tileworld tileworld-headless) ||
+    fail "pkg-config --define-variable=libdir=... --libs failed"
+read -r -a libs_plain_a <<<"$libs_plain"
+read -r -a libs_moved_a <<<"$libs_moved"
+
 # build_and_run shared|static SOURCE: links SOURCE against the installed
 # libraries and runs it (LD_BIND_NOW: every symbol resolved at start).
+# Shared, where $libdir needs an rpath, it is linked with the relocated .pc
+# files and runs without LD_LIBRARY_PATH, finding the libraries by the rpath
+# alone; and once more with the flags of a real install, whose RUNPATH must
+# name $libdir (checked, not run: nothing is installed there).
 build_and_run() {
     local mode=$1 src=$2 exe=$tmp/${2##*/}-$1
     local link=("${libs_a[@]}")
+    [ "$mode" = shared ] && [ $need_rpath -eq 1 ] && link=("${libs_moved_a[@]}")
     [ "$mode" = static ] && link=(-L"$tmp/static" "${slibs_a[@]}")
     if ! "${cc[@]}" -std=c11 -Wall -Wextra -Werror "${hostflags[@]}" "$src" "${cflags_a[@]}" "${link[@]}" \
             -o "$exe" >"$tmp/cc.log" 2>&1; then
@@ -187,7 +248,26 @@ build_and_run() {
         fi
     done
     local env_run=(env -u LD_LIBRARY_PATH LD_BIND_NOW=1)
-    if [ "$mode" = shared ]; then
+    if [ "$mode" = shared ] && [ $need_rpath -eq 1 ]; then
+        # The rpath alone finds the installed libraries.
+        "${env_run[@]}" ldd "$exe" >"$tmp/ldd" 2>&1
+        for lib in tileworld tileworld-headless; do
+            grep -q "lib$lib.so.0 => $root$libdir/" "$tmp/ldd" ||
+                fail "${src##*/} ($mode), without LD_LIBRARY_PATH, does not load lib$lib.so.0 from $root$libdir: $(grep "lib$lib\.so" "$tmp/ldd")"
+        done
+        # As linked after a real install: cc host.c $(pkg-config --libs ...),
+        # with an -L into the DESTDIR first so that it links these libraries.
+        if ! "${cc[@]}" -std=c11 -Wall -Wextra -Werror "${hostflags[@]}" "$src" "${cflags_a[@]}" \
+                -L"$root$libdir" "${libs_plain_a[@]}" -o "$exe-real" >"$tmp/cc.log" 2>&1; then
+            cat "$tmp/cc.log"
+            fail "${src##*/} does not link with the flags of a real install: ${libs_plain_a[*]}"
+        else
+            case ":$(runpath "$exe-real"):" in
+                *":$libdir:"*) ;;
+                *) fail "${src##*/} ($mode): its RUNPATH ('$(runpath "$exe-real")') does not name $libdir, which the loader does not search (pkg-config --libs: $libs_plain)" ;;
+            esac
+        fi
+    elif [ "$mode" = shared ]; then
         env_run=(env LD_LIBRARY_PATH="$root$libdir" LD_BIND_NOW=1)
         # The installed libraries are the ones it runs with.
         "${env_run[@]}" ldd "$exe" >"$tmp/ldd"
@@ -208,4 +288,6 @@ for mode in "${kinds[@]}"; do
 done
 
 [ $failures -eq 0 ] || exit 1
-echo "ok: installed tree; $(wc -l <"$tmp/headers.inst") headers alone as C and C++; $(wc -l <"$tmp/api") declarations link; host.c ${kinds[*]}"
+rpath_note=
+[[ " ${kinds[*]} " = *" shared "* ]] && [ $need_rpath -eq 1 ] && rpath_note="; shared hosts run by their rpath to $libdir"
+echo "ok: installed tree; $(wc -l <"$tmp/headers.inst") headers alone as C and C++; $(wc -l <"$tmp/api") declarations link; host.c ${kinds[*]}$rpath_note"
