@@ -329,6 +329,9 @@ struct tw_cull_tile {
                                            the frame sets it, not the source */
 };
 
+/* The key of an empty cell's tile (proto NULL: nothing to draw). */
+#define TW_CULL_KEY_EMPTY (UINT32_MAX - 1u)
+
 /* tw_tile_source.get() flags. */
 #define TW_TILE_SOURCE_RESIDENT 1u      /* only if already at hand: never request, never wait */
 #define TW_TILE_SOURCE_WAIT 2u          /* wait for the tile whatever the policy (an oracle

@@ -37,6 +37,10 @@ static int fixed_get(void *ctx, struct tw_cell cell, uint32_t level, float dista
         return TW_ERR_INVALID;
     }
     const uint32_t p = tw_tiles_select(f->tileset, f->selection, cell);
+    if (p == TW_TILE_EMPTY) {
+        *out = (struct tw_cull_tile){.key = TW_CULL_KEY_EMPTY};
+        return TW_OK;
+    }
     if (p >= f->tileset->prototype_count) {
         tw_log_printf(f->log, TW_LOG_ERROR,
                       "selection: cell (%lld, %lld) shows prototype %u, but the tileset has %u",

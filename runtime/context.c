@@ -70,6 +70,7 @@ struct osmesa_api {
     GLboolean (*MakeCurrent)(OSMesaContext c, void *buffer, GLenum type, GLsizei w, GLsizei h);
     void (*DestroyContext)(OSMesaContext c);
     OSMESAproc (*GetProcAddress)(const char *name);
+    OSMesaContext (*GetCurrentContext)(void);
 };
 
 static struct egl_api egl;
@@ -151,8 +152,9 @@ static void load_osmesa(void)
     LOAD_SYM(lib, osmesa, MakeCurrent, "OSMesaMakeCurrent");
     LOAD_SYM(lib, osmesa, DestroyContext, "OSMesaDestroyContext");
     LOAD_SYM(lib, osmesa, GetProcAddress, "OSMesaGetProcAddress");
+    LOAD_SYM(lib, osmesa, GetCurrentContext, "OSMesaGetCurrentContext");
     if (!osmesa.CreateContextAttribs || !osmesa.MakeCurrent || !osmesa.DestroyContext ||
-        !osmesa.GetProcAddress) {
+        !osmesa.GetProcAddress || !osmesa.GetCurrentContext) {
         snprintf(osmesa.error, sizeof(osmesa.error),
                  "libOSMesa lacks OSMesaCreateContextAttribs (Mesa 10 or later)");
         return;
@@ -648,6 +650,27 @@ int tw_context_make_current(struct tw_context *c)
     }
     if (!egl.MakeCurrent(c->display, c->surface, c->surface, c->context)) {
         tw_log_printf(&c->log, TW_LOG_ERROR, "the EGL context cannot be made current (%s)",
+                      egl_error_name(egl.GetError()));
+        return TW_ERR_GL;
+    }
+    return TW_OK;
+}
+
+int tw_context_release(struct tw_context *c)
+{
+    if (!c)
+        return TW_ERR_INVALID;
+    if (c->kind == KIND_OSMESA) {
+        if (osmesa.GetCurrentContext() == c->osmesa &&
+            !osmesa.MakeCurrent(NULL, NULL, GL_UNSIGNED_BYTE, 0, 0)) {
+            tw_log_printf(&c->log, TW_LOG_ERROR, "the OSMesa context cannot be released");
+            return TW_ERR_GL;
+        }
+        return TW_OK;
+    }
+    if (egl.GetCurrentContext() == c->context &&
+        !egl.MakeCurrent(c->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT)) {
+        tw_log_printf(&c->log, TW_LOG_ERROR, "the EGL context cannot be released (%s)",
                       egl_error_name(egl.GetError()));
         return TW_ERR_GL;
     }

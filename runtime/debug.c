@@ -69,16 +69,19 @@ int tw_world_set_debug(struct tw_world *w, unsigned flags)
 {
     if (!w || (flags & ~TW_DEBUG_ALL))
         return TW_ERR_INVALID;
-    int err = TW_OK;
-    if ((flags & TW_DEBUG_CELLS) && !w->debug.seen)
-        err = tw_cell_map_create(&w->debug.seen);
+    int err = tw_world_enter(w, "choose the debug views", false);
     if (err)
         return err;
-    w->debug.flags = flags;
-    w->debug.count = 0;
-    if (!(flags & TW_DEBUG_QUERIES))
-        tw_renderer_record_queries(w->renderer, false);
-    return TW_OK;
+    if ((flags & TW_DEBUG_CELLS) && !w->debug.seen)
+        err = tw_cell_map_create(&w->debug.seen);
+    if (!err) {
+        w->debug.flags = flags;
+        w->debug.count = 0;
+        if (!(flags & TW_DEBUG_QUERIES))
+            tw_renderer_record_queries(w->renderer, false);
+    }
+    tw_world_leave(w, false);
+    return err;
 }
 
 const struct tw_debug_box *tw_world_debug_boxes(const struct tw_world *w, size_t *count)
@@ -310,10 +313,15 @@ int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, si
         tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot draw the debug view: no frame has been rendered yet");
         return TW_ERR_STATE;
     }
+    const int err = tw_world_enter(w, "draw the debug view", true);
+    if (err)
+        return err;
     if (count > w->debug.draw_cap) {
         struct tw_renderer_debug_box *d = realloc(w->debug.draw, sizeof(*d) * count);
-        if (!d)
+        if (!d) {
+            tw_world_leave(w, true);
             return TW_ERR_NOMEM;
+        }
         w->debug.draw = d;
         w->debug.draw_cap = count;
     }
@@ -355,10 +363,9 @@ int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, si
                 r->color[3] *= 1.0f / (1.0f + 0.25f * (float)b->level);
             }
         }
-        tw_renderer_enter(w->renderer);
         draw_boxes(w->renderer, v, w->debug.draw, n, layers[layer].fill, layers[layer].line_px);
-        tw_renderer_leave(w->renderer);
     }
+    tw_world_leave(w, true);
     return TW_OK;
 }
 

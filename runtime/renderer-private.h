@@ -150,6 +150,11 @@ struct tw_renderer {
     /* The unit box: 8 corners, 36 face indices wound inwards, then 24 edge
      * indices (debug drawing); the query VAO shares its buffers. */
     GLuint box_vao, box_vbo, box_ibo;
+    /* A fence made at creation and kept: a sync object is known only to
+     * its context's share group, so glIsSync() on it (with the box VAO,
+     * which only its own context knows) tells whether the calling thread
+     * has the world's context current (tw_renderer_current). */
+    GLsync token;
     GLuint bound_vao;      /* the vertex array bound, 0 when not known */
     enum tw_renderer_mode mode;
     struct tw_render_counters counters;

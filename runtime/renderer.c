@@ -123,6 +123,14 @@ int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_pr
         goto fail;
     r->gl_loaded = true;
     const struct tw_gl *gl = &r->gl;
+    if (!gl->GetString(GL_VERSION)) {
+        /* Without a current context every GL call is a no-op answering 0. */
+        tw_log_printf(&r->log, TW_LOG_ERROR, "no OpenGL context is current on the calling "
+                      "thread: make the world's context current before creating it");
+        r->gl_loaded = false;
+        err = TW_ERR_STATE;
+        goto fail;
+    }
     {
         /* An error left by the host's own calls is not ours (cleared); one
          * of memory is the context's: nothing drawn with it can be trusted. */
@@ -170,6 +178,8 @@ int tw_renderer_create(uint32_t width, uint32_t height, tw_gl_get_proc_fn get_pr
     if (err)
         goto fail;
     upload_box(r);
+    if (gl->FenceSync && gl->IsSync && gl->DeleteSync)
+        r->token = gl->FenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
     tw_renderer_queries_init(r);
     /* Draws go out as one multi-draw of indirect commands where the
      * context has them (core since 4.3, base instances since 4.2). */
@@ -202,6 +212,16 @@ fail:
         tw_renderer_leave(r);
     tw_renderer_destroy(r);
     return err;
+}
+
+bool tw_renderer_current(const struct tw_renderer *r)
+{
+    if (!r->gl_loaded)
+        return false;
+    const struct tw_gl *gl = &r->gl;
+    if (r->token && !gl->IsSync(r->token))
+        return false;
+    return !r->box_vao || gl->IsVertexArray(r->box_vao);
 }
 
 const struct tw_gl *tw_renderer_gl(const struct tw_renderer *r)
@@ -241,6 +261,15 @@ void tw_renderer_destroy(struct tw_renderer *r)
     if (!r)
         return;
     const struct tw_gl *gl = &r->gl;
+    if (r->gl_loaded && !tw_renderer_current(r)) {
+        /* Its GL objects went with the context, or belong to one that is not
+         * current here: deleting names in another context would free the
+         * host's objects. Only memory is freed. */
+        tw_log_printf(&r->log, TW_LOG_WARN, "the world was destroyed without its OpenGL "
+                      "context current on the calling thread: its GL objects were left to "
+                      "the context (freed with it)");
+        r->gl_loaded = false;
+    }
     if (r->gl_loaded)
         tw_renderer_enter(r);
     tw_renderer_queries_finish(r);
@@ -258,6 +287,8 @@ void tw_renderer_destroy(struct tw_renderer *r)
         if (r->depth_texture)
             gl->DeleteTextures(1, &r->depth_texture);
         gl->DeleteFramebuffers(1, &r->fbo);
+        if (r->token)
+            gl->DeleteSync(r->token);
         tw_programs_finish(&r->programs, gl);
         tw_renderer_leave(r);
     }

@@ -72,6 +72,12 @@ void tw_renderer_destroy(struct tw_renderer *r);
 /* The renderer's GL entry points, for the world's other GL objects (its
  * timers); valid until it is destroyed. */
 const struct tw_gl *tw_renderer_gl(const struct tw_renderer *r);
+/* True when the renderer's GL context is the one current on the calling
+ * thread (its objects can be used): false with no context current, or
+ * another that does not share its objects. A shared context of the same
+ * share group is told apart only while the host has no vertex array of the
+ * same name in it. A few GL calls; no wait. */
+bool tw_renderer_current(const struct tw_renderer *r);
 
 /* Every call below that draws or reads runs between enter and leave: enter
  * saves the host's GL state (the first of nested calls) and sets what the

@@ -20,7 +20,8 @@
 
 #include "runtime/stream.h"
 
-enum render_state { R_FREE = 0, R_LOADING, R_READY, R_REFUSED };
+/* R_EMPTY: the provider's generate() found nothing there (TW_GENERATE_EMPTY). */
+enum render_state { R_FREE = 0, R_LOADING, R_READY, R_REFUSED, R_EMPTY };
 enum job_state { J_NONE = 0, J_QUEUED, J_RUNNING, J_DONE };
 
 struct job_result {
@@ -30,6 +31,7 @@ struct job_result {
     struct tw_bvh **lod_bvhs;    /* one per level */
     uint64_t bytes_cpu;          /* what ts, bvh and the levels cost (0 on failure) */
     int err;
+    bool empty;                  /* generate() found the cell empty: no ts */
     char message[256];
 };
 
@@ -48,6 +50,8 @@ struct entry {
     uint32_t lod_content;        /* R_READY with levels: the renderer's content of level 1 */
     uint32_t next_free;
     bool reload;                 /* this cell's tile had been evicted before */
+    uint32_t attempts;           /* R_REFUSED: refusals in a row while in sight */
+    uint64_t retry_frame;        /* R_REFUSED: asked again from this frame (0: never) */
     /* Under the lock. */
     enum job_state jstate;
     bool discard;                /* invalidated or cancelled while running: drop the result */
@@ -73,6 +77,7 @@ struct worker {
                                             left behind comes back */
     struct tw_bvh_settings bvh;
     bool lods;                           /* build the tiles' levels of detail */
+    uint64_t max_triangles, max_bytes;   /* caps of a tile (0: none) */
     pthread_t thread;
     bool started;
     /* Under the lock. */

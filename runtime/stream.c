@@ -33,9 +33,20 @@ static struct entry *find(const struct tw_stream *s, struct tw_cell cell, uint32
 static void event(struct tw_stream *s, struct tw_cell cell, enum tw_tile_event_kind kind,
                   uint64_t bytes)
 {
-    const struct tw_tile_event e = {cell, kind, bytes, 0, false};
+    const struct tw_tile_event e = {.cell = cell, .kind = kind, .bytes = bytes};
     if (s->on_event)
         s->on_event(s->event_user, &e);
+}
+
+/* The frame from which a tile refused for the attempt-th time in a row is
+ * asked for again: retry_after frames later, twice as late each time; 0
+ * after retry_max refusals (or with no retries). */
+static uint64_t retry_frame(const struct tw_stream *s, uint32_t attempt)
+{
+    if (!s->set.retry_after || attempt > s->set.retry_max)
+        return 0;
+    const uint32_t shift = attempt - 1 < 20 ? attempt - 1 : 20;
+    return s->frame + ((uint64_t)s->set.retry_after << shift);
 }
 
 /* A fresh entry for cell (its map entry made too), or NULL. */
@@ -158,30 +169,54 @@ static int make_ready(struct tw_stream *s, uint32_t k)
             snprintf(r.message, sizeof(r.message), "cannot upload it: %s",
                      tw_error_to_str(r.err));
     }
+    if (r.empty) {
+        /* Nothing there: kept, like a refusal, without the error. */
+        e->rstate = R_EMPTY;
+        e->attempts = 0;
+        s->stats.loads_done++;
+        s->totals.loads_done++;
+        const struct tw_tile_event ev = {.cell = e->cell, .kind = TW_TILE_READY, .empty = true,
+                                         .latency = (uint32_t)(s->frame - e->request_frame)};
+        if (s->on_event)
+            s->on_event(s->event_user, &ev);
+        return TW_OK;
+    }
     if (r.err) {
+        const uint32_t attempt = r.err == TW_ERR_NOMEM ? 1 : e->attempts + 1;
+        const uint64_t retry = r.err == TW_ERR_NOMEM ? s->frame + 1 : retry_frame(s, attempt);
         /* Out of memory comes tile after tile: one line, the rest counted. */
         if (r.err != TW_ERR_NOMEM || !s->quiet_nomem)
-            tw_log_printf(s->set.log, TW_LOG_ERROR, "provider %s: cell (%lld, %lld): %s%s",
+            tw_log_printf(s->set.log, TW_LOG_ERROR, "provider %s: cell (%lld, %lld): %s%s%s",
                           s->p->name ? s->p->name : "", (long long)e->cell.i,
                           (long long)e->cell.j, r.message,
                           r.err == TW_ERR_NOMEM ? " (further tiles refused for lack of memory "
-                                                  "are counted, not logged)" : "");
+                                                  "are counted, not logged)" : "",
+                          r.err == TW_ERR_NOMEM ? ""
+                          : retry ? " (asked again later)"
+                                  : " (not asked again while in sight)");
+        struct tw_tile_event ev = {.cell = e->cell, .kind = TW_TILE_REFUSED, .error = r.err,
+                                   .attempt = attempt,
+                                   .retry_in = retry ? (uint32_t)(retry - s->frame) : 0};
+        snprintf(ev.message, sizeof(ev.message), "%s", r.message);
         tw_stream_job_free(&r);
         s->stats.refused++;
         s->totals.refused++;
-        const struct tw_cell cell = e->cell;
         if (r.err == TW_ERR_NOMEM) {
             /* The machine's failure, not the cell's: nothing is kept, the
              * cell is asked for again when it is next wanted, and a frame
              * that waits for it fails (its image would lack the tile). */
             s->quiet_nomem = true;
-            tw_cell_map_remove(s->by_cell, cell);
+            tw_cell_map_remove(s->by_cell, e->cell);
             release_entry(s, k);
-            event(s, cell, TW_TILE_REFUSED, 0);
+            if (s->on_event)
+                s->on_event(s->event_user, &ev);
             return TW_ERR_NOMEM;
         }
         e->rstate = R_REFUSED;
-        event(s, cell, TW_TILE_REFUSED, 0);
+        e->attempts = attempt;
+        e->retry_frame = retry;
+        if (s->on_event)
+            s->on_event(s->event_user, &ev);
         return TW_OK;
     }
     e->ts = r.ts;
@@ -201,8 +236,10 @@ static int make_ready(struct tw_stream *s, uint32_t k)
         tw_cell_map_remove(s->evicted, e->cell);
     }
     s->stats.ms_upload += tw_clock_monotonic_ms() - t0;
-    const struct tw_tile_event ev = {e->cell, TW_TILE_READY, e->bytes_cpu + e->bytes_gpu,
-                                     (uint32_t)(s->frame - e->request_frame), e->reload};
+    const struct tw_tile_event ev = {.cell = e->cell, .kind = TW_TILE_READY,
+                                     .bytes = e->bytes_cpu + e->bytes_gpu,
+                                     .latency = (uint32_t)(s->frame - e->request_frame),
+                                     .reload = e->reload};
     if (s->on_event)
         s->on_event(s->event_user, &ev);
     return TW_OK;
@@ -247,7 +284,7 @@ static void drop_entry(struct tw_stream *s, uint32_t k)
         release_entry(s, k);
         return;
     }
-    if (e->rstate == R_REFUSED) {
+    if (e->rstate == R_REFUSED || e->rstate == R_EMPTY) {
         release_entry(s, k);
         return;
     }
@@ -422,10 +459,11 @@ void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame)
     pthread_mutex_unlock(&s->pool->lock);
 
     /* Tiles unseen for evict_after frames retire, as tile instances do;
-     * refused cells are asked again once they have been out of sight. */
+     * refused cells are asked again once they have been out of sight (and
+     * when their retry is due: tw_stream_get). */
     for (uint32_t k = 0; k < s->entry_count; k++) {
         struct entry *e = &s->entries[k];
-        if ((e->rstate != R_READY && e->rstate != R_REFUSED) ||
+        if ((e->rstate != R_READY && e->rstate != R_REFUSED && e->rstate != R_EMPTY) ||
             e->wanted_frame + s->set.evict_after >= frame)
             continue;
         const bool ready = e->rstate == R_READY;
@@ -531,7 +569,17 @@ int tw_stream_get(struct tw_stream *s, struct tw_cell cell, float distance, unsi
     uint32_t k;
     struct entry *e = find(s, cell, &k);
     const bool touch = !(flags & (TW_TILE_SOURCE_RESIDENT | TW_TILE_SOURCE_QUIET));
-    if (e && (e->rstate == R_READY || e->rstate == R_REFUSED)) {
+    if (e && e->rstate == R_REFUSED && e->retry_frame && e->retry_frame <= s->frame &&
+        !(flags & TW_TILE_SOURCE_RESIDENT)) {
+        /* Its retry is due: requested anew, its refusals still counted. */
+        const uint32_t attempts = e->attempts;
+        drop_entry(s, k);
+        e = request(s, cell, distance, &k);
+        if (!e)
+            return TW_ERR_NOMEM;
+        e->attempts = attempts;
+    }
+    if (e && (e->rstate == R_READY || e->rstate == R_REFUSED || e->rstate == R_EMPTY)) {
         if (touch)
             mark_used(s, e);
         fill(e, max_error, out);
@@ -619,6 +667,16 @@ void tw_stream_invalidate(struct tw_stream *s, struct tw_cell cell)
         s->totals.evictions++;
         event(s, cell, TW_TILE_EVICTED, bytes);
     }
+}
+
+bool tw_stream_retry(struct tw_stream *s, struct tw_cell cell)
+{
+    uint32_t k;
+    struct entry *e = find(s, cell, &k);
+    if (!e || e->rstate != R_REFUSED)
+        return false;
+    drop_entry(s, k);
+    return true;
 }
 
 void tw_stream_invalidate_rect(struct tw_stream *s, struct tw_cell lo, struct tw_cell hi)

@@ -50,6 +50,12 @@ struct tw_stream_settings {
     bool lods;                       /* build each tile's levels of detail (DESIGN §17) */
     uint32_t stop_ms;                /* how long destroy waits for jobs still running;
                                         0: TW_STREAM_STOP_MS */
+    uint32_t retry_after;            /* a refused tile is asked again this many frames
+                                        later, twice as late each time (0: never) */
+    uint32_t retry_max;              /* at most this many times while in sight */
+    uint64_t max_triangles;          /* a tile with more triangles is refused (0: none) */
+    uint64_t max_bytes;              /* a tile whose CPU bytes exceed this is refused
+                                        (0: none) */
     const struct tw_log *log;        /* borrowed; called on the render thread only */
 };
 
@@ -111,6 +117,9 @@ bool tw_stream_has(const struct tw_stream *s, struct tw_cell cell);
  * discarded); the next get() makes it afresh with a new instance key.
  * Between enter and leave. */
 void tw_stream_invalidate(struct tw_stream *s, struct tw_cell cell);
+/* A refused cell's tile is asked for again when next wanted; false if the
+ * cell's tile was not refused. Between enter and leave. */
+bool tw_stream_retry(struct tw_stream *s, struct tw_cell cell);
 /* Drops the tile of every cell in [lo, hi] (inclusive) that the stream holds. */
 void tw_stream_invalidate_rect(struct tw_stream *s, struct tw_cell lo, struct tw_cell hi);
 

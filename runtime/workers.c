@@ -67,8 +67,31 @@ void tw_stream_job_run(struct worker *wk, struct tw_cell cell, struct job_result
         return;
     }
     err = p->generate(p->user, cell, r->ts);
+    if (err == TW_GENERATE_EMPTY) {
+        r->empty = true;
+        goto out;
+    }
+    if (err > 0) {
+        fail(r, TW_ERR_INVALID, "the provider's generate() returned %d: neither TW_OK, "
+             "TW_GENERATE_EMPTY nor an error", err);
+        goto out;
+    }
     if (err) {
-        fail(r, err, "the provider could not make it: %s", tw_error_to_str(err));
+        const char *why = tw_tileset_failure(r->ts);
+        if (why)
+            fail(r, err, "the provider could not make it: %s (%s)", why, tw_error_to_str(err));
+        else
+            fail(r, err, "the provider could not make it: %s", tw_error_to_str(err));
+        goto out;
+    }
+    uint64_t triangles = 0;
+    for (uint32_t k = 0; k < r->ts->prototype_count; k++)
+        for (uint32_t q = 0; q < r->ts->prototypes[k].instance_count; q++)
+            triangles += r->ts->meshes[r->ts->prototypes[k].instances[q].mesh].triangle_count;
+    if (wk->max_triangles && triangles > wk->max_triangles) {
+        fail(r, TW_ERR_LIMIT, "the tile has %llu triangles, over the cap of %llu a tile "
+             "(max_tile_triangles)", (unsigned long long)triangles,
+             (unsigned long long)wk->max_triangles);
         goto out;
     }
     if (r->ts->prototype_count != 1) {
@@ -103,6 +126,12 @@ void tw_stream_job_run(struct worker *wk, struct tw_cell cell, struct job_result
     }
     (void)tw_bvh_pack(&r->bvh);
     r->bytes_cpu = tw_tileset_bytes(r->ts) + r->bvh->bytes;
+    if (wk->max_bytes && r->bytes_cpu > wk->max_bytes) {
+        fail(r, TW_ERR_LIMIT, "the tile takes %llu bytes (geometry, clusters, BVH), over the "
+             "cap of %llu a tile (max_tile_bytes)", (unsigned long long)r->bytes_cpu,
+             (unsigned long long)wk->max_bytes);
+        goto out;
+    }
     if (wk->lods) {
         /* Its levels of detail (DESIGN §17), made here with the tile. */
         err = tw_lods_build(r->ts, p->max_cluster_triangles ? p->max_cluster_triangles : 2048,
@@ -126,6 +155,7 @@ void tw_stream_job_run(struct worker *wk, struct tw_cell cell, struct job_result
     }
     return;
 out:
+    r->bytes_cpu = 0;
     tw_stream_job_free_levels(&r->lods, &r->lod_bvhs);
     tw_bvh_destroy(r->bvh);
     r->bvh = NULL;
@@ -331,6 +361,8 @@ int tw_stream_workers_start(struct tw_stream *s)
     s->inline_worker.provider = *s->p;
     s->inline_worker.bvh = s->set.bvh;
     s->inline_worker.lods = s->set.lods;
+    s->inline_worker.max_triangles = s->set.max_triangles;
+    s->inline_worker.max_bytes = s->set.max_bytes;
     err = tw_bvh_builder_create(&(struct tw_log){capture_log, &s->inline_worker}, 0,
                                 &s->inline_worker.builder);
     if (!err && s->set.workers > 0) {

@@ -15,6 +15,8 @@
 #include "tiles/tiles-internal.h"
 #include "tileworld/runtime.h"
 
+#include <stdatomic.h>
+
 #define TW_ORACLE_BLOCK 8
 
 /* The accuracy oracle: every cluster vfc would draw, rendered into an
@@ -95,6 +97,13 @@ struct tw_world_hlod {
 
 struct tw_world {
     struct tw_world_settings s;
+    /* The thread contract (README "Threads and callbacks"): set while a call
+     * that changes the world runs, so that a call made from inside it (a
+     * callback re-entering) or beside it (another thread) is refused; and
+     * while such a refusal is being logged (a logger that re-enters is
+     * refused without another line). */
+    atomic_bool busy;
+    atomic_bool refusing;
     struct tw_world_tuning t;      /* the methods' parameters (runtime/internal.h) */
     struct tw_renderer *renderer;
     /* What the world shows: the host's provider, or one made of the fixed
@@ -245,5 +254,15 @@ void tw_world_keep_budget(struct tw_world *w, const struct method_state *ms,
 void tw_debug_finish(struct tw_world *w);
 /* After the timed part of a frame: the boxes of the debug views that are on. */
 int tw_debug_collect(struct tw_world *w, const struct method_state *ms, const struct tw_view *v);
+
+/* The thread contract: every call that changes the world, draws or reads
+ * its images begins with tw_world_enter(w, "render a frame", gl) and ends
+ * with tw_world_leave(w, gl) when it returned TW_OK. Refused (TW_ERR_STATE,
+ * one line logged: "cannot <what>: <why>"): a call while another runs on the
+ * world (re-entered from a callback, or from a second thread); and with gl,
+ * one whose thread does not have the world's context current. With gl the
+ * renderer is entered too (the host's GL state saved). */
+int tw_world_enter(struct tw_world *w, const char *call, bool gl);
+void tw_world_leave(struct tw_world *w, bool gl);
 
 #endif

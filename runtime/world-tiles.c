@@ -124,6 +124,10 @@ struct tw_stream_settings tw_world_stream_settings(struct tw_world *w,
         .key_base = key_base,
         .lods = w->lod_on,
         .stop_ms = w->s.shutdown_timeout_ms,
+        .retry_after = w->s.retry_after_frames == TW_NEVER_RETRY ? 0 : w->s.retry_after_frames,
+        .retry_max = w->s.retry_max,
+        .max_triangles = w->s.max_tile_triangles == UINT64_MAX ? 0 : w->s.max_tile_triangles,
+        .max_bytes = w->s.max_tile_bytes == UINT64_MAX ? 0 : w->s.max_tile_bytes,
         .log = &w->s.log,
     };
 }
@@ -138,12 +142,12 @@ int tw_world_start_stream(struct tw_world *w)
     return err;
 }
 
-/* What cell shows, checked: a shared prototype, or TW_TILE_OWN. */
+/* What cell shows, checked: a shared prototype, TW_TILE_OWN or TW_TILE_EMPTY. */
 static int content_of(struct tw_world *w, struct tw_cell cell, uint32_t *content)
 {
     const struct tw_tile_provider *p = &w->provider;
     const uint32_t c = p->content ? p->content(p->user, cell) : TW_TILE_OWN;
-    if (c == TW_TILE_OWN ? !w->stream : c >= w->shared_count) {
+    if (c != TW_TILE_EMPTY && (c == TW_TILE_OWN ? !w->stream : c >= w->shared_count)) {
         tw_log_printf(&w->s.log, TW_LOG_ERROR,
                       "%s %s: cell (%lld, %lld) shows %s %u, but there are %u shared "
                       "prototypes%s",
@@ -201,6 +205,11 @@ int tw_world_get_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float
          * provider's answer changed, which is an invalidation. */
         if (w->stream && tw_stream_has(w->stream, cell))
             tw_stream_invalidate(w->stream, cell);
+        if (c == TW_TILE_EMPTY) {
+            /* Nothing to draw, nothing to make: the frame only queries its box. */
+            *out = (struct tw_cull_tile){.key = TW_CULL_KEY_EMPTY};
+            return TW_OK;
+        }
         const uint32_t level = tw_lods_pick(&w->lods, c, max_error);
         if (level > 0) {
             const uint32_t k = w->lods.first[c] + level - 1;
@@ -228,7 +237,7 @@ void tw_world_prefetch_tile(void *ctx, struct tw_cell cell, uint32_t node_level,
     }
     const struct tw_tile_provider *p = &w->provider;
     if (!p->content || p->content(p->user, cell) == TW_TILE_OWN)
-        tw_stream_prefetch(w->stream, cell, distance);
+        tw_stream_prefetch(w->stream, cell, distance);   /* not for shared or empty cells */
 }
 
 /* Frames ahead the look-ahead predicts, and how many of the cells it would
@@ -358,7 +367,9 @@ int tw_world_invalidate_rect(struct tw_world *w, struct tw_cell lo, struct tw_ce
 {
     if (!w || lo.i > hi.i || lo.j > hi.j)
         return TW_ERR_INVALID;
-    tw_renderer_enter(w->renderer);
+    const int err = tw_world_enter(w, "invalidate cells", true);
+    if (err)
+        return err;
     if (w->stream) {
         if (lo.i == hi.i && lo.j == hi.j)
             tw_stream_invalidate(w->stream, lo);
@@ -366,7 +377,6 @@ int tw_world_invalidate_rect(struct tw_world *w, struct tw_cell lo, struct tw_ce
             tw_stream_invalidate_rect(w->stream, lo, hi);
     }
     tw_world_hlod_invalidate(w, lo, hi);
-    tw_renderer_leave(w->renderer);
     /* Every method's culling state of those cells: made for what they showed. */
     for (int m = 0; m < TW_METHOD_ALL; m++) {
         struct tw_cull_driver *d = w->methods[m].driver;
@@ -382,6 +392,20 @@ int tw_world_invalidate_rect(struct tw_world *w, struct tw_cell lo, struct tw_ce
             tw_cull_driver_forget_rect(d, lo, hi);
         }
     }
+    tw_world_leave(w, true);
+    return TW_OK;
+}
+
+int tw_world_retry_cell(struct tw_world *w, struct tw_cell cell)
+{
+    if (!w)
+        return TW_ERR_INVALID;
+    const int err = tw_world_enter(w, "retry a cell", true);
+    if (err)
+        return err;
+    if (w->stream)
+        tw_stream_retry(w->stream, cell);
+    tw_world_leave(w, true);
     return TW_OK;
 }
 

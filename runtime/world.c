@@ -114,6 +114,17 @@ void tw_world_default_settings(struct tw_world_settings *s)
         s->upload_budget_ms = 4.0f;
     if (s->shutdown_timeout_ms == 0)
         s->shutdown_timeout_ms = 5000;
+    if (s->retry_after_frames == 0)
+        s->retry_after_frames = 30;
+    if (s->retry_max == 0)
+        s->retry_max = 4;
+    if (s->max_tile_triangles == 0)
+        s->max_tile_triangles = TW_MAX_TILE_TRIANGLES;
+    if (s->max_tile_bytes == 0) {
+        s->max_tile_bytes = TW_MAX_TILE_BYTES;
+        if (s->cache_budget_bytes && s->cache_budget_bytes / 4 < s->max_tile_bytes)
+            s->max_tile_bytes = s->cache_budget_bytes / 4 ? s->cache_budget_bytes / 4 : 1;
+    }
     if (!(s->verify_tolerance > 0.0f))
         s->verify_tolerance = TW_VERIFY_TOLERANCE;
 }
@@ -221,6 +232,44 @@ static int shared_levels(struct tw_world *w, const struct tw_tileset *ts)
             w->lod_least_error = fminf(w->lod_least_error, w->lods.error[w->lods.first[p]]);
     }
     return err;
+}
+
+/* ---- the thread contract ---------------------------------------------------------------- */
+
+static void refuse(struct tw_world *w, const char *what, const char *why)
+{
+    /* A logger that calls into the world again is refused silently. */
+    if (atomic_exchange(&w->refusing, true))
+        return;
+    tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot %s: %s", what, why);
+    atomic_store(&w->refusing, false);
+}
+
+int tw_world_enter(struct tw_world *w, const char *what, bool gl)
+{
+    if (atomic_exchange_explicit(&w->busy, true, memory_order_acquire)) {
+        refuse(w, what, "the world is in a call already: a callback (selection, provider, "
+                        "logger) called into it, or a second thread did at the same time; a "
+                        "world is used from one thread at a time, and never from its callbacks");
+        return TW_ERR_STATE;
+    }
+    if (gl && !tw_renderer_current(w->renderer)) {
+        atomic_store_explicit(&w->busy, false, memory_order_release);
+        refuse(w, what, "the world's OpenGL context is not current on the calling thread "
+                        "(make it current first; a world is used on the thread where its "
+                        "context is current)");
+        return TW_ERR_STATE;
+    }
+    if (gl)
+        tw_renderer_enter(w->renderer);
+    return TW_OK;
+}
+
+void tw_world_leave(struct tw_world *w, bool gl)
+{
+    if (gl)
+        tw_renderer_leave(w->renderer);
+    atomic_store_explicit(&w->busy, false, memory_order_release);
 }
 
 /* A host's world draws with a method; the tools' may draw a limit too. */
@@ -373,6 +422,14 @@ uint32_t tw_world_destroy(struct tw_world *w)
 {
     if (!w)
         return 0;
+    if (atomic_load(&w->busy)) {
+        /* From a callback, inside a call on the world: freeing it would pull
+         * the frame from under that call. */
+        refuse(w, "destroy the world", "it is in a call already (destroyed from one of its "
+                                       "callbacks, or while another thread uses it): left as "
+                                       "it is");
+        return 0;
+    }
     uint32_t left_behind = 0;
     for (int m = 0; m < TW_METHOD_ALL; m++)
         tw_cull_driver_destroy(w->methods[m].driver);
@@ -412,9 +469,14 @@ uint32_t tw_world_destroy(struct tw_world *w)
 
 int tw_world_set_method(struct tw_world *w, enum tw_method m)
 {
-    if ((unsigned)m >= TW_METHOD_COUNT)
+    if (!w || (unsigned)m >= TW_METHOD_COUNT)
         return TW_ERR_INVALID;
-    return tw_world_set_method_or_limit(w, m);
+    int err = tw_world_enter(w, "switch the culling method", true);
+    if (err)
+        return err;
+    err = tw_world_set_method_or_limit(w, m);
+    tw_world_leave(w, true);
+    return err;
 }
 
 int tw_world_set_method_or_limit(struct tw_world *w, enum tw_method m)
@@ -640,9 +702,11 @@ int tw_world_frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fr
 {
     if (!w || !cam)
         return TW_ERR_INVALID;
-    tw_renderer_enter(w->renderer);
-    const int err = frame(w, cam, out);
-    tw_renderer_leave(w->renderer);
+    int err = tw_world_enter(w, "render a frame", true);
+    if (err)
+        return err;
+    err = frame(w, cam, out);
+    tw_world_leave(w, true);
     return err;
 }
 
@@ -650,6 +714,9 @@ int tw_world_finish(struct tw_world *w, struct tw_frame_stats *st)
 {
     if (!w)
         return TW_ERR_INVALID;
+    const int err = tw_world_enter(w, "finish the frame", true);
+    if (err)
+        return err;
     const double t0 = tw_clock_monotonic_ms(), cpu0 = tw_renderer_cpu_ms();
     tw_renderer_finish(w->renderer);
     if (st) {
@@ -658,6 +725,7 @@ int tw_world_finish(struct tw_world *w, struct tw_frame_stats *st)
         /* After glFinish the timers are back: reading them waits no more. */
         tw_gputime_current(&w->gputime, &st->gpu_ms, &st->gpu_ms_id);
     }
+    tw_world_leave(w, true);
     return TW_OK;
 }
 
@@ -670,9 +738,11 @@ int tw_world_read_rgb(struct tw_world *w, uint8_t *rgb)
 {
     if (!w || !rgb)
         return TW_ERR_INVALID;
-    tw_renderer_enter(w->renderer);
-    const int err = tw_renderer_read_rgb(w->renderer, rgb);
-    tw_renderer_leave(w->renderer);
+    int err = tw_world_enter(w, "read the image", true);
+    if (err)
+        return err;
+    err = tw_renderer_read_rgb(w->renderer, rgb);
+    tw_world_leave(w, true);
     return err;
 }
 
@@ -827,9 +897,11 @@ int tw_world_frame_fixed(struct tw_world *w, const struct tw_camera *cam,
 {
     if (!w || !cam || (count && !clusters))
         return TW_ERR_INVALID;
-    tw_renderer_enter(w->renderer);
-    const int err = frame_fixed(w, cam, clusters, count, out);
-    tw_renderer_leave(w->renderer);
+    int err = tw_world_enter(w, "draw the given set", true);
+    if (err)
+        return err;
+    err = frame_fixed(w, cam, clusters, count, out);
+    tw_world_leave(w, true);
     return err;
 }
 
@@ -837,8 +909,10 @@ int tw_world_blit(struct tw_world *w, uint32_t target, uint32_t width, uint32_t 
 {
     if (!w || width == 0 || height == 0 || width > 16384 || height > 16384)
         return TW_ERR_INVALID;
-    tw_renderer_enter(w->renderer);
+    const int err = tw_world_enter(w, "copy the image", true);
+    if (err)
+        return err;
     tw_renderer_blit(w->renderer, target, width, height);
-    tw_renderer_leave(w->renderer);
+    tw_world_leave(w, true);
     return TW_OK;
 }

@@ -163,6 +163,8 @@ uint32_t tw_lods_pick(const struct tw_lods *l, uint32_t p, float max_error);
  * the block's size. TW_ERR_INVALID on an unfinished tileset; on
  * TW_ERR_NOMEM *ts is unchanged and still valid. */
 int tw_tileset_pack(struct tw_tileset **ts);
+/* What tw_tileset_fail() recorded in ts, or NULL. */
+const char *tw_tileset_failure(const struct tw_tileset *ts);
 
 /* Bytes of a vertex in the renderer's buffers: its position in floats (12),
  * its normal in 10-bit integers (4), its RGBA colour in bytes (4). */

@@ -4,6 +4,7 @@
 #include "tiles/tiles-internal.h"
 
 #include <float.h>
+#include <stdarg.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -17,6 +18,7 @@ struct tileset {
     uint32_t material_cap, mesh_cap, prototype_cap, part_cap;
     uint32_t *instance_cap;       /* per prototype, prototype_cap of them; NULL once packed */
     uint64_t packed_bytes;        /* the size of the block tw_tileset_pack() made; 0: not one */
+    char failure[256];            /* why a provider could not make it (tw_tileset_fail) */
 };
 
 static struct tileset *impl(struct tw_tileset *ts)
@@ -49,6 +51,27 @@ int tw_tileset_create(const char *name, float w, float d, struct tw_tileset **ou
     ts->common_box = tw_box_empty();
     *out = ts;
     return TW_OK;
+}
+
+int tw_tileset_fail(struct tw_tileset *ts, int err, const char *fmt, ...)
+{
+    if (err >= 0)
+        err = TW_ERR_INVALID;
+    if (!ts || !fmt)
+        return err;
+    char msg[sizeof(impl(ts)->failure)];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof(msg), fmt, ap);
+    va_end(ap);
+    /* A provider's text, in a line of the world's log: escaped. */
+    tw_log_escape(msg, impl(ts)->failure, sizeof(impl(ts)->failure));
+    return err;
+}
+
+const char *tw_tileset_failure(const struct tw_tileset *ts)
+{
+    return ts && impl_const(ts)->failure[0] ? impl_const(ts)->failure : NULL;
 }
 
 void tw_tileset_destroy(struct tw_tileset *ts)

@@ -39,6 +39,8 @@
 
 void tw_gltf_default_settings(struct tw_gltf_settings *s)
 {
+    if (!s)
+        return;
     s->max_file_bytes = DEFAULT_MAX_FILE_BYTES;
     s->max_triangles = DEFAULT_MAX_TRIANGLES;
 }

@@ -17,7 +17,10 @@
  * debug flag.
  *
  * Threading: a context is current on one thread at a time; it is made current
- * on the thread that creates it.
+ * on the thread that creates it, and moves to another thread by
+ * tw_context_release() there and tw_context_make_current() on the other.
+ * Every call taking a NULL context returns TW_ERR_INVALID (or does
+ * nothing).
  */
 #ifndef TW_CONTEXT_H
 #define TW_CONTEXT_H
@@ -86,8 +89,14 @@ void tw_context_describe(const struct tw_context *ctx, struct tw_context_info *o
 const char *tw_context_api_name(enum tw_context_api api);
 /* The loader of the context's GL entry points (for tw_world_settings.get_proc). */
 tw_gl_get_proc_fn tw_context_get_proc(const struct tw_context *ctx);
-/* Makes the context current again (after another context was). */
+/* Makes the context current on the calling thread (after another context
+ * was, or to move it to this thread once released where it was). */
 int tw_context_make_current(struct tw_context *ctx);
+/* Releases the context from the calling thread, if it is current there
+ * (else does nothing), so that another thread can make it current: a
+ * context is current on one thread at a time, and a world is used where
+ * its context is current. */
+int tw_context_release(struct tw_context *ctx);
 /* Frees the context; accepts NULL. Destroy every world that uses it first. */
 void tw_context_destroy(struct tw_context *ctx);
 

@@ -8,9 +8,20 @@
  *   tw_world_read_rgb()           reads the frame's image
  *   tw_world_destroy()
  *
- * Threading: a world and its context are used from one thread at a time.
- * No global state: several worlds may live in one process (each needs its
- * GL context current when it is called).
+ * Threading: a world is used on the thread where its GL context is current,
+ * by one thread at a time, and never from its own callbacks (selection,
+ * provider, logger). Every call that draws, reads an image or changes the
+ * world checks this and refuses otherwise: TW_ERR_STATE, with one error
+ * line through the world's logger ("cannot render a frame: the world's
+ * OpenGL context is not current on the calling thread ..."). The getters
+ * (tw_world_settings, _tile_events, _drawn, _level, _last_view,
+ * _reversed_z, _cache_totals, _debug_boxes) only read what the last call
+ * left, and may be called from the callbacks. A world moves to another
+ * thread with its context (tw_context_release() where it was current, then
+ * tw_context_make_current() on the new thread). A NULL world or a NULL
+ * pointer argument is TW_ERR_INVALID (or NULL, 0, nothing for calls
+ * without an error code). No global state: several worlds may live in one
+ * process (each needs its GL context current when it is called).
  */
 #ifndef TW_RUNTIME_H
 #define TW_RUNTIME_H
@@ -70,9 +81,13 @@ enum tw_tile_event_kind {
     TW_TILE_READY = 0,      /* generated, built and uploaded: it can be drawn */
     TW_TILE_EVICTED,        /* it left the cache (budget, or invalidated) */
     TW_TILE_REFUSED,        /* generate() failed, or the tile exceeded the provider's bound
-                               (the cell shows nothing until it is invalidated or has been
-                               out of sight); or memory ran out making or uploading it (it
-                               is asked for again when next wanted) */
+                               or a cap (max_tile_triangles, max_tile_bytes): the cell
+                               shows nothing until it is asked for again (retry_after_frames
+                               later, twice as late each time, at most retry_max times
+                               while in sight; after it has been out of sight; when it is
+                               invalidated or tw_world_retry_cell() is called); or memory
+                               ran out making or uploading it (asked for again when next
+                               wanted) */
 };
 
 struct tw_tile_event {
@@ -81,6 +96,16 @@ struct tw_tile_event {
     uint64_t bytes;         /* what the tile costs (READY) or freed (EVICTED), CPU + GPU */
     uint32_t latency;       /* READY: frames from its request to ready */
     bool reload;            /* READY: the cell's tile had been evicted before (lately) */
+    bool empty;             /* READY: generate() found the cell empty (TW_GENERATE_EMPTY):
+                               nothing to draw, bytes 0 */
+    int error;              /* REFUSED: why, a negative tw_error (TW_ERR_LIMIT for the
+                               bound and the caps, else what generate() returned) */
+    uint32_t attempt;       /* REFUSED: refusals of the cell in a row, from 1 */
+    uint32_t retry_in;      /* REFUSED: frames (of any method) until the cell is asked for
+                               again if still wanted (0: not before it leaves sight, is
+                               invalidated or retried) */
+    char message[256];      /* REFUSED: the reason in words, as logged (the provider's own,
+                               given through tw_tileset_fail(), when it gave one) */
 };
 
 /* Settings of a world. Zero-initialisable: tw_world_create() resolves every
@@ -97,6 +122,20 @@ struct tw_world_settings {
     uint64_t cache_budget_bytes;       /* every byte the tiles cost, CPU and GPU; 0: none */
     uint64_t upload_budget_bytes;      /* per frame, of tiles not yet needed; default 32 MiB */
     float upload_budget_ms;            /* per frame, likewise; default 4 */
+    uint32_t retry_after_frames;       /* a refused tile is asked for again this many frames
+                                          later, then twice as late each time; default (0)
+                                          30; TW_NEVER_RETRY: only when it leaves sight, is
+                                          invalidated or tw_world_retry_cell() is called */
+    uint32_t retry_max;                /* how many times at most while in sight; default
+                                          (0) 4 */
+    uint64_t max_tile_triangles;       /* a generated tile with more triangles is refused
+                                          (TW_ERR_LIMIT, the cell and the cap logged); default
+                                          (0) TW_MAX_TILE_TRIANGLES; UINT64_MAX: no cap */
+    uint64_t max_tile_bytes;           /* likewise for what a tile takes in memory (its
+                                          geometry, clusters and BVH); default (0)
+                                          TW_MAX_TILE_BYTES, or a quarter of
+                                          cache_budget_bytes when that is less;
+                                          UINT64_MAX: no cap */
     uint32_t shutdown_timeout_ms;      /* how long tw_world_destroy() waits for a provider's
                                           generate() calls still running before it leaves
                                           them behind; default (0) 5000 */
@@ -123,6 +162,16 @@ struct tw_world_settings {
     tw_gl_get_proc_fn get_proc;        /* loader of the current context; required */
     struct tw_log log;                 /* copied; zeroed: silent */
 };
+
+/* tw_world_settings.retry_after_frames: a refused tile is not asked for
+ * again while in sight. */
+#define TW_NEVER_RETRY UINT32_MAX
+/* The defaults of the caps of one generated tile: about a hundred times the
+ * largest tile of the built-in providers (city-gen's: 41 k triangles, 2.1 MiB
+ * of geometry and clusters), so that a provider's runaway cell is refused
+ * instead of filling the memory. */
+#define TW_MAX_TILE_TRIANGLES 4000000ull
+#define TW_MAX_TILE_BYTES (256ull << 20)
 
 /* tw_world_settings.max_screen_error: no levels of detail. */
 #define TW_FULL_DETAIL (-1.0f)
@@ -233,7 +282,10 @@ struct tw_world;
 /* Creates a world; the GL context that s->get_proc belongs to must be
  * current. Uploads the tileset's meshes once. The caller owns *out. */
 int tw_world_create(const struct tw_world_settings *s, struct tw_world **out);
-/* Destroys w (NULL: nothing), with its GL context current, and returns the
+/* Destroys w (NULL: nothing), with its GL context current (without it, the
+ * world's memory is freed but its GL objects are left to the context, with
+ * a warning; from inside a call on the world, e.g. from a callback, it is
+ * refused with an error and nothing is freed), and returns the
  * number of tile workers left behind: 0, unless a provider's generate()
  * was still running shutdown_timeout_ms after the destroy began. Such a
  * call is not waited for any longer: the destroy logs one error (the
@@ -297,6 +349,10 @@ const struct tw_tile_event *tw_world_tile_events(const struct tw_world *w, size_
 int tw_world_invalidate(struct tw_world *w, struct tw_cell cell);
 /* The same for every cell in [lo, hi] (inclusive in i and j). */
 int tw_world_invalidate_rect(struct tw_world *w, struct tw_cell lo, struct tw_cell hi);
+/* Asks for a refused cell's tile again the next time a frame needs it (the
+ * host has fixed what made its provider fail), whatever the retry policy
+ * says; nothing for a cell whose tile was not refused. */
+int tw_world_retry_cell(struct tw_world *w, struct tw_cell cell);
 
 /* The view of the last frame (TW_ERR_STATE before the first): its camera
  * cell, which is the origin of the frame's coordinates (view-relative

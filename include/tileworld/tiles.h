@@ -256,7 +256,8 @@ int tw_tileset_finish(struct tw_tileset *ts, uint32_t max_cluster_triangles);
 /* ---- selection ------------------------------------------------------------ */
 
 /* A host's world generator: returns the prototype shown at cell, which must
- * be < the tileset's prototype_count. Must be a pure function of the cell. */
+ * be < the tileset's prototype_count, or TW_TILE_EMPTY for a cell that shows
+ * nothing. Must be a pure function of the cell. */
 typedef uint32_t (*tw_select_fn)(void *user, struct tw_cell cell);
 
 /* How cells choose prototypes. Zero-initialisable: seed 0, not periodic,
@@ -287,6 +288,15 @@ struct tw_drawn_cluster {
 
 /* What tw_tile_provider.content() answers for a cell with content of its own. */
 #define TW_TILE_OWN UINT32_MAX
+/* What content() or a selection answers for a cell that shows nothing (sea,
+ * void): no tile is made, nothing is drawn or logged there, and visibility
+ * spreads through the cell (its box is still queried like any other: what
+ * lies behind it is seen through it). */
+#define TW_TILE_EMPTY (UINT32_MAX - 1u)
+/* What generate() returns for a cell it finds empty once it looks (the
+ * tileset it was given is then ignored): the same as TW_TILE_EMPTY, found
+ * on a worker; no error, no refusal. */
+#define TW_GENERATE_EMPTY 1
 
 /* A world generator: what each cell holds, made on demand. A fixed tileset
  * with a selection is the special case in which every cell's content is
@@ -306,8 +316,8 @@ struct tw_tile_provider {
     /* Prototypes that cells may share (may be NULL); finished, with the
      * provider's footprint; every prototype inside bound. */
     const struct tw_tileset *shared;
-    /* What cell shows: an index into shared's prototypes, or TW_TILE_OWN
-     * for content of its own made by generate(). Called on the render thread,
+    /* What cell shows: an index into shared's prototypes, TW_TILE_OWN for
+     * content of its own made by generate(), or TW_TILE_EMPTY (nothing). Called on the render thread,
      * often (every cell in view, every frame): must be cheap. Must be a pure
      * function of the cell until the host invalidates it; an answer that
      * changes for a cached cell is taken as an invalidation. NULL: every
@@ -319,13 +329,26 @@ struct tw_tile_provider {
      * _add_prototype, _add_instance); the library finishes it (clusters of
      * max_cluster_triangles) and builds its BVH. Called on worker threads,
      * concurrently for different cells: must be thread-safe, and a pure
-     * function of the cell until invalidated. Returns TW_OK, or a negative
-     * error: the cell then shows nothing (logged with its cell, counted).
+     * function of the cell until invalidated. Returns TW_OK;
+     * TW_GENERATE_EMPTY for a cell that holds nothing; or a negative error:
+     * the cell then shows nothing, the world logs it with its cell and the
+     * message the provider logged (see tw_tile_event), counts it, and asks
+     * again later (tw_world_settings.retry_after_frames).
      * NULL only if content() never answers TW_TILE_OWN. */
     int (*generate)(void *user, struct tw_cell cell, struct tw_tileset *ts);
     void *user;                         /* passed to content() and generate() */
     uint32_t max_cluster_triangles;     /* for generated tiles; 0: 2048 */
 };
+
+/* For a provider's generate() that cannot make its tile: records why in
+ * ts (printf's fmt, up to 255 bytes; the world puts it in its log line and
+ * in the TW_TILE_REFUSED event) and returns err (a negative tw_error; any
+ * other value becomes TW_ERR_INVALID), for
+ *     return tw_tileset_fail(ts, TW_ERR_IO, "%s: %s", path, strerror(errno)); */
+#if defined(__GNUC__)
+__attribute__((format(printf, 3, 4)))
+#endif
+int tw_tileset_fail(struct tw_tileset *ts, int err, const char *fmt, ...);
 
 /* Every heap byte a tileset holds (its arrays at their capacity, the mesh
  * data, the clusters): what it costs in memory, exactly. */
