@@ -313,6 +313,11 @@ int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, si
         tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot draw the debug view: no frame has been rendered yet");
         return TW_ERR_STATE;
     }
+    if (w->s.host.draw) {
+        tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot draw the debug view: the world draws "
+                      "into the host's framebuffer (host rendering) and has no image of its own");
+        return TW_ERR_STATE;
+    }
     const int err = tw_world_enter(w, "draw the debug view", true);
     if (err)
         return err;

@@ -46,6 +46,19 @@ static const GLenum capabilities[] = {
 };
 enum { TURNED_OFF = 14 };
 
+/* What the library relies on besides the capabilities it turns off. */
+static void set_library_state(const struct tw_gl *gl)
+{
+    gl->FrontFace(GL_CCW);
+    gl->PolygonMode(GL_FRONT_AND_BACK, GL_FILL);
+    gl->DepthRange(0.0, 1.0);
+    gl->BindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+    gl->BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+    gl->PixelStorei(GL_PACK_ROW_LENGTH, 0);
+    gl->PixelStorei(GL_PACK_SKIP_ROWS, 0);
+    gl->PixelStorei(GL_PACK_SKIP_PIXELS, 0);
+}
+
 void tw_gl_state_enter(const struct tw_gl *gl, bool has_clip_control, struct tw_gl_state *s)
 {
     gl->GetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &s->draw_fbo);
@@ -85,14 +98,14 @@ void tw_gl_state_enter(const struct tw_gl *gl, bool has_clip_control, struct tw_
     for (uint32_t k = 0; k < TURNED_OFF; k++)
         if (s->enabled & (1u << k))
             gl->Disable(capabilities[k]);
-    gl->FrontFace(GL_CCW);
-    gl->PolygonMode(GL_FRONT_AND_BACK, GL_FILL);
-    gl->DepthRange(0.0, 1.0);
-    gl->BindBuffer(GL_PIXEL_PACK_BUFFER, 0);
-    gl->BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
-    gl->PixelStorei(GL_PACK_ROW_LENGTH, 0);
-    gl->PixelStorei(GL_PACK_SKIP_ROWS, 0);
-    gl->PixelStorei(GL_PACK_SKIP_PIXELS, 0);
+    set_library_state(gl);
+}
+
+void tw_gl_state_reset(const struct tw_gl *gl)
+{
+    for (uint32_t k = 0; k < TURNED_OFF; k++)
+        gl->Disable(capabilities[k]);
+    set_library_state(gl);
 }
 
 void tw_gl_state_leave(const struct tw_gl *gl, bool has_clip_control, const struct tw_gl_state *s)

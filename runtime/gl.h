@@ -175,6 +175,9 @@ struct tw_gl_state {
  * no pixel buffers bound, plain pack layout). has_clip_control: the
  * context's glClipControl may be called. */
 void tw_gl_state_enter(const struct tw_gl *gl, bool has_clip_control, struct tw_gl_state *s);
+/* Sets the state tw_gl_state_enter() sets, without saving anything: after
+ * a host's callback that may have changed it. */
+void tw_gl_state_reset(const struct tw_gl *gl);
 /* Restores what tw_gl_state_enter() saved. */
 void tw_gl_state_leave(const struct tw_gl *gl, bool has_clip_control, const struct tw_gl_state *s);
 

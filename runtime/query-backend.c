@@ -128,6 +128,20 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
     if (count == 0)
         return;
     const double t0 = tw_clock_monotonic_ms();
+    if (r->host.draw) {
+        /* The host draws them, into its framebuffer: counted as one draw. */
+        if (r->recording)
+            tw_renderer_record_clusters(r, cell, content, clusters, count);
+        const struct tw_prototype *proto = tw_renderer_content(r, content, NULL);
+        for (uint32_t k = 0; proto && k < count; k++)
+            r->counters.triangles += proto->clusters[clusters[k]].triangle_count;
+        r->host.draw(r->host.user, cell, content, offset, clusters, count);
+        tw_renderer_after_host(r);
+        r->counters.draws++;
+        r->counters.clusters += count;
+        r->counters.ms_backend += tw_clock_monotonic_ms() - t0;
+        return;
+    }
     tw_renderer_enter_draw_mode(r);
     const struct tw_prototype *proto;
     const struct tw_gpu_buffers *b = tw_renderer_bind_content(r, content, &proto);
@@ -375,6 +389,13 @@ struct tw_query_backend tw_renderer_backend(struct tw_renderer *r)
         .flush = backend_flush,
         .read_depth = backend_read_depth,
     };
+    if (r->host.draw) {
+        /* The host's framebuffer: no conditional draws (the host's draws
+         * are its own), no depth of the renderer's to read or build on. */
+        be.draw_if = NULL;
+        be.read_depth = NULL;
+        return be;
+    }
     tw_renderer_gpu_hzb_ops(r, &be);
     return be;
 }

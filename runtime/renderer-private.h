@@ -155,6 +155,11 @@ struct tw_renderer {
      * which only its own context knows) tells whether the calling thread
      * has the world's context current (tw_renderer_current). */
     GLsync token;
+    /* Host rendering (tw_renderer_set_host): the host draws the clusters
+     * into its framebuffer, bound when the frame began, where the queries
+     * go too; host.draw NULL: the renderer draws into its own. */
+    struct tw_renderer_host host;
+    GLuint host_fbo;       /* the host's draw framebuffer of this frame */
     GLuint bound_vao;      /* the vertex array bound, 0 when not known */
     enum tw_renderer_mode mode;
     struct tw_render_counters counters;
@@ -308,5 +313,9 @@ void tw_renderer_draws_commands(struct tw_renderer *r, size_t at, uint32_t n);
 int tw_renderer_id_init(struct tw_renderer *r, GLenum depth_format);
 /* Deletes it (while gl_loaded, between enter and leave). */
 void tw_renderer_id_finish(struct tw_renderer *r);
+
+/* After a host's draw callback: the frame's framebuffer, viewport, depth
+ * test, clip control and the state enter sets, again (renderer.c). */
+void tw_renderer_after_host(struct tw_renderer *r);
 
 #endif

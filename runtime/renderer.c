@@ -295,19 +295,49 @@ void tw_renderer_destroy(struct tw_renderer *r)
     free(r);
 }
 
+void tw_renderer_set_host(struct tw_renderer *r, const struct tw_renderer_host *host)
+{
+    r->host = host ? *host : (struct tw_renderer_host){0};
+}
+
+bool tw_renderer_host_mode(const struct tw_renderer *r)
+{
+    return r->host.draw != NULL;
+}
+
+/* Where a frame draws: the renderer's framebuffer, or the host's. */
+static void bind_target(struct tw_renderer *r)
+{
+    const struct tw_gl *gl = &r->gl;
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->host.draw ? r->host_fbo : r->fbo);
+    gl->Viewport(0, 0, (GLsizei)r->width, (GLsizei)r->height);
+    gl->Enable(GL_DEPTH_TEST);
+    gl->DepthFunc(r->reversed_z ? GL_GEQUAL : GL_LEQUAL);
+}
+
+void tw_renderer_after_host(struct tw_renderer *r)
+{
+    const struct tw_gl *gl = &r->gl;
+    bind_target(r);
+    tw_gl_state_reset(gl);
+    if (r->reversed_z)
+        gl->ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+    r->bound_vao = 0;
+    r->mode = TW_RENDERER_MODE_NONE;
+}
+
 void tw_renderer_begin_frame(struct tw_renderer *r, const struct tw_view *v)
 {
     const struct tw_gl *gl = &r->gl;
     tw_renderer_queries_begin_frame(r, v);
-    gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
-    gl->Viewport(0, 0, (GLsizei)r->width, (GLsizei)r->height);
+    r->host_fbo = (GLuint)r->host_state.draw_fbo;
+    bind_target(r);
     gl->DepthMask(GL_TRUE);
     gl->ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
     gl->ClearColor(0.70f, 0.80f, 0.92f, 1.0f);
     gl->ClearDepth(r->reversed_z ? 0.0 : 1.0);
-    gl->Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    gl->Enable(GL_DEPTH_TEST);
-    gl->DepthFunc(r->reversed_z ? GL_GEQUAL : GL_LEQUAL);
+    if (!r->host.draw || r->host.clear)
+        gl->Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     const float *view_proj = r->reversed_z ? v->view_proj_rz : v->view_proj;
     gl->UseProgram(r->programs.query.program);
     gl->UniformMatrix4fv(r->programs.query.view_proj, 1, GL_FALSE, view_proj);

@@ -79,6 +79,22 @@ const struct tw_gl *tw_renderer_gl(const struct tw_renderer *r);
  * same name in it. A few GL calls; no wait. */
 bool tw_renderer_current(const struct tw_renderer *r);
 
+/* Host rendering: draw() instead of the renderer's own draws, into the
+ * framebuffer bound when a frame begins (the host's), whose depth the
+ * queries then test; cleared at the frame's start only with clear. The
+ * backend then has no conditional rendering, no depth read-back and no GPU
+ * HZB. After each draw() the renderer sets its own state again: the
+ * framebuffer, viewport, depth test and function, and what enter turned
+ * off (blending, scissor, stencil, ...). */
+struct tw_renderer_host {
+    void (*draw)(void *user, struct tw_cell cell, uint32_t content, const float offset[3],
+                 const uint32_t *clusters, uint32_t count);
+    void *user;
+    bool clear;
+};
+void tw_renderer_set_host(struct tw_renderer *r, const struct tw_renderer_host *host);
+bool tw_renderer_host_mode(const struct tw_renderer *r);
+
 /* Every call below that draws or reads runs between enter and leave: enter
  * saves the host's GL state (the first of nested calls) and sets what the
  * renderer relies on; leave restores it (the last). */

@@ -79,17 +79,25 @@ int tw_world_resolve_provider(struct tw_world *w)
 static int sink_upload(void *user, const struct tw_tileset *ts, const struct tw_bvh *const *bvhs,
                        uint32_t *content, uint64_t *bytes_gpu)
 {
-    return tw_renderer_upload(user, ts, bvhs, content, bytes_gpu);
+    const struct tw_world *w = user;
+    return tw_renderer_upload(w->renderer, ts, bvhs, content, bytes_gpu);
 }
 
 static void sink_release(void *user, uint32_t content)
 {
-    tw_renderer_release(user, content);
+    const struct tw_world *w = user;
+    uint32_t level;
+    const uint32_t base = tw_renderer_content_base(w->renderer, content, &level);
+    /* A host that draws is told once, for the tile (its levels go with it). */
+    if (w->s.host.release && level == 0 && tw_renderer_content(w->renderer, content, NULL))
+        w->s.host.release(w->s.host.user, base);
+    tw_renderer_release(w->renderer, content);
 }
 
 static void sink_levels(void *user, uint32_t base, uint32_t first, uint32_t count)
 {
-    tw_renderer_tag_levels(user, base, first, count);
+    const struct tw_world *w = user;
+    tw_renderer_tag_levels(w->renderer, base, first, count);
 }
 
 
@@ -113,7 +121,7 @@ struct tw_stream_settings tw_world_stream_settings(struct tw_world *w,
 {
     return (struct tw_stream_settings){
         .provider = provider,
-        .sink = {sink_upload, sink_release, sink_levels, w->renderer},
+        .sink = {sink_upload, sink_release, sink_levels, w},
         .bvh = w->t.bvh,
         .workers = w->s.workers,
         .policy = w->s.policy,

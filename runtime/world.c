@@ -182,6 +182,12 @@ static const char *out_of_range(const struct tw_world_settings *s, int methods)
         return "the max screen error is not a finite number of pixels up to 1000";
     if ((unsigned)s->method >= (unsigned)methods)
         return "the method is unknown";
+    if (s->host.draw && s->verify)
+        return "host rendering draws into the host's framebuffer, and verify compares the "
+               "world's own image: one or the other";
+    if (s->host.draw && (s->method == TW_METHOD_HZB || s->method == TW_METHOD_TILEQUERY_HZB))
+        return "host rendering has no HZB methods yet (they read the depth back from the "
+               "world's own framebuffer)";
     if (!(s->verify_tolerance >= 0.0f && s->verify_tolerance < 1.0f))
         return "the verify tolerance is not in [0, 1)";
     if ((unsigned)s->policy > TW_STREAM_SKIP)
@@ -270,6 +276,27 @@ void tw_world_leave(struct tw_world *w, bool gl)
     if (gl)
         tw_renderer_leave(w->renderer);
     atomic_store_explicit(&w->busy, false, memory_order_release);
+}
+
+/* Host rendering: the renderer's batch as the host names it. */
+static void host_draw(void *user, struct tw_cell cell, uint32_t content, const float offset[3],
+                      const uint32_t *clusters, uint32_t count)
+{
+    const struct tw_world *w = user;
+    struct tw_host_draw d = {.cell = cell, .clusters = clusters, .count = count};
+    d.prototype = tw_renderer_content_base(w->renderer, content, &d.level);
+    memcpy(d.offset, offset, sizeof(d.offset));
+    w->s.host.draw(w->s.host.user, &d);
+}
+
+/* Calls that need the world's own image, refused in host rendering. */
+static int own_image(struct tw_world *w, const char *what)
+{
+    if (!w->s.host.draw)
+        return TW_OK;
+    tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot %s: the world draws into the host's "
+                  "framebuffer (host rendering) and has no image of its own", what);
+    return TW_ERR_STATE;
 }
 
 /* A host's world draws with a method; the tools' may draw a limit too. */
@@ -399,6 +426,9 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
         .source = {w, tw_world_get_tile, w->stream ? tw_world_prefetch_tile : NULL},
     };
     tw_renderer_set_tile_query_box(w->renderer, &w->grid.common_box);
+    if (w->s.host.draw)
+        tw_renderer_set_host(w->renderer,
+                             &(struct tw_renderer_host){host_draw, w, w->s.host.clear});
     tw_renderer_set_deterministic(w->renderer, w->s.deterministic);
     tw_renderer_set_count_samples(w->renderer, w->t.chc.threshold > 0 || w->t.tilequery.threshold > 0);
     tw_renderer_set_mutation(w->renderer, w->t.mutate_query_shrink);
@@ -484,6 +514,13 @@ int tw_world_set_method_or_limit(struct tw_world *w, enum tw_method m)
     if (!w || (unsigned)m >= TW_METHOD_ALL)
         return TW_ERR_INVALID;
     m = tw_method_resolve(m);
+    if (w->s.host.draw && (m == TW_METHOD_HZB || m == TW_METHOD_TILEQUERY_HZB ||
+                           tw_method_limit(m))) {
+        tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot switch to %s: host rendering has no "
+                      "HZB methods or oracles yet (they read the depth back from the world's "
+                      "own framebuffer)", tw_method_name(m));
+        return TW_ERR_INVALID;
+    }
     struct method_state *ms = &w->methods[m];
     if (!ms->driver) {
         int err = create_driver(w, m, &ms->driver);
@@ -738,7 +775,9 @@ int tw_world_read_rgb(struct tw_world *w, uint8_t *rgb)
 {
     if (!w || !rgb)
         return TW_ERR_INVALID;
-    int err = tw_world_enter(w, "read the image", true);
+    int err = own_image(w, "read the image");
+    if (!err)
+        err = tw_world_enter(w, "read the image", true);
     if (err)
         return err;
     err = tw_renderer_read_rgb(w->renderer, rgb);
@@ -812,6 +851,8 @@ int tw_world_last_view(const struct tw_world *w, struct tw_world_view *out)
     memcpy(out->view, v->view, sizeof(out->view));
     memcpy(out->proj, v->proj, sizeof(out->proj));
     memcpy(out->proj_rz, v->proj_rz, sizeof(out->proj_rz));
+    memcpy(out->view_proj, v->view_proj, sizeof(out->view_proj));
+    memcpy(out->view_proj_rz, v->view_proj_rz, sizeof(out->view_proj_rz));
     return TW_OK;
 }
 
@@ -909,7 +950,9 @@ int tw_world_blit(struct tw_world *w, uint32_t target, uint32_t width, uint32_t 
 {
     if (!w || width == 0 || height == 0 || width > 16384 || height > 16384)
         return TW_ERR_INVALID;
-    const int err = tw_world_enter(w, "copy the image", true);
+    int err = own_image(w, "copy the image");
+    if (!err)
+        err = tw_world_enter(w, "copy the image", true);
     if (err)
         return err;
     tw_renderer_blit(w->renderer, target, width, height);

@@ -148,6 +148,12 @@ static void log_reentering(void *user, enum tw_log_level level, const char *msg)
         l->inner = tw_world_frame(l->w, &cam, NULL);
 }
 
+static void host_draw_nothing(void *user, const struct tw_host_draw *batch)
+{
+    (void)user;
+    (void)batch;
+}
+
 /* ---- NULL everywhere ------------------------------------------------------------------ */
 
 static void null_arguments(struct tw_world *w)
@@ -359,6 +365,26 @@ int main(void)
     CHECK(atomic_load(&pre.in_generate) == TW_ERR_STATE);
     CHECK(logged(&lines, &mark, 1, "cannot invalidate cells"));
     CHECK(tw_world_destroy(w3) == 0);
+
+    /* Host rendering: no image of the world's own, no verify, no HZB. */
+    struct tw_world_settings s4 = s;
+    s4.selection = (struct tw_selection){0};
+    s4.host.draw = host_draw_nothing;
+    s4.verify = true;
+    struct tw_world *w4 = NULL;
+    CHECK(tw_world_create(&s4, &w4) == TW_ERR_INVALID && !w4);
+    CHECK(logged(&lines, &mark, 1, "host rendering draws into the host's framebuffer"));
+    s4.verify = false;
+    CHECK(tw_world_create(&s4, &w4) == TW_OK);
+    if (w4) {
+        CHECK(tw_world_frame(w4, &cam, NULL) == TW_OK);
+        CHECK(tw_world_read_rgb(w4, img) == TW_ERR_STATE);
+        CHECK(tw_world_blit(w4, 0, W, H) == TW_ERR_STATE);
+        CHECK(tw_world_set_method(w4, TW_METHOD_HZB) == TW_ERR_INVALID);
+        CHECK(tw_world_set_method(w4, TW_METHOD_CHC) == TW_OK);
+        CHECK(logged(&lines, &mark, 3, "no HZB methods"));
+        tw_world_destroy(w4);
+    }
 
     CHECK(tw_world_destroy(w) == 0);
     tw_tileset_destroy(ts);

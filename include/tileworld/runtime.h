@@ -108,6 +108,44 @@ struct tw_tile_event {
                                given through tw_tileset_fail(), when it gave one) */
 };
 
+/* Host rendering (README "Host rendering"): the world streams, culls and
+ * budgets, and the host draws. One batch of clusters of one tile, to draw
+ * now. */
+struct tw_host_draw {
+    struct tw_cell cell;        /* the tile's cell */
+    uint32_t prototype;         /* its content, as tw_drawn_cluster names it */
+    uint32_t level;             /* the level of detail to draw: tw_world_level(prototype,
+                                   level) gives its prototype and tileset */
+    const uint32_t *clusters;   /* indices into that prototype's clusters, in order */
+    uint32_t count;
+    float offset[3];            /* the tile's origin, view-relative metres: every
+                                   instance is drawn at transform * p + offset, seen through
+                                   the frame's view (tw_world_last_view) */
+};
+
+struct tw_host_renderer {
+    /* Draws the batch now, on the render thread, inside tw_world_frame(),
+     * into the framebuffer that was bound when the frame was called (its
+     * size at least the world's width x height), with depth test and
+     * writes, the view's projection (proj_rz when tw_world_reversed_z(),
+     * else proj, with view) and the depth convention the world set up
+     * (reversed: the depth cleared to 0, GL_GEQUAL). The world's occlusion
+     * queries are drawn between batches into the same framebuffer and test
+     * its depth: a batch must write the depth its clusters make. The
+     * callback may change any GL state (programs, vertex arrays, buffers,
+     * uniforms, textures, masks, culling); the world sets what it needs
+     * again after each call. Non-NULL: the world is in host rendering. */
+    void (*draw)(void *user, const struct tw_host_draw *batch);
+    /* A generated tile's content (and its levels) leaves the world, on the
+     * render thread: what the host made for prototype can go. May be NULL.
+     * Shared content (a fixed tileset's, a provider's shared) is never
+     * released: it lives as long as the world. */
+    void (*release)(void *user, uint32_t prototype);
+    void *user;
+    bool clear;                 /* the world clears the framebuffer (colour to its sky, depth
+                                   to the far value) when a frame begins; else the host does */
+};
+
 /* Settings of a world. Zero-initialisable: tw_world_create() resolves every
  * zero field to its default (see tw_world_default_settings()). A world
  * shows either a fixed tileset (tileset + selection) or a provider. */
@@ -159,6 +197,8 @@ struct tw_world_settings {
                                           waited on: a run's counts then do not depend
                                           on the GPU's timing (tests, comparisons);
                                           slower, as latency is no longer hidden */
+    struct tw_host_renderer host;      /* host rendering when host.draw is set: no verify, no
+                                          HZB methods, no image of the world's own */
     tw_gl_get_proc_fn get_proc;        /* loader of the current context; required */
     struct tw_log log;                 /* copied; zeroed: silent */
 };
@@ -366,6 +406,9 @@ struct tw_world_view {
     float view[16];             /* column-major, view-relative world -> eye space */
     float proj[16];             /* eye -> clip, GL depth (z in [-w, w]) */
     float proj_rz[16];          /* eye -> clip, reversed depth (z in [0, w], near -> w) */
+    float view_proj[16];        /* proj * view and proj_rz * view, as the world computes
+                                   them: what its own draws and queries use, so that a host */
+    float view_proj_rz[16];     /* drawing with them writes the same depths */
     float near_plane, far_plane;/* metres */
     uint64_t frame;             /* the frame's number, from 1 */
 };
