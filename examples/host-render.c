@@ -9,10 +9,14 @@
  * depth the host's draws wrote. host.release() says when a generated tile
  * leaves the cache, so the host frees its copy.
  *
- * This host walks a street of the city-gen world generator with a small
- * cache budget (tiles come and go), and checks that its image matches the
- * one tileworld draws itself for the same frames (a second world, side by
- * side), and that every tile it uploaded and was told to release is freed.
+ * This host walks a street of the city-gen world generator under a cache
+ * budget (tiles come and go), converting each tile to its vertex format on
+ * tileworld's workers (host.prepare_worker) and uploading it when it is
+ * ready (host.prepare), and checks that its image matches the one
+ * tileworld draws itself for the same frames (a second world, side by
+ * side, with every method host rendering has), that the world's budget
+ * counts the bytes the host holds, and that every tile is freed. Set
+ * HOST_RENDER_VERBOSE for a line a frame.
  * It exits 0 when every check holds, else 1 with a message.
  *
  * Build it against an installed tileworld (glcorearb.h: libgl-dev):
@@ -20,6 +24,7 @@
  */
 #include <GL/glcorearb.h>
 #include <math.h>
+#include <stdatomic.h>
 #include <stdbool.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -144,11 +149,22 @@ static const char *const fs_src =
     "    o_color = vec4(mix(c, vec3(0.70, 0.80, 0.92), f), 1.0);\n"
     "}\n";
 
-/* The host's copy of one tileset: a vertex array per mesh. */
+/* The host's vertex format: position, normal, colour (RGBA8 as a float's
+ * bytes), 7 floats a vertex, interleaved. */
+enum { VERTEX_FLOATS = 7 };
+
+/* One tileset in the host's format: on the CPU (made on a worker), then
+ * on the GPU (a vertex array per mesh). */
 struct mesh_set {
     const struct tw_tileset *ts;
-    uint32_t owner;             /* the prototype whose release frees it */
-    GLuint *vao, *buffers;      /* mesh_count, and 4 buffers per mesh */
+    float **vertices;           /* per mesh, freed once uploaded */
+    GLuint *vao, *buffers;      /* per mesh; 2 buffers a mesh */
+    uint64_t bytes;             /* on the GPU */
+};
+
+/* What the host keeps for a generated tile: the tile and its levels. */
+struct tile_data {
+    struct mesh_set tile, levels;
 };
 
 struct host {
@@ -157,9 +173,10 @@ struct host {
     GLuint fbo, color, depth, program;
     GLint u_model, u_offset, u_view_proj, u_material, u_eye, u_fog;
     bool new_frame;             /* set before each tw_world_frame(): the view changed */
-    struct mesh_set *sets;
-    size_t set_count, set_cap;
-    uint64_t uploads, releases, batches;
+    struct mesh_set *shared;    /* shared content, uploaded when first drawn */
+    size_t shared_count, shared_cap;
+    atomic_ulong staged;        /* tiles made on the workers */
+    uint64_t prepared, released, dropped, batches, bytes;
     int failed;
 };
 
@@ -215,72 +232,161 @@ static int host_init(struct host *h, tw_gl_get_proc_fn get_proc)
     return 0;
 }
 
-static void free_set(const struct gl *gl, struct mesh_set *set)
+/* On any thread: ts in the host's vertex format. */
+static int stage(struct mesh_set *set, const struct tw_tileset *ts)
 {
-    gl->DeleteVertexArrays((GLsizei)set->ts->mesh_count, set->vao);
-    gl->DeleteBuffers((GLsizei)(4 * set->ts->mesh_count), set->buffers);
-    free(set->vao);
-    free(set->buffers);
-}
-
-/* The host's copy of ts, uploaded the first time one of its clusters is drawn. */
-static const struct mesh_set *upload(struct host *h, const struct tw_tileset *ts, uint32_t owner)
-{
-    for (size_t k = 0; k < h->set_count; k++)
-        if (h->sets[k].ts == ts)
-            return &h->sets[k];
-    if (h->set_count == h->set_cap) {
-        const size_t cap = h->set_cap ? 2 * h->set_cap : 64;
-        struct mesh_set *s = realloc(h->sets, cap * sizeof(*s));
-        if (!s)
-            return NULL;
-        h->sets = s;
-        h->set_cap = cap;
-    }
-    const struct gl *gl = &h->gl;
-    struct mesh_set *set = &h->sets[h->set_count];
     set->ts = ts;
-    set->owner = owner;
-    set->vao = calloc(ts->mesh_count ? ts->mesh_count : 1, sizeof(GLuint));
-    set->buffers = calloc(4 * (ts->mesh_count ? ts->mesh_count : 1), sizeof(GLuint));
-    if (!set->vao || !set->buffers) {
-        free(set->vao);
-        free(set->buffers);
-        return NULL;
-    }
-    gl->GenVertexArrays((GLsizei)ts->mesh_count, set->vao);
-    gl->GenBuffers((GLsizei)(4 * ts->mesh_count), set->buffers);
+    set->vertices = calloc(ts->mesh_count ? ts->mesh_count : 1, sizeof(float *));
+    if (!set->vertices)
+        return 1;
     for (uint32_t m = 0; m < ts->mesh_count; m++) {
         const struct tw_mesh *mesh = &ts->meshes[m];
-        const GLuint *b = &set->buffers[4 * m];
-        gl->BindVertexArray(set->vao[m]);
-        gl->BindBuffer(GL_ARRAY_BUFFER, b[0]);
-        gl->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(sizeof(float) * 3 * mesh->vertex_count),
-                       mesh->positions, GL_STATIC_DRAW);
-        gl->VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 0, NULL);
-        gl->EnableVertexAttribArray(0);
-        gl->BindBuffer(GL_ARRAY_BUFFER, b[1]);
-        gl->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(sizeof(float) * 3 * mesh->vertex_count),
-                       mesh->normals, GL_STATIC_DRAW);
-        gl->VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 0, NULL);
-        gl->EnableVertexAttribArray(1);
-        if (mesh->colors) {
-            gl->BindBuffer(GL_ARRAY_BUFFER, b[2]);
-            gl->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(4 * mesh->vertex_count), mesh->colors,
-                           GL_STATIC_DRAW);
-            gl->VertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, 0, NULL);
-            gl->EnableVertexAttribArray(2);
-        } else {
-            gl->DisableVertexAttribArray(2);   /* the current value: white (set per draw) */
+        float *v = malloc(sizeof(float) * VERTEX_FLOATS * (mesh->vertex_count ? mesh->vertex_count : 1));
+        if (!v)
+            return 1;
+        for (uint32_t k = 0; k < mesh->vertex_count; k++) {
+            static const uint8_t white[4] = {255, 255, 255, 255};
+            memcpy(v + VERTEX_FLOATS * k, mesh->positions + 3 * k, sizeof(float) * 3);
+            memcpy(v + VERTEX_FLOATS * k + 3, mesh->normals + 3 * k, sizeof(float) * 3);
+            memcpy(v + VERTEX_FLOATS * k + 6, mesh->colors ? mesh->colors + 4 * k : white, 4);
         }
-        gl->BindBuffer(GL_ELEMENT_ARRAY_BUFFER, b[3]);
-        gl->BufferData(GL_ELEMENT_ARRAY_BUFFER,
-                       (GLsizeiptr)(sizeof(uint32_t) * 3 * mesh->triangle_count), mesh->indices,
-                       GL_STATIC_DRAW);
+        set->vertices[m] = v;
+    }
+    return 0;
+}
+
+static void free_staged(struct mesh_set *set)
+{
+    for (uint32_t m = 0; set->vertices && m < set->ts->mesh_count; m++)
+        free(set->vertices[m]);
+    free(set->vertices);
+    set->vertices = NULL;
+}
+
+/* On the render thread: the staged set into GL buffers. */
+static int upload(struct host *h, struct mesh_set *set)
+{
+    const struct gl *gl = &h->gl;
+    const struct tw_tileset *ts = set->ts;
+    const uint32_t n = ts->mesh_count;
+    set->vao = calloc(n ? n : 1, sizeof(GLuint));
+    set->buffers = calloc(2 * (n ? n : 1), sizeof(GLuint));
+    if (!set->vao || !set->buffers)
+        return 1;
+    gl->GenVertexArrays((GLsizei)n, set->vao);
+    gl->GenBuffers((GLsizei)(2 * n), set->buffers);
+    for (uint32_t m = 0; m < n; m++) {
+        const struct tw_mesh *mesh = &ts->meshes[m];
+        const GLsizeiptr vbytes = (GLsizeiptr)(sizeof(float) * VERTEX_FLOATS * mesh->vertex_count);
+        const GLsizeiptr ibytes = (GLsizeiptr)(sizeof(uint32_t) * 3 * mesh->triangle_count);
+        const GLsizei stride = sizeof(float) * VERTEX_FLOATS;
+        gl->BindVertexArray(set->vao[m]);
+        gl->BindBuffer(GL_ARRAY_BUFFER, set->buffers[2 * m]);
+        gl->BufferData(GL_ARRAY_BUFFER, vbytes, set->vertices[m], GL_STATIC_DRAW);
+        gl->VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, stride, (const void *)0);
+        gl->VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, stride, (const void *)12);
+        gl->VertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, stride, (const void *)24);
+        for (GLuint a = 0; a < 3; a++)
+            gl->EnableVertexAttribArray(a);
+        gl->BindBuffer(GL_ELEMENT_ARRAY_BUFFER, set->buffers[2 * m + 1]);
+        gl->BufferData(GL_ELEMENT_ARRAY_BUFFER, ibytes, mesh->indices, GL_STATIC_DRAW);
+        set->bytes += (uint64_t)(vbytes + ibytes);
     }
     gl->BindVertexArray(0);
-    h->uploads++;
-    return &h->sets[h->set_count++];
+    free_staged(set);
+    return 0;
+}
+
+static void free_set(const struct gl *gl, struct mesh_set *set)
+{
+    if (!set->ts)
+        return;
+    free_staged(set);
+    if (set->vao) {
+        gl->DeleteVertexArrays((GLsizei)set->ts->mesh_count, set->vao);
+        gl->DeleteBuffers((GLsizei)(2 * set->ts->mesh_count), set->buffers);
+    }
+    free(set->vao);
+    free(set->buffers);
+    memset(set, 0, sizeof(*set));
+}
+
+/* tileworld's callback on a worker: the tile in the host's format. */
+static void *host_prepare_worker(void *user, struct tw_cell cell, const struct tw_tileset *tile,
+                                 const struct tw_tileset *levels)
+{
+    struct host *h = user;
+    (void)cell;
+    struct tile_data *t = calloc(1, sizeof(*t));
+    if (!t)
+        return NULL;
+    if (stage(&t->tile, tile) || (levels && stage(&t->levels, levels))) {
+        free_staged(&t->tile);
+        free_staged(&t->levels);
+        free(t);
+        return NULL;
+    }
+    atomic_fetch_add(&h->staged, 1);
+    return t;
+}
+
+/* tileworld's callback on the render thread: the tile is ready, upload it. */
+static void *host_prepare(void *user, uint32_t prototype, const struct tw_tileset *tile,
+                          const struct tw_tileset *levels, void *worker_data, uint64_t *bytes)
+{
+    struct host *h = user;
+    struct tile_data *t = worker_data;
+    (void)prototype;
+    if (!t || t->tile.ts != tile || (levels && t->levels.ts != levels) ||
+        upload(h, &t->tile) || (levels && upload(h, &t->levels))) {
+        h->failed++;
+        return t;
+    }
+    h->prepared++;
+    *bytes = t->tile.bytes + t->levels.bytes;
+    h->bytes += *bytes;
+    return t;
+}
+
+/* tileworld's callback: a generated tile left, or was dropped before it was ready. */
+static void host_release(void *user, uint32_t prototype, void *data)
+{
+    struct host *h = user;
+    struct tile_data *t = data;
+    if (prototype == TW_HOST_NOT_READY)
+        h->dropped++;
+    else
+        h->released++;
+    if (!t)
+        return;
+    h->bytes -= t->tile.bytes + t->levels.bytes;
+    free_set(&h->gl, &t->tile);
+    free_set(&h->gl, &t->levels);
+    free(t);
+}
+
+/* Shared content (a fixed tileset's, a provider's shared prototypes):
+ * never released; uploaded the first time it is drawn. */
+static const struct mesh_set *shared_set(struct host *h, const struct tw_tileset *ts)
+{
+    for (size_t k = 0; k < h->shared_count; k++)
+        if (h->shared[k].ts == ts)
+            return &h->shared[k];
+    if (h->shared_count == h->shared_cap) {
+        const size_t cap = h->shared_cap ? 2 * h->shared_cap : 8;
+        struct mesh_set *s = realloc(h->shared, cap * sizeof(*s));
+        if (!s)
+            return NULL;
+        h->shared = s;
+        h->shared_cap = cap;
+    }
+    struct mesh_set *set = &h->shared[h->shared_count];
+    memset(set, 0, sizeof(*set));
+    if (stage(set, ts) || upload(h, set)) {
+        free_set(&h->gl, set);
+        return NULL;
+    }
+    return &h->shared[h->shared_count++];
 }
 
 /* tileworld's callback: draw this batch now. */
@@ -290,8 +396,11 @@ static void host_draw(void *user, const struct tw_host_draw *d)
     const struct gl *gl = &h->gl;
     const struct tw_tileset *ts = NULL;
     const struct tw_prototype *proto = tw_world_level(h->world, d->prototype, d->level, &ts);
-    const struct mesh_set *set = proto ? upload(h, ts, d->prototype) : NULL;
-    if (!set) {
+    const struct tile_data *t = d->host_data;
+    const struct mesh_set *set = !proto ? NULL
+                                 : t    ? (d->level == 0 ? &t->tile : &t->levels)
+                                        : shared_set(h, ts);
+    if (!set || set->ts != ts || !set->vao) {
         h->failed++;
         return;
     }
@@ -309,7 +418,6 @@ static void host_draw(void *user, const struct tw_host_draw *d)
         gl->Uniform2fv(h->u_fog, 1, fog);
     }
     gl->Uniform3fv(h->u_offset, 1, d->offset);
-    gl->VertexAttrib4f(2, 1.0f, 1.0f, 1.0f, 1.0f);
     gl->Enable(GL_CULL_FACE);
     gl->CullFace(GL_BACK);
     gl->DepthMask(GL_TRUE);
@@ -323,21 +431,6 @@ static void host_draw(void *user, const struct tw_host_draw *d)
         gl->BindVertexArray(set->vao[part->mesh]);
         gl->DrawElements(GL_TRIANGLES, (GLsizei)(3 * part->triangle_count), GL_UNSIGNED_INT,
                          (const void *)(uintptr_t)(sizeof(uint32_t) * 3 * part->first_triangle));
-    }
-}
-
-/* tileworld's callback: a generated tile left the cache. */
-static void host_release(void *user, uint32_t prototype)
-{
-    struct host *h = user;
-    h->releases++;
-    for (size_t k = 0; k < h->set_count;) {
-        if (h->sets[k].owner == prototype) {
-            free_set(&h->gl, &h->sets[k]);
-            h->sets[k] = h->sets[--h->set_count];
-        } else {
-            k++;
-        }
     }
 }
 
@@ -375,13 +468,17 @@ int main(void)
     s.width = WIDTH;
     s.height = HEIGHT;
     s.view_distance = 400.0f;
-    s.cache_budget_bytes = 48u << 20;   /* tiles leave the cache as the walk goes on */
+    s.cache_budget_bytes = 160u << 20;  /* tiles leave the cache as the walk goes on */
     s.deterministic = true;
     s.get_proc = tw_context_get_proc(ctx);
     s.log = log;
     if (tw_world_create(&s, &own) != TW_OK)
         return 1;
-    s.host = (struct tw_host_renderer){.draw = host_draw, .release = host_release, .user = &h};
+    s.host = (struct tw_host_renderer){.draw = host_draw,
+                                       .prepare_worker = host_prepare_worker,
+                                       .prepare = host_prepare,
+                                       .release = host_release,
+                                       .user = &h};
     if (tw_world_create(&s, &h.world) != TW_OK)
         return 1;
 
@@ -431,37 +528,52 @@ int main(void)
         }
         worst = differ > worst ? differ : worst;
         if (getenv("HOST_RENDER_VERBOSE"))
-            printf("frame %u %s: %llu differ, triangles %llu %llu\n", f, tw_method_name(m), (unsigned long long)differ, (unsigned long long)so.triangles, (unsigned long long)sh.triangles);
+            printf("frame %u %s: %llu pixels differ; triangles %llu and %llu; GPU bytes %llu "
+                   "and %llu\n", f, tw_method_name(m), (unsigned long long)differ,
+                   (unsigned long long)so.triangles, (unsigned long long)sh.triangles,
+                   (unsigned long long)so.bytes_gpu, (unsigned long long)sh.bytes_gpu);
+        /* The budget counts what the host holds, not a copy of tileworld's. */
+        if (sh.bytes_gpu != h.bytes) {
+            fprintf(stderr, "host-render: frame %u: the world counts %llu GPU bytes, the host "
+                    "holds %llu\n", f, (unsigned long long)sh.bytes_gpu,
+                    (unsigned long long)h.bytes);
+            failures++;
+        }
         triangles_own += so.triangles;
         triangles_host += sh.triangles;
     }
     printf("host-render: %u frames, worst frame %llu of %u pixels differ; triangles %llu "
-           "(tileworld) and %llu (host); %llu batches, %llu tilesets uploaded, %llu released\n",
+           "(tileworld) and %llu (host); %llu batches; tiles: %lu made on workers, %llu "
+           "prepared, %llu released, %llu dropped before they were ready\n",
            FRAMES, (unsigned long long)worst, WIDTH * HEIGHT, (unsigned long long)triangles_own,
            (unsigned long long)triangles_host, (unsigned long long)h.batches,
-           (unsigned long long)h.uploads, (unsigned long long)h.releases);
+           (unsigned long)atomic_load(&h.staged), (unsigned long long)h.prepared,
+           (unsigned long long)h.released, (unsigned long long)h.dropped);
     if (worst > (uint64_t)WIDTH * HEIGHT / 1000) {
         fprintf(stderr, "host-render: the host's image differs from tileworld's in %llu pixels\n",
                 (unsigned long long)worst);
         failures++;
     }
-    if (h.failed || h.batches == 0 || h.releases == 0) {
+    if (h.failed || h.batches == 0 || h.released == 0) {
         fprintf(stderr, "host-render: %d batches not drawn, %llu drawn, %llu releases\n", h.failed,
-                (unsigned long long)h.batches, (unsigned long long)h.releases);
+                (unsigned long long)h.batches, (unsigned long long)h.released);
         failures++;
     }
     tw_path_finish(&path);
     tw_world_destroy(own);
     tw_world_destroy(h.world);   /* releases every generated tile still held */
-    /* Every generated tile was released with the world: what is left is
-     * shared content (none in city-gen). */
-    if (h.set_count != 0) {
-        fprintf(stderr, "host-render: %zu tilesets never released\n", h.set_count);
+    /* Every tile made on a worker was prepared and released, or dropped. */
+    if (h.bytes != 0 || h.prepared != h.released ||
+        atomic_load(&h.staged) != h.prepared + h.dropped) {
+        fprintf(stderr, "host-render: %llu bytes still held after the world; %lu tiles made, "
+                "%llu prepared, %llu released, %llu dropped\n", (unsigned long long)h.bytes,
+                (unsigned long)atomic_load(&h.staged), (unsigned long long)h.prepared,
+                (unsigned long long)h.released, (unsigned long long)h.dropped);
         failures++;
     }
-    for (size_t k = 0; k < h.set_count; k++)
-        free_set(&h.gl, &h.sets[k]);
-    free(h.sets);
+    for (size_t k = 0; k < h.shared_count; k++)
+        free_set(&h.gl, &h.shared[k]);
+    free(h.shared);
     h.gl.DeleteProgram(h.program);
     h.gl.DeleteFramebuffers(1, &h.fbo);
     h.gl.DeleteRenderbuffers(1, &h.color);

@@ -183,7 +183,8 @@ int tw_renderer_upload(struct tw_renderer *r, const struct tw_tileset *ts,
         return err;
     struct tw_gpu_buffers *b = &r->buffers[bi];
     memset(b, 0, sizeof(*b));
-    err = upload_buffers(r, ts, b);
+    /* A host that holds the tiles draws them: no copy here. */
+    err = r->host.no_copies ? TW_OK : upload_buffers(r, ts, b);
     if (!err)
         err = take_contents(r, ts->prototype_count, &first);
     if (err) {
@@ -246,6 +247,20 @@ void tw_renderer_tag_levels(struct tw_renderer *r, uint32_t base, uint32_t first
         r->contents[first + k].base = base;
         r->contents[first + k].level = k + 1;
     }
+}
+
+void tw_renderer_set_host_data(struct tw_renderer *r, uint32_t content, void *data)
+{
+    if (content < r->content_count && r->contents[content].live)
+        r->contents[content].host_data = data;
+}
+
+void *tw_renderer_host_data(const struct tw_renderer *r, uint32_t content)
+{
+    if (content >= r->content_count || !r->contents[content].live)
+        return NULL;
+    const uint32_t base = r->contents[content].base;
+    return base < r->content_count && r->contents[base].live ? r->contents[base].host_data : NULL;
 }
 
 uint32_t tw_renderer_content_base(const struct tw_renderer *r, uint32_t content, uint32_t *level)

@@ -40,6 +40,7 @@ struct tw_gpu_content {
      * this one is a level of (itself: level 0), and for a full-detail
      * one, its levels' contents levels_first .. + levels_count - 1. */
     uint32_t base, level, levels_first, levels_count;
+    void *host_data;                /* host rendering: what the host's prepare() made */
 };
 
 /* What one indirect command draws with (draws.c): its instance's
@@ -160,6 +161,7 @@ struct tw_renderer {
      * go too; host.draw NULL: the renderer draws into its own. */
     struct tw_renderer_host host;
     GLuint host_fbo;       /* the host's draw framebuffer of this frame */
+    bool in_frame;         /* between begin_frame and end_frame */
     GLuint bound_vao;      /* the vertex array bound, 0 when not known */
     enum tw_renderer_mode mode;
     struct tw_render_counters counters;
@@ -314,8 +316,9 @@ int tw_renderer_id_init(struct tw_renderer *r, GLenum depth_format);
 /* Deletes it (while gl_loaded, between enter and leave). */
 void tw_renderer_id_finish(struct tw_renderer *r);
 
-/* After a host's draw callback: the frame's framebuffer, viewport, depth
- * test, clip control and the state enter sets, again (renderer.c). */
+/* After a host's callback (draw, prepare, release): the state enter sets,
+ * clip control and, in a frame, its framebuffer, viewport and depth test,
+ * again (renderer.c). */
 void tw_renderer_after_host(struct tw_renderer *r);
 
 #endif

@@ -318,7 +318,8 @@ static void bind_target(struct tw_renderer *r)
 void tw_renderer_after_host(struct tw_renderer *r)
 {
     const struct tw_gl *gl = &r->gl;
-    bind_target(r);
+    if (r->in_frame)
+        bind_target(r);
     tw_gl_state_reset(gl);
     if (r->reversed_z)
         gl->ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
@@ -331,6 +332,7 @@ void tw_renderer_begin_frame(struct tw_renderer *r, const struct tw_view *v)
     const struct tw_gl *gl = &r->gl;
     tw_renderer_queries_begin_frame(r, v);
     r->host_fbo = (GLuint)r->host_state.draw_fbo;
+    r->in_frame = true;
     bind_target(r);
     gl->DepthMask(GL_TRUE);
     gl->ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
@@ -351,6 +353,7 @@ void tw_renderer_begin_frame(struct tw_renderer *r, const struct tw_view *v)
 
 void tw_renderer_end_frame(struct tw_renderer *r)
 {
+    r->in_frame = false;
     r->gl.Flush();
 }
 

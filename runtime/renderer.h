@@ -91,9 +91,17 @@ struct tw_renderer_host {
                  const uint32_t *clusters, uint32_t count);
     void *user;
     bool clear;
+    bool no_copies;     /* the host holds the tiles: uploads from now on make no GPU
+                           buffers (their contents are drawn by the host only) */
 };
 void tw_renderer_set_host(struct tw_renderer *r, const struct tw_renderer_host *host);
 bool tw_renderer_host_mode(const struct tw_renderer *r);
+/* What the host made for content (its base's), kept for its draws. */
+void tw_renderer_set_host_data(struct tw_renderer *r, uint32_t content, void *data);
+void *tw_renderer_host_data(const struct tw_renderer *r, uint32_t content);
+/* After a host's callback that may have changed GL state (between enter
+ * and leave). */
+void tw_renderer_after_host(struct tw_renderer *r);
 
 /* Every call below that draws or reads runs between enter and leave: enter
  * saves the host's GL state (the first of nested calls) and sets what the

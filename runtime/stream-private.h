@@ -32,6 +32,7 @@ struct job_result {
     uint64_t bytes_cpu;          /* what ts, bvh and the levels cost (0 on failure) */
     int err;
     bool empty;                  /* generate() found the cell empty: no ts */
+    void *host_data;             /* what the hooks' prepare_worker made (NULL: none) */
     char message[256];
 };
 
@@ -78,6 +79,7 @@ struct worker {
     struct tw_bvh_settings bvh;
     bool lods;                           /* build the tiles' levels of detail */
     uint64_t max_triangles, max_bytes;   /* caps of a tile (0: none) */
+    struct tw_stream_hooks hooks;
     pthread_t thread;
     bool started;
     /* Under the lock. */

@@ -98,6 +98,16 @@ static void release_entry(struct tw_stream *s, uint32_t k)
     s->free_head = k;
 }
 
+/* Frees a job's result on the render thread: what the host made for it
+ * too. */
+static void drop_result(struct tw_stream *s, struct job_result *r)
+{
+    if (r->host_data && s->set.hooks.discard)
+        s->set.hooks.discard(s->set.hooks.user, r->host_data);
+    r->host_data = NULL;
+    tw_stream_job_free(r);
+}
+
 /* Requests cell's tile: a new entry with its job queued. */
 static struct entry *request(struct tw_stream *s, struct tw_cell cell, float distance,
                              uint32_t *index)
@@ -165,6 +175,11 @@ static int make_ready(struct tw_stream *s, uint32_t k)
                                    r.lods.levels->prototype_count);
         }
         e->bytes_gpu += lod_gpu;
+        if (!r.err && s->set.sink.ready) {
+            e->bytes_gpu += s->set.sink.ready(s->set.sink.user, e->content, r.ts, r.lods.levels,
+                                              r.host_data);
+            r.host_data = NULL;     /* the sink's now */
+        }
         if (r.err)
             snprintf(r.message, sizeof(r.message), "cannot upload it: %s",
                      tw_error_to_str(r.err));
@@ -198,7 +213,7 @@ static int make_ready(struct tw_stream *s, uint32_t k)
                                    .attempt = attempt,
                                    .retry_in = retry ? (uint32_t)(retry - s->frame) : 0};
         snprintf(ev.message, sizeof(ev.message), "%s", r.message);
-        tw_stream_job_free(&r);
+        drop_result(s, &r);
         s->stats.refused++;
         s->totals.refused++;
         if (r.err == TW_ERR_NOMEM) {
@@ -258,7 +273,7 @@ static void collect(struct tw_stream *s)
         const uint32_t index = s->finished[k];
         struct entry *e = &s->entries[index];
         if (e->discard) {
-            tw_stream_job_free(&e->result);
+            drop_result(s, &e->result);
             e->jstate = J_NONE;
             e->discard = false;
             e->next_free = s->free_head;
@@ -298,7 +313,7 @@ static void drop_entry(struct tw_stream *s, uint32_t k)
         for (uint32_t q = 0; q < s->finished_count && !later; q++)
             later = s->finished[q] == k;
         if (!later)
-            tw_stream_job_free(&e->result);
+            drop_result(s, &e->result);
     }
     if (later)
         e->discard = true;
@@ -368,7 +383,7 @@ uint32_t tw_stream_destroy(struct tw_stream *s)
         struct entry *e = &s->entries[k];
         if (e->rstate == R_READY)
             drop_ready(s, e);
-        tw_stream_job_free(&e->result);
+        drop_result(s, &e->result);
     }
     free(s->entries);
     free(s->heap);

@@ -29,6 +29,22 @@ struct tw_tile_sink {
     void (*release)(void *user, uint32_t content);
     /* Contents first .. first + count - 1 are base's levels of detail. */
     void (*levels)(void *user, uint32_t base, uint32_t first, uint32_t count);
+    /* May be NULL. The tile uploaded as content (and its levels, NULL
+     * without) is ready; data: what the hooks' prepare_worker made for it.
+     * Returns more GPU bytes the tile holds (the host's). */
+    uint64_t (*ready)(void *user, uint32_t content, const struct tw_tileset *ts,
+                      const struct tw_tileset *levels, void *data);
+    void *user;
+};
+
+/* A host's part in making tiles: prepare_worker runs on the worker at the
+ * end of a job that made its tile (never for a worker left behind);
+ * discard frees what it made for a tile dropped before its upload (render
+ * thread). */
+struct tw_stream_hooks {
+    void *(*prepare_worker)(void *user, struct tw_cell cell, const struct tw_tileset *ts,
+                            const struct tw_tileset *levels);
+    void (*discard)(void *user, void *data);
     void *user;
 };
 
@@ -56,6 +72,7 @@ struct tw_stream_settings {
     uint64_t max_triangles;          /* a tile with more triangles is refused (0: none) */
     uint64_t max_bytes;              /* a tile whose CPU bytes exceed this is refused
                                         (0: none) */
+    struct tw_stream_hooks hooks;    /* all NULL: none */
     const struct tw_log *log;        /* borrowed; called on the render thread only */
 };
 

@@ -153,6 +153,15 @@ void tw_stream_job_run(struct worker *wk, struct tw_cell cell, struct job_result
         for (uint32_t k = 0; k < n; k++)
             r->bytes_cpu += r->lod_bvhs[k]->bytes;
     }
+    if (wk->hooks.prepare_worker) {
+        /* The host's part, unless the stream left this worker behind while
+         * generate() ran (the host may be gone). */
+        pthread_mutex_lock(&wk->pool->lock);
+        const bool gone = wk->left_behind;
+        pthread_mutex_unlock(&wk->pool->lock);
+        if (!gone)
+            r->host_data = wk->hooks.prepare_worker(wk->hooks.user, cell, r->ts, r->lods.levels);
+    }
     return;
 out:
     r->bytes_cpu = 0;
@@ -363,6 +372,7 @@ int tw_stream_workers_start(struct tw_stream *s)
     s->inline_worker.lods = s->set.lods;
     s->inline_worker.max_triangles = s->set.max_triangles;
     s->inline_worker.max_bytes = s->set.max_bytes;
+    s->inline_worker.hooks = s->set.hooks;
     err = tw_bvh_builder_create(&(struct tw_log){capture_log, &s->inline_worker}, 0,
                                 &s->inline_worker.builder);
     if (!err && s->set.workers > 0) {

@@ -89,9 +89,41 @@ static void sink_release(void *user, uint32_t content)
     uint32_t level;
     const uint32_t base = tw_renderer_content_base(w->renderer, content, &level);
     /* A host that draws is told once, for the tile (its levels go with it). */
-    if (w->s.host.release && level == 0 && tw_renderer_content(w->renderer, content, NULL))
-        w->s.host.release(w->s.host.user, base);
+    if (w->s.host.release && level == 0 && tw_renderer_content(w->renderer, content, NULL)) {
+        w->s.host.release(w->s.host.user, base, tw_renderer_host_data(w->renderer, content));
+        tw_renderer_after_host(w->renderer);
+    }
     tw_renderer_release(w->renderer, content);
+}
+
+/* Host rendering: the host prepares a tile that became ready. */
+static uint64_t sink_ready(void *user, uint32_t content, const struct tw_tileset *ts,
+                           const struct tw_tileset *levels, void *data)
+{
+    const struct tw_world *w = user;
+    uint64_t bytes = 0;
+    tw_renderer_set_host_data(w->renderer, content,
+                              w->s.host.prepare(w->s.host.user, content, ts, levels, data, &bytes));
+    tw_renderer_after_host(w->renderer);
+    return bytes;
+}
+
+/* On a worker: the host's own part of making a tile. The world's settings
+ * do not change after creation but for the method, which this does not read. */
+static void *hook_prepare_worker(void *user, struct tw_cell cell, const struct tw_tileset *ts,
+                                 const struct tw_tileset *levels)
+{
+    const struct tw_world *w = user;
+    return w->s.host.prepare_worker(w->s.host.user, cell, ts, levels);
+}
+
+static void hook_discard(void *user, void *data)
+{
+    const struct tw_world *w = user;
+    if (w->s.host.release) {
+        w->s.host.release(w->s.host.user, TW_HOST_NOT_READY, data);
+        tw_renderer_after_host(w->renderer);
+    }
 }
 
 static void sink_levels(void *user, uint32_t base, uint32_t first, uint32_t count)
@@ -121,7 +153,9 @@ struct tw_stream_settings tw_world_stream_settings(struct tw_world *w,
 {
     return (struct tw_stream_settings){
         .provider = provider,
-        .sink = {sink_upload, sink_release, sink_levels, w},
+        .sink = {sink_upload, sink_release, sink_levels, w->s.host.prepare ? sink_ready : NULL,
+                 w},
+        .hooks = {w->s.host.prepare_worker ? hook_prepare_worker : NULL, hook_discard, w},
         .bvh = w->t.bvh,
         .workers = w->s.workers,
         .policy = w->s.policy,

@@ -182,6 +182,11 @@ static const char *out_of_range(const struct tw_world_settings *s, int methods)
         return "the max screen error is not a finite number of pixels up to 1000";
     if ((unsigned)s->method >= (unsigned)methods)
         return "the method is unknown";
+    if (!s->host.draw && (s->host.prepare || s->host.prepare_worker || s->host.release))
+        return "the host's prepare and release hooks are for host rendering: host.draw is "
+               "not set";
+    if (s->host.prepare_worker && !s->host.prepare)
+        return "host.prepare_worker needs host.prepare, which takes what it made";
     if (s->host.draw && s->verify)
         return "host rendering draws into the host's framebuffer, and verify compares the "
                "world's own image: one or the other";
@@ -285,6 +290,7 @@ static void host_draw(void *user, struct tw_cell cell, uint32_t content, const f
     const struct tw_world *w = user;
     struct tw_host_draw d = {.cell = cell, .clusters = clusters, .count = count};
     d.prototype = tw_renderer_content_base(w->renderer, content, &d.level);
+    d.host_data = tw_renderer_host_data(w->renderer, content);
     memcpy(d.offset, offset, sizeof(d.offset));
     w->s.host.draw(w->s.host.user, &d);
 }
@@ -428,7 +434,8 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
     tw_renderer_set_tile_query_box(w->renderer, &w->grid.common_box);
     if (w->s.host.draw)
         tw_renderer_set_host(w->renderer,
-                             &(struct tw_renderer_host){host_draw, w, w->s.host.clear});
+                             &(struct tw_renderer_host){host_draw, w, w->s.host.clear,
+                                                        w->s.host.prepare != NULL});
     tw_renderer_set_deterministic(w->renderer, w->s.deterministic);
     tw_renderer_set_count_samples(w->renderer, w->t.chc.threshold > 0 || w->t.tilequery.threshold > 0);
     tw_renderer_set_mutation(w->renderer, w->t.mutate_query_shrink);

@@ -121,7 +121,13 @@ struct tw_host_draw {
     float offset[3];            /* the tile's origin, view-relative metres: every
                                    instance is drawn at transform * p + offset, seen through
                                    the frame's view (tw_world_last_view) */
+    void *host_data;            /* what prepare() returned for the tile (NULL for shared
+                                   content, or without prepare) */
 };
+
+/* What tw_host_renderer.release() is given for a tile dropped before it
+ * was ready: no prototype, the data prepare_worker() returned. */
+#define TW_HOST_NOT_READY UINT32_MAX
 
 struct tw_host_renderer {
     /* Draws the batch now, on the render thread, inside tw_world_frame(),
@@ -136,11 +142,33 @@ struct tw_host_renderer {
      * uniforms, textures, masks, culling); the world sets what it needs
      * again after each call. Non-NULL: the world is in host rendering. */
     void (*draw)(void *user, const struct tw_host_draw *batch);
+    /* On a worker thread, once a generated tile (tile) and its levels of
+     * detail (levels: level k is its prototype k - 1; NULL without) are
+     * made: the host may turn them into what its engine uploads (vertex
+     * formats, compression; never GL), returning its data for prepare(), or
+     * for release() if the tile is dropped before it is ready. Concurrent
+     * for different tiles. May be NULL. */
+    void *(*prepare_worker)(void *user, struct tw_cell cell, const struct tw_tileset *tile,
+                            const struct tw_tileset *levels);
+    /* On the render thread, when a generated tile becomes ready, before any
+     * batch names it: the host uploads it (the tilesets stay valid until
+     * release), returns its data for the tile (given back in every batch's
+     * host_data) and sets *bytes to what it holds for it (counted in
+     * bytes_gpu and the cache budget). While prepare is set the world keeps
+     * no GPU copy of generated tiles. May be NULL (the host then uploads
+     * in draw, and the world keeps a copy of its own). */
+    void *(*prepare)(void *user, uint32_t prototype, const struct tw_tileset *tile,
+                     const struct tw_tileset *levels, void *worker_data, uint64_t *bytes);
     /* A generated tile's content (and its levels) leaves the world, on the
-     * render thread: what the host made for prototype can go. May be NULL.
-     * Shared content (a fixed tileset's, a provider's shared) is never
-     * released: it lives as long as the world. */
-    void (*release)(void *user, uint32_t prototype);
+     * render thread: what the host made for prototype (data: what prepare
+     * returned) can go; or, with prototype TW_HOST_NOT_READY, a tile
+     * dropped before it was ready (data: what prepare_worker returned, on
+     * the render thread too). May be NULL. Shared content (a fixed
+     * tileset's, a provider's shared) is never released: it lives as long as
+     * the world. A worker still in generate() when the world is destroyed
+     * and left behind (tw_world_destroy) calls nothing of the host's
+     * again: what its prepare_worker would have made is not made. */
+    void (*release)(void *user, uint32_t prototype, void *data);
     void *user;
     bool clear;                 /* the world clears the framebuffer (colour to its sky, depth
                                    to the far value) when a frame begins; else the host does */
