@@ -214,6 +214,30 @@ fail:
     return err;
 }
 
+uint32_t tw_renderer_depth_format(const struct tw_renderer *r)
+{
+    return r->reversed_z ? GL_DEPTH_COMPONENT32F : GL_DEPTH_COMPONENT24;
+}
+
+int tw_renderer_blit_depth(struct tw_renderer *r, uint32_t target)
+{
+    const struct tw_gl *gl = &r->gl;
+    /* An error the host's calls left is not this call's. */
+    for (int k = 0; k < 16 && gl->GetError() != GL_NO_ERROR; k++)
+        ;
+    gl->BindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo);
+    gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, target);
+    gl->BlitFramebuffer(0, 0, (GLint)r->width, (GLint)r->height, 0, 0, (GLint)r->width,
+                        (GLint)r->height, GL_DEPTH_BUFFER_BIT, GL_NEAREST);
+    const GLenum err = gl->GetError();
+    if (err == GL_NO_ERROR)
+        return TW_OK;
+    tw_log_printf(&r->log, TW_LOG_ERROR, "cannot copy the depth into framebuffer %u: OpenGL "
+                  "error 0x%x (its depth attachment must be %s, the world's, and complete)",
+                  target, err, r->reversed_z ? "GL_DEPTH_COMPONENT32F" : "GL_DEPTH_COMPONENT24");
+    return TW_ERR_GL;
+}
+
 bool tw_renderer_current(const struct tw_renderer *r)
 {
     if (!r->gl_loaded)

@@ -78,6 +78,12 @@ const struct tw_gl *tw_renderer_gl(const struct tw_renderer *r);
  * share group is told apart only while the host has no vertex array of the
  * same name in it. A few GL calls; no wait. */
 bool tw_renderer_current(const struct tw_renderer *r);
+/* The depth of the last frame into framebuffer target's depth attachment
+ * (same size from the corner, same format): TW_ERR_GL when the GL refuses
+ * it (another format), the error consumed. Between enter and leave. */
+int tw_renderer_blit_depth(struct tw_renderer *r, uint32_t target);
+/* GL_DEPTH_COMPONENT32F or GL_DEPTH_COMPONENT24. */
+uint32_t tw_renderer_depth_format(const struct tw_renderer *r);
 
 /* Host rendering: draw() instead of the renderer's own draws, into the
  * framebuffer bound when a frame begins (the host's), whose depth the

@@ -953,6 +953,30 @@ int tw_world_frame_fixed(struct tw_world *w, const struct tw_camera *cam,
     return err;
 }
 
+int tw_world_blit_depth(struct tw_world *w, uint32_t target)
+{
+    if (!w)
+        return TW_ERR_INVALID;
+    int err = own_image(w, "copy the depth");
+    if (!err && !w->has_view) {
+        tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot copy the depth: no frame has been "
+                      "rendered yet");
+        err = TW_ERR_STATE;
+    }
+    if (!err)
+        err = tw_world_enter(w, "copy the depth", true);
+    if (err)
+        return err;
+    err = tw_renderer_blit_depth(w->renderer, target);
+    tw_world_leave(w, true);
+    return err;
+}
+
+uint32_t tw_world_depth_format(const struct tw_world *w)
+{
+    return w ? tw_renderer_depth_format(w->renderer) : 0;
+}
+
 int tw_world_blit(struct tw_world *w, uint32_t target, uint32_t width, uint32_t height)
 {
     if (!w || width == 0 || height == 0 || width > 16384 || height > 16384)

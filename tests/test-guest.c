@@ -137,6 +137,65 @@ static struct tw_camera camera(int f)
     return c;
 }
 
+/* The world's depth copied into a framebuffer of the host's: far exactly
+ * where the image shows the sky (fog never reaches its colour), and a
+ * framebuffer of another depth format refused without a GL error left. */
+static void check_depth_copy(struct tw_world *w, const struct tw_gl *gl, const uint8_t *rgb)
+{
+    GLuint fbo[2], rb[2];
+    gl->GenFramebuffers(2, fbo);
+    gl->GenRenderbuffers(2, rb);
+    GLint old_fbo = 0, old_rb = 0;
+    gl->GetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &old_fbo);
+    gl->GetIntegerv(GL_RENDERBUFFER_BINDING, &old_rb);
+    const GLenum formats[2] = {(GLenum)tw_world_depth_format(w), GL_DEPTH_COMPONENT16};
+    CHECK(formats[0] == (tw_world_reversed_z(w) ? GL_DEPTH_COMPONENT32F : GL_DEPTH_COMPONENT24));
+    for (int k = 0; k < 2; k++) {
+        gl->BindRenderbuffer(GL_RENDERBUFFER, rb[k]);
+        gl->RenderbufferStorage(GL_RENDERBUFFER, formats[k], W, H);
+        gl->BindFramebuffer(GL_FRAMEBUFFER, fbo[k]);
+        gl->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, rb[k]);
+    }
+    gl->BindFramebuffer(GL_FRAMEBUFFER, (GLuint)old_fbo);
+    gl->BindRenderbuffer(GL_RENDERBUFFER, (GLuint)old_rb);
+    CHECK(tw_world_blit_depth(w, fbo[0]) == TW_OK);
+    CHECK(tw_world_blit_depth(w, fbo[1]) == TW_ERR_GL);
+    CHECK(gl->GetError() == GL_NO_ERROR);
+    float *depth = malloc(sizeof(float) * W * H);
+    if (depth) {
+        /* The host's own read: its pack state set aside, then put back. */
+        GLint pack = 4, row = 0, read = 0, pbo = 0;
+        gl->GetIntegerv(GL_PACK_ALIGNMENT, &pack);
+        gl->GetIntegerv(GL_PACK_ROW_LENGTH, &row);
+        gl->GetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &read);
+        gl->GetIntegerv(GL_PIXEL_PACK_BUFFER_BINDING, &pbo);
+        gl->BindFramebuffer(GL_READ_FRAMEBUFFER, fbo[0]);
+        gl->BindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+        gl->PixelStorei(GL_PACK_ALIGNMENT, 4);
+        gl->PixelStorei(GL_PACK_ROW_LENGTH, 0);
+        gl->ReadPixels(0, 0, W, H, GL_DEPTH_COMPONENT, GL_FLOAT, depth);
+        gl->PixelStorei(GL_PACK_ALIGNMENT, pack);
+        gl->PixelStorei(GL_PACK_ROW_LENGTH, row);
+        gl->BindBuffer(GL_PIXEL_PACK_BUFFER, (GLuint)pbo);
+        gl->BindFramebuffer(GL_READ_FRAMEBUFFER, (GLuint)read);
+        const float far = tw_world_reversed_z(w) ? 0.0f : 1.0f;
+        int wrong = 0, sky = 0;
+        for (int y = 0; y < H; y++)
+            for (int x = 0; x < W; x++) {
+                const uint8_t *c = rgb + 3 * ((size_t)(H - 1 - y) * W + x);
+                const bool is_sky = abs(c[0] - 179) <= 1 && abs(c[1] - 204) <= 1 &&
+                                    abs(c[2] - 235) <= 1;
+                sky += is_sky;
+                wrong += is_sky != (depth[(size_t)y * W + x] == far);
+            }
+        CHECK_MSG(wrong == 0 && sky > 0 && sky < W * H, "%d pixels disagree, %d of sky", wrong,
+                  sky);
+        free(depth);
+    }
+    gl->DeleteFramebuffers(2, fbo);
+    gl->DeleteRenderbuffers(2, rb);
+}
+
 /* Runs the world's calls; the last frame's image goes into rgb. */
 static int run_world(struct tw_context *ctx, const struct tw_tileset *ts, uint8_t *rgb,
                      const struct tw_gl *gl, const struct tw_gl_state *host)
@@ -172,6 +231,13 @@ static int run_world(struct tw_context *ctx, const struct tw_tileset *ts, uint8_
     size_t n = 0;
     const struct tw_debug_box *boxes = tw_world_debug_boxes(w, &n);
     CHECK(tw_world_read_rgb(w, rgb) == TW_OK);
+    if (host) {
+        /* What the host's own calls changed, put back; the world's copy then
+         * changes nothing either. */
+        check_depth_copy(w, gl, rgb);
+        snapshot(gl, &now);
+        changed += states_differ(host, &now);
+    }
     CHECK(tw_world_draw_debug(w, boxes, n) == TW_OK);
     CHECK(tw_world_blit(w, 0, W, H) == TW_OK);
     if (host) {

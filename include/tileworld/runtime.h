@@ -571,6 +571,16 @@ int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, si
 /* Copies the last frame's image into GL framebuffer target of the current
  * context (0: the window's), scaled to width x height. */
 int tw_world_blit(struct tw_world *w, uint32_t target, uint32_t width, uint32_t height);
+/* Copies the last frame's depth into the depth attachment of framebuffer
+ * target, at the world's width x height from its lower left corner, for a
+ * host that draws its own things into the world's image with the view of
+ * tw_world_last_view. The attachment must have the world's depth format
+ * (tw_world_depth_format()): TW_ERR_GL, with a line naming both, if not. */
+int tw_world_blit_depth(struct tw_world *w, uint32_t target);
+/* The internal format of the world's depth, a GLenum: GL_DEPTH_COMPONENT32F
+ * with reversed depth (tw_world_reversed_z(): cleared to 0, GL_GEQUAL),
+ * else GL_DEPTH_COMPONENT24 (cleared to 1, GL_LEQUAL). 0 for NULL. */
+uint32_t tw_world_depth_format(const struct tw_world *w);
 
 #ifdef __cplusplus
 }
