@@ -153,10 +153,10 @@ static int collect_cells(struct tw_world *w, const struct method_state *ms, cons
             if (!tw_cell_map_find(w->debug.seen, d[k].cell))
                 cr.err = push_cell(w, d[k].cell, TW_DEBUG_CELL_VISIBLE);
     }
-    int err = cr.err ? cr.err : tw_cull_cells_of_frame(&w->cells, v, &w->grid);
-    for (size_t k = 0; k < w->cells.count && !err; k++)
-        if (!tw_cell_map_find(w->debug.seen, w->cells.cells[k].cell))
-            err = push_cell(w, w->cells.cells[k].cell, TW_DEBUG_CELL_NOT_REACHED);
+    int err = cr.err ? cr.err : tw_cull_cells_of_frame(&w->cur->cells, v, &w->grid);
+    for (size_t k = 0; k < w->cur->cells.count && !err; k++)
+        if (!tw_cell_map_find(w->debug.seen, w->cur->cells.cells[k].cell))
+            err = push_cell(w, w->cur->cells.cells[k].cell, TW_DEBUG_CELL_NOT_REACHED);
     return err;
 }
 
@@ -309,7 +309,7 @@ int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, si
 {
     if (!w || (count && !boxes))
         return TW_ERR_INVALID;
-    if (!w->has_view) {
+    if (!w->last->has_view) {
         tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot draw the debug view: no frame has been rendered yet");
         return TW_ERR_STATE;
     }
@@ -330,7 +330,7 @@ int tw_world_draw_debug(struct tw_world *w, const struct tw_debug_box *boxes, si
         w->debug.draw = d;
         w->debug.draw_cap = count;
     }
-    const struct tw_view *v = &w->last_view;
+    const struct tw_view *v = &w->last->last_view;
     const float *fp = w->provider.footprint;
     /* Five layers, one renderer call each: cell quads, inner nodes, leaves,
      * tile queries (wider), node queries. */

@@ -63,7 +63,7 @@ int tw_lod_image_full_pass(struct tw_world *w, const struct tw_view *v)
     /* Cells only: a block's proxy is a level of detail too. */
     struct tw_cull_grid cells_only = w->grid;
     cells_only.levels.count = 0;
-    err = tw_cull_driver_frame(li->vfc, &fv, &cells_only, &be, &w->cells, &cs);
+    err = tw_cull_driver_frame(li->vfc, &fv, &cells_only, &be, &w->cur->cells, &cs);
     tw_renderer_end_frame(w->renderer);
     w->lod_full = false;
     if (err)

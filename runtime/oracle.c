@@ -218,7 +218,7 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
     struct id_backend ib = {w};
     const struct tw_query_backend be = {.ctx = &ib, .issue = id_issue, .ready = id_ready,
                                         .wait = id_wait, .draw = id_draw, .flush = id_flush};
-    int err = tw_cull_driver_frame(o->vfc, v, &w->grid, &be, &w->cells, NULL);
+    int err = tw_cull_driver_frame(o->vfc, v, &w->grid, &be, &w->cur->cells, NULL);
     if (!err)
         err = o->err;
     if (err)
@@ -396,7 +396,7 @@ static void count_overdraw(struct tw_world *w, const struct tw_drawn_cluster *d,
                            const struct tw_oracle_depth *dm, struct tw_frame_stats *st)
 {
     st->overdraw_triangles += cl->triangle_count;
-    if (cluster_box_shows(w, &w->last_view, d, id, dm))
+    if (cluster_box_shows(w, &w->cur->last_view, d, id, dm))
         st->overdraw_box_triangles += cl->triangle_count;
 }
 
@@ -430,7 +430,7 @@ void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
     struct tw_oracle *o = &w->oracle;
     memset(o->drawn, 0, o->count);
     memset(o->missed_per_id, 0, sizeof(*o->missed_per_id) * o->count);
-    const struct tw_view *v = &w->last_view;
+    const struct tw_view *v = &w->cur->last_view;
     const struct tw_oracle_depth dm = depth_model(w, v);
     size_t n = 0;
     const struct tw_drawn_cluster *d = tw_renderer_drawn(w->renderer, &n);

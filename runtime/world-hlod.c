@@ -210,7 +210,7 @@ uint64_t tw_world_hlod_trim(struct tw_world *w, uint64_t excess)
      * recently drawn proxies. */
     for (uint32_t k = 1; k < w->hlod.count && freed < excess; k++)
         if (w->hlod.levels[k].stream)
-            freed += tw_stream_trim(w->hlod.levels[k].stream, excess - freed, w->frame_serial, NULL,
+            freed += tw_stream_trim(w->hlod.levels[k].stream, excess - freed, tw_world_keep_from(w), NULL,
                                 NULL);
     return freed;
 }

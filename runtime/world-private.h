@@ -95,6 +95,29 @@ struct tw_world_hlod {
     struct tw_world_hlod_level levels[TW_CULL_MAX_LEVELS];
 };
 
+/* What each camera onto the world has of its own: its method and every
+ * method's culling state (tile instances, CHC++), the cells in its view,
+ * the look-ahead's motion, its last view, its GPU timers. */
+struct tw_view_state {
+    enum tw_method method;
+    struct method_state methods[TW_METHOD_ALL];
+    struct tw_cull_cells cells;     /* the cells in view of the current view */
+    struct tw_world_pos prev_pos;   /* the last frame's camera, for the look-ahead */
+    float velocity[3];              /* metres per frame, smoothed */
+    bool has_prev;
+    struct tw_cull_cells ahead;     /* cells of the look-ahead view */
+    struct tw_view last_view;
+    bool has_view;
+    struct tw_gputime gputime;      /* the frames' GPU time, read frames later */
+};
+
+/* A viewport: a view of its own (tw_viewport_create), listed in its world. */
+struct tw_viewport {
+    struct tw_world *w;
+    struct tw_view_state state;
+    struct tw_viewport *next;
+};
+
 struct tw_world {
     struct tw_world_settings s;
     /* The thread contract (README "Threads and callbacks"): set while a call
@@ -129,14 +152,7 @@ struct tw_world {
     size_t event_count, event_cap;
     struct tw_tile_event *next_events;  /* since the last frame */
     size_t next_event_count, next_event_cap;
-    struct tw_world_pos prev_pos;   /* the last frame's camera, for the look-ahead */
-    float velocity[3];              /* metres per frame, smoothed */
-    bool has_prev;
-    struct tw_cull_cells ahead;     /* cells of the look-ahead view */
     struct tw_cull_grid grid;
-    struct tw_cull_cells cells;     /* the cells in view of the current view */
-    enum tw_method method;
-    struct method_state methods[TW_METHOD_ALL];
     struct tw_cull_driver *fixed_set;  /* tw_world_frame_fixed */
     struct tw_drawn_cluster *fixed_order;  /* its set, grouped tile by tile */
     size_t fixed_order_cap;
@@ -147,12 +163,16 @@ struct tw_world {
     struct tw_oracle oracle;
     struct tw_lod_image lod_image;  /* with verify and levels of detail */
 
-    struct tw_view last_view;
-    bool has_view;
     struct tw_calibration calibration;  /* DESIGN §14: what queries and draws cost */
     uint32_t calibration_first;         /* the shared tileset's first content */
     struct tw_debug_state debug;    /* untouched while debug.flags is 0 */
-    struct tw_gputime gputime;      /* the frames' GPU time, read frames later */
+    /* Views (a camera each, README "Several views"): the world's own, and
+     * its viewports'. cur: the one a call draws with; last: the one of the
+     * last frame, which the getters read. */
+    struct tw_view_state own;
+    struct tw_view_state *cur, *last;
+    uint32_t view_count;            /* the own view and the viewports alive */
+    struct tw_viewport *viewports;
 };
 
 /* How the oracle compares depths: the frame's near and far planes, the
@@ -254,6 +274,13 @@ void tw_world_keep_budget(struct tw_world *w, const struct method_state *ms,
 void tw_debug_finish(struct tw_world *w);
 /* After the timed part of a frame: the boxes of the debug views that are on. */
 int tw_debug_collect(struct tw_world *w, const struct method_state *ms, const struct tw_view *v);
+
+/* The view states of w, the own first: *k from 0, NULL after the last. */
+struct tw_view_state *tw_world_next_view(struct tw_world *w, struct tw_viewport **k,
+                                         bool *started);
+/* The first streaming frame whose draws the budget keeps: a tile drawn by
+ * the latest frame of any view stays (each view draws in turn). */
+uint64_t tw_world_keep_from(const struct tw_world *w);
 
 /* The thread contract: every call that changes the world, draws or reads
  * its images begins with tw_world_enter(w, "render a frame", gl) and ends

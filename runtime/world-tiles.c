@@ -219,15 +219,15 @@ int tw_world_levels_in_view(struct tw_world *w, const struct tw_view *v, bool *a
     *any = true;
     if (w->stream)
         return TW_OK;   /* a generated tile's levels are known once it is made */
-    int err = tw_cull_cells_of_frame(&w->cells, v, &w->grid);
+    int err = tw_cull_cells_of_frame(&w->cur->cells, v, &w->grid);
     if (err)
         return err;
     /* Front to back: the last cell is the farthest. */
-    const float farthest = w->cells.count ? w->cells.cells[w->cells.count - 1].distance : 0.0f;
+    const float farthest = w->cur->cells.count ? w->cur->cells.cells[w->cur->cells.count - 1].distance : 0.0f;
     *any = max_error_of(w, farthest) >= w->lod_least_error;
     /* A block's proxy is a level of detail of its cells, whatever its error. */
-    for (size_t k = 0; k < w->cells.count && !*any; k++)
-        *any = w->cells.cells[k].level > 0;
+    for (size_t k = 0; k < w->cur->cells.count && !*any; k++)
+        *any = w->cur->cells.cells[k].level > 0;
     return TW_OK;
 }
 
@@ -290,29 +290,29 @@ void tw_world_prefetch_tile(void *ctx, struct tw_cell cell, uint32_t node_level,
 void tw_world_look_ahead(struct tw_world *w, const struct tw_view *v)
 {
     const float *fp = w->provider.footprint;
-    if (w->has_prev) {
+    if (w->cur->has_prev) {
         float moved[3];
-        tw_tiles_cell_offset(v->cell, w->prev_pos.cell, fp[0], fp[1], moved);
+        tw_tiles_cell_offset(v->cell, w->cur->prev_pos.cell, fp[0], fp[1], moved);
         for (int a = 0; a < 3; a++)
-            moved[a] += v->eye[a] - w->prev_pos.local[a];
+            moved[a] += v->eye[a] - w->cur->prev_pos.local[a];
         const float step = sqrtf(moved[0] * moved[0] + moved[1] * moved[1] + moved[2] * moved[2]);
         for (int a = 0; a < 3; a++)
-            w->velocity[a] = step > v->view_distance ? 0.0f  /* a jump: no motion to follow */
-                                                     : 0.7f * w->velocity[a] + 0.3f * moved[a];
+            w->cur->velocity[a] = step > v->view_distance ? 0.0f  /* a jump: no motion to follow */
+                                                     : 0.7f * w->cur->velocity[a] + 0.3f * moved[a];
     }
-    w->prev_pos.cell = v->cell;
-    memcpy(w->prev_pos.local, v->eye, sizeof(v->eye));
-    w->has_prev = true;
-    const float speed2 = w->velocity[0] * w->velocity[0] + w->velocity[2] * w->velocity[2];
+    w->cur->prev_pos.cell = v->cell;
+    memcpy(w->cur->prev_pos.local, v->eye, sizeof(v->eye));
+    w->cur->has_prev = true;
+    const float speed2 = w->cur->velocity[0] * w->cur->velocity[0] + w->cur->velocity[2] * w->cur->velocity[2];
     if (speed2 < 1e-4f)
         return;
     struct tw_view ahead = *v;
     for (int a = 0; a < 3; a += 2)
-        ahead.eye[a] += LOOK_AHEAD_FRAMES * w->velocity[a];
+        ahead.eye[a] += LOOK_AHEAD_FRAMES * w->cur->velocity[a];
     /* The same matrices moved: the frustum of the eye translated. */
     float translate[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
-    translate[12] = -LOOK_AHEAD_FRAMES * w->velocity[0];
-    translate[14] = -LOOK_AHEAD_FRAMES * w->velocity[2];
+    translate[12] = -LOOK_AHEAD_FRAMES * w->cur->velocity[0];
+    translate[14] = -LOOK_AHEAD_FRAMES * w->cur->velocity[2];
     for (int c = 0; c < 4; c++)
         for (int r = 0; r < 4; r++) {
             float sum = 0.0f;
@@ -321,11 +321,11 @@ void tw_world_look_ahead(struct tw_world *w, const struct tw_view *v)
             ahead.view_proj[c * 4 + r] = sum;
         }
     tw_cull_frustum_from_matrix(ahead.view_proj, &ahead.frustum);
-    if (tw_cull_cells_of_frame(&w->ahead, &ahead, &w->grid))
+    if (tw_cull_cells_of_frame(&w->cur->ahead, &ahead, &w->grid))
         return;
-    const size_t n = w->ahead.count < LOOK_AHEAD_CELLS ? w->ahead.count : LOOK_AHEAD_CELLS;
+    const size_t n = w->cur->ahead.count < LOOK_AHEAD_CELLS ? w->cur->ahead.count : LOOK_AHEAD_CELLS;
     for (size_t k = 0; k < n; k++) {
-        const struct tw_cull_cell *c = &w->ahead.cells[k];
+        const struct tw_cull_cell *c = &w->cur->ahead.cells[k];
         float off[3];
         tw_tiles_cell_offset(c->cell, v->cell, fp[0], fp[1], off);
         const struct tw_box box = tw_cull_node_box(&w->grid, c->level);
@@ -342,9 +342,16 @@ static void count_bytes(const struct tw_world *w, uint64_t *cpu, uint64_t *gpu, 
     if (w->stream)
         tw_stream_bytes(w->stream, &scpu, &sgpu);
     tw_world_hlod_bytes(w, &scpu, &sgpu);
-    for (int m = 0; m < TW_METHOD_ALL; m++)
-        if (w->methods[m].driver)
-            culling += tw_cull_driver_bytes(w->methods[m].driver);
+    /* Every view's culling state. */
+    const struct tw_view_state *vs = &w->own;
+    for (const struct tw_viewport *vp = w->viewports;; vp = vp->next) {
+        for (int m = 0; m < TW_METHOD_ALL; m++)
+            if (vs->methods[m].driver)
+                culling += tw_cull_driver_bytes(vs->methods[m].driver);
+        if (!vp)
+            break;
+        vs = &vp->state;
+    }
     *cpu = w->shared_cpu + scpu + culling;
     *gpu = w->shared_gpu + sgpu;
     if (state)
@@ -360,20 +367,26 @@ void tw_world_keep_budget(struct tw_world *w, const struct method_state *ms,
     uint32_t instances = 0;
     /* Evicting can grow a table (the record of evictions): count again. */
     while (budget && cpu + gpu > budget && w->stream &&
-           tw_stream_trim(w->stream, cpu + gpu - budget, w->frame_serial, NULL, NULL) > 0)
+           tw_stream_trim(w->stream, cpu + gpu - budget, tw_world_keep_from(w), NULL, NULL) > 0)
         count_bytes(w, &cpu, &gpu, NULL);
     while (budget && cpu + gpu > budget && tw_world_hlod_trim(w, cpu + gpu - budget) > 0)
         count_bytes(w, &cpu, &gpu, NULL);
-    for (int pass = 0; pass < 2 && budget && cpu + gpu > budget; pass++)
-        for (int m = 0; m < TW_METHOD_ALL && cpu + gpu > budget; m++) {
-            const struct method_state *other = &w->methods[m];
-            if (!other->driver || (other == ms) != (pass == 1))
-                continue;
-            /* Another method's instances are all older than its next frame. */
-            tw_cull_driver_trim(other->driver, cpu + gpu - budget, other->frame + (other != ms),
-                                &instances);
-            count_bytes(w, &cpu, &gpu, NULL);
-        }
+    /* The culling state of every other method of every view, then this
+     * method's own. */
+    for (int pass = 0; pass < 2 && budget && cpu + gpu > budget; pass++) {
+        struct tw_viewport *k = NULL;
+        bool started = false;
+        for (struct tw_view_state *vs; (vs = tw_world_next_view(w, &k, &started));)
+            for (int m = 0; m < TW_METHOD_ALL && cpu + gpu > budget; m++) {
+                const struct method_state *other = &vs->methods[m];
+                if (!other->driver || (other == ms) != (pass == 1))
+                    continue;
+                /* Another method's instances are all older than its next frame. */
+                tw_cull_driver_trim(other->driver, cpu + gpu - budget,
+                                    other->frame + (other != ms), &instances);
+                count_bytes(w, &cpu, &gpu, NULL);
+            }
+    }
     count_bytes(w, &cpu, &gpu, &state);
     st->bytes_cpu = cpu;
     st->bytes_gpu = gpu;
@@ -421,7 +434,7 @@ int tw_world_invalidate_rect(struct tw_world *w, struct tw_cell lo, struct tw_ce
     tw_world_hlod_invalidate(w, lo, hi);
     /* Every method's culling state of those cells: made for what they showed. */
     for (int m = 0; m < TW_METHOD_ALL; m++) {
-        struct tw_cull_driver *d = w->methods[m].driver;
+        struct tw_cull_driver *d = w->cur->methods[m].driver;
         if (!d)
             continue;
         const uint64_t wi = (uint64_t)hi.i - (uint64_t)lo.i, wj = (uint64_t)hi.j - (uint64_t)lo.j;

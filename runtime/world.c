@@ -354,6 +354,8 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
     }
     w->s = *settings;
     tw_world_default_settings(&w->s);
+    w->cur = w->last = &w->own;
+    w->view_count = 1;
     w->lod_on = w->s.max_screen_error > 0.0f;
     w->lod_least_error = INFINITY;
     if (tuning)
@@ -439,7 +441,7 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
     tw_renderer_set_deterministic(w->renderer, w->s.deterministic);
     tw_renderer_set_count_samples(w->renderer, w->t.chc.threshold > 0 || w->t.tilequery.threshold > 0);
     tw_renderer_set_mutation(w->renderer, w->t.mutate_query_shrink);
-    tw_gputime_init(&w->gputime, tw_renderer_gl(w->renderer));
+    tw_gputime_init(&w->own.gputime, tw_renderer_gl(w->renderer));
     const struct tw_cull_driver_settings given = {.method = TW_CULL_GIVEN};
     err = tw_oracle_init(w);
     if (!err)
@@ -452,6 +454,134 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
     return TW_OK;
 fail:
     tw_world_destroy(w);
+    return err;
+}
+
+/* Frees what a view holds; with gl, its GPU timers too (between enter and
+ * leave). */
+static void view_state_finish(struct tw_world *w, struct tw_view_state *vs, bool gl)
+{
+    for (int m = 0; m < TW_METHOD_ALL; m++)
+        tw_cull_driver_destroy(vs->methods[m].driver);
+    tw_cull_cells_finish(&vs->cells);
+    tw_cull_cells_finish(&vs->ahead);
+    if (gl)
+        tw_gputime_finish(&vs->gputime);
+    if (w->cur == vs)
+        w->cur = &w->own;
+    if (w->last == vs)
+        w->last = &w->own;
+}
+
+struct tw_view_state *tw_world_next_view(struct tw_world *w, struct tw_viewport **k,
+                                         bool *started)
+{
+    if (!*started) {
+        *started = true;
+        *k = w->viewports;
+        return &w->own;
+    }
+    if (!*k)
+        return NULL;
+    struct tw_view_state *vs = &(*k)->state;
+    *k = (*k)->next;
+    return vs;
+}
+
+uint64_t tw_world_keep_from(const struct tw_world *w)
+{
+    return w->frame_serial + 1 > w->view_count ? w->frame_serial + 1 - w->view_count : 0;
+}
+
+/* ---- viewports ---------------------------------------------------------------------------- */
+
+int tw_viewport_create(struct tw_world *w, struct tw_viewport **out)
+{
+    if (!w || !out)
+        return TW_ERR_INVALID;
+    int err = tw_world_enter(w, "create a viewport", true);
+    if (err)
+        return err;
+    struct tw_viewport *vp = calloc(1, sizeof(*vp));
+    if (!vp) {
+        tw_world_leave(w, true);
+        return TW_ERR_NOMEM;
+    }
+    vp->w = w;
+    tw_gputime_init(&vp->state.gputime, tw_renderer_gl(w->renderer));
+    w->cur = &vp->state;
+    err = tw_world_set_method_or_limit(w, w->own.method);
+    w->cur = &w->own;
+    if (err) {
+        view_state_finish(w, &vp->state, true);
+        free(vp);
+        tw_world_leave(w, true);
+        return err;
+    }
+    vp->next = w->viewports;
+    w->viewports = vp;
+    w->view_count++;
+    tw_world_leave(w, true);
+    *out = vp;
+    return TW_OK;
+}
+
+void tw_viewport_destroy(struct tw_viewport *vp)
+{
+    if (!vp)
+        return;
+    struct tw_world *w = vp->w;
+    if (atomic_load(&w->busy)) {
+        refuse(w, "destroy a viewport", "its world is in a call already (destroyed from one of "
+                                        "its callbacks, or while another thread uses it): left "
+                                        "as it is");
+        return;
+    }
+    const bool gl = tw_renderer_current(w->renderer);
+    if (gl)
+        tw_renderer_enter(w->renderer);
+    view_state_finish(w, &vp->state, gl);
+    if (gl)
+        tw_renderer_leave(w->renderer);
+    for (struct tw_viewport **p = &w->viewports; *p; p = &(*p)->next)
+        if (*p == vp) {
+            *p = vp->next;
+            break;
+        }
+    w->view_count--;
+    free(vp);
+}
+
+int tw_viewport_set_method(struct tw_viewport *vp, enum tw_method m)
+{
+    if (!vp || (unsigned)m >= TW_METHOD_COUNT)
+        return TW_ERR_INVALID;
+    struct tw_world *w = vp->w;
+    int err = tw_world_enter(w, "switch a viewport's culling method", true);
+    if (err)
+        return err;
+    w->cur = &vp->state;
+    err = tw_world_set_method_or_limit(w, m);
+    w->cur = &w->own;
+    tw_world_leave(w, true);
+    return err;
+}
+
+static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_frame_stats *out);
+
+int tw_viewport_frame(struct tw_viewport *vp, const struct tw_camera *cam,
+                      struct tw_frame_stats *stats)
+{
+    if (!vp || !cam)
+        return TW_ERR_INVALID;
+    struct tw_world *w = vp->w;
+    int err = tw_world_enter(w, "render a viewport's frame", true);
+    if (err)
+        return err;
+    w->cur = &vp->state;
+    err = frame(w, cam, stats);
+    w->cur = &w->own;
+    tw_world_leave(w, true);
     return err;
 }
 
@@ -468,25 +598,24 @@ uint32_t tw_world_destroy(struct tw_world *w)
         return 0;
     }
     uint32_t left_behind = 0;
-    for (int m = 0; m < TW_METHOD_ALL; m++)
-        tw_cull_driver_destroy(w->methods[m].driver);
+    while (w->viewports)
+        tw_viewport_destroy(w->viewports);
+    view_state_finish(w, &w->own, false);
     tw_cull_driver_destroy(w->fixed_set);
     free(w->fixed_order);
     tw_oracle_finish(&w->oracle);
     tw_lod_image_finish(&w->lod_image);
     tw_debug_finish(w);
-    tw_cull_cells_finish(&w->cells);
-    tw_cull_cells_finish(&w->ahead);
     if (w->renderer) {
         tw_renderer_enter(w->renderer);
         left_behind = tw_stream_destroy(w->stream) + tw_world_hlod_stop(w);
-        tw_gputime_finish(&w->gputime);
+        tw_gputime_finish(&w->own.gputime);
         tw_renderer_leave(w->renderer);
-        if (w->gputime.dropped)
+        if (w->own.gputime.dropped)
             tw_log_printf(&w->s.log, TW_LOG_DEBUG,
                           "GPU time: the timers of %llu frames were not back when their entry "
                           "was reused (their GPU time unknown)",
-                          (unsigned long long)w->gputime.dropped);
+                          (unsigned long long)w->own.gputime.dropped);
     }
     if (w->bvhs)
         for (uint32_t p = 0; p < w->shared_count; p++)
@@ -528,13 +657,13 @@ int tw_world_set_method_or_limit(struct tw_world *w, enum tw_method m)
                       "own framebuffer)", tw_method_name(m));
         return TW_ERR_INVALID;
     }
-    struct method_state *ms = &w->methods[m];
+    struct method_state *ms = &w->cur->methods[m];
     if (!ms->driver) {
         int err = create_driver(w, m, &ms->driver);
         if (err)
             return err;
     }
-    w->method = m;
+    w->cur->method = m;
     w->s.method = m;
     return TW_OK;
 }
@@ -610,13 +739,14 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     int err = setup_view(w, cam, &v);
     if (err)
         return err;
-    struct method_state *ms = &w->methods[w->method];
+    struct method_state *ms = &w->cur->methods[w->cur->method];
     struct tw_frame_stats st = {0};
+    w->last = w->cur;
     st.frame = ++ms->frame;
-    st.method = w->method;
+    st.method = w->cur->method;
     v.frame = st.frame;
-    w->last_view = v;
-    w->has_view = true;
+    w->cur->last_view = v;
+    w->cur->has_view = true;
 
     tw_world_hlod_begin_frame(w);
     const bool verify = w->s.verify;
@@ -626,9 +756,9 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     if (debug)
         tw_renderer_record_queries(w->renderer, (debug & TW_DEBUG_QUERIES) != 0);
     w->frame_serial++;
-    const bool oracle = tw_method_limit(w->method);
-    tw_gputime_begin(&w->gputime, w->method, st.frame);
-    tw_gputime_late(&w->gputime, w->method, &st.gpu_late_frame, &st.gpu_late_ms);
+    const bool oracle = tw_method_limit(w->cur->method);
+    tw_gputime_begin(&w->cur->gputime, w->cur->method, st.frame);
+    tw_gputime_late(&w->cur->gputime, w->cur->method, &st.gpu_late_frame, &st.gpu_late_ms);
     st.gpu_ms = -1.0;
     st.gpu_ms_id = oracle || verify ? -1.0 : 0.0;
     /* The full-detail image that the frame's is compared with: not the
@@ -645,26 +775,26 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     }
     double t0 = tw_clock_monotonic_ms(), cpu0 = tw_renderer_cpu_ms();
     if (!oracle)
-        tw_gputime_mark(&w->gputime, TW_GPUTIME_FRAME_BEGIN);
+        tw_gputime_mark(&w->cur->gputime, TW_GPUTIME_FRAME_BEGIN);
     if (w->stream)
         tw_stream_begin_frame(w->stream, w->frame_serial);
     if (oracle) {
         /* The ID pass (and the box test) is an oracle's knowledge, not its
          * work: untimed. */
         const double ts0 = tw_clock_monotonic_ms(), cs0 = tw_renderer_cpu_ms();
-        const bool box = w->method == TW_METHOD_BOX_ORACLE;
-        tw_gputime_mark(&w->gputime, TW_GPUTIME_ID_BEGIN);
+        const bool box = w->cur->method == TW_METHOD_BOX_ORACLE;
+        tw_gputime_mark(&w->cur->gputime, TW_GPUTIME_ID_BEGIN);
         err = tw_oracle_pass(w, &v);
         if (!err && box)
             err = tw_oracle_box_set(w, &v);
         if (err)
             return err;
-        tw_gputime_mark(&w->gputime, TW_GPUTIME_ID_END);
+        tw_gputime_mark(&w->cur->gputime, TW_GPUTIME_ID_END);
         tw_cull_driver_give(ms->driver, box ? w->oracle.box_visible : w->oracle.visible,
                             box ? w->oracle.box_visible_count : w->oracle.visible_count);
         t0 += tw_clock_monotonic_ms() - ts0;
         cpu0 += tw_renderer_cpu_ms() - cs0;
-        tw_gputime_mark(&w->gputime, TW_GPUTIME_FRAME_BEGIN);
+        tw_gputime_mark(&w->cur->gputime, TW_GPUTIME_FRAME_BEGIN);
     }
     struct tw_cost_model costs;
     tw_calibrate_model(&w->calibration, w->s.width, w->s.height, &costs);
@@ -672,9 +802,9 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
     tw_renderer_begin_frame(w->renderer, &v);
     const struct tw_query_backend be = tw_renderer_backend(w->renderer);
     struct tw_cull_frame_stats cs = {0};
-    err = tw_cull_driver_frame(ms->driver, &v, &w->grid, &be, &w->cells, &cs);
+    err = tw_cull_driver_frame(ms->driver, &v, &w->grid, &be, &w->cur->cells, &cs);
     const double t1 = tw_clock_monotonic_ms();
-    tw_gputime_mark(&w->gputime, TW_GPUTIME_FRAME_END);
+    tw_gputime_mark(&w->cur->gputime, TW_GPUTIME_FRAME_END);
     tw_renderer_end_frame(w->renderer);
     st.tiles_queried = cs.tiles_queried;
     st.tiles_visible = cs.tiles_visible;
@@ -709,9 +839,9 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
         if (lod_compare)
             err = tw_lod_image_compare(w, &v, &st);
         if (!err && !oracle) {
-            tw_gputime_mark(&w->gputime, TW_GPUTIME_ID_BEGIN);
+            tw_gputime_mark(&w->cur->gputime, TW_GPUTIME_ID_BEGIN);
             err = tw_oracle_pass(w, &v);
-            tw_gputime_mark(&w->gputime, TW_GPUTIME_ID_END);
+            tw_gputime_mark(&w->cur->gputime, TW_GPUTIME_ID_END);
         }
         if (err)
             return err;
@@ -767,7 +897,7 @@ int tw_world_finish(struct tw_world *w, struct tw_frame_stats *st)
         st->ms_frame += tw_clock_monotonic_ms() - t0;
         st->cpu_ms += tw_renderer_cpu_ms() - cpu0;
         /* After glFinish the timers are back: reading them waits no more. */
-        tw_gputime_current(&w->gputime, &st->gpu_ms, &st->gpu_ms_id);
+        tw_gputime_current(&w->last->gputime, &st->gpu_ms, &st->gpu_ms_id);
     }
     tw_world_leave(w, true);
     return TW_OK;
@@ -845,9 +975,9 @@ int tw_world_last_view(const struct tw_world *w, struct tw_world_view *out)
 {
     if (!w || !out)
         return TW_ERR_INVALID;
-    if (!w->has_view)
+    if (!w->last->has_view)
         return TW_ERR_STATE;
-    const struct tw_view *v = &w->last_view;
+    const struct tw_view *v = &w->last->last_view;
     *out = (struct tw_world_view){
         .cell = v->cell,
         .near_plane = v->near_plane,
@@ -893,13 +1023,14 @@ static int frame_fixed(struct tw_world *w, const struct tw_camera *cam,
         }
     }
     struct tw_frame_stats st = {0};
-    st.frame = w->methods[w->method].frame;
-    st.method = w->method;
+    w->last = w->cur;
+    st.frame = w->cur->methods[w->cur->method].frame;
+    st.method = w->cur->method;
     st.gpu_ms = st.gpu_late_ms = -1.0;
-    tw_gputime_forget(&w->gputime);
+    tw_gputime_forget(&w->cur->gputime);
     v.frame = st.frame;
-    w->last_view = v;
-    w->has_view = true;
+    w->cur->last_view = v;
+    w->cur->has_view = true;
     /* Drawn tile by tile (one run of draws each, as the oracle draws its
      * set), each tile's clusters in the order given. */
     err = tw_array_reserve((void **)&w->fixed_order, &w->fixed_order_cap, count,
@@ -923,7 +1054,7 @@ static int frame_fixed(struct tw_world *w, const struct tw_camera *cam,
     const struct tw_query_backend be = tw_renderer_backend(w->renderer);
     struct tw_cull_frame_stats cs = {0};
     tw_cull_driver_give(w->fixed_set, w->fixed_order, count);
-    err = tw_cull_driver_frame(w->fixed_set, &v, &w->grid, &be, &w->cells, &cs);
+    err = tw_cull_driver_frame(w->fixed_set, &v, &w->grid, &be, &w->cur->cells, &cs);
     tw_cull_driver_give(w->fixed_set, NULL, 0);
     tw_renderer_end_frame(w->renderer);
     if (err)
@@ -958,7 +1089,7 @@ int tw_world_blit_depth(struct tw_world *w, uint32_t target)
     if (!w)
         return TW_ERR_INVALID;
     int err = own_image(w, "copy the depth");
-    if (!err && !w->has_view) {
+    if (!err && !w->last->has_view) {
         tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot copy the depth: no frame has been "
                       "rendered yet");
         err = TW_ERR_STATE;

@@ -468,6 +468,29 @@ const struct tw_prototype *tw_world_level(const struct tw_world *w, uint32_t pro
 /* The world's resolved settings. */
 const struct tw_world_settings *tw_world_settings(const struct tw_world *w);
 
+/* ---- several views (README "Several views") ---------------------------------------- */
+
+/* A second camera onto a world (split screen, a minimap, a mirror): its
+ * own method, culling state (tile instances, CHC++), look-ahead, frame
+ * numbers and statistics; the world's tiles, stream, cache budget (a tile
+ * the latest frame of any view drew is kept), settings (image size, field
+ * of view, view distance) and image shared. A viewport's frame draws into
+ * the world's image: read it (tw_world_read_rgb, _blit, _blit_depth) after
+ * that frame, before the next frame of any view; the getters
+ * (tw_world_last_view, _drawn, _tile_events, ...) then tell of it too. */
+struct tw_viewport;
+
+/* Creates a viewport of w, with w's current method. The caller owns *out;
+ * it is destroyed by tw_viewport_destroy() or with its world. */
+int tw_viewport_create(struct tw_world *w, struct tw_viewport **out);
+/* Frees vp (NULL: nothing) and its culling state. */
+void tw_viewport_destroy(struct tw_viewport *vp);
+/* tw_world_set_method() for the viewport's camera. */
+int tw_viewport_set_method(struct tw_viewport *vp, enum tw_method m);
+/* tw_world_frame() from the viewport's camera. */
+int tw_viewport_frame(struct tw_viewport *vp, const struct tw_camera *cam,
+                      struct tw_frame_stats *stats);
+
 /* ---- camera paths (DESIGN §9, §10) ------------------------------------------------ */
 
 struct tw_path {
