@@ -97,6 +97,8 @@ int tw_method_or_limit_from_name(const char *name, enum tw_method *out);
 /* tw_world_set_method() for the limits too. A world created with
  * tw_world_create_tuned() may have a limit as its settings' method. */
 int tw_world_set_method_or_limit(struct tw_world *w, enum tw_method m);
+/* The same for a viewport's camera. */
+int tw_viewport_set_method_or_limit(struct tw_viewport *vp, enum tw_method m);
 
 /* TW_METHOD_DEFAULT resolved; every other value as it is. */
 enum tw_method tw_method_resolve(enum tw_method m);

@@ -556,6 +556,13 @@ int tw_viewport_set_method(struct tw_viewport *vp, enum tw_method m)
 {
     if (!vp || (unsigned)m >= TW_METHOD_COUNT)
         return TW_ERR_INVALID;
+    return tw_viewport_set_method_or_limit(vp, m);
+}
+
+int tw_viewport_set_method_or_limit(struct tw_viewport *vp, enum tw_method m)
+{
+    if (!vp)
+        return TW_ERR_INVALID;
     struct tw_world *w = vp->w;
     int err = tw_world_enter(w, "switch a viewport's culling method", true);
     if (err)

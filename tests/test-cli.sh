@@ -320,6 +320,17 @@ if "$tw" bench --tileset city-gen --frames 3 --size 96x54 --png-every 0 --quiet 
                  {s += $c} END {print s + 0}' "$tmp/gen-verify/frames.csv")" = 0 ] &&
    [ "$(wc -l <"$tmp/gen-verify/frames.csv")" -eq 10 ]; then ok; else
     bad "bench --verify over city-gen: $(cat "$tmp/err")"; fi
+# --views 2: a chase camera as a second view of the same world, every method
+# that has a frame of its own; said in the verdict and summary.json, and
+# the out-of-range counts refused.
+if "$tw" bench --tileset city-gen --frames 3 --size 96x54 --png-every 0 --quiet --views 2 \
+       --methods vfc,tilequery+chc,hzb,oracle --out "$tmp/views2" >"$tmp/out" 2>"$tmp/err" &&
+   grep -q 'and a chase camera as a second view' "$tmp/out" &&
+   grep -Eq '"views": *2' "$tmp/views2/summary.json" &&
+   [ "$(wc -l <"$tmp/views2/frames.csv")" -eq 13 ]; then ok; else
+    bad "bench --views 2: $(cat "$tmp/out" "$tmp/err")"; fi
+expect_usage_error walk --views 3 "${small[@]}"
+expect_usage_error walk --views 0 "${small[@]}"
 awk -F, 'NR == 1 { for (k = 1; k <= NF; k++) col[$k] = k; next }
          $col["bytes_cpu"] <= 0 || $col["bytes_gpu"] <= 0 || $col["bytes_needed"] <= 0 { exit 1 }
          { loads += $col["loads_done"] } END { exit loads > 0 ? 0 : 1 }' "$tmp/gen-wait/frames.csv" &&

@@ -105,11 +105,13 @@ done <"$tmp/table-options"
 
 # The README's example of a prefix works, and its example of an ambiguous
 # one is refused as such.
-out=$(cd "$tmp" && "$tw" walk --view=@bad@ 2>&1)
-case $out in *"--view-distance:"*) ;; *) fail "walk --view is not --view-distance: $out" ;; esac
+out=$(cd "$tmp" && "$tw" walk --view-d=@bad@ 2>&1)
+case $out in *"--view-distance:"*) ;; *) fail "walk --view-d is not --view-distance: $out" ;; esac
 out=$(cd "$tmp" && "$tw" bench --meth=@bad@ 2>&1)
 case $out in *ambiguous*) ;; *) fail "bench --meth is not ambiguous: $out" ;; esac
-grep -q '`--view 800` is' "$readme" || fail "README lost its prefix example"
+out=$(cd "$tmp" && "$tw" walk --view=@bad@ 2>&1)
+case $out in *ambiguous*) ;; *) fail "walk --view is not ambiguous: $out" ;; esac
+grep -q '`--view-d 800` is' "$readme" || fail "README lost its prefix example"
 
 # No issue numbers or commit hashes in what users read (the design notes at
 # the end, for developers, may cite the design's sections).

@@ -117,9 +117,22 @@ static int draw_set(struct tw_world *world, const struct tw_camera *cam,
     return TW_OK;
 }
 
+/* --views 2: a camera 25 m behind and 12 m above the path's, looking 10
+ * degrees further down (a chase view). */
+static struct tw_camera chase_camera(struct tw_camera c)
+{
+    const float yaw = c.yaw * 3.14159265f / 180.0f;
+    c.pos.local[0] -= 25.0f * sinf(yaw);
+    c.pos.local[2] -= 25.0f * cosf(yaw);
+    c.pos.local[1] += 12.0f;
+    c.pitch = c.pitch - 10.0f > -89.0f ? c.pitch - 10.0f : -89.0f;
+    return c;
+}
+
 int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t err_size)
 {
     struct tw_world *world = NULL;
+    struct tw_viewport *chase_view = NULL;
     uint8_t *rgb = NULL;
     struct tw_report report = {0};
     struct split_set split = {0};
@@ -134,6 +147,10 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     run->world_error = rc;
     if (rc) {
         snprintf(err, err_size, "cannot create the world: %s", tw_error_to_str(rc));
+        goto out;
+    }
+    if (run->views > 1 && (rc = tw_viewport_create(world, &chase_view)) != TW_OK) {
+        snprintf(err, err_size, "cannot create the second view: %s", tw_error_to_str(rc));
         goto out;
     }
     /* --split redraws what each frame drew: record it (it costs the frame
@@ -157,6 +174,7 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     about->verify_tolerance = tw_world_settings(world)->verify_tolerance;
     about->max_screen_error = tw_world_settings(world)->max_screen_error;
     about->deterministic = ws.deterministic;
+    about->views = run->views > 1 ? run->views : 1;
     about->mutate_query_shrink = run->tuning.mutate_query_shrink;
     struct tw_context_info info;
     tw_context_describe(ctx, &info);
@@ -235,6 +253,24 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
             rc = tw_report_add(&report, &st, run->split ? &set : NULL, err, err_size);
             if (rc)
                 goto out;
+            if (chase_view) {
+                /* The second view, with the same method, after the first: not
+                 * reported, but its tiles and culling state count in the
+                 * shared world's memory, which the first view's next frame
+                 * reports. */
+                const struct tw_camera cam = chase_camera(run->path->keys[f]);
+                struct tw_frame_stats vs;
+                rc = tw_viewport_set_method_or_limit(chase_view, run->methods[m]);
+                if (!rc)
+                    rc = tw_viewport_frame(chase_view, &cam, &vs);
+                if (!rc)
+                    rc = tw_world_finish(world, &vs);
+                if (rc) {
+                    snprintf(err, err_size, "frame %u of the second view with %s failed: %s",
+                             f + 1, tw_method_name(run->methods[m]), tw_error_to_str(rc));
+                    goto out;
+                }
+            }
         }
         progress(&line, run, f + 1, run->path->count,
                  total_ms / ((f + 1) * (double)run->method_count));
@@ -254,6 +290,7 @@ out:
     tw_report_abort(&report);
     free(split.clusters);
     free(rgb);
+    tw_viewport_destroy(chase_view);
     tw_world_destroy(world);
     return rc;
 }

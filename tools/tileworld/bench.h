@@ -34,6 +34,9 @@ struct tw_run {
     uint32_t method_count;
     const char *out;                    /* output folder */
     uint32_t png_every;
+    uint32_t views;                     /* 2: a chase camera drawn as a viewport after every
+                                           frame (its frames are not reported; the memory
+                                           figures are the shared world's); 0, 1: one */
     uint32_t scenario_frames;           /* tw_run_scenarios: frames of each scenario (0: its own) */
     bool bench;                         /* summary.md, PNG names with the method, charts */
     bool split;                         /* --split: each frame's set drawn again (report.h) */

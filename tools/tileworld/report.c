@@ -555,9 +555,10 @@ void tw_report_verdict(const struct tw_report_about *about,
         add(line, "tileworld bench of %d method%s", used, used == 1 ? "" : "s");
     else
         add(line, "tileworld walk with %s", tw_method_name(only));
-    add(line, ": tileset %s, path %s, %ux%u, %u frames, seed %llu; on %s through %s%s; %s "
-              "build of %s.", tileset, path, about->width, about->height, about->frames,
-        (unsigned long long)about->seed, renderer, context,
+    add(line, ": tileset %s, path %s%s, %ux%u, %u frames, seed %llu; on %s through %s%s; %s "
+              "build of %s.", tileset, path,
+        about->views > 1 ? " and a chase camera as a second view" : "", about->width,
+        about->height, about->frames, (unsigned long long)about->seed, renderer, context,
         sw ? " (a software renderer: its GPU work is CPU time)" : " (a GPU)", build, commit);
 
     /* How fast. */
@@ -929,6 +930,7 @@ int tw_report_close(struct tw_report *r, bool markdown,
     if (about->verified)
         json_object_object_add(root, "verify_tolerance", number_g(about->verify_tolerance));
     json_object_object_add(root, "deterministic", json_object_new_boolean(about->deterministic));
+    json_object_object_add(root, "views", json_object_new_int64(about->views ? about->views : 1));
     if (about->mutate_query_shrink > 0.0f)
         json_object_object_add(root, "mutate_query_shrink", number_g(about->mutate_query_shrink));
     json_object *ran = json_object_new_object();

@@ -124,6 +124,7 @@ struct tw_report_about {
     float verify_tolerance;
     float max_screen_error;     /* resolved; <= 0: full detail */
     bool deterministic;
+    uint32_t views;             /* cameras on the world (--views) */
     float mutate_query_shrink;
     /* What ran (DESIGN §15): the context's kind ("osmesa", "egl-device", ...),
      * GL_VENDOR, GL_RENDERER, GL_VERSION, whether the renderer is a CPU

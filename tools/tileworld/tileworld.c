@@ -40,6 +40,7 @@ struct options {
     enum tw_method methods[TW_METHOD_ALL];
     uint32_t method_count;
     uint32_t png_every;
+    uint32_t views;             /* --views */
     uint32_t cluster_triangles;
     const char *sweep;
     const char *scenario;
@@ -56,7 +57,7 @@ static const uint32_t default_frames = 300;
 static const char walk_synopsis[] =
     "usage: tileworld walk   [--tileset NAME|FILE.json] [--seed N] [--path NAME|FILE.csv] [--frames N]\n"
     "                        [--method M] [--size WxH] [--start-cell I,J] [--repeat P] [--view-distance M]\n"
-    "                        [--max-screen-error PX] [--hlod-levels N]\n"
+    "                        [--max-screen-error PX] [--hlod-levels N] [--views N]\n"
     "                        [--verify] [--verify-tolerance X] [--allow-missed] [--deterministic]\n"
     "                        [--png-every N] [--out DIR] [--quiet] [--cluster-triangles N]\n"
     "                        [--tile-neighbours 4|8] [--evict-after N] [--chc-batch N] [--chc-nav N]\n"
@@ -102,6 +103,10 @@ static const char run_help[] =
     "                      workers, where the block projects to at most 16 pixels across;\n"
     "                      1..12, 1: cells only (the default); needs a tileset the library\n"
     "                      selects (not city-gen, forest-gen) and levels of detail\n"
+    "--views N             cameras on one world, 1..2 (default 1); 2: after every frame a\n"
+    "                      chase camera 25 m behind and 12 m above the path's draws as a\n"
+    "                      viewport of the same world (same method; not in frames.csv; its\n"
+    "                      tiles and culling state are in the memory figures)\n"
     "--method M            vfc, tilequery, chc, tilequery+chc (default), oracle, hzb,\n"
     "                      tilequery+hzb, box-oracle\n"
     "--tile-neighbours 4|8 the grid neighbours tile propagation visits (default 4)\n"
@@ -237,6 +242,7 @@ enum {
     OPT_NO_COST_MODEL,
     OPT_FIRST_SIGHT_DRAWS,
     OPT_ALLOW_MISSED,
+    OPT_VIEWS,
 };
 
 static const struct option options_table[] = {
@@ -244,6 +250,7 @@ static const struct option options_table[] = {
     {"out", required_argument, NULL, OPT_OUT},
     {"verify", no_argument, NULL, OPT_VERIFY},
     {"png-every", required_argument, NULL, OPT_PNG_EVERY},
+    {"views", required_argument, NULL, OPT_VIEWS},
     {"methods", required_argument, NULL, OPT_METHODS},
     {"cluster-triangles", required_argument, NULL, OPT_CLUSTER_TRIANGLES},
     {"sweep", required_argument, NULL, OPT_SWEEP},
@@ -302,6 +309,7 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
         break;
     case OPT_VERIFY: ws->verify = true; break;
     case OPT_PNG_EVERY: o->png_every = (uint32_t)tw_cli_u64(program, name, v, 0, 10000000); break;
+    case OPT_VIEWS: o->views = (uint32_t)tw_cli_u64(program, name, v, 1, 2); break;
     case OPT_METHODS: parse_methods(name, v, o); break;
     case OPT_CLUSTER_TRIANGLES:
         o->cluster_triangles = (uint32_t)tw_cli_u64(program, name, v, 16, 1000000);
@@ -470,6 +478,7 @@ static int run(const struct options *o, bool bench)
     r.path_name = o->cli.path;
     r.out = o->out;
     r.png_every = o->png_every;
+    r.views = o->views;
     r.scenario_frames = o->cli.frames;
     r.bench = bench;
     r.split = o->split;
