@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "tests/captured-log.h"
 #include "tests/check.h"
 #include "tests/meshes.h"
 #include "tileworld/context.h"
@@ -21,24 +22,6 @@
 #include "tileworld/tilesets.h"
 
 enum { W = 160, H = 90 };
-
-/* Errors logged, from any thread, and the last one. */
-struct log_lines {
-    pthread_mutex_t lock;
-    unsigned errors;
-    char last[512];
-};
-
-static void log_line(void *user, enum tw_log_level level, const char *msg)
-{
-    struct log_lines *l = user;
-    if (level != TW_LOG_ERROR)
-        return;
-    pthread_mutex_lock(&l->lock);
-    l->errors++;
-    snprintf(l->last, sizeof(l->last), "%s", msg);
-    pthread_mutex_unlock(&l->lock);
-}
 
 /* Errors logged since *mark, and whether the last one holds what. */
 static bool logged(struct log_lines *l, unsigned *mark, unsigned expect, const char *what)

@@ -13,6 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "tests/captured-log.h"
 #include "tests/check.h"
 #include "tests/meshes.h"
 #include "tileworld/context.h"
@@ -21,25 +22,6 @@
 
 enum { W = 192, H = 108 };
 #define FOOTPRINT 32.0f
-
-struct log_lines {
-    pthread_mutex_t lock;
-    unsigned errors;
-    char last[512];
-};
-
-static void log_line(void *user, enum tw_log_level level, const char *msg)
-{
-    struct log_lines *l = user;
-    if (level != TW_LOG_ERROR)
-        return;
-    pthread_mutex_lock(&l->lock);
-    l->errors++;
-    snprintf(l->last, sizeof(l->last), "%s", msg);
-    if (getenv("TW_TEST_VERBOSE"))
-        fprintf(stderr, "log: %s\n", msg);
-    pthread_mutex_unlock(&l->lock);
-}
 
 /* Looking along +z from the sea (rows j = 1 .. sea_last) to the land
  * beyond: visibility has to cross the empty cells, the camera's own first. */
