@@ -96,6 +96,8 @@ struct tw_stream {
     struct tw_stream_settings set;
     const struct tw_tile_provider *p;
     uint64_t frame;
+    uint32_t views;                      /* frames of this many views take turns: the
+                                            frame counts (cancel, evict) stretch by it */
 
     /* Entries: render thread, except their job fields (lock). The array is
      * reallocated only under the lock. */

@@ -347,6 +347,7 @@ int tw_stream_create(const struct tw_stream_settings *set, struct tw_stream **ou
         s->set.cancel_after = 2;
     if (s->set.evict_after == 0)
         s->set.evict_after = 60;
+    s->views = 1;
     if (s->set.stop_ms == 0)
         s->set.stop_ms = TW_STREAM_STOP_MS;
     int err = tw_cell_map_create(&s->by_cell);
@@ -396,6 +397,11 @@ uint32_t tw_stream_destroy(struct tw_stream *s)
         tw_stream_pool_unref(s->pool);
     free(s);
     return left;
+}
+
+void tw_stream_set_views(struct tw_stream *s, uint32_t views)
+{
+    s->views = views ? views : 1;
 }
 
 void tw_stream_set_events(struct tw_stream *s, tw_stream_event_fn fn, void *user)
@@ -461,7 +467,7 @@ void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame)
     for (uint32_t k = 0; k < s->entry_count; k++) {
         struct entry *e = &s->entries[k];
         if (e->rstate != R_LOADING || e->jstate != J_QUEUED ||
-            e->wanted_frame + s->set.cancel_after >= frame)
+            e->wanted_frame + (uint64_t)s->set.cancel_after * s->views >= frame)
             continue;
         e->jstate = J_NONE;
         reorder = true;
@@ -479,7 +485,7 @@ void tw_stream_begin_frame(struct tw_stream *s, uint64_t frame)
     for (uint32_t k = 0; k < s->entry_count; k++) {
         struct entry *e = &s->entries[k];
         if ((e->rstate != R_READY && e->rstate != R_REFUSED && e->rstate != R_EMPTY) ||
-            e->wanted_frame + s->set.evict_after >= frame)
+            e->wanted_frame + (uint64_t)s->set.evict_after * s->views >= frame)
             continue;
         const bool ready = e->rstate == R_READY;
         const struct tw_cell cell = e->cell;

@@ -154,6 +154,10 @@ typedef void (*tw_stream_evicted_fn)(void *user, struct tw_cell cell, uint64_t b
 uint64_t tw_stream_trim(struct tw_stream *s, uint64_t excess, uint64_t frame,
                         tw_stream_evicted_fn evicted, void *user);
 
+/* Views whose frames take turns on the stream: a request or a tile is kept
+ * as many frames longer (cancel_after, evict_after count one view's frames). */
+void tw_stream_set_views(struct tw_stream *s, uint32_t views);
+
 /* Ready events: tiles that became ready in the current frame, and refusals. */
 typedef void (*tw_stream_event_fn)(void *user, const struct tw_tile_event *e);
 void tw_stream_set_events(struct tw_stream *s, tw_stream_event_fn fn, void *user);

@@ -495,6 +495,16 @@ uint64_t tw_world_keep_from(const struct tw_world *w)
 
 /* ---- viewports ---------------------------------------------------------------------------- */
 
+/* The streams count frames of every view: their frame counts stretch. */
+static void views_changed(struct tw_world *w)
+{
+    if (w->stream)
+        tw_stream_set_views(w->stream, w->view_count);
+    for (uint32_t k = 1; k < w->hlod.count; k++)
+        if (w->hlod.levels[k].stream)
+            tw_stream_set_views(w->hlod.levels[k].stream, w->view_count);
+}
+
 int tw_viewport_create(struct tw_world *w, struct tw_viewport **out)
 {
     if (!w || !out)
@@ -521,6 +531,7 @@ int tw_viewport_create(struct tw_world *w, struct tw_viewport **out)
     vp->next = w->viewports;
     w->viewports = vp;
     w->view_count++;
+    views_changed(w);
     tw_world_leave(w, true);
     *out = vp;
     return TW_OK;
@@ -549,6 +560,7 @@ void tw_viewport_destroy(struct tw_viewport *vp)
             break;
         }
     w->view_count--;
+    views_changed(w);
     free(vp);
 }
 
