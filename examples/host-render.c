@@ -14,7 +14,7 @@
  * tileworld's workers (host.prepare_worker) and uploading it when it is
  * ready (host.prepare), and checks that its image matches the one
  * tileworld draws itself for the same frames (a second world, side by
- * side, with every method host rendering has), that the world's budget
+ * side, with every method host rendering has, each in turn), that the world's budget
  * counts the bytes the host holds, and that every tile is freed. Set
  * HOST_RENDER_VERBOSE for a line a frame.
  * It exits 0 when every check holds, else 1 with a message.
@@ -468,7 +468,7 @@ int main(void)
     s.width = WIDTH;
     s.height = HEIGHT;
     s.view_distance = 400.0f;
-    s.cache_budget_bytes = 160u << 20;  /* tiles leave the cache as the walk goes on */
+    s.cache_budget_bytes = 224u << 20;  /* tiles leave the cache as the walk goes on */
     s.deterministic = true;
     s.get_proc = tw_context_get_proc(ctx);
     s.log = log;
@@ -490,10 +490,12 @@ int main(void)
     uint64_t worst = 0, triangles_own = 0, triangles_host = 0;
     /* Every method host rendering has, in turn (each keeps its own state). */
     static const enum tw_method methods[] = {TW_METHOD_TILEQUERY_CHC, TW_METHOD_CHC,
-                                             TW_METHOD_TILEQUERY, TW_METHOD_VFC};
+                                             TW_METHOD_TILEQUERY, TW_METHOD_VFC,
+                                             TW_METHOD_HZB, TW_METHOD_TILEQUERY_HZB};
+    const uint32_t method_count = sizeof(methods) / sizeof(methods[0]);
     for (uint32_t f = 0; f < FRAMES; f++) {
         struct tw_frame_stats so, sh;
-        const enum tw_method m = methods[f % 4];
+        const enum tw_method m = methods[f % method_count];
         if (tw_world_set_method(own, m) != TW_OK || tw_world_set_method(h.world, m) != TW_OK)
             return 1;
         if (tw_world_frame(own, &path.keys[f], &so) != TW_OK ||

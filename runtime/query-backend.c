@@ -391,9 +391,9 @@ struct tw_query_backend tw_renderer_backend(struct tw_renderer *r)
     };
     if (r->host.draw) {
         /* The host's framebuffer: no conditional draws (the host's draws
-         * are its own), no depth of the renderer's to read or build on. */
+         * are its own), and its depth read back for the HZB on the CPU
+         * (the GPU's pyramid is built from the renderer's own depth). */
         be.draw_if = NULL;
-        be.read_depth = NULL;
         return be;
     }
     tw_renderer_gpu_hzb_ops(r, &be);

@@ -422,7 +422,8 @@ int tw_renderer_read_rgb(struct tw_renderer *r, uint8_t *rgb)
 void tw_renderer_read_depth(struct tw_renderer *r, float *depth)
 {
     const struct tw_gl *gl = &r->gl;
-    gl->BindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+    /* In host rendering, the host's framebuffer holds the frame's depth. */
+    gl->BindFramebuffer(GL_FRAMEBUFFER, r->host.draw ? r->host_fbo : r->fbo);
     gl->PixelStorei(GL_PACK_ALIGNMENT, 4);
     gl->ReadPixels(0, 0, (GLsizei)r->width, (GLsizei)r->height, GL_DEPTH_COMPONENT, GL_FLOAT,
                    depth);

@@ -190,9 +190,6 @@ static const char *out_of_range(const struct tw_world_settings *s, int methods)
     if (s->host.draw && s->verify)
         return "host rendering draws into the host's framebuffer, and verify compares the "
                "world's own image: one or the other";
-    if (s->host.draw && (s->method == TW_METHOD_HZB || s->method == TW_METHOD_TILEQUERY_HZB))
-        return "host rendering has no HZB methods yet (they read the depth back from the "
-               "world's own framebuffer)";
     if (!(s->verify_tolerance >= 0.0f && s->verify_tolerance < 1.0f))
         return "the verify tolerance is not in [0, 1)";
     if ((unsigned)s->policy > TW_STREAM_SKIP)
@@ -383,12 +380,15 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
     if (err)
         goto fail;
     {
+        /* In host rendering the depth is the host's: read back, built on the CPU. */
         const enum tw_hzb_pyramid hp = w->t.hzb_pyramid;
-        const bool want = hp == TW_HZB_PYRAMID_GPU ||
-                          (hp == TW_HZB_PYRAMID_AUTO && !tw_renderer_software(w->renderer));
+        const bool want = !w->s.host.draw &&
+                          (hp == TW_HZB_PYRAMID_GPU ||
+                           (hp == TW_HZB_PYRAMID_AUTO && !tw_renderer_software(w->renderer)));
         if (!tw_renderer_use_gpu_hzb(w->renderer, want) && hp == TW_HZB_PYRAMID_GPU)
-            tw_log_printf(&w->s.log, TW_LOG_WARN, "the HZB's pyramid is built on the CPU: "
-                          "the GL context has no compute shaders (4.3)");
+            tw_log_printf(&w->s.log, TW_LOG_WARN, "the HZB's pyramid is built on the CPU: %s",
+                          w->s.host.draw ? "in host rendering the depth is the host's"
+                                         : "the GL context has no compute shaders (4.3)");
     }
     tw_renderer_enter(w->renderer);
     const struct tw_tileset *ts = w->provider.shared;
@@ -669,11 +669,9 @@ int tw_world_set_method_or_limit(struct tw_world *w, enum tw_method m)
     if (!w || (unsigned)m >= TW_METHOD_ALL)
         return TW_ERR_INVALID;
     m = tw_method_resolve(m);
-    if (w->s.host.draw && (m == TW_METHOD_HZB || m == TW_METHOD_TILEQUERY_HZB ||
-                           tw_method_limit(m))) {
+    if (w->s.host.draw && tw_method_limit(m)) {
         tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot switch to %s: host rendering has no "
-                      "HZB methods or oracles yet (they read the depth back from the world's "
-                      "own framebuffer)", tw_method_name(m));
+                      "oracles (their ID pass draws the world's own geometry)", tw_method_name(m));
         return TW_ERR_INVALID;
     }
     struct method_state *ms = &w->cur->methods[m];

@@ -226,7 +226,8 @@ struct tw_world_settings {
                                           on the GPU's timing (tests, comparisons);
                                           slower, as latency is no longer hidden */
     struct tw_host_renderer host;      /* host rendering when host.draw is set: no verify, no
-                                          HZB methods, no image of the world's own */
+                                          oracles, no image of the world's own; the HZB
+                                          methods read the host's depth back */
     tw_gl_get_proc_fn get_proc;        /* loader of the current context; required */
     struct tw_log log;                 /* copied; zeroed: silent */
 };
