@@ -209,6 +209,10 @@ struct tw_query_backend {
                     const float offset[3], const uint32_t *clusters, uint32_t count);
     /* Sends issued work to the GPU. */
     void (*flush)(void *ctx);
+    /* May be NULL. Says that the next query issued is a tile query (the
+     * box of a cell or block of the grid, stretched or not), for debug
+     * views that tell tile queries from BVH node queries. */
+    void (*tile_query_next)(void *ctx);
     /* The depth of everything drawn so far this frame, for the HZB methods
      * (DESIGN §6): fills *width, *height and *reversed (window depth near =
      * 1, far = 0; else near = 0, far = 1) and, when depth is not NULL,

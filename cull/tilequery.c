@@ -214,16 +214,14 @@ static void query_neighbours(struct frame_ctx *fc, size_t count)
         float off[3];
         offset_of(fc, c.cell, off);
         const struct tw_box qb = query_box(fc, c.level, off);
-        /* The grid's own common box where it is that (the renderer's
-         * debug views tell tile queries by it). */
-        const struct tw_box *issued =
-            memcmp(&qb, &fc->g->common_box, sizeof(qb)) == 0 ? &fc->g->common_box : &qb;
-        if (tw_cull_near_box(fc->v, issued, off)) {
+        if (tw_cull_near_box(fc->v, &qb, off)) {
             /* The near plane may cut this box: a query could lie. */
             p->query = 0;
             fc->st->tiles_free++;
         } else {
-            p->query = fc->be->issue(fc->be->ctx, issued, 1, off);
+            if (fc->be->tile_query_next)
+                fc->be->tile_query_next(fc->be->ctx);
+            p->query = fc->be->issue(fc->be->ctx, &qb, 1, off);
             fc->st->tiles_queried++;
         }
     }

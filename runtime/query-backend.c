@@ -165,7 +165,7 @@ static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
 /* Debugging: keeps the boxes of query handle, view-relative, until the
  * next frame; its result is filled in when it is read. */
 static void record_query(struct tw_renderer *r, uint32_t handle, const struct tw_box *boxes,
-                         uint32_t count, const float offset[3])
+                         uint32_t count, const float offset[3], bool tile)
 {
     if (tw_array_reserve((void **)&r->query_boxes, &r->query_box_cap, r->query_box_count + count,
                          sizeof(*r->query_boxes), 1024))
@@ -179,7 +179,7 @@ static void record_query(struct tw_renderer *r, uint32_t handle, const struct tw
         }
         q->query = handle;
         q->boxes = count;
-        q->tile = boxes == r->tile_query_box;
+        q->tile = tile;
         q->result = -1;
     }
 }
@@ -211,6 +211,9 @@ static uint32_t backend_issue(void *ctx, const struct tw_box *boxes, uint32_t co
     struct tw_renderer *r = ctx;
     const double t0 = tw_clock_monotonic_ms();
     const struct tw_gl *gl = &r->gl;
+    /* Said of this query only (tile_query_next). */
+    const bool tile = r->next_is_tile;
+    r->next_is_tile = false;
     uint32_t handle;
     if (r->free_count > 0) {
         handle = r->free_queries[--r->free_count];
@@ -279,7 +282,7 @@ static uint32_t backend_issue(void *ctx, const struct tw_box *boxes, uint32_t co
     gl->EndQuery(r->query_target);
     r->counters.query_boxes += count;
     if (r->recording_queries)
-        record_query(r, handle, boxes, count, offset);
+        record_query(r, handle, boxes, count, offset, tile);
     r->counters.queries++;
     r->counters.ms_backend += tw_clock_monotonic_ms() - t0;
     return handle;
@@ -377,6 +380,12 @@ static bool backend_read_depth(void *ctx, float *depth, uint32_t *width, uint32_
     return true;
 }
 
+static void backend_tile_query_next(void *ctx)
+{
+    struct tw_renderer *r = ctx;
+    r->next_is_tile = true;
+}
+
 struct tw_query_backend tw_renderer_backend(struct tw_renderer *r)
 {
     struct tw_query_backend be = {
@@ -388,6 +397,7 @@ struct tw_query_backend tw_renderer_backend(struct tw_renderer *r)
         .draw_if = backend_draw_if,
         .flush = backend_flush,
         .read_depth = backend_read_depth,
+        .tile_query_next = backend_tile_query_next,
     };
     if (r->host.draw) {
         /* The host's framebuffer: no conditional draws (the host's draws
@@ -457,10 +467,6 @@ void tw_renderer_set_mutation(struct tw_renderer *r, float shrink_fraction)
     r->mutate_shrink = shrink_fraction;
 }
 
-void tw_renderer_set_tile_query_box(struct tw_renderer *r, const struct tw_box *box)
-{
-    r->tile_query_box = box;
-}
 
 void tw_renderer_queries_init(struct tw_renderer *r)
 {

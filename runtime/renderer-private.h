@@ -200,7 +200,7 @@ struct tw_renderer {
     struct tw_renderer_query_box *query_boxes;
     size_t query_box_count, query_box_cap;
     uint32_t *query_record;
-    const struct tw_box *tile_query_box;   /* queries on this box are tile queries */
+    bool next_is_tile;     /* the next query issued is a tile query (debug views) */
     bool deterministic;    /* no query is ready before it is waited on */
     GLenum query_target;   /* GL_ANY_SAMPLES_PASSED, or GL_SAMPLES_PASSED to count them */
     float mutate_shrink;   /* testing: query boxes shrunk by this fraction */

@@ -183,10 +183,6 @@ void tw_renderer_set_count_samples(struct tw_renderer *r, bool on);
 /* Testing only: every query box shrunk by shrink_fraction of its size. */
 void tw_renderer_set_mutation(struct tw_renderer *r, float shrink_fraction);
 
-/* Queries whose box is box (the pointer, as the tile-query propagation
- * passes it) are recorded as tile queries. box is borrowed. */
-void tw_renderer_set_tile_query_box(struct tw_renderer *r, const struct tw_box *box);
-
 /* Turns on or off the recording of query boxes (off by default; reset by
  * tw_renderer_begin_frame). The array belongs to the renderer and lives
  * until the next frame. */

@@ -433,7 +433,6 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
         .common_box = w->provider.bound,
         .source = {w, tw_world_get_tile, w->stream ? tw_world_prefetch_tile : NULL},
     };
-    tw_renderer_set_tile_query_box(w->renderer, &w->grid.common_box);
     if (w->s.host.draw)
         tw_renderer_set_host(w->renderer,
                              &(struct tw_renderer_host){host_draw, w, w->s.host.clear,

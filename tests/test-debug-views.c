@@ -32,10 +32,15 @@ static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tiles
     return make_world_as(ctx, ts, method, false);
 }
 
-/* Frame k of a short walk down a street. */
+/* Frame k of a short walk down a street, the last two from 300 m up (above
+ * every common box: tile queries' boxes are stretched up to the eye). */
 static struct tw_camera camera(int k)
 {
     struct tw_camera cam = {{{0, 0}, {0.0f, 1.7f, 2.0f + 1.5f * (float)k}}, 10.0f, 3.0f};
+    if (k >= FRAMES - 2) {
+        cam.pos.local[1] = 300.0f;
+        cam.pitch = -30.0f;
+    }
     return cam;
 }
 
