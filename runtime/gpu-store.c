@@ -109,6 +109,12 @@ out:
 static void free_buffers(struct tw_renderer *r, struct tw_gpu_buffers *b)
 {
     const struct tw_gl *gl = &r->gl;
+    if (!r->gl_loaded) {
+        /* The context is gone or not current: its objects went with it. */
+        free(b->base_vertex);
+        memset(b, 0, sizeof(*b));
+        return;
+    }
     if (b->vbo)
         gl->DeleteBuffers(1, &b->vbo);
     if (b->ibo)
@@ -298,10 +304,9 @@ const struct tw_gpu_buffers *tw_renderer_bind_content(struct tw_renderer *r, uin
 
 void tw_renderer_store_finish(struct tw_renderer *r)
 {
-    if (r->gl_loaded)
-        for (uint32_t b = 0; b < r->buffer_count; b++)
-            if (r->buffers[b].live)
-                free_buffers(r, &r->buffers[b]);
+    for (uint32_t b = 0; b < r->buffer_count; b++)
+        if (r->buffers[b].live)
+            free_buffers(r, &r->buffers[b]);
     free(r->buffers);
     free(r->free_buffers);
     free(r->contents);

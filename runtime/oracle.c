@@ -237,8 +237,10 @@ int tw_oracle_pass(struct tw_world *w, const struct tw_view *v)
         if (!o->per_id_cap)
             return TW_ERR_NOMEM;
     }
-    memset(o->pixels, 0, sizeof(*o->pixels) * o->count);
-    memset(o->box_state, BOX_UNKNOWN, o->count);
+    if (o->count > 0) {     /* a frame with nothing to draw has no arrays yet */
+        memset(o->pixels, 0, sizeof(*o->pixels) * o->count);
+        memset(o->box_state, BOX_UNKNOWN, o->count);
+    }
     tw_renderer_id_read(w->renderer, o->ids, o->id_depth);
     block_distances(w, v);
     const size_t npix = (size_t)w->s.width * w->s.height;
