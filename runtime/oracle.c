@@ -430,8 +430,10 @@ int tw_oracle_box_set(struct tw_world *w, const struct tw_view *v)
 void tw_oracle_compare(struct tw_world *w, struct tw_frame_stats *st)
 {
     struct tw_oracle *o = &w->oracle;
-    memset(o->drawn, 0, o->count);
-    memset(o->missed_per_id, 0, sizeof(*o->missed_per_id) * o->count);
+    if (o->count > 0) {     /* a frame with nothing to draw has no arrays yet */
+        memset(o->drawn, 0, o->count);
+        memset(o->missed_per_id, 0, sizeof(*o->missed_per_id) * o->count);
+    }
     const struct tw_view *v = &w->cur->last_view;
     const struct tw_oracle_depth dm = depth_model(w, v);
     size_t n = 0;
