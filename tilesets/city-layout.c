@@ -781,7 +781,7 @@ static int blocks_create(struct tw_tileset *ts, const struct tw_city_settings *s
     c->set = *settings;
     c->w = c->set.footprint;
     c->half_street = 0.5f * c->set.street_width;
-    c->kerb_line = c->half_street - tw_clampf(0.22f * c->set.street_width, 1.5f, 4.0f);
+    c->kerb_line = tw_city_road_half_width(&c->set);
     c->lot_scale = fmaxf(1.0f, (c->w - c->set.street_width) / 66.0f);
     tw_buildings_init(&c->buildings, ts);
     int err = add_materials(c);
@@ -809,6 +809,12 @@ int tw_city_blocks_create_tile(struct tw_tileset *ts, const struct tw_city_setti
     return blocks_create(ts, settings, false, out);
 }
 
+
+float tw_city_road_half_width(const struct tw_city_settings *settings)
+{
+    const float half_street = 0.5f * settings->street_width;
+    return half_street - tw_clampf(0.22f * settings->street_width, 1.5f, 4.0f);
+}
 /* Every height a block draws is at most proto_height_cap() before it is
  * rounded to height_step (build_dense(): hp <= cap; the other kinds cap
  * lower), so at most cap + height_step / 2 after; tw_building_spec_init() keeps a

@@ -64,6 +64,11 @@ int tw_city_blocks_add(struct tw_city_blocks *blocks, uint32_t proto,
 int tw_city_blocks_add_streets(struct tw_city_blocks *blocks, uint32_t proto,
                                uint32_t ground_material);
 
+/* Where the road ends and the sidewalk (its kerb) begins, metres from the
+ * tile border: the road, kerb to kerb, spans that much either side of every
+ * border. settings must be resolved. */
+float tw_city_road_half_width(const struct tw_city_settings *settings);
+
 /* The lot area that the streets leave, as {x0, z0, x1, z1} in tile-local
  * metres, and the height of its ground (the kerb). */
 void tw_city_blocks_lot_area(const struct tw_city_blocks *blocks, float area[4],

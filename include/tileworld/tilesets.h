@@ -276,6 +276,95 @@ const struct tw_tile_provider *tw_tilesets_provider_get(const struct tw_tilesets
 /* Frees p and everything it owns; accepts NULL. */
 void tw_tilesets_provider_destroy(struct tw_tilesets_provider *p);
 
+/* ---- traffic: moving cars for the city ---- */
+
+/* How many models tw_tilesets_car_models() makes. */
+#define TW_TRAFFIC_CAR_MODELS 12u
+/* The largest car of those models, metres: its length (along z) and width
+ * (along x). */
+#define TW_TRAFFIC_CAR_LENGTH 4.8f
+#define TW_TRAFFIC_CAR_WIDTH 1.95f
+
+/* Builds a finished tileset of TW_TRAFFIC_CAR_MODELS car models for
+ * runtime.h's object_models: a saloon, a hatchback and a van (a body, a
+ * cabin and two axles of wheels: 36 triangles each), each in four colours.
+ * Model-local coordinates: the origin on the ground at the car's centre, y
+ * up, +z forward; every model within TW_TRAFFIC_CAR_LENGTH x
+ * TW_TRAFFIC_CAR_WIDTH and 2 m high. Footprint 8 x 8 m (a nominal one:
+ * objects have no cell of their own). Deterministic. The caller owns
+ * *out. */
+int tw_tilesets_car_models(const struct tw_log *log, struct tw_tileset **out);
+
+/* Where the cars drive. Zero-initialisable: zero fields take the defaults
+ * of tw_traffic_default_settings() (the centre cell (0, 0) and seed 0 are
+ * values, not defaults). */
+struct tw_traffic_settings {
+    uint64_t seed;              /* each car's model, lane, speed and place in it */
+    uint32_t cars;              /* how many; 0..TW_TRAFFIC_MAX_CARS; default 0 */
+    uint32_t models;            /* car k's model is one of [0, models); default
+                                   TW_TRAFFIC_CAR_MODELS */
+    float footprint;            /* the city's tile side (tw_city_settings); default 80 */
+    float street_width;         /* the city's full street width; default 14 */
+    struct tw_cell centre;      /* the square's centre: this cell's origin corner */
+    float radius_m;             /* half the square's side, rounded up to whole cells;
+                                   default 600, in [1, 100000] */
+    float speed_mps;            /* mean speed, metres a second; default 10, in (0, 100] */
+};
+
+#define TW_TRAFFIC_MAX_CARS 1000000u
+
+void tw_traffic_default_settings(struct tw_traffic_settings *s);
+
+/* Traffic on the city's streets (tw_tilesets_city(), hybrid, city-gen: a
+ * street along every tile border, its road within
+ * tw_traffic.road_half_width of the border, sidewalks and blocks beyond).
+ * Cars drive in the square of cells centre +- half_cells, on every street
+ * line inside it, both ways along x and along z: two lanes a street,
+ * right-hand traffic, each lane_offset from the street's centre line. A car
+ * that leaves the square on one side comes back on the other. The lanes
+ * share the cars out (car k in lane k mod lanes), each lane's cars evenly
+ * spaced and driving at the lane's own speed (0.8 to 1.2 times
+ * speed_mps), so cars of one lane never come closer than
+ * lane_length / cars of the lane; cars crossing at a junction are not
+ * kept apart (there are no traffic lights). Plain data; fill it with
+ * tw_traffic_init(). */
+struct tw_traffic {
+    struct tw_traffic_settings settings;    /* resolved */
+    int64_t half_cells;         /* n = ceil(radius_m / footprint): cells centre - n ..
+                                   centre + n - 1 along i and j */
+    uint32_t lanes;             /* 8 n: 2 n street lines each way, two lanes each */
+    double lane_length;         /* 2 n footprint, metres */
+    float road_half_width;      /* the road (kerb to kerb) spans this either side of a
+                                   tile border */
+    float lane_offset;          /* a lane's centre line from the street's */
+    uint32_t line_stride;       /* the lanes' street lines are taken in this stride */
+};
+
+/* Where a car is: the fields of runtime.h's struct tw_object (tilesets sit
+ * below the runtime; a host copies them over): its centre on the ground,
+ * pos normalised (0 <= local < footprint), local[1] = 0 (the road); yaw in
+ * degrees (0: driving along +z, 90: +x, 180: -z, 270: -x), as the object's
+ * yaw turns the model's +z; and its model. */
+struct tw_traffic_car {
+    struct tw_world_pos pos;
+    float yaw;
+    uint32_t model;
+};
+
+/* Validates settings (NULL: all defaults; bad ones get a message naming
+ * the field, TW_ERR_INVALID) and fills *t. */
+int tw_traffic_init(struct tw_traffic *t, const struct tw_traffic_settings *settings,
+                    const struct tw_log *log);
+
+/* Car car (< settings.cars) at seconds (finite; negative is the past) into
+ * *out: a pure function of (*t, car, seconds), the same bits on every run.
+ * Its footprint (TW_TRAFFIC_CAR_LENGTH x TW_TRAFFIC_CAR_WIDTH at most) lies
+ * on the road, inside its lane. Returns TW_ERR_INVALID for a car out of
+ * range or a time that is not finite (out untouched). Thread-safe: only
+ * reads *t. */
+int tw_traffic_place(const struct tw_traffic *t, uint32_t car, double seconds,
+                     struct tw_traffic_car *out);
+
 #ifdef __cplusplus
 }
 #endif
