@@ -58,6 +58,7 @@ enum entry_kind {
 static const struct entry {
     const char *name;
     enum entry_kind kind;
+    bool streets;       /* the city's streets, default settings, along every tile border */
     union {
         int (*tileset)(uint64_t seed, uint32_t max_cluster_triangles, const struct tw_log *log,
                        struct tw_tileset **out);
@@ -65,11 +66,11 @@ static const struct entry {
                         const struct tw_log *log, struct tw_tilesets_provider **out);
     } make;
 } registry[] = {
-    {"city", ENTRY_TILESET, {.tileset = make_city}},
-    {"forest", ENTRY_TILESET, {.tileset = make_forest}},
-    {"hybrid", ENTRY_TILESET, {.tileset = make_hybrid}},
-    {"city-gen", ENTRY_PROVIDER, {.provider = make_city_gen}},
-    {"forest-gen", ENTRY_PROVIDER, {.provider = make_forest_gen}},
+    {"city", ENTRY_TILESET, true, {.tileset = make_city}},
+    {"forest", ENTRY_TILESET, false, {.tileset = make_forest}},
+    {"hybrid", ENTRY_TILESET, true, {.tileset = make_hybrid}},
+    {"city-gen", ENTRY_PROVIDER, true, {.provider = make_city_gen}},
+    {"forest-gen", ENTRY_PROVIDER, false, {.provider = make_forest_gen}},
 };
 
 enum { ENTRY_COUNT = sizeof(registry) / sizeof(registry[0]) };
@@ -130,6 +131,30 @@ int tw_tilesets_builtin(const char *name, uint64_t seed, uint32_t max_cluster_tr
 bool tw_tilesets_is_provider(const char *name)
 {
     return name && find(name, ENTRY_PROVIDER);
+}
+
+bool tw_tilesets_streets(const char *name, struct tw_traffic_settings *streets,
+                         char *names, size_t names_size)
+{
+    bool found = false;
+    size_t used = 0;
+    if (names_size)
+        names[0] = '\0';
+    for (size_t k = 0; k < ENTRY_COUNT; k++) {
+        if (!registry[k].streets)
+            continue;
+        found |= name && strcmp(registry[k].name, name) == 0;
+        if (used < names_size)
+            used += (size_t)snprintf(names + used, names_size - used, "%s%s", used ? ", " : "",
+                                     registry[k].name);
+    }
+    if (found && streets) {
+        struct tw_city_settings city;
+        tw_tilesets_city_default_settings(&city);
+        streets->footprint = city.footprint;
+        streets->street_width = city.street_width;
+    }
+    return found;
 }
 
 int tw_tilesets_provider_create(const char *name, uint64_t seed,

@@ -232,6 +232,14 @@ int tw_tilesets_provider_create_forest(uint64_t seed, const struct tw_forest_set
  * registry.c's table. */
 bool tw_tilesets_is_provider(const char *name);
 
+/* Whether the built-in tileset or provider called name has the city's
+ * streets along every tile border (city, hybrid, city-gen): then sets the
+ * footprint and street_width of *streets (may be NULL) to theirs, for
+ * tw_traffic_init(). Writes the names that have them, "a, b, c", into
+ * names (names_size bytes, may be 0) either way, for messages. */
+bool tw_tilesets_streets(const char *name, struct tw_traffic_settings *streets,
+                         char *names, size_t names_size);
+
 /* ---- the hybrid tileset (hybrid.c) ---------------------------------------------- */
 
 /* Settings of the hybrid city. Zero-initialisable: zero fields take the

@@ -129,9 +129,35 @@ static struct tw_camera chase_camera(struct tw_camera c)
     return c;
 }
 
+/* Frames a second of the cars' time: frame f shows them at f / 30 s, so
+ * that every run, and every method of a bench, sees the same traffic. */
+#define CARS_FPS 30.0
+
+/* Every car of traffic at frame f, added (ids filled) or moved. */
+static int drive_cars(struct tw_world *world, const struct tw_traffic *traffic, uint32_t *ids,
+                      uint32_t f, bool add, char *err, size_t err_size)
+{
+    for (uint32_t k = 0; k < traffic->settings.cars; k++) {
+        struct tw_traffic_car c;
+        int rc = tw_traffic_place(traffic, k, f / CARS_FPS, &c);
+        const struct tw_object o = {c.pos, c.yaw, c.model};
+        if (!rc)
+            rc = add ? tw_world_object_add(world, &o, &ids[k])
+                     : tw_world_object_update(world, ids[k], &o);
+        if (rc) {
+            snprintf(err, err_size, "frame %u: cannot %s car %u: %s", f + 1,
+                     add ? "add" : "move", k, tw_error_to_str(rc));
+            return rc;
+        }
+    }
+    return TW_OK;
+}
+
 int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t err_size)
 {
     struct tw_world *world = NULL;
+    uint32_t *car_ids = NULL;
+    struct tw_traffic traffic = {0};
     struct tw_viewport *chase_view = NULL;
     uint8_t *rgb = NULL;
     struct tw_report report = {0};
@@ -143,11 +169,28 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     ws.provider = run->provider;
     ws.method = run->methods[0];
     ws.get_proc = tw_context_get_proc(ctx);
+    if (run->cars > 0)
+        ws.object_models = run->car_models;
     rc = tw_world_create_tuned(&ws, &run->tuning, &world);
     run->world_error = rc;
     if (rc) {
         snprintf(err, err_size, "cannot create the world: %s", tw_error_to_str(rc));
         goto out;
+    }
+    if (run->cars > 0) {
+        struct tw_traffic_settings ts = run->traffic;
+        ts.cars = run->cars;
+        ts.centre = run->path->keys[0].pos.cell;
+        ts.radius_m = tw_world_settings(world)->view_distance;
+        rc = tw_traffic_init(&traffic, &ts, &ws.log);
+        car_ids = rc ? NULL : malloc(sizeof(*car_ids) * run->cars);
+        if (rc || !car_ids) {
+            rc = rc ? rc : TW_ERR_NOMEM;
+            snprintf(err, err_size, "cannot start the traffic: %s", tw_error_to_str(rc));
+            goto out;
+        }
+        if ((rc = drive_cars(world, &traffic, car_ids, 0, true, err, err_size)))
+            goto out;
     }
     if (run->views > 1 && (rc = tw_viewport_create(world, &chase_view)) != TW_OK) {
         snprintf(err, err_size, "cannot create the second view: %s", tw_error_to_str(rc));
@@ -175,6 +218,7 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     about->max_screen_error = tw_world_settings(world)->max_screen_error;
     about->deterministic = ws.deterministic;
     about->views = run->views > 1 ? run->views : 1;
+    about->cars = run->cars;
     about->mutate_query_shrink = run->tuning.mutate_query_shrink;
     struct tw_context_info info;
     tw_context_describe(ctx, &info);
@@ -202,6 +246,11 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     double total_ms = 0.0;
     progress(&line, run, 0, run->path->count, 0.0);
     for (uint32_t f = 0; f < run->path->count; f++) {
+        /* The cars move once a frame, before its first method: every
+         * method sees the same traffic. */
+        if (car_ids && f > 0 && (rc = drive_cars(world, &traffic, car_ids, f, false, err,
+                                                 err_size)))
+            goto out;
         /* Methods alternate frame by frame, so drift on a shared machine
          * hits them all alike. */
         for (uint32_t m = 0; m < run->method_count; m++) {
@@ -290,6 +339,7 @@ out:
     tw_report_abort(&report);
     free(split.clusters);
     free(rgb);
+    free(car_ids);
     tw_viewport_destroy(chase_view);
     tw_world_destroy(world);
     return rc;
@@ -298,11 +348,11 @@ out:
 /* ---- sweeps ---------------------------------------------------------------------- */
 
 enum sweep_param { P_NAV, P_B, P_T, P_CLUSTER, P_EVICT, P_DISTANCE, P_NEIGHBOURS, P_SCREEN_ERROR,
-                   P_COUNT };
+                   P_CARS, P_COUNT };
 
 static const char *const sweep_names[P_COUNT] = {
     "n_av", "b", "T", "cluster_triangles", "evict_after", "view_distance", "neighbours",
-    "max_screen_error",
+    "max_screen_error", "cars",
 };
 
 /* Parses "PARAM=v1,v2,..." into a parameter and up to 32 values. */
@@ -322,7 +372,7 @@ static int parse_sweep(const char *spec, enum sweep_param *param, double *values
     if (p < 0) {
         snprintf(err, err_size,
                  "--sweep: unknown parameter '%.*s' (n_av, b, T, cluster_triangles, evict_after, "
-                 "view_distance, neighbours, max_screen_error)", (int)n, spec);
+                 "view_distance, neighbours, max_screen_error, cars)", (int)n, spec);
         return TW_ERR_INVALID;
     }
     *param = (enum sweep_param)p;
@@ -356,6 +406,7 @@ static int parse_sweep(const char *spec, enum sweep_param *param, double *values
         case P_DISTANCE: ok = v >= 1 && v <= 100000; break;
         case P_NEIGHBOURS: ok = v == 4 || v == 8; break;
         case P_SCREEN_ERROR: ok = v >= 0 && v <= 1000; break;
+        case P_CARS: ok = whole && v >= 0 && v <= TW_RUN_MAX_CARS; break;
         default: break;
         }
         if (!ok) {
@@ -502,6 +553,8 @@ int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
                 break;
             }
             r.tileset = own;
+        } else if (param == P_CARS) {
+            r.cars = (uint32_t)values[k];
         } else {
             apply_sweep(&r.world, &r.tuning, param, values[k]);
         }

@@ -17,6 +17,10 @@
 #include "runtime/runtime-internal.h"
 #include "tileworld/context.h"
 #include "tileworld/runtime.h"
+#include "tileworld/tilesets.h"
+
+/* The most cars a run drives (--cars, a sweep of cars). */
+#define TW_RUN_MAX_CARS 100000u
 
 /* Called after every frame of every method (may be NULL). */
 typedef void (*tw_run_frame_fn)(void *user, uint32_t frame_index, struct tw_world *w,
@@ -37,6 +41,14 @@ struct tw_run {
     uint32_t views;                     /* 2: a chase camera drawn as a viewport after every
                                            frame (its frames are not reported; the memory
                                            figures are the shared world's); 0, 1: one */
+    /* Moving cars (--cars): with cars > 0 the world shows car_models
+     * (borrowed) as its object_models, and cars of traffic (its streets and
+     * seed; the count, the centre, the path's first cell, and the radius,
+     * the view distance, are the run's) drive from before the first frame,
+     * each moved to where it is at frame / 30 s before every frame. */
+    uint32_t cars;                      /* 0..TW_RUN_MAX_CARS */
+    const struct tw_tileset *car_models;
+    struct tw_traffic_settings traffic;
     uint32_t scenario_frames;           /* tw_run_scenarios: frames of each scenario (0: its own) */
     bool bench;                         /* summary.md, PNG names with the method, charts */
     bool split;                         /* --split: each frame's set drawn again (report.h) */
@@ -76,7 +88,8 @@ typedef struct tw_tileset *(*tw_tileset_maker_fn)(void *user, uint32_t cluster_t
 /* --sweep PARAM=v1,v2,...: the base run (written to run->out), then one run
  * per value into run->out/sweep-PARAM-VALUE/, and run->out/sweep.csv with
  * one row per method and value. PARAM is one of n_av, b, T,
- * cluster_triangles, evict_after, view_distance, neighbours. */
+ * cluster_triangles, evict_after, view_distance, neighbours,
+ * max_screen_error, cars (run->car_models and traffic must be set). */
 int tw_run_sweep(struct tw_run *run, struct tw_context *ctx, const char *spec,
                  tw_tileset_maker_fn make_tileset, void *maker_user, char *err, size_t err_size);
 

@@ -44,7 +44,7 @@ static const char *const csv_header =
     "blocking_reads,queries_skipped,hzb_boxes,ms_hzb_build,ms_hzb_read,bytes_loading,"
     "tiles_loading,set_cpu_ms,set_ms,set_triangles,set_draws,overdraw_box_triangles,gpu_ms,"
     "gpu_ms_id,waits,flushes,bytes_read_back,tiles_late,hzb_lag,lod_pixels,lod_pixels_exact,"
-    "lod_depth_m\n";
+    "lod_depth_m,objects,object_cells,object_rebuilds,ms_objects\n";
 
 /* A row of frames.csv as the row of a gnuplot data file: blank-separated,
  * without the method (its file says it). */
@@ -121,7 +121,7 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
              "%llu,%s,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%u,%u,%u,%u,%llu,%u,%llu,%u,%llu,%.3f,%llu,"
              "%u,%u,%u,%u,%llu,%llu,%llu,%llu,%d,%.3f,"
              "%u,%u,%u,%.3f,%.3f,%llu,%u,%.3f,%.3f,%llu,%u,%llu,%.3f,%.3f,%u,%u,%llu,%u,%u,%llu,"
-             "%llu,%.4f\n",
+             "%llu,%.4f,%u,%u,%u,%.3f\n",
              (unsigned long long)st->frame, tw_method_name(st->method), st->ms_frame, st->ms_cull,
              st->ms_wait, (unsigned long long)st->triangles, st->clusters, st->draws, st->queries,
              st->tiles_queried, st->tiles_visible, st->tiles_new, st->tiles_cached,
@@ -138,7 +138,8 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
              (unsigned long long)st->overdraw_box_triangles, st->gpu_ms, st->gpu_ms_id, st->waits,
              st->flushes, (unsigned long long)st->bytes_read_back, st->tiles_late, st->hzb_lag,
              (unsigned long long)st->lod_pixels, (unsigned long long)st->lod_pixels_exact,
-             st->lod_depth_m);
+             st->lod_depth_m, st->objects, st->object_cells, st->object_rebuilds,
+             st->ms_objects);
     if (!tw_outfile_printf(&r->frames_csv, "%s", row))
         return tw_outfile_report(&r->frames_csv, err, err_size);
     if (r->chart_data) {
@@ -182,6 +183,8 @@ int tw_report_add(struct tw_report *r, const struct tw_frame_stats *st,
     m->frames_with_depth_errors += st->depth_errors > 0;
     m->lod_pixels_total += st->lod_pixels;
     m->lod_depth_sum += st->lod_depth_m;
+    m->ms_objects += st->ms_objects;
+    m->object_rebuilds += st->object_rebuilds;
     m->tiles_new_total += st->tiles_new;
     if (st->cache_bytes > m->peak_instance_bytes)
         m->peak_instance_bytes = st->cache_bytes;
@@ -555,8 +558,11 @@ void tw_report_verdict(const struct tw_report_about *about,
         add(line, "tileworld bench of %d method%s", used, used == 1 ? "" : "s");
     else
         add(line, "tileworld walk with %s", tw_method_name(only));
-    add(line, ": tileset %s, path %s%s, %ux%u, %u frames, seed %llu; on %s through %s%s; %s "
-              "build of %s.", tileset, path,
+    char cars[64] = "";
+    if (about->cars)
+        snprintf(cars, sizeof(cars), ", %u moving car%s", about->cars, about->cars == 1 ? "" : "s");
+    add(line, ": tileset %s%s, path %s%s, %ux%u, %u frames, seed %llu; on %s through %s%s; %s "
+              "build of %s.", tileset, cars, path,
         about->views > 1 ? " and a chase camera as a second view" : "", about->width,
         about->height, about->frames, (unsigned long long)about->seed, renderer, context,
         sw ? " (a software renderer: its GPU work is CPU time)" : " (a GPU)", build, commit);
@@ -822,6 +828,10 @@ int tw_report_close(struct tw_report *r, bool markdown,
                                number(m->frames ? (double)m->flushes / m->frames : 0.0, 2));
         json_object_object_add(o, "mean_bytes_read_back",
                                number(m->frames ? m->bytes_read_back / m->frames : 0.0, 1));
+        json_object_object_add(o, "mean_ms_objects",
+                               number(m->frames ? m->ms_objects / m->frames : 0.0, 3));
+        json_object_object_add(o, "mean_object_rebuilds",
+                               number(m->frames ? (double)m->object_rebuilds / m->frames : 0.0, 2));
         json_object_object_add(o, "mean_ms_wait",
                                number(m->frames ? m->ms_wait / m->frames : 0.0, 3));
         json_object_object_add(o, "max_ms", number(m->ms_max, 3));
@@ -931,6 +941,7 @@ int tw_report_close(struct tw_report *r, bool markdown,
         json_object_object_add(root, "verify_tolerance", number_g(about->verify_tolerance));
     json_object_object_add(root, "deterministic", json_object_new_boolean(about->deterministic));
     json_object_object_add(root, "views", json_object_new_int64(about->views ? about->views : 1));
+    json_object_object_add(root, "cars", json_object_new_int64(about->cars));
     if (about->mutate_query_shrink > 0.0f)
         json_object_object_add(root, "mutate_query_shrink", number_g(about->mutate_query_shrink));
     json_object *ran = json_object_new_object();
@@ -976,8 +987,12 @@ int tw_report_close(struct tw_report *r, bool markdown,
             for (int k = 1; k < verdict.count; k++)
                 tw_outfile_printf(&f, "%s\n", verdict.lines[k]);
             char renderer[600], context[100], build[100], commit[200];
+            char cars[64] = "";
+            if (about->cars)
+                snprintf(cars, sizeof(cars), " with %u moving car%s", about->cars,
+                         about->cars == 1 ? "" : "s");
             tw_outfile_printf(&f, "\nRan on %s (%s, GL %s) through %s; %s build of %s; tileset "
-                                  "%s, path %s, %ux%u, %u frames, seed %llu.\n\n",
+                                  "%s%s, path %s, %ux%u, %u frames, seed %llu.\n\n",
                               tw_report_escape(known(about->gl_renderer), true, renderer,
                                                sizeof(renderer)),
                               tw_report_escape(known(about->gl_vendor), true, vendor,
@@ -989,7 +1004,7 @@ int tw_report_close(struct tw_report *r, bool markdown,
                               tw_report_escape(known(about->build_type), true, build,
                                                sizeof(build)),
                               tw_report_escape(known(about->commit), true, commit, sizeof(commit)),
-                              tileset, path, about->width, about->height, about->frames,
+                              tileset, cars, path, about->width, about->height, about->frames,
                               (unsigned long long)about->seed);
             tw_outfile_printf(&f, "| method | frames | mean ms | median ms | p95 ms | p99 ms | "
                                   "mean CPU ms | p99 CPU ms | mean GPU ms | triangles | queries | "

@@ -68,6 +68,8 @@ struct tw_method_summary {
     uint32_t frames_with_depth_errors;
     uint64_t lod_pixels_total;
     double lod_depth_sum;     /* of the frames' lod_depth_m */
+    double ms_objects;        /* of the frames' ms_objects */
+    uint64_t object_rebuilds; /* of the frames' object_rebuilds */
     uint64_t tiles_new_total;
     uint64_t peak_instance_bytes;  /* this method's tile instances (frames.csv cache_bytes) */
     uint64_t predict_fail, tiles_queried;
@@ -125,6 +127,7 @@ struct tw_report_about {
     float max_screen_error;     /* resolved; <= 0: full detail */
     bool deterministic;
     uint32_t views;             /* cameras on the world (--views) */
+    uint32_t cars;              /* moving cars in the world (--cars) */
     float mutate_query_shrink;
     /* What ran (DESIGN §15): the context's kind ("osmesa", "egl-device", ...),
      * GL_VENDOR, GL_RENDERER, GL_VERSION, whether the renderer is a CPU

@@ -41,6 +41,8 @@ struct options {
     uint32_t method_count;
     uint32_t png_every;
     uint32_t views;             /* --views */
+    uint32_t cars;              /* --cars */
+    bool cars_given;
     uint32_t cluster_triangles;
     const char *sweep;
     const char *scenario;
@@ -57,7 +59,7 @@ static const uint32_t default_frames = 300;
 static const char walk_synopsis[] =
     "usage: tileworld walk   [--tileset NAME|FILE.json] [--seed N] [--path NAME|FILE.csv] [--frames N]\n"
     "                        [--method M] [--size WxH] [--start-cell I,J] [--repeat P] [--view-distance M]\n"
-    "                        [--max-screen-error PX] [--hlod-levels N] [--views N]\n"
+    "                        [--max-screen-error PX] [--hlod-levels N] [--views N] [--cars N]\n"
     "                        [--verify] [--verify-tolerance X] [--allow-missed] [--deterministic]\n"
     "                        [--png-every N] [--out DIR] [--quiet] [--cluster-triangles N]\n"
     "                        [--tile-neighbours 4|8] [--evict-after N] [--chc-batch N] [--chc-nav N]\n"
@@ -107,6 +109,10 @@ static const char run_help[] =
     "                      chase camera 25 m behind and 12 m above the path's draws as a\n"
     "                      viewport of the same world (same method; not in frames.csv; its\n"
     "                      tiles and culling state are in the memory figures)\n"
+    "--cars N              moving cars, 0..100000 (default 0): N cars in two lanes of every\n"
+    "                      street within the view distance of the path's first cell, moved\n"
+    "                      before every frame to where they are at frame / 30 s; tilesets\n"
+    "                      with the city's streets (city, hybrid, city-gen)\n"
     "--method M            vfc, tilequery, chc, tilequery+chc (default), oracle, hzb,\n"
     "                      tilequery+hzb, box-oracle\n"
     "--tile-neighbours 4|8 the grid neighbours tile propagation visits (default 4)\n"
@@ -158,8 +164,8 @@ static const char bench_help[] =
     "bench:\n"
     "--methods M1,M2,...   the methods run side by side, frame by frame (default: all)\n"
     "--sweep PARAM=v1,v2,...  one setting varied: n_av, b, T, cluster_triangles, evict_after,\n"
-    "                      view_distance, neighbours, max_screen_error (cluster_triangles:\n"
-    "                      a prototype tileset)\n"
+    "                      view_distance, neighbours, max_screen_error, cars\n"
+    "                      (cluster_triangles: a prototype tileset; cars: as --cars)\n"
     "--scenario NAME|all   the stability suite: teleport, spin, inside-building,\n"
     "                      inside-common-box, grazing, far-origin, no-occluders, all; each\n"
     "                      runs its own path (no --path, --start-cell, --repeat, --sweep) for\n"
@@ -243,6 +249,7 @@ enum {
     OPT_FIRST_SIGHT_DRAWS,
     OPT_ALLOW_MISSED,
     OPT_VIEWS,
+    OPT_CARS,
 };
 
 static const struct option options_table[] = {
@@ -251,6 +258,7 @@ static const struct option options_table[] = {
     {"verify", no_argument, NULL, OPT_VERIFY},
     {"png-every", required_argument, NULL, OPT_PNG_EVERY},
     {"views", required_argument, NULL, OPT_VIEWS},
+    {"cars", required_argument, NULL, OPT_CARS},
     {"methods", required_argument, NULL, OPT_METHODS},
     {"cluster-triangles", required_argument, NULL, OPT_CLUSTER_TRIANGLES},
     {"sweep", required_argument, NULL, OPT_SWEEP},
@@ -310,6 +318,10 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
     case OPT_VERIFY: ws->verify = true; break;
     case OPT_PNG_EVERY: o->png_every = (uint32_t)tw_cli_u64(program, name, v, 0, 10000000); break;
     case OPT_VIEWS: o->views = (uint32_t)tw_cli_u64(program, name, v, 1, 2); break;
+    case OPT_CARS:
+        o->cars = (uint32_t)tw_cli_u64(program, name, v, 0, TW_RUN_MAX_CARS);
+        o->cars_given = true;
+        break;
     case OPT_METHODS: parse_methods(name, v, o); break;
     case OPT_CLUSTER_TRIANGLES:
         o->cluster_triangles = (uint32_t)tw_cli_u64(program, name, v, 16, 1000000);
@@ -471,6 +483,20 @@ static int run(const struct options *o, bool bench)
                          shown.footprint, &path);
 
     struct tw_run r = {0};
+    struct tw_tileset *car_models = NULL;
+    if (o->cars > 0 || (o->sweep && strncmp(o->sweep, "cars=", 5) == 0)) {
+        /* main() has refused a world without the city's streets. */
+        tw_tilesets_streets(o->cli.tileset, &r.traffic, NULL, 0);
+        r.traffic.seed = o->cli.world.selection.seed;
+        if (tw_tilesets_car_models(&log, &car_models)) {
+            tw_cli_message(program, "cannot make the car models");
+            tw_path_finish(&path);
+            tw_cli_world_finish(&shown);
+            return 1;
+        }
+    }
+    r.cars = o->cars;
+    r.car_models = car_models;
     r.tileset = shown.tileset;
     r.provider = shown.source;
     r.tileset_name = o->cli.tileset;
@@ -567,6 +593,7 @@ out:
     tw_context_destroy(ctx);
     tw_path_finish(&path);
     tw_cli_world_finish(&shown);
+    tw_tileset_destroy(car_models);
     return rc;
 }
 
@@ -826,6 +853,8 @@ int main(int argc, char **argv)
         tw_cli_message(program, "unknown command '%s' (walk, bench, info, view, import, memtest)", argv[1]);
         return EXIT_USAGE;
     }
+    if (strcmp(o.command, "info") == 0 && o.cars_given)
+        tw_cli_fail(program, "--cars", "--cars belongs to walk and bench");
     if (strcmp(o.command, "info") == 0)
         return info(&o);
     if (strcmp(o.command, "walk") == 0) {
@@ -837,6 +866,24 @@ int main(int argc, char **argv)
             tw_cli_fail(program, "--scenario", "--scenario belongs to bench");
         if (o.split)
             tw_cli_fail(program, "--split", "--split belongs to bench");
+    }
+    const bool cars_swept = o.sweep && strncmp(o.sweep, "cars=", 5) == 0;
+    if (o.cars > 0 || cars_swept) {
+        const char *opt = o.cars > 0 ? "--cars" : "--sweep";
+        char with_streets[128];
+        if (!tw_tilesets_streets(o.cli.tileset, NULL, with_streets, sizeof(with_streets))) {
+            char shown[300];
+            tw_cli_fail(program, opt, "cars drive on the city's streets, which tileset '%s' does "
+                        "not have (%s have them)",
+                        tw_cli_escape(o.cli.tileset, shown, sizeof(shown)), with_streets);
+        }
+        if (o.scenario)
+            tw_cli_fail(program, opt, "--scenario runs its own paths without cars; give one of "
+                        "the two");
+        if (o.cli.tuning.hlod_levels > 1)
+            tw_cli_fail(program, opt, "moving cars and hierarchical cells (--hlod-levels %u) do "
+                        "not go together: a block's merged proxy cannot move them",
+                        o.cli.tuning.hlod_levels);
     }
     if (o.split && (o.sweep || o.scenario))
         tw_cli_fail(program, "--split", "--split parts a bench run's CPU time; it takes no %s",
