@@ -285,6 +285,7 @@ static int flatten(struct stage *st, const struct tw_prototype *proto,
         }
     }
 
+    bvh->tight_depth = s->tight_depth;
     bvh->bytes = bvh_bytes(bvh);
     free(stack_nodes);
     free(stack);
@@ -400,4 +401,132 @@ int tw_bvh_pack(struct tw_bvh **bvh)
     tw_bvh_destroy(*bvh);
     *bvh = out;
     return TW_OK;
+}
+
+/* ---- refitting and joining (moving objects) ---------------------------------------------- */
+
+void tw_bvh_refit(struct tw_bvh *bvh, const struct tw_prototype *proto)
+{
+    /* Children come after their parent (pre-order): from the last node up. */
+    for (uint32_t i = bvh->node_count; i-- > 0;) {
+        struct tw_bvh_node *n = &bvh->nodes[i];
+        n->box = tw_box_empty();
+        if (n->child[0] == TW_BVH_NONE) {
+            for (uint32_t c = 0; c < n->cluster_count; c++)
+                tw_box_add_box(&n->box,
+                               &proto->clusters[bvh->cluster_order[n->first_cluster + c]].box);
+        } else {
+            tw_box_add_box(&n->box, &bvh->nodes[n->child[0]].box);
+            tw_box_add_box(&n->box, &bvh->nodes[n->child[1]].box);
+        }
+    }
+    /* The tight boxes: the same frontiers, as the topology is the same. */
+    uint32_t stack[2 * 64 + 2];
+    for (uint32_t i = 0; i < bvh->node_count; i++) {
+        const struct tw_bvh_node *n = &bvh->nodes[i];
+        if (n->tight_count == 1) {
+            bvh->tight_boxes[n->first_tight] = n->box;
+            continue;
+        }
+        uint32_t count = 0;
+        /* The depth-first walk holds at most one entry per level and one
+         * more: enough for any tree up to 128 deep (builds stop at 32). */
+        frontier(bvh->nodes, i, bvh->tight_depth, stack, &count, bvh->tight_boxes + n->first_tight);
+        assert(count == n->tight_count);
+    }
+}
+
+double tw_bvh_spread(const struct tw_bvh *bvh)
+{
+    double inner = 0.0, leaves = 0.0;
+    for (uint32_t i = 0; i < bvh->node_count; i++) {
+        const struct tw_bvh_node *n = &bvh->nodes[i];
+        const double a = tw_box_surface_area(&n->box);
+        if (n->child[0] == TW_BVH_NONE)
+            leaves += a;
+        else
+            inner += a;
+    }
+    return leaves > 0.0 ? 1.0 + inner / leaves : 1.0;
+}
+
+/* Copies n nodes of from into to, moving their links by node_shift and
+ * their cluster and tight ranges by the shifts given, one level deeper. */
+static void copy_nodes(struct tw_bvh_node *to, const struct tw_bvh *from, uint32_t node_shift,
+                       uint32_t cluster_shift, uint32_t tight_shift)
+{
+    for (uint32_t i = 0; i < from->node_count; i++) {
+        struct tw_bvh_node n = from->nodes[i];
+        n.parent = n.parent == TW_BVH_NONE ? 0 : n.parent + node_shift;
+        for (int k = 0; k < 2; k++)
+            if (n.child[k] != TW_BVH_NONE)
+                n.child[k] += node_shift;
+        n.first_cluster += cluster_shift;
+        n.first_tight += tight_shift;
+        n.depth++;
+        to[i] = n;
+    }
+}
+
+int tw_bvh_join(const struct tw_bvh *a, uint32_t a_clusters, const struct tw_bvh *b,
+                struct tw_bvh **out)
+{
+    *out = NULL;
+    if ((uint64_t)a->node_count + b->node_count + 1 > UINT32_MAX ||
+        (uint64_t)a->tight_box_count + b->tight_box_count + 1 > UINT32_MAX ||
+        (uint64_t)a->cluster_count + b->cluster_count > UINT32_MAX)
+        return TW_ERR_LIMIT;
+    struct tw_bvh *j = calloc(1, sizeof(*j));
+    if (!j)
+        return TW_ERR_NOMEM;
+    j->node_count = 1 + a->node_count + b->node_count;
+    j->cluster_count = a->cluster_count + b->cluster_count;
+    j->tight_box_count = a->tight_box_count + b->tight_box_count + 1;
+    j->nodes = malloc((size_t)j->node_count * sizeof(*j->nodes));
+    j->cluster_order = malloc((size_t)j->cluster_count * sizeof(*j->cluster_order));
+    j->tight_boxes = malloc((size_t)j->tight_box_count * sizeof(*j->tight_boxes));
+    if (!j->nodes || !j->cluster_order || !j->tight_boxes) {
+        tw_bvh_destroy(j);
+        return TW_ERR_NOMEM;
+    }
+    copy_nodes(j->nodes + 1, a, 1, 0, 0);
+    copy_nodes(j->nodes + 1 + a->node_count, b, 1 + a->node_count, a->cluster_count,
+               a->tight_box_count);
+    memcpy(j->cluster_order, a->cluster_order, (size_t)a->cluster_count * sizeof(uint32_t));
+    for (uint32_t c = 0; c < b->cluster_count; c++)
+        j->cluster_order[a->cluster_count + c] = b->cluster_order[c] + a_clusters;
+    memcpy(j->tight_boxes, a->tight_boxes, (size_t)a->tight_box_count * sizeof(struct tw_box));
+    memcpy(j->tight_boxes + a->tight_box_count, b->tight_boxes,
+           (size_t)b->tight_box_count * sizeof(struct tw_box));
+    const struct tw_bvh_node *ra = &a->nodes[0], *rb = &b->nodes[0];
+    struct tw_bvh_node *root = &j->nodes[0];
+    *root = (struct tw_bvh_node){
+        .parent = TW_BVH_NONE,
+        .child = {1, 1 + a->node_count},
+        .first_tight = j->tight_box_count - 1,
+        .tight_count = 1,
+        .triangle_count = ra->triangle_count + rb->triangle_count,
+        .cluster_total = ra->cluster_total + rb->cluster_total,
+    };
+    root->box = ra->box;
+    tw_box_add_box(&root->box, &rb->box);
+    j->tight_boxes[root->first_tight] = root->box;
+    j->leaf_count = a->leaf_count + b->leaf_count;
+    j->depth = 1 + (a->depth > b->depth ? a->depth : b->depth);
+    j->tight_depth = b->tight_depth;
+    j->bytes = bvh_bytes(j);
+    *out = j;
+    return TW_OK;
+}
+
+void tw_bvh_join_refit(struct tw_bvh *j, const struct tw_bvh *a, const struct tw_bvh *b)
+{
+    for (uint32_t i = 0; i < b->node_count; i++)
+        j->nodes[1 + a->node_count + i].box = b->nodes[i].box;
+    memcpy(j->tight_boxes + a->tight_box_count, b->tight_boxes,
+           (size_t)b->tight_box_count * sizeof(struct tw_box));
+    struct tw_bvh_node *root = &j->nodes[0];
+    root->box = a->nodes[0].box;
+    tw_box_add_box(&root->box, &b->nodes[0].box);
+    j->tight_boxes[root->first_tight] = root->box;
 }

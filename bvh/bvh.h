@@ -53,6 +53,7 @@ struct tw_bvh {
     uint32_t leaf_count;
     uint32_t depth;                /* deepest node's depth */
     double build_ms;
+    uint32_t tight_depth;          /* the settings' tight_depth it was built with (refits) */
     uint64_t bytes;                /* heap bytes of this structure */
     bool packed;                   /* private: one block (tw_bvh_pack) */
 };
@@ -80,6 +81,29 @@ int tw_bvh_build_median(const struct tw_prototype *proto,
                         struct tw_bvh **out);
 
 void tw_bvh_destroy(struct tw_bvh *bvh);
+
+/* Refitting (moving objects, DESIGN §13): recomputes every box of bvh, its
+ * tight boxes too, from proto's clusters, keeping its topology. proto is
+ * the prototype bvh was built over, its clusters moved but not added or
+ * removed. */
+void tw_bvh_refit(struct tw_bvh *bvh, const struct tw_prototype *proto);
+
+/* The sum of the surface areas of bvh's interior nodes over the sum of its
+ * leaves': 1 for a tree whose nodes are as tight as its leaves allow, and
+ * growing as refits let boxes overlap (when it has grown well past its
+ * value at the build, a build afresh pays). 1 for a single leaf. */
+double tw_bvh_spread(const struct tw_bvh *bvh);
+
+/* Joins two BVHs under a new root: one over the clusters of a prototype
+ * made of a's prototype's clusters (first) and b's (numbered after the
+ * a_clusters of a's). Node 0 is the new root, a's nodes follow from 1, b's
+ * from 1 + a->node_count. Copies; a and b are unchanged and may go. */
+int tw_bvh_join(const struct tw_bvh *a, uint32_t a_clusters, const struct tw_bvh *b,
+                struct tw_bvh **out);
+
+/* After b was refitted: its boxes into j (made by tw_bvh_join(a, _, b)) and
+ * the root's box. */
+void tw_bvh_join_refit(struct tw_bvh *j, const struct tw_bvh *a, const struct tw_bvh *b);
 
 /* Moves a BVH, its struct and its arrays, into one allocation and replaces
  * *bvh with it (the old pointer is freed), so that a long-lived tree leaves

@@ -297,11 +297,13 @@ static bool room(struct tw_gpu_hzb *g, uint32_t count)
                              sizeof(*g->segments), 16);
 }
 
-static uint32_t candidate(void *ctx, const struct tw_box *box, bool always, struct tw_cell cell,
-                          uint32_t content, const float offset[3], const uint32_t *clusters,
-                          uint32_t count)
+/* One candidate drawing clusters of content (not a composite), recorded as
+ * record_content's record_clusters (a composite's, or the same). */
+static uint32_t candidate_part(struct tw_renderer *r, const struct tw_box *box, bool always,
+                               struct tw_cell cell, uint32_t content, const float offset[3],
+                               const uint32_t *clusters, uint32_t count, uint32_t record_content,
+                               const uint32_t *record_clusters)
 {
-    struct tw_renderer *r = ctx;
     struct tw_gpu_hzb *g = &r->ghzb;
     if (!room(g, count)) {
         /* Out of memory: drawn at once, untested. */
@@ -316,14 +318,14 @@ static uint32_t candidate(void *ctx, const struct tw_box *box, bool always, stru
     g->info[i][0] = (uint32_t)g->command_count;
     g->info[i][1] = count;
     g->info[i][2] = g->info[i][3] = 0;
-    g->where[i] = (struct tw_gpu_hzb_where){cell, content, (uint32_t)g->cluster_id_count};
+    g->where[i] = (struct tw_gpu_hzb_where){cell, record_content, (uint32_t)g->cluster_id_count};
     if (count == 0 || content >= r->content_count || !r->contents[content].live) {
         g->info[i][1] = 0;
         return i;
     }
     const uint32_t buffers = r->contents[content].buffers;
     const struct tw_gpu_buffers *b = &r->buffers[buffers];
-    const struct tw_prototype *proto = &b->ts->prototypes[r->contents[content].proto];
+    const struct tw_prototype *proto = tw_renderer_content(r, content, NULL);
     /* A new tile placement: its instances get records afresh. */
     if (!g->key_valid || g->key_content != content || g->key_cell.i != cell.i ||
         g->key_cell.j != cell.j) {
@@ -354,11 +356,46 @@ static uint32_t candidate(void *ctx, const struct tw_box *box, bool always, stru
                                      ts->materials[in->material].base_color, 0.0f);
         }
         tw_renderer_draws_command(&g->commands[g->command_count++], b, ts, c, rec);
-        g->cluster_ids[g->cluster_id_count++] = clusters[k];
+        g->cluster_ids[g->cluster_id_count++] = record_clusters[k];
         g->info[i][2] += c->triangle_count;
     }
     g->segments[g->segment_count - 1].count += count;
     return i;
+}
+
+struct candidate_run {
+    const struct tw_box *box;
+    bool always;
+    struct tw_cell cell;
+    uint32_t content;
+    const float *offset;
+    const uint32_t *clusters;
+    uint32_t first;
+};
+
+static void run_candidate(struct tw_renderer *r, void *user, uint32_t part,
+                          const uint32_t *clusters, uint32_t count, uint32_t at)
+{
+    struct candidate_run *c = user;
+    const uint32_t i = candidate_part(r, c->box, c->always, c->cell, part, c->offset, clusters,
+                                      count, c->content, c->clusters + at);
+    if (c->first == UINT32_MAX)
+        c->first = i;
+}
+
+static uint32_t candidate(void *ctx, const struct tw_box *box, bool always, struct tw_cell cell,
+                          uint32_t content, const float offset[3], const uint32_t *clusters,
+                          uint32_t count)
+{
+    struct tw_renderer *r = ctx;
+    /* A tile with moving objects: a candidate per run of one part, each
+     * testing the same box (the same answer); the first one's answer is
+     * the node's. */
+    struct candidate_run run = {box, always, cell, content, offset, clusters, UINT32_MAX};
+    if (count > 0 && tw_renderer_split(r, content, clusters, count, run_candidate, &run))
+        return run.first;
+    return candidate_part(r, box, always, cell, content, offset, clusters, count, content,
+                          clusters);
 }
 
 /* ---- the test ------------------------------------------------------------------ */

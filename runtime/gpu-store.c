@@ -233,7 +233,84 @@ const struct tw_prototype *tw_renderer_content(const struct tw_renderer *r, uint
     const struct tw_gpu_content *c = &r->contents[content];
     if (bvh)
         *bvh = c->bvh;
-    return &r->buffers[c->buffers].ts->prototypes[c->proto];
+    return c->own ? c->own : &r->buffers[c->buffers].ts->prototypes[c->proto];
+}
+
+int tw_renderer_add_content(struct tw_renderer *r, uint32_t like, const struct tw_prototype *proto,
+                            const struct tw_bvh *bvh, uint32_t *out)
+{
+    if (like >= r->content_count || !r->contents[like].live || r->contents[like].composite)
+        return TW_ERR_INVALID;
+    const uint32_t buffers = r->contents[like].buffers;
+    uint32_t c;
+    int err = take_contents(r, 1, &c);
+    if (err)
+        return err;
+    r->contents[c] = (struct tw_gpu_content){
+        .buffers = buffers, .proto = UINT32_MAX, .bvh = bvh, .live = true, .base = c, .own = proto};
+    *out = c;
+    return TW_OK;
+}
+
+int tw_renderer_add_composite(struct tw_renderer *r, uint32_t first, uint32_t second,
+                              uint32_t split, const struct tw_prototype *proto,
+                              const struct tw_bvh *bvh, uint32_t *out)
+{
+    for (int k = 0; k < 2; k++) {
+        const uint32_t part = k ? second : first;
+        if (part >= r->content_count || !r->contents[part].live || r->contents[part].composite)
+            return TW_ERR_INVALID;
+    }
+    uint32_t c;
+    int err = take_contents(r, 1, &c);
+    if (err)
+        return err;
+    r->contents[c] = (struct tw_gpu_content){
+        .buffers = r->contents[first].buffers, .proto = UINT32_MAX, .bvh = bvh, .live = true,
+        .base = c, .own = proto, .composite = true, .part = {first, second}, .split = split};
+    *out = c;
+    return TW_OK;
+}
+
+void tw_renderer_remove_content(struct tw_renderer *r, uint32_t content)
+{
+    if (content >= r->content_count || !r->contents[content].live || !r->contents[content].own)
+        return;
+    r->contents[content].live = false;
+    r->free_contents[r->free_content_count++] = content;
+}
+
+bool tw_renderer_split(struct tw_renderer *r, uint32_t content, const uint32_t *clusters,
+                       uint32_t count, tw_renderer_run_fn fn, void *user)
+{
+    if (content >= r->content_count || !r->contents[content].live ||
+        !r->contents[content].composite)
+        return false;
+    const struct tw_gpu_content c = r->contents[content];
+    if (count > r->split_cap) {
+        uint32_t *a = realloc(r->split_clusters, (size_t)count * sizeof(*a));
+        if (!a) {
+            tw_log_printf(&r->log, TW_LOG_ERROR, "out of memory splitting %u draws: not drawn",
+                          count);
+            return true;
+        }
+        r->split_clusters = a;
+        r->split_cap = count;
+    }
+    /* fn may split again (it does not: parts are never composites), so
+     * the scratch is filled before the first call and read only after. */
+    uint32_t *sub = r->split_clusters;
+    for (uint32_t k = 0; k < count; k++)
+        sub[k] = clusters[k] < c.split ? clusters[k] : clusters[k] - c.split;
+    uint32_t start = 0;
+    for (uint32_t k = 1; k <= count; k++) {
+        if (k < count && (clusters[k] < c.split) == (clusters[start] < c.split))
+            continue;
+        fn(r, user, clusters[start] < c.split ? c.part[0] : c.part[1], sub + start, k - start,
+           start);
+        start = k;
+    }
+    return true;
 }
 
 const struct tw_tileset *tw_renderer_content_tileset(const struct tw_renderer *r, uint32_t content)
@@ -298,7 +375,8 @@ const struct tw_gpu_buffers *tw_renderer_bind_content(struct tw_renderer *r, uin
         r->gl.BindVertexArray(b->vao);
         r->bound_vao = b->vao;
     }
-    *proto = &b->ts->prototypes[c->proto];
+    assert(!c->composite);
+    *proto = c->own ? c->own : &b->ts->prototypes[c->proto];
     return b;
 }
 
@@ -311,4 +389,5 @@ void tw_renderer_store_finish(struct tw_renderer *r)
     free(r->free_buffers);
     free(r->contents);
     free(r->free_contents);
+    free(r->split_clusters);
 }

@@ -55,11 +55,26 @@ void tw_renderer_id_begin(struct tw_renderer *r, const struct tw_view *v)
     r->mode = TW_RENDERER_MODE_NONE;
 }
 
+struct id_run {
+    const float *offset;
+    uint32_t first_id;
+};
+
+static void id_run(struct tw_renderer *r, void *user, uint32_t part, const uint32_t *clusters,
+                   uint32_t count, uint32_t at)
+{
+    const struct id_run *run = user;
+    tw_renderer_id_draw(r, part, run->offset, clusters, count, run->first_id + at);
+}
+
 void tw_renderer_id_draw(struct tw_renderer *r, uint32_t content, const float offset[3],
                          const uint32_t *clusters, uint32_t count, uint32_t first_id)
 {
     if (count == 0)
         return;
+    struct id_run run = {offset, first_id};
+    if (tw_renderer_split(r, content, clusters, count, id_run, &run))
+        return;     /* a composite: its parts drawn, ids in the order given */
     const struct tw_prototype *proto;
     const struct tw_gpu_buffers *b = tw_renderer_bind_content(r, content, &proto);
     /* Ids travel as floats in the records: exact below 2^24. */

@@ -122,11 +122,39 @@ bool tw_renderer_stage_clusters(struct tw_renderer *r, const struct tw_gpu_buffe
 }
 
 static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
+                         const float offset[3], const uint32_t *clusters, uint32_t count);
+
+struct run_place {
+    struct tw_cell cell;
+    const float *offset;
+};
+
+static void draw_run(struct tw_renderer *r, void *user, uint32_t part, const uint32_t *clusters,
+                     uint32_t count, uint32_t at)
+{
+    (void)at;
+    const struct run_place *p = user;
+    backend_draw(r, p->cell, part, p->offset, clusters, count);
+}
+
+static void backend_draw(void *ctx, struct tw_cell cell, uint32_t content,
                          const float offset[3], const uint32_t *clusters, uint32_t count)
 {
     struct tw_renderer *r = ctx;
     if (count == 0)
         return;
+    if (content < r->content_count && r->contents[content].composite) {
+        /* A tile with moving objects: recorded as itself, drawn as its
+         * parts. */
+        if (r->recording)
+            tw_renderer_record_clusters(r, cell, content, clusters, count);
+        const bool recording = r->recording;
+        r->recording = false;
+        struct run_place p = {cell, offset};
+        tw_renderer_split(r, content, clusters, count, draw_run, &p);
+        r->recording = recording;
+        return;
+    }
     const double t0 = tw_clock_monotonic_ms();
     if (r->host.draw) {
         /* The host draws them, into its framebuffer: counted as one draw. */

@@ -41,6 +41,14 @@ struct tw_gpu_content {
      * one, its levels' contents levels_first .. + levels_count - 1. */
     uint32_t base, level, levels_first, levels_count;
     void *host_data;                /* host rendering: what the host's prepare() made */
+    /* Added contents (tw_renderer_add_content): a prototype of the host's,
+     * not one of buffers' tileset, drawn with buffers' meshes. A composite
+     * (tw_renderer_add_composite) draws own's clusters below split as
+     * content part[0] and the others, less split, as part[1]; it is never
+     * bound itself. */
+    const struct tw_prototype *own;
+    bool composite;
+    uint32_t part[2], split;
 };
 
 /* What one indirect command draws with (draws.c): its instance's
@@ -188,6 +196,9 @@ struct tw_renderer {
     uint32_t *free_queries;
     uint32_t query_count, free_count, query_cap;
     float eye[3];          /* the frame's, view-relative */
+    /* Composites' draws, split into their parts' runs (gpu-store.c). */
+    uint32_t *split_clusters;
+    uint32_t split_cap;
     /* The draw's scratch: run_record[i] is instance i's record in this
      * call when run_seen[i] == run_stamp. */
     uint32_t *run_seen, *run_record, run_instance_cap, run_stamp;

@@ -69,6 +69,28 @@ const struct tw_prototype *tw_renderer_content(const struct tw_renderer *r, uint
                                                const struct tw_bvh **bvh);
 void tw_renderer_destroy(struct tw_renderer *r);
 
+/* Moving objects: a content drawing proto (borrowed; its meshes and
+ * materials are those of like's tileset, whose buffers it draws with) and
+ * bvh, until removed. No GL. */
+int tw_renderer_add_content(struct tw_renderer *r, uint32_t like, const struct tw_prototype *proto,
+                            const struct tw_bvh *bvh, uint32_t *out);
+/* A content joining two: proto's clusters below split are first's (the
+ * same index), the others second's (less split); bvh is over proto's. What
+ * it draws goes to its parts; what is recorded names it. No GL. */
+int tw_renderer_add_composite(struct tw_renderer *r, uint32_t first, uint32_t second,
+                              uint32_t split, const struct tw_prototype *proto,
+                              const struct tw_bvh *bvh, uint32_t *out);
+/* Drops an added content or composite; its id may be reused. */
+void tw_renderer_remove_content(struct tw_renderer *r, uint32_t content);
+/* A composite's clusters as runs of one part each, in order: fn is called
+ * per run with the part's content, the part's cluster indices, and the
+ * run's first index in clusters. Returns false (fn not called) for a
+ * content that is not a composite. */
+typedef void (*tw_renderer_run_fn)(struct tw_renderer *r, void *user, uint32_t part,
+                                   const uint32_t *clusters, uint32_t count, uint32_t at);
+bool tw_renderer_split(struct tw_renderer *r, uint32_t content, const uint32_t *clusters,
+                       uint32_t count, tw_renderer_run_fn fn, void *user);
+
 /* The renderer's GL entry points, for the world's other GL objects (its
  * timers); valid until it is destroyed. */
 const struct tw_gl *tw_renderer_gl(const struct tw_renderer *r);

@@ -147,6 +147,7 @@ struct tw_world {
                                        level (INFINITY: none has one) */
     struct tw_stream *stream;       /* tiles of their own (NULL: none can exist) */
     struct tw_world_hlod hlod;      /* blocks' proxies (none unless tuned) */
+    struct tw_objects *objects;     /* moving objects (NULL: no object models) */
     uint64_t frame_serial;          /* every frame of every method: the streaming clock */
     struct tw_tile_event *events;   /* of the last frame */
     size_t event_count, event_cap;
@@ -269,6 +270,23 @@ void tw_world_look_ahead(struct tw_world *w, const struct tw_view *v);
  * Fills the byte and streaming counters of st. */
 void tw_world_keep_budget(struct tw_world *w, const struct method_state *ms,
                           struct tw_frame_stats *st);
+
+/* objects.c: moving objects (README "Moving objects") */
+/* Uploads the object models of the settings (none: nothing); between enter
+ * and leave. */
+int tw_objects_create(struct tw_world *w);
+void tw_objects_destroy(struct tw_world *w);
+/* Before a frame: the moves since the last one into the cells' groups and
+ * BVHs, and the grid's common box. */
+int tw_objects_apply(struct tw_world *w);
+void tw_objects_stats(const struct tw_world *w, struct tw_frame_stats *st);
+/* Heap bytes of the objects, their groups and composites. */
+uint64_t tw_objects_bytes(const struct tw_world *w);
+/* tile, the cell's (proto NULL: none), joined to the cell's objects, if
+ * it has any. */
+int tw_objects_tile(struct tw_world *w, struct tw_cell cell, struct tw_cull_tile *tile);
+/* Forgets what was made of the tiles of [lo, hi] with objects. */
+void tw_objects_invalidate(struct tw_world *w, struct tw_cell lo, struct tw_cell hi);
 
 /* debug.c */
 void tw_debug_finish(struct tw_world *w);

@@ -231,10 +231,9 @@ int tw_world_levels_in_view(struct tw_world *w, const struct tw_view *v, bool *a
     return TW_OK;
 }
 
-int tw_world_get_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float distance,
-                      unsigned flags, struct tw_cull_tile *out)
+static int base_tile(struct tw_world *w, struct tw_cell cell, uint32_t node_level,
+                     float distance, unsigned flags, struct tw_cull_tile *out)
 {
-    struct tw_world *w = ctx;
     const float max_error = max_error_of(w, distance);
     if (node_level > 0)
         return tw_world_hlod_get(w, cell, node_level, distance, flags, max_error, out);
@@ -268,6 +267,18 @@ int tw_world_get_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float
         return TW_OK;
     }
     return tw_stream_get(w->stream, cell, distance, flags, max_error, out);
+}
+
+int tw_world_get_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float distance,
+                      unsigned flags, struct tw_cull_tile *out)
+{
+    struct tw_world *w = ctx;
+    const int err = base_tile(w, cell, node_level, distance, flags, out);
+    /* A cell with moving objects: its tile joined to them. A tile not
+     * ready yet keeps its objects back too (drawn with it). */
+    if (err || !w->objects || node_level > 0)
+        return err;
+    return tw_objects_tile(w, cell, out);
 }
 
 void tw_world_prefetch_tile(void *ctx, struct tw_cell cell, uint32_t node_level, float distance)
@@ -352,7 +363,7 @@ static void count_bytes(const struct tw_world *w, uint64_t *cpu, uint64_t *gpu, 
             break;
         vs = &vp->state;
     }
-    *cpu = w->shared_cpu + scpu + culling;
+    *cpu = w->shared_cpu + scpu + culling + tw_objects_bytes(w);
     *gpu = w->shared_gpu + sgpu;
     if (state)
         *state = culling;
@@ -432,6 +443,7 @@ int tw_world_invalidate_rect(struct tw_world *w, struct tw_cell lo, struct tw_ce
             tw_stream_invalidate_rect(w->stream, lo, hi);
     }
     tw_world_hlod_invalidate(w, lo, hi);
+    tw_objects_invalidate(w, lo, hi);
     /* Every method's culling state of those cells: made for what they showed. */
     for (int m = 0; m < TW_METHOD_ALL; m++) {
         struct tw_cull_driver *d = w->cur->methods[m].driver;

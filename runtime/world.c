@@ -425,6 +425,8 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
         err = tw_world_start_stream(w);
     if (!err)
         err = tw_world_hlod_start(w);
+    if (!err)
+        err = tw_objects_create(w);
     tw_renderer_leave(w->renderer);
     if (err)
         goto fail;
@@ -627,6 +629,7 @@ uint32_t tw_world_destroy(struct tw_world *w)
     if (w->renderer) {
         tw_renderer_enter(w->renderer);
         left_behind = tw_stream_destroy(w->stream) + tw_world_hlod_stop(w);
+        tw_objects_destroy(w);
         tw_gputime_finish(&w->own.gputime);
         tw_renderer_leave(w->renderer);
         if (w->own.gputime.dropped)
@@ -717,7 +720,7 @@ static int setup_view(struct tw_world *w, const struct tw_camera *cam, struct tw
         tw_log_printf(&w->s.log, TW_LOG_ERROR, "camera position cannot be normalised");
         return err;
     }
-    const struct tw_box *cb = &w->provider.bound;
+    const struct tw_box *cb = &w->grid.common_box;
     const float diag = sqrtf((cb->max[0] - cb->min[0]) * (cb->max[0] - cb->min[0]) +
                              (cb->max[1] - cb->min[1]) * (cb->max[1] - cb->min[1]) +
                              (cb->max[2] - cb->min[2]) * (cb->max[2] - cb->min[2]));
@@ -752,7 +755,9 @@ static int public_draws(struct tw_world *w);
 static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_frame_stats *out)
 {
     struct tw_view v;
-    int err = setup_view(w, cam, &v);
+    int err = tw_objects_apply(w);
+    if (!err)
+        err = setup_view(w, cam, &v);
     if (err)
         return err;
     struct method_state *ms = &w->cur->methods[w->cur->method];
@@ -874,6 +879,9 @@ static int frame(struct tw_world *w, const struct tw_camera *cam, struct tw_fram
             return err;
     }
     tw_world_keep_budget(w, ms, &st);
+    tw_objects_stats(w, &st);
+    st.ms_frame += st.ms_objects;   /* the moves placed before the frame's clock started */
+    st.ms_cull += st.ms_objects;
     /* The events of this frame (and of invalidations since the last one). */
     struct tw_tile_event *e = w->events;
     w->events = w->next_events;

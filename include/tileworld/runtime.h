@@ -182,6 +182,12 @@ struct tw_world_settings {
     struct tw_selection selection;     /* which prototype each cell shows */
     const struct tw_tile_provider *provider; /* instead of tileset: a world generator
                                           (tiles.h), borrowed; must outlive the world */
+    const struct tw_tileset *object_models; /* moving objects (tw_world_object_add): a
+                                          finished tileset whose prototypes are the models
+                                          objects show, model-local (the origin is the
+                                          object's position; every box within the world's
+                                          footprint of it); borrowed, must outlive the
+                                          world. NULL: no objects */
     uint32_t workers;                  /* threads generating tiles; default: cores - 1,
                                           at least 1 */
     enum tw_stream_policy policy;      /* default TW_STREAM_WAIT */
@@ -344,6 +350,14 @@ struct tw_frame_stats {
     double lod_depth_m;      /* the mean distance, metres along the view axis, between
                                 the surfaces the two images show at the lod_pixels where
                                 both show one */
+    /* Moving objects (tw_world_object_add): world-wide, not per method. */
+    uint32_t objects;        /* in the world */
+    uint32_t object_cells;   /* cells holding one or more */
+    uint32_t object_rebuilds;/* cells whose object BVH was built afresh this frame (objects
+                                came or went, or refitting had worn it down); the others
+                                with moves were refitted */
+    double ms_objects;       /* render-thread time placing moved objects: their cells,
+                                boxes and BVHs (in ms_frame and ms_cull) */
 };
 
 struct tw_world;
@@ -491,6 +505,35 @@ int tw_viewport_set_method(struct tw_viewport *vp, enum tw_method m);
 /* tw_world_frame() from the viewport's camera. */
 int tw_viewport_frame(struct tw_viewport *vp, const struct tw_camera *cam,
                       struct tw_frame_stats *stats);
+
+/* ---- moving objects (README "Moving objects") ------------------------------------- */
+
+/* A moving object (a car, a person): an instance of model, a prototype of
+ * the world's object_models, whose model-local point (x, y, z) is placed at
+ * pos + (x cos(yaw) + z sin(yaw), y, z cos(yaw) - x sin(yaw)) (yaw in
+ * degrees, turning +z towards +x). The world keeps every object of a cell
+ * (the cell of pos, normalised) in a BVH of that cell, joined to its tile's,
+ * so that objects are culled by the same tile queries and CHC++ as the tile:
+ * they are occluded and they occlude. */
+struct tw_object {
+    struct tw_world_pos pos;
+    float yaw;
+    uint32_t model;
+};
+
+/* Adds an object; *id names it until it is removed (ids of removed objects
+ * are used again). Takes effect at the next frame of any view. TW_ERR_STATE
+ * without object_models, in host rendering and with hierarchical cells;
+ * TW_ERR_INVALID for a model out of range or a position or yaw that is not
+ * finite; TW_ERR_LIMIT beyond TW_MAX_OBJECTS. */
+#define TW_MAX_OBJECTS (1u << 20)
+int tw_world_object_add(struct tw_world *w, const struct tw_object *o, uint32_t *id);
+/* Moves (or changes the model of) object id; takes effect at the next frame.
+ * Within its cell the cell's BVH is refitted, keeping the culling state;
+ * into another cell, both cells' BVHs are built afresh. */
+int tw_world_object_update(struct tw_world *w, uint32_t id, const struct tw_object *o);
+/* Removes object id (TW_ERR_INVALID if there is none). */
+int tw_world_object_remove(struct tw_world *w, uint32_t id);
 
 /* ---- camera paths (DESIGN §9, §10) ------------------------------------------------ */
 
