@@ -385,9 +385,14 @@ if (sweep_param ne '') {
                 at graph 0.01, graph 1.02 left font ',9' tc rgb '#6a6a6a'
         }
         if (by_rank) {
+            # A column named by a variable does not tell gnuplot that the
+            # first line names the columns: without this it would count that
+            # line as the first point and shift every value one place right.
+            set datafile columnheaders
             plot for [i = 1:n] sweep_file(i) using 0:(column(column_name)):xtic(strcol('value')) \
                 with linespoints lt line(i) pt 7 ps 1.3 lw (unaffected(i) ? 1 : 2) \
                 title method(i).(unaffected(i) ? ' (unaffected)' : '')
+            unset datafile columnheaders
         } else {
             plot for [i = 1:n] sweep_file(i) using 'value':(column(column_name)) \
                 with linespoints lt line(i) pt 7 ps 1.3 lw (unaffected(i) ? 1 : 2) \
