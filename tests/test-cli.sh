@@ -348,7 +348,7 @@ if "$tw" bench --tileset city-gen --cars 300 --frames 4 --size 96x54 --png-every
        "$tmp/cars/frames.csv"; then ok; else
     bad "bench --cars 300 --verify: $(cat "$tmp/out" "$tmp/err"; tail -3 "$tmp/cars/frames.csv")"; fi
 # The cars are drawn, and where they are is a function of the frame: the
-# same images twice; other images than without cars.
+# same images twice, other images than without cars.
 for run in a b none; do
     n=$([ $run = none ] && echo 0 || echo 2000)
     "$tw" walk --cars $n --frames 3 --size 160x90 --png-every 1 --quiet --out "$tmp/cars-$run" \
@@ -360,6 +360,12 @@ for f in 00000 00001 00002; do
     cmp -s "$tmp/cars-a/frame-$f.png" "$tmp/cars-none/frame-$f.png" || other=$((other + 1))
 done
 [ $same = 3 ] && [ $other -gt 0 ] && ok || bad "walk --cars 2000: $same of 3 images the same twice, $other other than without cars"
+# They move: after the first frame, cars crossing into other cells rebuild
+# those cells' objects.
+awk -F, 'NR == 1 { for (k = 1; k <= NF; k++) col[$k] = k; next }
+         $col["objects"] != 2000 { exit 1 }
+         $col["frame"] > 1 { rebuilt += $col["object_rebuilds"] } END { exit rebuilt > 0 ? 0 : 1 }' \
+    "$tmp/cars-a/frames.csv" && ok || bad "walk --cars 2000: no car moved: $(cat "$tmp/cars-a/frames.csv")"
 # A sweep of the number of cars: one row per method and value.
 if "$tw" bench --sweep cars=0,200 --methods vfc,tilequery+chc --frames 2 --size 96x54 \
        --png-every 0 --quiet --out "$tmp/cars-sweep" >/dev/null 2>"$tmp/err" &&
