@@ -15,7 +15,10 @@
  * ready (host.prepare), and checks that its image matches the one
  * tileworld draws itself for the same frames (a second world, side by
  * side, with every method host rendering has, each in turn), that the world's budget
- * counts the bytes the host holds, and that every tile is freed. Set
+ * counts the bytes the host holds, and that every tile is freed. 400 cars
+ * drive the streets: tileworld culls them with the tiles and lists them in
+ * batches like any tile's (their prototype's instances are the cars,
+ * placed), which this host draws as it draws shared content. Set
  * HOST_RENDER_VERBOSE for a line a frame.
  * It exits 0 when every check holds, else 1 with a message.
  *
@@ -35,7 +38,7 @@
 #include "tileworld/runtime.h"
 #include "tileworld/tilesets.h"
 
-enum { WIDTH = 320, HEIGHT = 180, FRAMES = 60 };
+enum { WIDTH = 320, HEIGHT = 180, FRAMES = 60, CARS = 400 };
 
 /* ---- the GL entry points this host uses, loaded from the context -------------------- */
 
@@ -173,6 +176,8 @@ struct host {
     GLuint fbo, color, depth, program;
     GLint u_model, u_offset, u_view_proj, u_material, u_eye, u_fog;
     bool new_frame;             /* set before each tw_world_frame(): the view changed */
+    const struct tw_tileset *cars;  /* the moving objects' models */
+    uint64_t car_batches;       /* batches of cars drawn */
     struct mesh_set *shared;    /* shared content, uploaded when first drawn */
     size_t shared_count, shared_cap;
     atomic_ulong staged;        /* tiles made on the workers */
@@ -405,6 +410,7 @@ static void host_draw(void *user, const struct tw_host_draw *d)
         return;
     }
     h->batches++;
+    h->car_batches += ts == h->cars;
     gl->UseProgram(h->program);
     struct tw_world_view view;
     if (h->new_frame && tw_world_last_view(h->world, &view) == TW_OK) {
@@ -472,6 +478,18 @@ int main(void)
     s.deterministic = true;
     s.get_proc = tw_context_get_proc(ctx);
     s.log = log;
+    /* Cars on the streets, moving (objects: tileworld culls them with the
+     * tiles they drive through, and lists them for the host to draw: a
+     * batch of their cell's objects names a prototype whose instances are
+     * the cars, placed, and the car models' tileset). */
+    struct tw_tileset *cars = NULL;
+    struct tw_traffic traffic;
+    const struct tw_traffic_settings ts_cars = {.cars = CARS, .radius_m = 400.0f, .seed = 1};
+    if (tw_tilesets_car_models(&log, &cars) != TW_OK ||
+        tw_traffic_init(&traffic, &ts_cars, &log) != TW_OK)
+        return 1;
+    s.object_models = cars;
+    h.cars = cars;
     if (tw_world_create(&s, &own) != TW_OK)
         return 1;
     s.host = (struct tw_host_renderer){.draw = host_draw,
@@ -493,9 +511,22 @@ int main(void)
                                              TW_METHOD_TILEQUERY, TW_METHOD_VFC,
                                              TW_METHOD_HZB, TW_METHOD_TILEQUERY_HZB};
     const uint32_t method_count = sizeof(methods) / sizeof(methods[0]);
+    static uint32_t car_own[CARS], car_host[CARS];
     for (uint32_t f = 0; f < FRAMES; f++) {
         struct tw_frame_stats so, sh;
         const enum tw_method m = methods[f % method_count];
+        for (uint32_t k = 0; k < CARS; k++) {
+            struct tw_traffic_car c;
+            if (tw_traffic_place(&traffic, k, f / 30.0, &c) != TW_OK)
+                return 1;
+            const struct tw_object o = {c.pos, c.yaw, c.model};
+            const int err = f == 0 ? tw_world_object_add(own, &o, &car_own[k]) |
+                                         tw_world_object_add(h.world, &o, &car_host[k])
+                                   : tw_world_object_update(own, car_own[k], &o) |
+                                         tw_world_object_update(h.world, car_host[k], &o);
+            if (err != TW_OK)
+                return 1;
+        }
         if (tw_world_set_method(own, m) != TW_OK || tw_world_set_method(h.world, m) != TW_OK)
             return 1;
         if (tw_world_frame(own, &path.keys[f], &so) != TW_OK ||
@@ -545,15 +576,19 @@ int main(void)
         triangles_host += sh.triangles;
     }
     printf("host-render: %u frames, worst frame %llu of %u pixels differ; triangles %llu "
-           "(tileworld) and %llu (host); %llu batches; tiles: %lu made on workers, %llu "
+           "(tileworld) and %llu (host); %llu batches (%llu of cars); tiles: %lu made on workers, %llu "
            "prepared, %llu released, %llu dropped before they were ready\n",
            FRAMES, (unsigned long long)worst, WIDTH * HEIGHT, (unsigned long long)triangles_own,
            (unsigned long long)triangles_host, (unsigned long long)h.batches,
-           (unsigned long)atomic_load(&h.staged), (unsigned long long)h.prepared,
+           (unsigned long long)h.car_batches, (unsigned long)atomic_load(&h.staged), (unsigned long long)h.prepared,
            (unsigned long long)h.released, (unsigned long long)h.dropped);
     if (worst > (uint64_t)WIDTH * HEIGHT / 1000) {
         fprintf(stderr, "host-render: the host's image differs from tileworld's in %llu pixels\n",
                 (unsigned long long)worst);
+        failures++;
+    }
+    if (h.car_batches == 0) {
+        fprintf(stderr, "host-render: no batch of cars was drawn\n");
         failures++;
     }
     if (h.failed || h.batches == 0 || h.released == 0) {
@@ -581,6 +616,7 @@ int main(void)
     h.gl.DeleteRenderbuffers(1, &h.color);
     h.gl.DeleteRenderbuffers(1, &h.depth);
     tw_tilesets_provider_destroy(gen);
+    tw_tileset_destroy(cars);
     tw_context_destroy(ctx);
     return failures ? 1 : 0;
 }

@@ -429,11 +429,9 @@ int tw_objects_create(struct tw_world *w)
                       "cannot create the world: its object models are not a finished tileset");
         return TW_ERR_INVALID;
     }
-    if (w->s.host.draw || w->t.hlod_levels > 1) {
-        tw_log_printf(&w->s.log, TW_LOG_ERROR,
-                      "cannot create the world: moving objects are not there %s",
-                      w->s.host.draw ? "in host rendering (the host draws its own)"
-                                     : "with hierarchical cells");
+    if (w->t.hlod_levels > 1) {
+        tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot create the world: moving objects are not "
+                      "there with hierarchical cells (a block's proxy would leave them out)");
         return TW_ERR_STATE;
     }
     for (uint32_t p = 0; p < models->prototype_count; p++) {

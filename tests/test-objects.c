@@ -351,10 +351,6 @@ static void misuse(struct tw_world_settings s, const struct tw_tileset *models)
     CHECK(tw_world_object_add(w, &bad, &id) == TW_OK);
     CHECK(tw_world_object_remove(w, id) == TW_OK);
     tw_world_destroy(w);
-    /* Not in host rendering. */
-    struct tw_world_settings h = s;
-    h.host.draw = (void (*)(void *, const struct tw_host_draw *))1;
-    CHECK(tw_world_create(&h, &w) == TW_ERR_STATE);
     /* A model that reaches past its cell's neighbours. */
     struct tw_tileset *big = NULL;
     CHECK(tw_tileset_create("big", 80, 80, &big) == TW_OK);
