@@ -499,6 +499,11 @@ static int check_record(struct bake *b)
     char path[4096], err[1200];
     snprintf(path, sizeof(path), "%s/bake.json", b->out);
     int rc = 0;
+    if (tw_tiles3d_make_parents(path, err, sizeof(err))) {
+        tw_cli_message(program, "--out %s: cannot bake there: %s", b->out, err);
+        json_object_put(rec);
+        return 2;
+    }
     FILE *f = fopen(path, "rb");
     if (f) {
         char have[8192];
@@ -516,8 +521,7 @@ static int check_record(struct bake *b)
     } else {
         char line[8192];
         const int n = snprintf(line, sizeof(line), "%s\n", text);
-        if (tw_tiles3d_make_parents(path, err, sizeof(err)) ||
-            tw_tiles3d_write_file(path, line, (size_t)n, err, sizeof(err))) {
+        if (tw_tiles3d_write_file(path, line, (size_t)n, err, sizeof(err))) {
             tw_cli_message(program, "--out %s: cannot bake there: %s", b->out, err);
             rc = 2;
         }
