@@ -8,6 +8,8 @@
  *     .glb, which the project's own importer reads (tw_gltf_import), with
  *     the triangles of the cell's prototype (or generated tile), inside the
  *     cell's footprint once placed; an empty cell has none;
+ *   - every coarser tile with content: read back, inside its block, with
+ *     fewer triangles than its children;
  *   - the root subtree's header and JSON, its tile, content and child
  *     availability bits against the files on disk.
  */
@@ -206,6 +208,46 @@ int main(int argc, char **argv)
             tw_gltf_scene_destroy(scene);
         }
     CHECK(with_content > 0);
+
+    /* Coarser levels with content: each inside its block, fewer triangles
+     * than its children together, a geometric error. */
+    for (uint32_t l = 0; l < leaf; l++) {
+        const uint32_t up = leaf - l;
+        for (uint64_t y = 0; y <= (ny - 1) >> up; y++)
+            for (uint64_t x = 0; x <= (nx - 1) >> up; x++) {
+                snprintf(path, sizeof(path), "%s/content/%u/%llu/%llu.glb", dir, l,
+                         (unsigned long long)x, (unsigned long long)y);
+                if (!exists(path))
+                    continue;
+                struct tw_gltf_scene *scene = NULL;
+                const int rc = tw_gltf_import(path, NULL, NULL, &scene);
+                CHECK_MSG(rc == TW_OK, "%s: %s", path, tw_error_to_str(rc));
+                if (rc)
+                    continue;
+                uint64_t below = 0;
+                for (int c = 0; c < 4; c++) {
+                    struct tw_gltf_scene *cs = NULL;
+                    snprintf(path, sizeof(path), "%s/content/%u/%llu/%llu.glb", dir, l + 1,
+                             (unsigned long long)(2 * x + (c & 1)),
+                             (unsigned long long)(2 * y + (c >> 1)));
+                    if (exists(path) && tw_gltf_import(path, NULL, NULL, &cs) == TW_OK)
+                        below += cs->triangle_count;
+                    tw_gltf_scene_destroy(cs);
+                }
+                CHECK_MSG(scene->triangle_count > 0 && scene->triangle_count < below,
+                          "level %u tile %llu,%llu: %llu triangles, its children %llu", l,
+                          (unsigned long long)x, (unsigned long long)y,
+                          (unsigned long long)scene->triangle_count, (unsigned long long)below);
+                const double bw = (double)(1ull << up) * footprint[0];
+                const double bd = (double)(1ull << up) * footprint[1];
+                const struct tw_box *b = &scene->bounds;
+                CHECK_MSG(b->min[0] >= x * bw - 1e-3 && b->max[0] <= (x + 1) * bw + 1e-3 &&
+                          b->min[2] >= y * bd - 1e-3 && b->max[2] <= (y + 1) * bd + 1e-3,
+                          "level %u tile %llu,%llu outside its block", l, (unsigned long long)x,
+                          (unsigned long long)y);
+                tw_gltf_scene_destroy(scene);
+            }
+    }
 
     /* The root subtree. */
     snprintf(path, sizeof(path), "%s/subtrees/0/0/0.subtree", dir);

@@ -36,6 +36,7 @@ expect_usage_error --cells 0,0:3,3 --out "$tmp/bad" --shard 1
 expect_usage_error --cells 0,0:3,3 --out "$tmp/bad" --shard 0/2 --finish
 expect_usage_error --cells 0,0:3,3 --out "$tmp/bad" --frames 10
 expect_usage_error --cells 0,0:3,3 --out "$tmp/bad" --levels 0
+expect_usage_error --cells 0,0:3,3 --out "$tmp/bad" --levels 9
 : >"$tmp/file"
 expect_usage_error --cells 0,0:3,3 --out "$tmp/file/sub"
 [ -e "$tmp/bad" ] && bad "a refused bake made its folder" || ok
@@ -84,6 +85,19 @@ done
 rm "$tmp/city/content/2/1/1.glb"
 "$tw" bake --tileset city --cells -2,5:1,7 --out "$tmp/city" --finish --quiet && ok || bad "--finish"
 "$check" "$tmp/city" partial && ok || bad "bake-check after a cell was removed"
+# Coarser levels: every level with content, each tile simplified from its
+# children; shards then --finish make them too, the same bytes.
+"$tw" bake --tileset city --cells -2,5:1,7 --levels 3 --out "$tmp/levels" --quiet &&
+    "$check" "$tmp/levels" && ok || bad "--levels 3"
+[ "$(find "$tmp/levels/content/0" "$tmp/levels/content/1" -name '*.glb' | wc -l)" -eq 5 ] && ok ||
+    bad "--levels 3: not 1 + 4 coarser tiles"
+grep -q '"geometricError"' "$tmp/levels/content/0/0/0.glb" && ok || bad "--levels 3: no error"
+"$tw" bake --tileset city --cells -2,5:1,7 --levels 3 --out "$tmp/levels-sharded" --shard 0/1 \
+    --quiet && [ ! -e "$tmp/levels-sharded/content/0" ] && ok || bad "a shard made coarser levels"
+"$tw" bake --tileset city --cells -2,5:1,7 --levels 3 --out "$tmp/levels-sharded" --finish --quiet &&
+    diff -r "$tmp/levels" "$tmp/levels-sharded" >"$tmp/diff" && ok ||
+    bad "--levels 3 by shards differs: $(head -c 300 "$tmp/diff")"
+expect_usage_error --cells 0,0:3,3 --out "$tmp/bad" --levels 4
 # One cell: a quadtree of one level.
 "$tw" bake --tileset forest --cells 7,7:7,7 --out "$tmp/one" --quiet && "$check" "$tmp/one" &&
     ok || bad "one cell"

@@ -29,6 +29,9 @@ static const char program[] = "tileworld";
 /* Levels a subtree file covers: a 32 x 32 block of its deepest tiles, bits
  * of a few hundred bytes. */
 #define SUBTREE_LEVELS 6u
+/* Levels with content at most: the coarsest tiles then span 128 x 128 cells
+ * (10 km of city), within reach of float tile-local coordinates. */
+#define MAX_CONTENT_LEVELS 8u
 /* The deepest quadtree a rectangle may need: x and y fit 32 bits. */
 #define MAX_LEAF_LEVEL 31u
 
@@ -48,8 +51,11 @@ static const char help[] =
     "                      the providers city-gen and forest-gen; or a manifest\n"
     "--cells I0,J0:I1,J1   the rectangle of cells, both corners included (I1 >= I0, J1 >= J0)\n"
     "--out DIR             the tileset's folder, made if missing\n"
-    "--levels N            quadtree levels with content, 1..1 (default 1: the cells; the\n"
-    "                      coarser levels are tiles without content)\n"
+    "--levels N            quadtree levels with content, 1..8 and at most the quadtree's\n"
+    "                      (default 1: the cells only); each coarser level's tile is its\n"
+    "                      four children merged and simplified to about a quarter, made\n"
+    "                      by --finish (or a run without --shard); the levels above are\n"
+    "                      tiles without content\n"
     "--shard K/N           bakes only the cells whose index in the rectangle,\n"
     "                      (J - J0) (I1 - I0 + 1) + I - I0, is K modulo N (0 <= K < N <=\n"
     "                      1000000), and writes no tileset.json and no subtrees: --finish\n"
@@ -109,7 +115,10 @@ struct bake {
     struct tw_cli_world world;
     struct tw_log log;
 
-    /* The cells of this run, shared by the workers. */
+    /* The jobs of this step (cells, or the blocks of one coarser level),
+     * shared by the workers. */
+    uint32_t block_level;         /* 0 .. leaf - 1: blocks of this level; leaf: cells */
+    uint64_t jobs;                /* this step's jobs */
     _Atomic uint64_t next;        /* the next linear index to look at */
     _Atomic uint64_t done;        /* this run's cells looked at */
     _Atomic uint64_t written, empty, skipped;
@@ -169,7 +178,7 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
             tw_cli_fail(program, name, "the output folder name is empty");
         b->out = v;
         break;
-    case OPT_LEVELS: b->levels = (uint32_t)tw_cli_u64(program, name, v, 1, 1); break;
+    case OPT_LEVELS: b->levels = (uint32_t)tw_cli_u64(program, name, v, 1, MAX_CONTENT_LEVELS); break;
     case OPT_SHARD: parse_shard(name, v, b); break;
     case OPT_FINISH: b->finish = true; break;
     case OPT_MAX_CELLS: b->max_cells = tw_cli_u64(program, name, v, 1, 1ull << 40); break;
@@ -221,6 +230,9 @@ static void parse_options(int argc, char **argv, struct bake *b)
     if (b->leaf > MAX_LEAF_LEVEL)
         tw_cli_fail(program, "--cells", "'%s' is %llu cells long: at most 2^%u", b->cells_text,
                     (unsigned long long)side, MAX_LEAF_LEVEL);
+    if (b->levels > b->leaf + 1)
+        tw_cli_fail(program, "--levels", "'%u': the quadtree over '%s' has %u level%s", b->levels,
+                    b->cells_text, b->leaf + 1, b->leaf ? "s" : "");
     if (b->cli.world.workers == 0) {
         const long cores = sysconf(_SC_NPROCESSORS_ONLN);
         b->cli.world.workers = cores < 1 ? 1 : cores > 64 ? 64 : (uint32_t)cores;
@@ -268,7 +280,7 @@ static void fail_run(struct bake *b, const char *fmt, ...)
  * into one tile-local mesh (the merged ones once, through their merged
  * mesh), each vertex coloured by its material, placed at translation. */
 static int write_prototype(const struct tw_tileset *ts, uint32_t p, const char *path,
-                           const double translation[3], char *err, size_t err_size)
+                           const double translation[3], double error, char *err, size_t err_size)
 {
     const struct tw_prototype *proto = &ts->prototypes[p];
     uint32_t *list = malloc(sizeof(*list) * (proto->instance_count ? proto->instance_count : 1));
@@ -319,7 +331,7 @@ static int write_prototype(const struct tw_tileset *ts, uint32_t p, const char *
     }
     const struct tw_tiles3d_mesh mesh = {
         .positions = pos, .normals = nrm, .colors = rgba, .indices = idx,
-        .vertex_count = vertices, .triangle_count = triangles,
+        .vertex_count = vertices, .triangle_count = triangles, .error = error,
     };
     rc = tw_tiles3d_make_parents(path, err, err_size);
     if (!rc)
@@ -363,7 +375,7 @@ static void bake_cell(struct bake *b, uint64_t k)
             atomic_fetch_add(&b->empty, 1);
             return;
         }
-        rc = write_prototype(b->world.tileset, p, path, translation, err, sizeof(err));
+        rc = write_prototype(b->world.tileset, p, path, translation, 0.0, err, sizeof(err));
     } else {
         const struct tw_tile_provider *src = b->world.source;
         const uint32_t c = src->content ? src->content(src->user, cell) : TW_TILE_OWN;
@@ -372,7 +384,7 @@ static void bake_cell(struct bake *b, uint64_t k)
             return;
         }
         if (c != TW_TILE_OWN) {
-            rc = write_prototype(src->shared, c, path, translation, err, sizeof(err));
+            rc = write_prototype(src->shared, c, path, translation, 0.0, err, sizeof(err));
         } else {
             char name[64];
             snprintf(name, sizeof(name), "%lld,%lld", (long long)cell.i, (long long)cell.j);
@@ -397,7 +409,7 @@ static void bake_cell(struct bake *b, uint64_t k)
                              "finished: %s", (long long)cell.i, (long long)cell.j,
                              tw_error_to_str(rc));
                 else
-                    rc = write_prototype(ts, 0, path, translation, err, sizeof(err));
+                    rc = write_prototype(ts, 0, path, translation, 0.0, err, sizeof(err));
             }
             tw_tileset_destroy(ts);
         }
@@ -408,30 +420,149 @@ static void bake_cell(struct bake *b, uint64_t k)
         atomic_fetch_add(&b->written, 1);
 }
 
+/* Clusters of the blocks' tilesets (what tw_tileset_finish() splits). */
+#define BLOCK_CLUSTER_TRIANGLES 2048u
+
+/* Bakes tile k (row-major) of the coarser level b->block_level: its
+ * children's .glb files (the level below) merged into one tile-local mesh
+ * and simplified by the levels of detail (tiles/lod.c, meshoptimizer) to
+ * the first level of at most a quarter of their triangles, so that every
+ * level of the quadtree draws about as many triangles as a cell. Its
+ * geometric error, the simplification's plus its children's, goes into the
+ * file (asset.extras.geometricError) for --finish's tileset.json. Skipped
+ * when its file exists; nothing when no child has content. */
+static void bake_block(struct bake *b, uint64_t k)
+{
+    const uint32_t level = b->block_level, up = b->leaf - level;
+    const uint64_t w = ((b->nx - 1) >> up) + 1;
+    const uint64_t x = k % w, y = k / w;
+    const uint64_t side = 1ull << up;
+    const double origin[3] = {(double)(x * side) * b->world.footprint[0], 0.0,
+                              (double)(y * side) * b->world.footprint[1]};
+    char path[4096], child[4096], err[1200];
+    if (tile_path(b, path, sizeof(path), "content", level, x, y, "glb")) {
+        fail_run(b, "%s/content/...: %s", b->out, strerror(ENAMETOOLONG));
+        return;
+    }
+    if (exists(path)) {
+        atomic_fetch_add(&b->skipped, 1);
+        return;
+    }
+    struct tw_tileset *ts = NULL;
+    struct tw_lods lods = {0};
+    uint64_t input = 0;
+    double child_error = 0.0;
+    int rc = tw_tileset_create("block", (float)side * b->world.footprint[0],
+                               (float)side * b->world.footprint[1], &ts);
+    const int proto = rc ? rc : tw_tileset_add_prototype(ts, "block", 1.0f);
+    if (rc || proto < 0) {
+        fail_run(b, "%s: %s", path, tw_error_to_str(rc ? rc : proto));
+        goto out;
+    }
+    const float placement[12] = {1, 0, 0, (float)-origin[0], 0, 1, 0, 0, 0, 0, 1,
+                                 (float)-origin[2]};
+    for (uint32_t c = 0; c < 4; c++) {
+        const uint64_t cx = 2 * x + (c & 1), cy = 2 * y + (c >> 1);
+        if (tile_path(b, child, sizeof(child), "content", level + 1, cx, cy, "glb") ||
+            !exists(child))
+            continue;
+        double e = 0.0;
+        rc = tw_tiles3d_read_glb_error(child, &e, err, sizeof(err));
+        if (rc) {
+            fail_run(b, "%s", err);
+            goto out;
+        }
+        child_error = e > child_error ? e : child_error;
+        struct tw_gltf_scene *scene = NULL;
+        struct tw_gltf_binding binding;
+        rc = tw_gltf_import(child, NULL, &b->log, &scene);
+        if (!rc)
+            rc = tw_gltf_bind(scene, ts, &binding);
+        if (!rc)
+            rc = tw_gltf_place(scene, &binding, ts, (uint32_t)proto, placement);
+        if (scene)
+            input += scene->triangle_count;
+        tw_gltf_scene_destroy(scene);
+        if (rc) {
+            fail_run(b, "%s: cannot merge %s: %s", path, child, tw_error_to_str(rc));
+            goto out;
+        }
+    }
+    if (input == 0) {
+        atomic_fetch_add(&b->empty, 1);
+        goto out;
+    }
+    rc = tw_tileset_finish(ts, BLOCK_CLUSTER_TRIANGLES);
+    if (!rc)
+        rc = tw_lods_build(ts, BLOCK_CLUSTER_TRIANGLES, &lods);
+    if (rc) {
+        fail_run(b, "%s: cannot simplify the block: %s", path, tw_error_to_str(rc));
+        goto out;
+    }
+    /* The first level of at most a quarter of the input, else the coarsest. */
+    uint32_t pick = 0;
+    for (uint32_t l = 1; l <= lods.count[0]; l++) {
+        pick = l;
+        if (4 * lods.levels->prototypes[lods.first[0] + l - 1].triangle_count <= input)
+            break;
+    }
+    const double error = child_error + (pick ? lods.error[lods.first[0] + pick - 1] : 0.0);
+    rc = write_prototype(pick ? lods.levels : ts, pick ? lods.first[0] + pick - 1 : 0, path,
+                         origin, error > 0.0 ? error : 1e-6, err, sizeof(err));
+    if (rc)
+        fail_run(b, "%s", err);
+    else
+        atomic_fetch_add(&b->written, 1);
+out:
+    tw_lods_free(&lods);
+    tw_tileset_destroy(ts);
+}
+
 static void *worker(void *user)
 {
     struct bake *b = user;
-    const uint64_t total = b->nx * b->ny;
     while (!atomic_load(&b->failed)) {
         const uint64_t n = atomic_fetch_add(&b->next, 1);
-        const uint64_t k = b->shard + n * b->shards;
-        if (k >= total)
+        if (n >= b->jobs)
             break;
-        bake_cell(b, k);
+        if (b->block_level < b->leaf)
+            bake_block(b, n);
+        else
+            bake_cell(b, b->shard + n * b->shards);
         atomic_fetch_add(&b->done, 1);
     }
     return NULL;
 }
 
-/* Bakes this run's cells on the workers, the progress line on this thread. */
-static int bake_cells(struct bake *b)
+/* Runs the step's jobs on the workers (b->block_level < b->leaf: the blocks
+ * of that level; else this run's cells), the progress line on this thread. */
+static int run_jobs(struct bake *b)
 {
+    const bool cells = b->block_level >= b->leaf;
     const uint64_t total = b->nx * b->ny;
-    const uint64_t mine = total > b->shard ? (total - b->shard + b->shards - 1) / b->shards : 0;
+    uint64_t mine;
+    if (cells) {
+        mine = total > b->shard ? (total - b->shard + b->shards - 1) / b->shards : 0;
+    } else {
+        const uint32_t up = b->leaf - b->block_level;
+        mine = (((b->nx - 1) >> up) + 1) * (((b->ny - 1) >> up) + 1);
+    }
     if (mine == 0)
         return 0;
+    b->jobs = mine;
+    atomic_store(&b->next, 0);
+    atomic_store(&b->done, 0);
+    atomic_store(&b->written, 0);
+    atomic_store(&b->empty, 0);
+    atomic_store(&b->skipped, 0);
+    const char *unit = cells ? "cells" : "blocks";
+    char label[1200];
+    if (cells)
+        snprintf(label, sizeof(label), "%s", b->out);
+    else
+        snprintf(label, sizeof(label), "%s level %u", b->out, b->block_level);
     struct tw_progress progress;
-    tw_progress_init(&progress, b->out, (double)mine, "cells", 0, b->cli.quiet);
+    tw_progress_init(&progress, label, (double)mine, unit, 0, b->cli.quiet);
     const double t0 = tw_progress_now_s();
     uint32_t n = b->cli.world.workers;
     if ((uint64_t)n > mine)
@@ -446,10 +577,10 @@ static int bake_cells(struct bake *b)
     while (started > 0 && atomic_load(&b->done) < mine && !atomic_load(&b->failed)) {
         char note[64];
         const double s = tw_progress_now_s() - t0;
-        snprintf(note, sizeof(note), "%.1f cells/s",
-                 s > 0.0 ? (double)atomic_load(&b->done) / s : 0.0);
+        snprintf(note, sizeof(note), "%.1f %s/s",
+                 s > 0.0 ? (double)atomic_load(&b->done) / s : 0.0, unit);
         tw_progress_update(&progress, (double)atomic_load(&b->done), note);
-        nanosleep(&(struct timespec){0, 100000000}, NULL);
+        nanosleep(&(struct timespec){0, 20000000}, NULL);
     }
     for (uint32_t k = 0; k < started; k++)
         pthread_join(threads[k], NULL);
@@ -462,9 +593,10 @@ static int bake_cells(struct bake *b)
     }
     if (!b->cli.quiet) {
         const uint64_t written = atomic_load(&b->written);
-        fprintf(stderr, "%s: baked %llu cells in %.1f s (%.1f cells/s, %u workers): %llu written, "
-                "%llu empty, %llu already there\n", program, (unsigned long long)mine, s,
-                s > 0.0 ? (double)(mine - atomic_load(&b->skipped)) / s : 0.0, n,
+        fprintf(stderr, "%s: baked %llu %s%s in %.1f s (%.1f %s/s, %u workers): %llu written, "
+                "%llu empty, %llu already there\n", program, (unsigned long long)mine, unit,
+                cells ? "" : label + strlen(b->out), s,
+                s > 0.0 ? (double)(mine - atomic_load(&b->skipped)) / s : 0.0, unit, n,
                 (unsigned long long)written, (unsigned long long)atomic_load(&b->empty),
                 (unsigned long long)atomic_load(&b->skipped));
     }
@@ -635,7 +767,7 @@ static void height_range(const struct bake *b, double *lo, double *hi)
     }
 }
 
-static int write_tileset_json(struct bake *b, uint32_t subtree_levels)
+static int write_tileset_json(struct bake *b, uint32_t subtree_levels, const double *level_error)
 {
     const double w = b->world.footprint[0], d = b->world.footprint[1];
     const double side = (double)(1ull << b->leaf);
@@ -662,7 +794,12 @@ static int write_tileset_json(struct bake *b, uint32_t subtree_levels)
      * cells gets the cell's diagonal (its tiles have no content: refine them
      * near the camera), the cells half of it. */
     const double diagonal = sqrt(w * w + d * d);
-    const double root_error = b->leaf > 0 ? diagonal * (double)(1ull << (b->leaf - 1)) : 0.0;
+    double root_error = b->leaf > 0 ? diagonal * (double)(1ull << (b->leaf - 1)) : 0.0;
+    /* A level with content of its own says its simplification's error: the
+     * root's error is large enough that every level's is at least its own. */
+    for (uint32_t l = 0; l < b->leaf; l++)
+        if (level_error[l] * (double)(1ull << l) > root_error)
+            root_error = level_error[l] * (double)(1ull << l);
 
     json_object *root = json_object_new_object();
     json_object *asset = json_object_new_object();
@@ -718,6 +855,14 @@ static int finish(struct bake *b)
     struct level lv[MAX_LEAF_LEVEL + 1];
     memset(lv, 0, sizeof(lv));
     int rc = 0;
+    /* The coarser levels, from the finest up: each from the files below it. */
+    for (uint32_t k = 1; k < b->levels && !rc; k++) {
+        b->block_level = b->leaf - k;
+        rc = run_jobs(b);
+    }
+    if (rc)
+        return rc;
+    double level_error[MAX_LEAF_LEVEL + 1] = {0};
     uint64_t with_content = 0, subtrees = 0;
     char path[4096];
     for (uint32_t l = 0; l <= b->leaf; l++) {
@@ -747,6 +892,14 @@ static int finish(struct bake *b)
                         goto out;
                     }
                     c = exists(path);
+                    double e = 0.0;
+                    char err[1200];
+                    if (c && l < b->leaf && tw_tiles3d_read_glb_error(path, &e, err, sizeof(err))) {
+                        tw_cli_message(program, "bake --finish: %s", err);
+                        rc = 1;
+                        goto out;
+                    }
+                    level_error[l] = e > level_error[l] ? e : level_error[l];
                 }
                 uint8_t t = c;
                 if (l < b->leaf) {
@@ -764,7 +917,7 @@ static int finish(struct bake *b)
     const uint32_t subtree_levels = b->leaf + 1 < SUBTREE_LEVELS ? b->leaf + 1 : SUBTREE_LEVELS;
     rc = write_subtrees(b, lv, subtree_levels, &subtrees);
     if (!rc)
-        rc = write_tileset_json(b, subtree_levels);
+        rc = write_tileset_json(b, subtree_levels, level_error);
     if (!rc && !b->cli.quiet)
         fprintf(stderr, "%s: wrote %s/tileset.json: %llu of %llu cells with content, %u levels, "
                 "%llu subtree files\n", program, b->out, (unsigned long long)with_content,
@@ -789,8 +942,10 @@ int tw_bake_main(int argc, char **argv)
     b->log = (struct tw_log){tw_cli_log, &b->cli};
     tw_cli_world_load(&b->cli, 0, &b->log, &b->world);
     int rc = check_record(b);
-    if (!rc && !b->finish)
-        rc = bake_cells(b);
+    if (!rc && !b->finish) {
+        b->block_level = b->leaf;
+        rc = run_jobs(b);
+    }
     if (!rc && !b->shard_given)
         rc = finish(b);
     tw_cli_world_finish(&b->world);

@@ -177,6 +177,11 @@ int tw_tiles3d_write_glb(const char *path, const struct tw_tiles3d_mesh *m,
     json_object *asset = json_object_new_object();
     json_object_object_add(asset, "version", json_object_new_string("2.0"));
     json_object_object_add(asset, "generator", json_object_new_string("tileworld bake"));
+    if (m->error > 0.0) {
+        json_object *extras = json_object_new_object();
+        json_object_object_add(extras, "geometricError", json_object_new_double(m->error));
+        json_object_object_add(asset, "extras", extras);
+    }
     json_object_object_add(root, "asset", asset);
     json_object_object_add(root, "scene", json_object_new_int(0));
     json_object *scene = json_object_new_object();
@@ -292,6 +297,47 @@ out:
     free(head);
     free(bin);
     json_object_put(root);
+    return rc;
+}
+
+static uint32_t get_u32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+int tw_tiles3d_read_glb_error(const char *path, double *error, char *err, size_t err_size)
+{
+    *error = 0.0;
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        snprintf(err, err_size, "%s: %s", path, strerror(errno));
+        return TW_ERR_IO;
+    }
+    uint8_t head[20];
+    char *json = NULL;
+    int rc = TW_ERR_FORMAT;
+    if (fread(head, 1, sizeof(head), f) != sizeof(head) || memcmp(head, "glTF", 4) != 0 ||
+        memcmp(head + 16, "JSON", 4) != 0)
+        goto out;
+    const uint32_t n = get_u32(head + 12);
+    if (n > (64u << 20) || !(json = malloc((size_t)n + 1)) || fread(json, 1, n, f) != n)
+        goto out;
+    json[n] = '\0';
+    json_object *root = json_tokener_parse(json);
+    if (!root)
+        goto out;
+    json_object *asset = NULL, *extras = NULL, *e = NULL;
+    if (json_object_object_get_ex(root, "asset", &asset) &&
+        json_object_object_get_ex(asset, "extras", &extras) &&
+        json_object_object_get_ex(extras, "geometricError", &e))
+        *error = json_object_get_double(e);
+    json_object_put(root);
+    rc = TW_OK;
+out:
+    if (rc)
+        snprintf(err, err_size, "%s: not a binary glTF file of tileworld bake", path);
+    free(json);
+    fclose(f);
     return rc;
 }
 

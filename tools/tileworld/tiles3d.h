@@ -25,6 +25,8 @@ struct tw_tiles3d_mesh {
     const uint32_t *indices;    /* three per triangle */
     uint32_t vertex_count;
     uint32_t triangle_count;
+    double error;               /* metres: a simplified mesh's geometric error, written as
+                                   asset.extras.geometricError when > 0 */
 };
 
 /* Writes mesh as the binary glTF file path: one node translated by
@@ -34,6 +36,11 @@ struct tw_tiles3d_mesh {
  * Deterministic: the same mesh gives the same bytes. */
 int tw_tiles3d_write_glb(const char *path, const struct tw_tiles3d_mesh *mesh,
                          const double translation[3], char *err, size_t err_size);
+
+/* Reads back the geometric error that tw_tiles3d_write_glb() wrote into the
+ * binary glTF file path: 0 when it has none. TW_ERR_IO or TW_ERR_FORMAT,
+ * with the reason in err, for a file that cannot be read or is no GLB. */
+int tw_tiles3d_read_glb_error(const char *path, double *error, char *err, size_t err_size);
 
 /* A quadtree subtree's availability: bits in Morton order, level after
  * level (level l of the subtree starts at bit (4^l - 1) / 3), as the
