@@ -94,6 +94,9 @@ rm "$tmp/city/content/2/1/1.glb"
 grep -q '"geometricError"' "$tmp/levels/content/0/0/0.glb" && ok || bad "--levels 3: no error"
 "$tw" bake --tileset city --cells -2,5:1,7 --levels 3 --out "$tmp/levels-sharded" --shard 0/1 \
     --quiet && [ ! -e "$tmp/levels-sharded/content/0" ] && ok || bad "a shard made coarser levels"
+# (--finish of a folder baked without --levels adds them.)
+"$tw" bake --tileset city --cells -2,5:1,7 --out "$tmp/levels-sharded" --finish --quiet && ok ||
+    bad "--finish without --levels"
 "$tw" bake --tileset city --cells -2,5:1,7 --levels 3 --out "$tmp/levels-sharded" --finish --quiet &&
     diff -r "$tmp/levels" "$tmp/levels-sharded" >"$tmp/diff" && ok ||
     bad "--levels 3 by shards differs: $(head -c 300 "$tmp/diff")"

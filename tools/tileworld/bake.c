@@ -605,8 +605,9 @@ static int run_jobs(struct bake *b)
 
 /* ---- the bake's record ------------------------------------------------------- */
 
-/* DIR/bake.json: what decides the files. A rerun, a shard or --finish with
- * other settings would mix two worlds in one folder: refused. */
+/* DIR/bake.json: what decides the cells' files. A rerun, a shard or --finish
+ * with other settings would mix two worlds in one folder: refused. --levels
+ * is not among them: coarser levels may be added to a bake later. */
 static int check_record(struct bake *b)
 {
     json_object *rec = json_object_new_object();
@@ -621,7 +622,6 @@ static int check_record(struct bake *b)
     json_object_array_add(cells, json_object_new_int64(b->last.i));
     json_object_array_add(cells, json_object_new_int64(b->last.j));
     json_object_object_add(rec, "cells", cells);
-    json_object_object_add(rec, "levels", json_object_new_int((int)b->levels));
     json_object *fp = json_object_new_array();
     json_object_array_add(fp, json_object_new_double(b->world.footprint[0]));
     json_object_array_add(fp, json_object_new_double(b->world.footprint[1]));
