@@ -17,7 +17,7 @@ readme=$src/README.md
 fails=0
 fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
 
-commands="walk bench info import memtest view"
+commands="walk bench info import memtest view bake"
 viewer="$(dirname "$tw")/tileworld-view"
 
 tmp=$(mktemp -d)

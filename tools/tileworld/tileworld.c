@@ -18,6 +18,7 @@
 #include "tiles/clock.h"
 #include "tiles/tiles-internal.h"
 #include "tilesets/tilesets-private.h"
+#include "tools/tileworld/bake.h"
 #include "tools/tileworld/bench.h"
 #include "tools/tileworld/buildinfo.h"
 #include "tools/tileworld/glcontext.h"
@@ -79,7 +80,9 @@ static const char import_synopsis[] =
 static const char other_synopses[] =
     "       tileworld memtest [options of tileworld memtest --help]\n"
     "                        (the tile cache's memory against distance travelled)\n"
-    "       tileworld view   [options of tileworld view --help] (the windowed viewer)\n";
+    "       tileworld view   [options of tileworld view --help] (the windowed viewer)\n"
+    "       tileworld bake   [options of tileworld bake --help]\n"
+    "                        (cells written as a 3D Tiles tileset, for any 3D Tiles client)\n";
 
 static const char world_help[] =
     "What the world shows:\n"
@@ -812,7 +815,7 @@ static int info(const struct options *o)
 int main(int argc, char **argv)
 {
     if (argc < 2) {
-        fprintf(stderr, "tileworld: no command given (walk, bench, info, view, import, memtest; "
+        fprintf(stderr, "tileworld: no command given (walk, bench, info, view, import, memtest, bake; "
                         "tileworld --help for the options)\n");
         return EXIT_USAGE;
     }
@@ -830,6 +833,8 @@ int main(int argc, char **argv)
         return import(argc, argv);
     } else if (strcmp(argv[1], "memtest") == 0) {
         return tw_memtest_main(argc - 1, argv + 1);
+    } else if (strcmp(argv[1], "bake") == 0) {
+        return tw_bake_main(argc - 1, argv + 1);
     } else if (strcmp(argv[1], "view") == 0) {
         /* The window is tileworld-view, beside this program and built only
          * with GLFW: a process of its own that links libGL, never libOSMesa. */
@@ -850,7 +855,7 @@ int main(int argc, char **argv)
         tw_cli_message(program, "view: cannot run %s: %s", viewer, strerror(errno));
         return 1;
     } else {
-        tw_cli_message(program, "unknown command '%s' (walk, bench, info, view, import, memtest)", argv[1]);
+        tw_cli_message(program, "unknown command '%s' (walk, bench, info, view, import, memtest, bake)", argv[1]);
         return EXIT_USAGE;
     }
     if (strcmp(o.command, "info") == 0 && o.cars_given)
