@@ -75,7 +75,14 @@ struct composite {
     struct tw_prototype proto;      /* the tile's clusters, then the group's */
     struct tw_bvh *bvh;
     uint32_t content, key;
+    uint64_t used;                  /* the world's frame it was last given out in */
+    struct composite *next;         /* the cell's others (another level of its tile) */
 };
+
+/* A cell keeps the composites of the tiles it was last given (levels of
+ * detail: two views, or a frame and its full-detail pass, may each ask for
+ * another), at most this many, none unused for more than two frames. */
+#define COMPOSITES_PER_CELL 4
 
 struct tw_objects {
     const struct tw_tileset *models;
@@ -90,7 +97,7 @@ struct tw_objects {
     uint32_t *free_groups;
     size_t free_group_count, free_group_cap;
     struct tw_cell_map *group_of;   /* cell -> group index */
-    struct tw_cell_map *composite_of;   /* cell -> struct composite * */
+    struct tw_cell_map *composite_of;   /* cell -> its struct composite list */
     uint32_t next_key;
     bool changed;                   /* since the last frame */
     struct tw_box bound;            /* the provider's */
@@ -199,21 +206,30 @@ static void composite_free(struct tw_world *w, struct composite *c)
     free(c);
 }
 
+static void free_list(struct tw_world *w, struct composite *c)
+{
+    while (c) {
+        struct composite *next = c->next;
+        composite_free(w, c);
+        c = next;
+    }
+}
+
 static bool drop_composite(void *user, struct tw_cell cell, uint64_t value)
 {
     (void)cell;
-    composite_free(user, (struct composite *)(uintptr_t)value);
+    free_list(user, (struct composite *)(uintptr_t)value);
     return true;
 }
 
-/* Forgets the composite of cell (its tile or its objects changed). */
+/* Forgets the composites of cell (its tile or its objects changed). */
 static void forget_composite(struct tw_world *w, struct tw_cell cell)
 {
     struct tw_objects *ob = w->objects;
     uint64_t *v = tw_cell_map_find(ob->composite_of, cell);
     if (!v)
         return;
-    composite_free(w, (struct composite *)(uintptr_t)*v);
+    free_list(w, (struct composite *)(uintptr_t)*v);
     tw_cell_map_remove(ob->composite_of, cell);
 }
 
@@ -494,12 +510,12 @@ void tw_objects_destroy(struct tw_world *w)
 static bool count_composite(void *user, struct tw_cell cell, uint64_t value)
 {
     (void)cell;
-    const struct composite *c = (const struct composite *)(uintptr_t)value;
-    *(uint64_t *)user += sizeof(*c) + (uint64_t)c->proto.cluster_count * sizeof(struct tw_cluster) +
-                         (c->bvh ? c->bvh->bytes : 0);
+    for (const struct composite *c = (const struct composite *)(uintptr_t)value; c; c = c->next)
+        *(uint64_t *)user += sizeof(*c) +
+                             (uint64_t)c->proto.cluster_count * sizeof(struct tw_cluster) +
+                             (c->bvh ? c->bvh->bytes : 0);
     return false;
 }
-
 
 uint64_t tw_objects_bytes(const struct tw_world *w)
 {
@@ -753,25 +769,42 @@ int tw_objects_tile(struct tw_world *w, struct tw_cell cell, struct tw_cull_tile
         return TW_OK;
     }
     uint64_t *v = tw_cell_map_find(ob->composite_of, cell);
-    struct composite *c = v ? (struct composite *)(uintptr_t)*v : NULL;
-    if (c && (c->tile_key != tile->key || c->tile_content != tile->content ||
-              c->tile_proto != tile->proto || c->tile_bvh != tile->bvh ||
-              c->version != g->version)) {
-        forget_composite(w, cell);
-        c = NULL;
-    }
+    struct composite *head = v ? (struct composite *)(uintptr_t)*v : NULL, *c = head;
+    while (c && (c->tile_key != tile->key || c->tile_content != tile->content ||
+                 c->tile_proto != tile->proto || c->tile_bvh != tile->bvh ||
+                 c->version != g->version))
+        c = c->next;
     if (!c) {
         int err = make_composite(w, g, tile, &c);
-        if (!err) {
-            err = tw_cell_map_set(ob->composite_of, cell, (uint64_t)(uintptr_t)c);
-            if (err)
-                composite_free(w, c);
-        }
         if (err)
             return err;
+        /* Stale ones go: made for another version of the group, unused for
+         * two frames, or beyond the cell's few. */
+        struct composite **link = &c->next;
+        uint32_t kept = 1;
+        for (struct composite *o = head; o;) {
+            struct composite *next = o->next;
+            if (o->version == g->version && o->used + 2 >= w->frame_serial &&
+                kept < COMPOSITES_PER_CELL) {
+                *link = o;
+                link = &o->next;
+                kept++;
+            } else {
+                composite_free(w, o);
+            }
+            o = next;
+        }
+        *link = NULL;
+        err = tw_cell_map_set(ob->composite_of, cell, (uint64_t)(uintptr_t)c);
+        if (err) {
+            free_list(w, c);
+            tw_cell_map_remove(ob->composite_of, cell);
+            return err;
+        }
     } else if (c->refits != g->refits) {
         refit_composite(c, g);
     }
+    c->used = w->frame_serial;
     *tile = (struct tw_cull_tile){.proto = &c->proto, .bvh = c->bvh, .content = c->content,
                                   .key = c->key};
     return TW_OK;
