@@ -128,7 +128,7 @@ split="$tmp/split"
 if "$tw" bench --frames 3 "${small[@]}" --split --out "$split" 2>"$tmp/err"; then
     expect_chart "$split/chart-split.png" 1000x600
     grep -q '^split = 1' "$split/chart-data/run.gp" && ok || bad "run.gp: split"
-    head -2 "$split/chart-data/frames-chc.dat" | tail -1 | grep -q ' set_cpu_ms set_ms set_triangles set_draws overdraw_box_triangles gpu_ms gpu_ms_id waits flushes bytes_read_back tiles_late hzb_lag lod_pixels lod_pixels_exact lod_depth_m$' &&
+    head -2 "$split/chart-data/frames-chc.dat" | tail -1 | grep -q ' set_cpu_ms set_ms set_triangles set_draws overdraw_box_triangles gpu_ms gpu_ms_id waits flushes bytes_read_back tiles_late hzb_lag lod_pixels lod_pixels_exact lod_depth_m objects object_cells object_rebuilds ms_objects$' &&
         ok || bad "frames-chc.dat: no set_* columns"
 else
     bad "bench --split: $(head -c 400 "$tmp/err")"

@@ -151,6 +151,18 @@ static void test_settings(void)
         CHECK_MSG(strstr(cap.last, bad[k].said) != NULL, "%s: %s", bad[k].said, cap.last);
     }
     CHECK(tw_traffic_init(NULL, NULL, &log) == TW_ERR_INVALID);
+    /* The command's farthest start cell, 2^62, and its cars at the edge of
+     * the square there. */
+    const struct tw_traffic_settings edge = {.cars = 64, .centre = {INT64_C(1) << 62,
+                                                                     -(INT64_C(1) << 62)}};
+    CHECK(tw_traffic_init(&t, &edge, &log) == TW_OK);
+    for (uint32_t k = 0; k < 64; k++) {
+        struct tw_traffic_car e;
+        CHECK(tw_traffic_place(&t, k, 1000.0, &e) == TW_OK);
+        CHECK(e.pos.cell.i - edge.centre.i >= -9 && e.pos.cell.i - edge.centre.i <= 8);
+    }
+    const struct tw_traffic_settings beyond = {.centre = {0, -(INT64_C(1) << 62) - 1}};
+    CHECK(tw_traffic_init(&t, &beyond, &log) == TW_ERR_INVALID);
 
     const struct tw_traffic_settings one = {.cars = 1};
     CHECK(tw_traffic_init(&t, &one, &log) == TW_OK);

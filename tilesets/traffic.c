@@ -27,7 +27,7 @@ void tw_traffic_default_settings(struct tw_traffic_settings *s)
 
 /* A centre within this of cell 0 leaves room in int64 for the square
  * around it (a radius of at most 100 km: 2273 cells of 44 m). */
-#define CENTRE_LIMIT (INT64_C(1) << 62)
+#define CENTRE_LIMIT (INT64_C(1) << 62)     /* inclusive: the command's --start-cell too */
 
 /* A stride through lines street lines coprime with their count: the q-th
  * line taken is q * stride mod lines, every line once, spread over the
@@ -84,8 +84,8 @@ int tw_traffic_init(struct tw_traffic *t, const struct tw_traffic_settings *sett
     if (!tw_procedural_in_range(s.radius_m, 1.0f, 100000.0f, "radius_m", " m", log, "traffic") ||
         !tw_procedural_in_range(s.speed_mps, 0.0f, 100.0f, "speed_mps", " m/s", log, "traffic"))
         return TW_ERR_INVALID;
-    if (s.centre.i <= -CENTRE_LIMIT || s.centre.i >= CENTRE_LIMIT ||
-        s.centre.j <= -CENTRE_LIMIT || s.centre.j >= CENTRE_LIMIT) {
+    if (s.centre.i < -CENTRE_LIMIT || s.centre.i > CENTRE_LIMIT ||
+        s.centre.j < -CENTRE_LIMIT || s.centre.j > CENTRE_LIMIT) {
         tw_log_printf(log, TW_LOG_ERROR, "tilesets: traffic: centre = (%lld, %lld), each within "
                       "+-2^62 (caller's settings)", (long long)s.centre.i, (long long)s.centre.j);
         return TW_ERR_INVALID;

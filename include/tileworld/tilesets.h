@@ -305,7 +305,8 @@ struct tw_traffic_settings {
                                    TW_TRAFFIC_CAR_MODELS */
     float footprint;            /* the city's tile side (tw_city_settings); default 80 */
     float street_width;         /* the city's full street width; default 14 */
-    struct tw_cell centre;      /* the square's centre: this cell's origin corner */
+    struct tw_cell centre;      /* the square's centre: this cell's origin corner; i and j
+                                   within +-2^62 */
     float radius_m;             /* half the square's side, rounded up to whole cells;
                                    default 600, in [1, 100000] */
     float speed_mps;            /* mean speed, metres a second; default 10, in (0, 100] */
