@@ -7,6 +7,7 @@ packages=(build-essential meson ninja-build pkg-config libembree-dev libmeshopti
           libegl-dev libegl1 libegl-mesa0 # EGL: headers, glvnd's loader, Mesa's vendor (llvmpipe)
           g++ libtinygltf-dev nlohmann-json3-dev
           libstb-dev                    # the viewer's overlay text (stb_easy_font)
+          libcurl4-openssl-dev          # the 3D Tiles provider's HTTP (tilesets/http.c)
           xvfb xauth libgl1-mesa-dri)   # the viewer's test: a GLFW window under xvfb-run
 missing=()
 for p in "${packages[@]}"; do

@@ -3,7 +3,9 @@
  *   "size WxH colours N stddev S"
  * (distinct RGB colours, standard deviation of luma in 0-255); with OTHER,
  * an image of the same size, also " differ F" (the fraction of pixels whose
- * colours differ by more than 8 in some channel). Exit status 1 when a file
+ * colours differ by more than 8 in some channel), " pixels_differ N" (those
+ * that differ at all) and " max_diff D" (the largest channel difference).
+ * Exit status 1 when a file
  * is not a valid PNG or the sizes differ. test-view.sh judges the figures:
  * a screenshot must decode, and must not be one flat colour.
  */
@@ -76,14 +78,20 @@ int main(int argc, char **argv)
                         w2, h2);
             rc = 1;
         } else {
-            size_t differ = 0;
-            for (size_t k = 0; k < n; k++)
-                for (int c = 0; c < 3; c++)
-                    if (abs((int)a[3 * k + c] - (int)b[3 * k + c]) > 8) {
-                        differ++;
-                        break;
-                    }
-            printf(" differ %.4f", n ? (double)differ / (double)n : 0.0);
+            size_t differ = 0, differ_any = 0;
+            int max_diff = 0;
+            for (size_t k = 0; k < n; k++) {
+                int most = 0;
+                for (int c = 0; c < 3; c++) {
+                    const int d = abs((int)a[3 * k + c] - (int)b[3 * k + c]);
+                    most = d > most ? d : most;
+                }
+                differ += most > 8;
+                differ_any += most > 0;
+                max_diff = most > max_diff ? most : max_diff;
+            }
+            printf(" differ %.4f pixels_differ %zu max_diff %d", n ? (double)differ / (double)n : 0.0,
+                   differ_any, max_diff);
         }
         free(b);
     }

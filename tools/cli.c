@@ -343,10 +343,30 @@ struct tw_tileset *tw_cli_load_tileset(const struct tw_cli *c, uint32_t cluster_
     return ts;
 }
 
+bool tw_cli_is_url(const char *tileset)
+{
+    return tileset && (strncmp(tileset, "http://", 7) == 0 ||
+                       strncmp(tileset, "https://", 8) == 0 || strncmp(tileset, "file://", 7) == 0);
+}
+
 void tw_cli_world_load(const struct tw_cli *c, uint32_t cluster_triangles,
                        const struct tw_log *log, struct tw_cli_world *out)
 {
     memset(out, 0, sizeof(*out));
+    if (tw_cli_is_url(c->tileset)) {
+        struct tw_tiles3d_settings s = c->http;
+        s.max_cluster_triangles = cluster_triangles;
+        const int err = tw_tiles3d_provider_create(c->tileset, &s, log, &out->tiles3d);
+        if (err) {
+            /* The library said why in its own line. */
+            exit(err == TW_ERR_INVALID || err == TW_ERR_FORMAT ? TW_CLI_EXIT_USAGE : 1);
+        }
+        out->source = tw_tiles3d_provider_get(out->tiles3d);
+        out->name = c->tileset;
+        out->footprint[0] = out->source->footprint[0];
+        out->footprint[1] = out->source->footprint[1];
+        return;
+    }
     if (!tw_tilesets_is_provider(c->tileset)) {
         out->tileset = tw_cli_load_tileset(c, cluster_triangles, log);
         out->name = out->tileset->name;
@@ -377,6 +397,7 @@ void tw_cli_world_finish(struct tw_cli_world *w)
 {
     tw_tileset_destroy(w->tileset);
     tw_tilesets_provider_destroy(w->provider);
+    tw_tiles3d_provider_destroy(w->tiles3d);
     memset(w, 0, sizeof(*w));
 }
 
@@ -464,6 +485,19 @@ static bool apply_common(struct tw_cli *c, int opt, const char *place, const cha
         ws->upload_budget_bytes = tw_cli_bytes(p, place, arg, (uint64_t)1 << 50);
         if (ws->upload_budget_bytes == 0)
             tw_cli_fail(p, place, "'%s' is not above 0 bytes", arg);
+        break;
+    case TW_CLI_OPT_HTTP_CACHE:
+        if (!arg[0])
+            tw_cli_fail(p, place, "needs a folder");
+        c->http.cache_dir = arg;
+        break;
+    case TW_CLI_OPT_HTTP_CACHE_BYTES:
+        c->http.cache_max_bytes = tw_cli_bytes(p, place, arg, (uint64_t)1 << 50);
+        if (c->http.cache_max_bytes == 0)
+            tw_cli_fail(p, place, "'%s' is not above 0 bytes", arg);
+        break;
+    case TW_CLI_OPT_HTTP_TIMEOUT:
+        c->http.timeout_ms = (uint32_t)tw_cli_u64(p, place, arg, 1, 3600000);
         break;
     default: return false;
     }

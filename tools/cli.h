@@ -47,6 +47,9 @@ enum {
     TW_CLI_OPT_BUDGET,
     TW_CLI_OPT_UPLOAD_BUDGET,
     TW_CLI_OPT_MAX_SCREEN_ERROR,
+    TW_CLI_OPT_HTTP_CACHE,
+    TW_CLI_OPT_HTTP_CACHE_BYTES,
+    TW_CLI_OPT_HTTP_TIMEOUT,
     TW_CLI_OPT_PROGRAM = 512,
 };
 
@@ -67,7 +70,21 @@ enum {
     {"budget", required_argument, NULL, TW_CLI_OPT_BUDGET}, \
     {"upload-budget", required_argument, NULL, TW_CLI_OPT_UPLOAD_BUDGET}, \
     {"max-screen-error", required_argument, NULL, TW_CLI_OPT_MAX_SCREEN_ERROR}, \
+    {"http-cache", required_argument, NULL, TW_CLI_OPT_HTTP_CACHE}, \
+    {"http-cache-bytes", required_argument, NULL, TW_CLI_OPT_HTTP_CACHE_BYTES}, \
+    {"http-timeout", required_argument, NULL, TW_CLI_OPT_HTTP_TIMEOUT}, \
     {"help", no_argument, NULL, 'h'}
+
+/* The --help lines of the options of a baked tileset streamed back
+ * (--tileset http://... or file://...), shared by the programs. */
+#define TW_CLI_HTTP_HELP \
+    "--http-cache DIR      a --tileset URL's tiles kept in DIR with their ETag, revalidated\n" \
+    "                      (If-None-Match; a 304 serves the copy); default: no cache\n" \
+    "--http-cache-bytes BYTES  the cache's files together; beyond it the oldest go\n" \
+    "                      (default 1G)\n" \
+    "--http-timeout MS     a request's whole time, 1..3600000 ms (default 30000); a\n" \
+    "                      timeout, a 5xx or a lost connection is tried 3 more times\n" \
+    "                      (back-off 0.1, 0.2, 0.4 s), then the tile is refused\n"
 
 /* What the shared options set. */
 struct tw_cli {
@@ -75,7 +92,9 @@ struct tw_cli {
     struct tw_world_settings world;  /* seed, repeat, method, size, view distance, workers,
                                       * policy, budgets, and what a program's own options add */
     struct tw_world_tuning tuning;   /* the methods' parameters and measurement switches */
-    const char *tileset;             /* a built-in name or a manifest file; borrowed from argv */
+    const char *tileset;             /* a built-in name, a manifest file or a URL of a baked
+                                        tileset.json; borrowed from argv */
+    struct tw_tiles3d_settings http; /* --http-cache, --http-cache-bytes, --http-timeout */
     const char *path;                /* a built-in path or a CSV file; NULL: none given */
     uint32_t frames;                 /* 0: the path's length */
     struct tw_cell start_cell;
@@ -83,6 +102,10 @@ struct tw_cli {
     uint32_t given;                  /* shared options given: bit opt - TW_CLI_OPT_TILESET */
     _Atomic uint32_t errors_logged;  /* error lines tw_cli_log() printed (from any thread) */
 };
+
+/* Whether --tileset names a baked tileset by URL (http://, https://,
+ * file://). */
+bool tw_cli_is_url(const char *tileset);
 
 /* True when the shared option opt (TW_CLI_OPT_*) was on the command line. */
 bool tw_cli_given(const struct tw_cli *c, int opt);
@@ -184,11 +207,13 @@ struct tw_tileset *tw_cli_load_tileset(const struct tw_cli *c, uint32_t cluster_
                                        const struct tw_log *log);
 
 /* What a world shows, from --tileset: a fixed tileset (built-in or a
- * manifest) or a built-in provider (city-gen, forest-gen). Exactly one of
- * tileset and provider is set; both are owned by this struct. */
+ * manifest), a built-in provider (city-gen, forest-gen) or a baked tileset
+ * streamed back (http://, https://, file://). Exactly one of tileset,
+ * provider and tiles3d is set; all are owned by this struct. */
 struct tw_cli_world {
     struct tw_tileset *tileset;             /* a fixed tileset, or NULL */
     struct tw_tilesets_provider *provider;  /* a built-in provider, or NULL */
+    struct tw_tiles3d_provider *tiles3d;    /* a baked tileset streamed back, or NULL */
     const struct tw_tile_provider *source;  /* the provider's (borrowed from provider), or NULL */
     const char *name;                       /* the tileset's or the provider's name; borrowed */
     float footprint[2];                     /* W, D metres of the grid's cells */

@@ -276,6 +276,79 @@ const struct tw_tile_provider *tw_tilesets_provider_get(const struct tw_tilesets
 /* Frees p and everything it owns; accepts NULL. */
 void tw_tilesets_provider_destroy(struct tw_tilesets_provider *p);
 
+/* ---- a baked 3D Tiles tileset streamed back (HTTP or file) ---- */
+
+/* How the 3D Tiles provider fetches. Zero-initialisable: zero fields take
+ * the defaults of tw_tiles3d_default_settings(). */
+struct tw_tiles3d_settings {
+    const char *cache_dir;          /* an on-disk cache of bodies with their ETag, made if
+                                       missing (copied at creation); NULL: none */
+    uint64_t cache_max_bytes;       /* the cache's files together; beyond it the oldest go;
+                                       default 1 GiB */
+    uint32_t connect_timeout_ms;    /* a connection's setup; default 5000 */
+    uint32_t timeout_ms;            /* a whole request; default 30000 */
+    uint32_t retries;               /* more attempts after a failure that may pass (5xx, 408,
+                                       429, a timeout, a connection error); default 3;
+                                       TW_TILES3D_NO_RETRY: none */
+    uint32_t retry_delay_ms;        /* the first back-off, doubled at each retry; default 100 */
+    uint32_t max_cluster_triangles; /* for the tiles; default 2048 */
+    struct tw_gltf_settings gltf;   /* limits of each tile's glTF; zero: defaults */
+};
+
+#define TW_TILES3D_NO_RETRY UINT32_MAX
+
+void tw_tiles3d_default_settings(struct tw_tiles3d_settings *s);
+
+/* What a 3D Tiles provider has done so far. */
+struct tw_tiles3d_stats {
+    uint64_t requests;      /* attempts sent (each retry is one) */
+    uint64_t bytes;         /* body bytes received */
+    uint64_t cache_hits;    /* bodies served from the cache */
+    uint64_t not_modified;  /* 304 answers to If-None-Match */
+    uint64_t retries;       /* attempts after a failure that may pass */
+    uint64_t failures;      /* requests given up: a 404, another 4xx, retries spent */
+};
+
+/* A tile provider that streams a tileset written by `tileworld bake` (3D
+ * Tiles 1.1, implicit quadtree tiling, tileset.json's
+ * extras.tileworld giving the footprint, the rectangle of cells and the
+ * bound) from url: http://, https:// or file:// to its tileset.json. */
+struct tw_tiles3d_provider;
+
+/* Fetches tileset.json and the subtrees that say which cells have
+ * content, and makes the provider: content() answers TW_TILE_EMPTY outside
+ * the baked rectangle and for cells without content, TW_TILE_OWN for the
+ * others (a table lookup); generate() GETs the cell's
+ * content/L/X/Y.glb on the calling worker thread and imports it (its
+ * geometry is tile-local: the node's translation, the cell's offset in
+ * the rectangle, is dropped). How many fetches run at once is how many
+ * workers the world has (tw_world_settings.workers): the provider adds no
+ * threads. A tile that cannot be had (a 404 of an available tile, a
+ * 4xx, retries spent, a malformed glb) is refused with its cause
+ * (tw_tileset_fail(): "GET URL: HTTP 500 after 4 attempts"), and the world
+ * asks again on its schedule. settings may be NULL. Fails with
+ * TW_ERR_INVALID (a URL of another scheme, a tileset not baked by
+ * tileworld, a build without libcurl), TW_ERR_IO (it cannot be fetched) or
+ * TW_ERR_FORMAT, with one error line. log (may be NULL) is copied: its
+ * callback must outlive the provider and may be called from worker
+ * threads. The caller owns *out and keeps it until every world using it
+ * is gone. Process-wide state: curl_global_init(), once. */
+int tw_tiles3d_provider_create(const char *url, const struct tw_tiles3d_settings *settings,
+                               const struct tw_log *log, struct tw_tiles3d_provider **out);
+
+/* The provider to hand to a world: borrowed from p, valid until p is
+ * destroyed. NULL for NULL. */
+const struct tw_tile_provider *tw_tiles3d_provider_get(const struct tw_tiles3d_provider *p);
+
+/* The counters so far into *out (any thread; zeroes for NULL p). */
+void tw_tiles3d_provider_stats(const struct tw_tiles3d_provider *p,
+                               struct tw_tiles3d_stats *out);
+
+/* Frees p; accepts NULL. Transfers still in flight (a world's worker left
+ * behind at tw_world_destroy's shutdown timeout) are cancelled, and what
+ * they use is freed when the last of them returns. */
+void tw_tiles3d_provider_destroy(struct tw_tiles3d_provider *p);
+
 /* ---- traffic: moving cars for the city ---- */
 
 /* How many models tw_tilesets_car_models() makes. */

@@ -828,6 +828,29 @@ static int write_tileset_json(struct bake *b, uint32_t subtree_levels, const dou
     json_object_object_add(implicit, "subtrees", subtrees);
     json_object_object_add(tile, "implicitTiling", implicit);
     json_object_object_add(root, "root", tile);
+    /* What a tileworld client needs to map the tiles back to cells (the
+     * library's 3D Tiles provider); generic clients ignore extras. */
+    const struct tw_box *bound = b->world.tileset ? &b->world.tileset->common_box
+                                                  : &b->world.source->bound;
+    json_object *tw = json_object_new_object();
+    const double footprint[2] = {w, d};
+    json_object_object_add(tw, "footprint", doubles(footprint, 2));
+    const int64_t cells[4] = {b->first.i, b->first.j, b->last.i, b->last.j};
+    json_object *cells_json = json_object_new_array();
+    for (int k = 0; k < 4; k++)
+        json_object_array_add(cells_json, json_object_new_int64(cells[k]));
+    json_object_object_add(tw, "cells", cells_json);
+    const double bmin[3] = {bound->min[0], bound->min[1], bound->min[2]};
+    const double bmax[3] = {bound->max[0], bound->max[1], bound->max[2]};
+    json_object *bound_json = json_object_new_object();
+    json_object_object_add(bound_json, "min", doubles(bmin, 3));
+    json_object_object_add(bound_json, "max", doubles(bmax, 3));
+    json_object_object_add(tw, "bound", bound_json);
+    json_object_object_add(tw, "tileset", json_object_new_string(b->cli.tileset));
+    json_object_object_add(tw, "seed", json_object_new_uint64(b->cli.world.selection.seed));
+    json_object *extras = json_object_new_object();
+    json_object_object_add(extras, "tileworld", tw);
+    json_object_object_add(root, "extras", extras);
 
     const char *text = json_object_to_json_string_ext(root, JSON_C_TO_STRING_PRETTY |
                                                                 JSON_C_TO_STRING_NOSLASHESCAPE);

@@ -26,6 +26,7 @@ static void usage(FILE *f)
           "                         [--upload-budget BYTES] [--start-cell I,J] [--repeat P]\n"
           "                         [--seed N] [--out DIR] [--quiet]\n"
           "                         [--gl auto|egl|osmesa] [--gpu N]\n"
+          "                         [--http-cache DIR] [--http-cache-bytes BYTES] [--http-timeout MS]\n"
           "\n"
           "Walks a long path through a tileset and records the tile cache's memory against\n"
           "the distance travelled: every --every metres a row of DIR/memory.csv (the cache's\n"
@@ -36,7 +37,9 @@ static void usage(FILE *f)
           "in distance, no leak, load latency bounded), 2 for bad input, 1 for a failure.\n"
           "--tileset NAME|FILE.json  what the world shows (default city-gen): the providers\n"
           "                      city-gen and forest-gen, the built-in city, forest, hybrid,\n"
-          "                      or a manifest\n"
+          "                      a manifest, or a baked tileset's http://.../tileset.json or\n"
+          "                      file:///.../tileset.json\n"
+          TW_CLI_HTTP_HELP
           "--path straight|wander|FILE.csv  the walk (default straight: along one street;\n"
           "                      wander turns at crossings, seeded by --seed; a CSV is\n"
           "                      repeated end to end)\n"

@@ -67,14 +67,16 @@ static const char walk_synopsis[] =
     "                        [--chc-suspend N] [--threshold T] [--no-cost-model] [--first-sight-draws]\n"
     "                        [--hzb-pyramid auto|gpu|cpu] [--mutate-query-shrink F] [--workers N]\n"
     "                        [--policy wait|skip]\n"
-    "                        [--budget BYTES] [--upload-budget BYTES] [--gl auto|egl|osmesa] [--gpu N]\n";
+    "                        [--budget BYTES] [--upload-budget BYTES] [--gl auto|egl|osmesa] [--gpu N]\n"
+    "                        [--http-cache DIR] [--http-cache-bytes BYTES] [--http-timeout MS]\n";
 static const char bench_synopsis[] =
     "usage: tileworld bench  [walk's options] [--methods M1,M2,...] [--sweep PARAM=v1,v2,...]\n"
     "                        [--scenario NAME|all] [--split]\n";
 static const char info_synopsis[] =
     "usage: tileworld info   [--tileset NAME|FILE.json] [--seed N] [--cluster-triangles N]\n"
     "                        [--max-screen-error PX] [--hlod-levels N]\n"
-    "                        [--calibrate [--size WxH]] [--gl auto|egl|osmesa] [--gpu N]\n";
+    "                        [--calibrate [--size WxH]] [--gl auto|egl|osmesa] [--gpu N]\n"
+    "                        [--http-cache DIR] [--http-cache-bytes BYTES] [--http-timeout MS]\n";
 static const char import_synopsis[] =
     "usage: tileworld import FILE.gltf|FILE.glb\n";
 static const char other_synopses[] =
@@ -87,10 +89,13 @@ static const char other_synopses[] =
 static const char world_help[] =
     "What the world shows:\n"
     "--tileset NAME|FILE.json  built-in city (default), forest, hybrid; the providers city-gen\n"
-    "                      and forest-gen (every cell generated on demand); or a manifest\n"
+    "                      and forest-gen (every cell generated on demand); a manifest; or\n"
+    "                      http://.../tileset.json, file:///.../tileset.json: a tileset\n"
+    "                      baked by tileworld bake, streamed back\n"
     "--seed N              seed of the generators and of the cells' selection (default 1)\n"
     "--repeat P            the selection repeats every P cells\n"
-    "--cluster-triangles N draw clusters of at most N triangles, 16..1000000 (default 2048)\n";
+    "--cluster-triangles N draw clusters of at most N triangles, 16..1000000 (default 2048)\n"
+    TW_CLI_HTTP_HELP;
 
 static const char run_help[] =
     "Camera, image and methods:\n"
@@ -592,6 +597,15 @@ static int run(const struct options *o, bool bench)
     fflush(stdout);
     if (missed && !o->allow_missed)
         rc = 3;
+    if (shown.tiles3d && !o->cli.quiet) {
+        struct tw_tiles3d_stats hs;
+        tw_tiles3d_provider_stats(shown.tiles3d, &hs);
+        tw_cli_message(program, "3D Tiles: %llu requests, %llu bytes, %llu cache hits, %llu "
+                       "not modified (304), %llu retries, %llu failures",
+                       (unsigned long long)hs.requests, (unsigned long long)hs.bytes,
+                       (unsigned long long)hs.cache_hits, (unsigned long long)hs.not_modified,
+                       (unsigned long long)hs.retries, (unsigned long long)hs.failures);
+    }
 out:
     tw_context_destroy(ctx);
     tw_path_finish(&path);
@@ -668,9 +682,10 @@ static int info_provider(const struct tw_cli_world *shown)
     const struct tw_tile_provider *p = shown->source;
     char name[1024];
     printf("provider %s: footprint %g x %g m, clusters of <= %u triangles, every cell's content "
-           "generated on demand\n", tw_cli_escape(shown->name, name, sizeof(name)),
+           "%s\n", tw_cli_escape(shown->name, name, sizeof(name)),
            p->footprint[0], p->footprint[1],
-           p->max_cluster_triangles ? p->max_cluster_triangles : 2048u);
+           p->max_cluster_triangles ? p->max_cluster_triangles : 2048u,
+           shown->tiles3d ? "fetched from the baked tileset on demand" : "generated on demand");
     const struct tw_box *b = &p->bound;
     printf("bound (the query box): [%.2f, %.2f, %.2f] .. [%.2f, %.2f, %.2f]\n", b->min[0],
            b->min[1], b->min[2], b->max[0], b->max[1], b->max[2]);
@@ -701,7 +716,7 @@ static int info(const struct options *o)
     const struct tw_log log = {tw_cli_log, (void *)&o->cli};
     struct tw_cli_world shown;
     tw_cli_world_load(&o->cli, o->cluster_triangles, &log, &shown);
-    if (shown.provider) {
+    if (shown.provider || shown.tiles3d) {
         int rc = info_provider(&shown);
         if (!rc && o->calibrate)
             rc = print_calibration(o, &shown, &log);
@@ -893,7 +908,7 @@ int main(int argc, char **argv)
     if (o.split && (o.sweep || o.scenario))
         tw_cli_fail(program, "--split", "--split parts a bench run's CPU time; it takes no %s",
                     o.sweep ? "--sweep" : "--scenario");
-    if (tw_tilesets_is_provider(o.cli.tileset)) {
+    if (tw_tilesets_is_provider(o.cli.tileset) || tw_cli_is_url(o.cli.tileset)) {
         if (o.scenario)
             tw_cli_fail(program, "--scenario", "scenarios need a prototype tileset (they place the "
                         "camera by its prototypes); '%s' is a provider", o.cli.tileset);
