@@ -23,7 +23,7 @@
 #include "tileworld/runtime.h"
 #include "tileworld/tilesets.h"
 
-enum { W = 192, H = 108, FRAMES = 24, CARS = 240, BALLOONS = 24 };
+enum { W = 192, H = 108, FRAMES = 16, CARS = 240, BALLOONS = 24 };
 enum { CAR = 0, BALLOON = 1, WALL = 2 };
 
 static void log_quiet(void *user, enum tw_log_level level, const char *msg)
@@ -155,7 +155,7 @@ static uint32_t hash(const uint8_t *p, size_t n)
 }
 
 /* FRAMES frames of the street path with method m, objects or none, the wall
- * in front of the camera from frame 8 to 15 (wall true). */
+ * in front of the camera from frame 6 to 11 (wall true). */
 static void walk(struct tw_world_settings s, const struct tw_path *path, enum tw_method m,
                  bool objects, bool wall, struct run *r)
 {
@@ -180,7 +180,7 @@ static void walk(struct tw_world_settings s, const struct tw_path *path, enum tw
                 k < CARS ? car_at(centre, k, f) : balloon_at(centre, k - CARS, f);
             CHECK(tw_world_object_update(w, ids[k], &o) == TW_OK);
         }
-        if (wall && f >= 8 && f < 16) {
+        if (wall && f >= 6 && f < 12) {
             const struct tw_object o = wall_at(c);
             if (wall_id == UINT32_MAX)
                 CHECK(tw_world_object_add(w, &o, &wall_id) == TW_OK);
@@ -197,7 +197,7 @@ static void walk(struct tw_world_settings s, const struct tw_path *path, enum tw
                   tw_method_name(m), f, (unsigned long long)st.missed_pixels,
                   st.missed_clusters);
         r->missed += st.missed_pixels;
-        if (f >= 10 && f < 16)
+        if (f >= 8 && f < 12)
             r->triangles_wall += st.triangles;
         r->frames_rebuilt += st.object_rebuilds > 0;
         r->objects_seen = st.objects;
@@ -411,10 +411,10 @@ int main(void)
     walk(s, &path, TW_METHOD_TILEQUERY_CHC, true, true, &r);
     walk(s, &path, TW_METHOD_TILEQUERY_CHC, true, false, &open);
     CHECK_MSG(r.triangles_wall * 5 < open.triangles_wall,
-              "tilequery+chc, 6 frames behind a wall: %llu triangles, %llu without it",
+              "tilequery+chc, 4 frames behind a wall: %llu triangles, %llu without it",
               (unsigned long long)r.triangles_wall, (unsigned long long)open.triangles_wall);
     printf("objects: %u cars and balloons, 6 methods, %u frames each, 0 missed pixels; behind a "
-           "wall tilequery+chc drew %llu triangles in 6 frames, %llu without it (%.3f)\n",
+           "wall tilequery+chc drew %llu triangles in 4 frames, %llu without it (%.3f)\n",
            CARS + BALLOONS, FRAMES, (unsigned long long)r.triangles_wall,
            (unsigned long long)open.triangles_wall,
            open.triangles_wall ? (double)r.triangles_wall / (double)open.triangles_wall : 0.0);
