@@ -215,6 +215,24 @@ static void null_arguments(struct tw_world *w)
     tw_gltf_scene_destroy(NULL);
     CHECK(tw_tilesets_load_manifest(NULL, NULL, NULL, NULL) == TW_ERR_INVALID);
     CHECK(tw_tilesets_parse_manifest(NULL, 0, NULL, NULL, NULL, NULL, NULL) == TW_ERR_INVALID);
+    /* Moving objects, traffic, the 3D Tiles provider. */
+    const struct tw_object car = {.model = 0};
+    uint32_t id = 0;
+    CHECK(tw_world_object_add(NULL, &car, &id) == TW_ERR_INVALID);
+    CHECK(tw_world_object_add(w, NULL, &id) == TW_ERR_INVALID);
+    CHECK(tw_world_object_add(w, &car, NULL) == TW_ERR_INVALID);
+    CHECK(tw_world_object_update(NULL, 0, &car) == TW_ERR_INVALID);
+    CHECK(tw_world_object_update(w, 0, NULL) == TW_ERR_INVALID);
+    CHECK(tw_world_object_remove(NULL, 0) == TW_ERR_INVALID);
+    CHECK(tw_tilesets_car_models(NULL, NULL) == TW_ERR_INVALID);
+    tw_traffic_default_settings(NULL);
+    CHECK(tw_traffic_init(NULL, NULL, NULL) == TW_ERR_INVALID);
+    CHECK(tw_traffic_place(NULL, 0, 0.0, NULL) == TW_ERR_INVALID);
+    tw_tiles3d_default_settings(NULL);
+    CHECK(tw_tiles3d_provider_create(NULL, NULL, NULL, NULL) == TW_ERR_INVALID);
+    CHECK(tw_tiles3d_provider_get(NULL) == NULL);
+    tw_tiles3d_provider_stats(NULL, NULL);
+    tw_tiles3d_provider_destroy(NULL);
     CHECK(tw_method_name((enum tw_method)99) != NULL);
     CHECK(tw_error_to_str(12345) != NULL);
     CHECK(tw_context_api_name((enum tw_context_api)99) == NULL);
