@@ -153,9 +153,12 @@ static json_object *accessor(int view, int component, uint32_t count, const char
 }
 
 /* A float as the shortest JSON number that reads back to the same float
- * (9 significant digits always do). */
+ * (9 significant digits always do), a negative zero included. */
 static json_object *float_number(float v)
 {
+    /* "-0" would read back as the integer 0. */
+    if (v == 0.0f && signbit(v))
+        return json_object_new_double_s(-0.0, "-0.0");
     char text[32];
     for (int digits = 6; digits <= 9; digits++) {
         snprintf(text, sizeof(text), "%.*g", digits, (double)v);
@@ -203,13 +206,11 @@ static bool unit_normals(const struct tw_tiles3d_mesh *m)
     return true;
 }
 
+/* Whether t is the identity, bit for bit (a -0 is written). */
 static bool is_identity(const float t[12])
 {
     static const float id[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
-    for (int k = 0; k < 12; k++)
-        if (t[k] != id[k])
-            return false;
-    return true;
+    return memcmp(t, id, sizeof(id)) == 0;
 }
 
 /* One glTF mesh: a (mesh, material) pair. */
