@@ -6,8 +6,11 @@
  *     content templates, a box, a transform that places cell (I0, J0);
  *   - every cell of the rectangle (bake.json) that shows something has its
  *     .glb, which the project's own importer reads (tw_gltf_import), with
- *     the triangles of the cell's prototype (or generated tile), inside the
- *     cell's footprint once placed; an empty cell has none;
+ *     the triangles of the cell's prototype (or generated tile), its nodes'
+ *     meshes summed, inside the cell's footprint once placed; read back as
+ *     the 3D Tiles provider reads it (tw_tiles3d_glb_read, then
+ *     tw_tileset_finish), the very tile that was baked, bit for bit; an
+ *     empty cell has none;
  *   - every coarser tile with content: read back, inside its block, with
  *     fewer triangles than its children;
  *   - the root subtree's header and JSON, its tile, content and child
@@ -24,6 +27,7 @@
 #include "tiles/tiles-internal.h"
 #include "tileworld/tiles.h"
 #include "tileworld/tilesets.h"
+#include "tilesets/tilesets-private.h"
 
 static json_object *get(json_object *o, const char *key)
 {
@@ -80,6 +84,58 @@ static int bit(json_object *avail, json_object *views, const uint8_t *bin, uint6
     json_object *v = json_object_array_get_idx(views, json_object_get_int(get(avail, "bitstream")));
     const uint64_t off = (uint64_t)json_object_get_int64(get(v, "byteOffset"));
     return (bin[off + b / 8] >> (b % 8)) & 1;
+}
+
+/* Whether the file at path, read back as the 3D Tiles provider reads it
+ * (tw_tiles3d_glb_read, nothing merged again, finished with the same
+ * cluster size), gives prototype p of ts bit for bit: the same clusters in
+ * the same order, each with the same transform, material, box, and the
+ * same triangles (positions, normals, colours) in the same order. */
+static bool same_tile(const char *path, const struct tw_tileset *ts, uint32_t p)
+{
+    size_t size = 0;
+    uint8_t *data = read_all(path, &size);
+    struct tw_tileset *back = NULL;
+    char why[512] = "";
+    bool same = data && tw_tileset_create("back", ts->footprint[0], ts->footprint[1], &back) == 0;
+    const int proto = same ? tw_tileset_add_prototype(back, "back", 1.0f) : -1;
+    same = same && proto == 0 && tw_tiles3d_glb_read(data, size, back, 0, NULL, why,
+                                                     sizeof(why)) == TW_OK;
+    if (same)
+        back->merge_triangles = 1;
+    same = same && tw_tileset_finish(back, ts->max_cluster_triangles) == TW_OK;
+    const struct tw_prototype *a = &ts->prototypes[p], *b = same ? &back->prototypes[0] : NULL;
+    same = same && a->cluster_count == b->cluster_count && a->triangle_count == b->triangle_count;
+    for (uint32_t c = 0; same && c < a->cluster_count; c++) {
+        const struct tw_cluster *ca = &a->clusters[c], *cb = &b->clusters[c];
+        const struct tw_instance *ia = &a->instances[ca->instance];
+        const struct tw_instance *ib = &b->instances[cb->instance];
+        const struct tw_mesh_part *pa = &ts->parts[ca->part], *pb = &back->parts[cb->part];
+        const struct tw_mesh *ma = &ts->meshes[pa->mesh], *mb = &back->meshes[pb->mesh];
+        same = ca->triangle_count == cb->triangle_count &&
+               memcmp(&ca->box, &cb->box, sizeof(ca->box)) == 0 &&
+               memcmp(ia->transform, ib->transform, sizeof(ia->transform)) == 0 &&
+               memcmp(ts->materials[ia->material].base_color,
+                      back->materials[ib->material].base_color, 16) == 0 &&
+               !ma->colors == !mb->colors;
+        for (uint32_t k = 0; same && k < 3 * pa->triangle_count; k++) {
+            const uint32_t va = ma->indices[3 * (size_t)pa->first_triangle + k];
+            const uint32_t vb = mb->indices[3 * (size_t)pb->first_triangle + k];
+            same = memcmp(ma->positions + 3 * (size_t)va, mb->positions + 3 * (size_t)vb, 12) == 0 &&
+                   memcmp(ma->normals + 3 * (size_t)va, mb->normals + 3 * (size_t)vb, 12) == 0 &&
+                   (!ma->colors || memcmp(ma->colors + 4 * (size_t)va, mb->colors + 4 * (size_t)vb,
+                                          4) == 0);
+        }
+    }
+    if (why[0])
+        fprintf(stderr, "%s: %s\n", path, why);
+    if (!same && b)
+        fprintf(stderr, "%s: clusters %u / %u, triangles %llu / %llu\n", path, a->cluster_count,
+                b->cluster_count, (unsigned long long)a->triangle_count,
+                (unsigned long long)b->triangle_count);
+    tw_tileset_destroy(back);
+    free(data);
+    return same;
 }
 
 int main(int argc, char **argv)
@@ -162,30 +218,35 @@ int main(int argc, char **argv)
         for (uint64_t x = 0; x < nx; x++) {
             const struct tw_cell cell = {i0 + (int64_t)x, j0 + (int64_t)y};
             uint64_t expected = 0;
+            struct tw_tileset *gen = NULL;
+            const struct tw_tileset *made = ts;
+            uint32_t made_proto = 0;
             if (ts) {
                 const uint32_t p = tw_tiles_select(ts, &sel, cell);
                 expected = p == TW_TILE_EMPTY ? 0 : ts->prototypes[p].triangle_count;
+                made_proto = p;
             } else {
-                struct tw_tileset *gen = NULL;
                 CHECK(tw_tileset_create("check", src->footprint[0], src->footprint[1], &gen) == 0);
                 const int rc = src->generate(src->user, cell, gen);
                 if (rc == TW_OK) {
                     CHECK(tw_tileset_finish(gen, src->max_cluster_triangles
                                                      ? src->max_cluster_triangles : 2048) == 0);
                     expected = gen->prototypes[0].triangle_count;
+                    made = gen;
                 } else {
                     CHECK(rc == TW_GENERATE_EMPTY);
                 }
-                tw_tileset_destroy(gen);
             }
             snprintf(path, sizeof(path), "%s/content/%u/%llu/%llu.glb", dir, leaf,
                      (unsigned long long)x, (unsigned long long)y);
-            if (expected == 0) {
-                CHECK_MSG(!exists(path), "%s: an empty cell has content", path);
+            if (expected == 0 || (partial && !exists(path))) {
+                CHECK_MSG(expected || !exists(path), "%s: an empty cell has content", path);
+                tw_tileset_destroy(gen);
                 continue;
             }
-            if (partial && !exists(path))
-                continue;
+            CHECK_MSG(same_tile(path, made, made_proto), "%s: read back as the 3D Tiles provider "
+                      "reads it, not the tile that was baked", path);
+            tw_tileset_destroy(gen);
             struct tw_gltf_scene *scene = NULL;
             const int rc = tw_gltf_import(path, NULL, NULL, &scene);
             CHECK_MSG(rc == TW_OK, "%s: %s", path, tw_error_to_str(rc));

@@ -5,9 +5,11 @@
  * rectangle of cells and the bound) and the subtrees down to the cells'
  * level, whose content availability becomes one byte per cell; content()
  * reads it. generate() fetches the cell's .glb on the calling worker
- * (http.c) and imports it; the node translation that places the cell
- * inside the rectangle is dropped first, so the tile's geometry is the
- * cell-relative float32 of the file, whatever the rectangle's size.
+ * (http.c) and reads it: a .glb in the bake's own layout rebuilds the
+ * tile as it was finished (tiles3d-glb.c), other glTF goes through the
+ * general importer. The node translation that places the cell inside the
+ * rectangle is dropped, so the tile's geometry is the cell-relative
+ * float32 of the file, whatever the rectangle's size.
  *
  * Thread safety: generate() only reads the provider (the fetcher is
  * thread-safe); what a worker still running at destroy uses stays until it
@@ -20,6 +22,7 @@
 
 #include "tiles/tiles-internal.h"
 #include "tilesets/http.h"
+#include "tilesets/tilesets-private.h"
 #include "tileworld/tilesets.h"
 
 /* tileset.json and subtree files are small; a larger one is refused. */
@@ -566,6 +569,28 @@ static int tiles3d_generate(void *user, struct tw_cell cell, struct tw_tileset *
                              missing ? " (the subtree says the tile is there)" : "");
         goto out;
     }
+    char name[48];
+    snprintf(name, sizeof(name), "%lld,%lld", (long long)cell.i, (long long)cell.j);
+    const int proto = tw_tileset_add_prototype(ts, name, 1.0f);
+    if (proto < 0) {
+        rc = tw_tileset_fail(ts, proto, "%s: cannot make the tile: %s", shown,
+                             tw_error_to_str(proto));
+        goto out;
+    }
+    /* The bake's own layout: the tile as it was finished, rebuilt exactly;
+     * its small instances are merged already, so nothing is merged again
+     * (tw_tileset_finish() then only splits the meshes into the same parts). */
+    rc = tw_tiles3d_glb_read(data, size, ts, (uint32_t)proto, NULL, err, sizeof(err));
+    if (rc == TW_OK) {
+        ts->merge_triangles = 1;
+        goto out;
+    }
+    if (rc < 0) {
+        rc = tw_tileset_fail(ts, rc, "%s: %s", shown, err);
+        goto out;
+    }
+    /* Other glTF content (an older bake's one flattened mesh): the general
+     * importer, the root's translation dropped. */
     const char *why = NULL;
     rc = drop_root_translation(data, size, &glb, &glb_size, &why);
     if (rc) {
@@ -578,13 +603,8 @@ static int tiles3d_generate(void *user, struct tw_cell cell, struct tw_tileset *
                              tw_error_to_str(rc));
         goto out;
     }
-    char name[48];
-    snprintf(name, sizeof(name), "%lld,%lld", (long long)cell.i, (long long)cell.j);
-    const int proto = tw_tileset_add_prototype(ts, name, 1.0f);
     struct tw_gltf_binding binding;
-    if (proto < 0)
-        rc = proto;
-    else if (!(rc = tw_gltf_bind(scene, ts, &binding)))
+    if (!(rc = tw_gltf_bind(scene, ts, &binding)))
         rc = tw_gltf_place(scene, &binding, ts, (uint32_t)proto, NULL);
     if (rc)
         rc = tw_tileset_fail(ts, rc, "%s: cannot make the tile: %s", shown, tw_error_to_str(rc));

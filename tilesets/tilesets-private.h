@@ -15,6 +15,7 @@
 #define TW_TILESETS_PRIVATE_H
 
 #include <stdbool.h>
+#include <stddef.h>
 #include <stdint.h>
 
 #include "tileworld/tilesets.h"
@@ -303,5 +304,26 @@ int tw_gltf_import_fd(int fd, int dir_fd, const char *name,
  * tw_gltf_place(). */
 void tw_gltf_placement(const float position[3], float yaw_degrees, float scale,
                        float out[12]);
+
+/* ---- the .glb layout of tileworld bake (tiles3d-glb.c) ---------------------------- */
+
+/* What tw_tiles3d_glb_read() returns for a binary glTF file that is not in
+ * the layout (asset.extras.tileworld.layout "instances"): read it with the
+ * general importer. */
+#define TW_TILES3D_GLB_OTHER 1
+
+/* Reads the binary glTF file at data (size bytes; borrowed) that `tileworld
+ * bake` wrote into ts: every material (tw_tileset_add_material), one mesh
+ * per POSITION accessor with its normals (_TW_NORMAL when present, else
+ * NORMAL) and its COLOR_0 as tw_mesh.colors, and every child of the root
+ * node as an instance of prototype proto (tw_tileset_add_instance) with
+ * its matrix, the floats as written. shift NULL: the root node's
+ * translation is dropped (the tile's own cell-relative geometry); else each
+ * instance is moved by the root's translation plus shift (metres, added in
+ * double to each translation). Returns TW_OK, TW_TILES3D_GLB_OTHER (ts
+ * untouched), or a negative error with the reason in why (ts then holds
+ * part of the file). */
+int tw_tiles3d_glb_read(const void *data, size_t size, struct tw_tileset *ts, uint32_t proto,
+                        const double *shift, char *why, size_t why_size);
 
 #endif

@@ -276,76 +276,83 @@ static void fail_run(struct bake *b, const char *fmt, ...)
     pthread_mutex_unlock(&b->lock);
 }
 
-/* Writes prototype p of ts as the glTF file path: its instances flattened
- * into one tile-local mesh (the merged ones once, through their merged
- * mesh), each vertex coloured by its material, placed at translation. */
+/* Writes prototype p of ts (finished) as the glTF file path, placed at
+ * translation: what the renderer draws of it, as it draws it. Every
+ * instance that draws (merged_into TW_INSTANCE_NONE: the large instances
+ * and the merged meshes' identity placements) is a node with its exact
+ * transform and material, every mesh they use is written once with its
+ * vertex colours and its finished triangle order, so that the 3D Tiles
+ * provider rebuilds the same tile (tilesets/tiles3d-glb.c). The used meshes
+ * and materials keep their order. */
 static int write_prototype(const struct tw_tileset *ts, uint32_t p, const char *path,
                            const double translation[3], double error, char *err, size_t err_size)
 {
     const struct tw_prototype *proto = &ts->prototypes[p];
-    uint32_t *list = malloc(sizeof(*list) * (proto->instance_count ? proto->instance_count : 1));
-    uint64_t nv = 0, nt = 0;
-    uint32_t count = 0;
+    const uint32_t ni = proto->instance_count;
+    struct tw_tiles3d_node *nodes = malloc(sizeof(*nodes) * (ni ? ni : 1));
+    uint32_t *mesh_map = malloc(sizeof(*mesh_map) * (ts->mesh_count ? ts->mesh_count : 1));
+    uint32_t *material_map = malloc(sizeof(*material_map) *
+                                    (ts->material_count ? ts->material_count : 1));
+    struct tw_tiles3d_mesh *meshes = malloc(sizeof(*meshes) * (ts->mesh_count ? ts->mesh_count : 1));
+    float (*materials)[4] = malloc(sizeof(*materials) * (ts->material_count ? ts->material_count : 1));
     int rc = TW_OK;
-    float *pos = NULL, *nrm = NULL;
-    uint8_t *rgba = NULL;
-    uint32_t *idx = NULL;
-    if (!list)
-        goto nomem;
-    for (uint32_t k = 0; k < proto->instance_count; k++) {
-        const struct tw_instance *in = &proto->instances[k];
-        if (in->merged_into != TW_INSTANCE_NONE)
-            continue;
-        list[count++] = k;
-        nv += ts->meshes[in->mesh].vertex_count;
-        nt += ts->meshes[in->mesh].triangle_count;
-    }
-    if (nv > UINT32_MAX || 3 * nt > UINT32_MAX) {
-        snprintf(err, err_size, "%s: prototype %s has %llu vertices, %llu triangles: more than "
-                 "32-bit indices reach", path, proto->name, (unsigned long long)nv,
-                 (unsigned long long)nt);
-        rc = TW_ERR_LIMIT;
+    if (!nodes || !mesh_map || !material_map || !meshes || !materials) {
+        snprintf(err, err_size, "%s: %s", path, tw_error_to_str(TW_ERR_NOMEM));
+        rc = TW_ERR_NOMEM;
         goto out;
     }
-    pos = malloc(12 * (nv ? nv : 1));
-    nrm = malloc(12 * (nv ? nv : 1));
-    rgba = malloc(4 * (nv ? nv : 1));
-    idx = malloc(12 * (nt ? nt : 1));
-    if (!pos || !nrm || !rgba || !idx)
-        goto nomem;
-    uint32_t vertices = 0, triangles = 0;
-    tw_tileset_bake(ts, p, list, count, pos, nrm, rgba, idx, &vertices, &triangles);
-    /* glTF wants unit normals; a transform that scales leaves them longer. */
-    for (uint32_t v = 0; v < vertices; v++) {
-        float *n = nrm + 3 * (size_t)v;
-        const float len = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        if (len > 1e-20f && isfinite(len)) {
-            n[0] /= len;
-            n[1] /= len;
-            n[2] /= len;
-        } else {
-            n[0] = 0.0f;
-            n[1] = 1.0f;
-            n[2] = 0.0f;
+    for (uint32_t k = 0; k < ts->mesh_count; k++)
+        mesh_map[k] = UINT32_MAX;
+    for (uint32_t k = 0; k < ts->material_count; k++)
+        material_map[k] = UINT32_MAX;
+    for (uint32_t k = 0; k < ni; k++) {
+        const struct tw_instance *in = &proto->instances[k];
+        if (in->merged_into == TW_INSTANCE_NONE && ts->meshes[in->mesh].triangle_count > 0) {
+            mesh_map[in->mesh] = 0;
+            material_map[in->material] = 0;
         }
     }
-    const struct tw_tiles3d_mesh mesh = {
-        .positions = pos, .normals = nrm, .colors = rgba, .indices = idx,
-        .vertex_count = vertices, .triangle_count = triangles, .error = error,
+    uint32_t mesh_count = 0, material_count = 0, node_count = 0;
+    for (uint32_t k = 0; k < ts->mesh_count; k++) {
+        if (mesh_map[k] == UINT32_MAX)
+            continue;
+        const struct tw_mesh *m = &ts->meshes[k];
+        mesh_map[k] = mesh_count;
+        meshes[mesh_count++] = (struct tw_tiles3d_mesh){
+            .positions = m->positions, .normals = m->normals, .colors = m->colors,
+            .indices = m->indices, .vertex_count = m->vertex_count,
+            .triangle_count = m->triangle_count,
+        };
+    }
+    for (uint32_t k = 0; k < ts->material_count; k++) {
+        if (material_map[k] == UINT32_MAX)
+            continue;
+        material_map[k] = material_count;
+        memcpy(materials[material_count++], ts->materials[k].base_color, sizeof(materials[0]));
+    }
+    for (uint32_t k = 0; k < ni; k++) {
+        const struct tw_instance *in = &proto->instances[k];
+        if (in->merged_into != TW_INSTANCE_NONE || ts->meshes[in->mesh].triangle_count == 0)
+            continue;
+        struct tw_tiles3d_node *n = &nodes[node_count++];
+        n->mesh = mesh_map[in->mesh];
+        n->material = material_map[in->material];
+        memcpy(n->transform, in->transform, sizeof(n->transform));
+    }
+    const struct tw_tiles3d_scene scene = {
+        .meshes = meshes, .mesh_count = mesh_count, .materials = (const float (*)[4])materials,
+        .material_count = material_count, .nodes = nodes, .node_count = node_count,
+        .error = error,
     };
     rc = tw_tiles3d_make_parents(path, err, err_size);
     if (!rc)
-        rc = tw_tiles3d_write_glb(path, &mesh, translation, err, err_size);
-    goto out;
-nomem:
-    snprintf(err, err_size, "%s: %s", path, tw_error_to_str(TW_ERR_NOMEM));
-    rc = TW_ERR_NOMEM;
+        rc = tw_tiles3d_write_glb(path, &scene, translation, err, err_size);
 out:
-    free(list);
-    free(pos);
-    free(nrm);
-    free(rgba);
-    free(idx);
+    free(nodes);
+    free(mesh_map);
+    free(material_map);
+    free(meshes);
+    free(materials);
     return rc;
 }
 
@@ -423,6 +430,56 @@ static void bake_cell(struct bake *b, uint64_t k)
 /* Clusters of the blocks' tilesets (what tw_tileset_finish() splits). */
 #define BLOCK_CLUSTER_TRIANGLES 2048u
 
+/* The triangles of prototype p's instances (unfinished). */
+static uint64_t instance_triangles(const struct tw_tileset *ts, uint32_t p)
+{
+    uint64_t n = 0;
+    for (uint32_t k = 0; k < ts->prototypes[p].instance_count; k++)
+        n += ts->meshes[ts->prototypes[p].instances[k].mesh].triangle_count;
+    return n;
+}
+
+/* Adds the .glb file path (a tile of the level below) to prototype proto
+ * of ts, moved by -origin: the bake's own layout read as it is
+ * (tilesets/tiles3d-glb.c), other glTF through the general importer. */
+static int read_child(const char *path, struct tw_tileset *ts, uint32_t proto,
+                      const double origin[3], const float placement[12], const struct tw_log *log,
+                      char *err, size_t err_size)
+{
+    FILE *f = fopen(path, "rb");
+    uint8_t *data = NULL;
+    long n = -1;
+    if (f && fseek(f, 0, SEEK_END) == 0 && (n = ftell(f)) >= 0 && fseek(f, 0, SEEK_SET) == 0 &&
+        (data = malloc(n > 0 ? (size_t)n : 1)) && fread(data, 1, (size_t)n, f) != (size_t)n)
+        n = -1;
+    if (f)
+        fclose(f);
+    if (!data || n < 0) {
+        snprintf(err, err_size, "%.900s: %s", path, data ? "cannot read it" : strerror(errno));
+        free(data);
+        return TW_ERR_IO;
+    }
+    const double shift[3] = {-origin[0], -origin[1], -origin[2]};
+    char why[512];
+    int rc = tw_tiles3d_glb_read(data, (size_t)n, ts, proto, shift, why, sizeof(why));
+    free(data);
+    if (rc < 0)
+        snprintf(err, err_size, "%.600s: %.500s", path, why);
+    if (rc != TW_TILES3D_GLB_OTHER)
+        return rc;
+    struct tw_gltf_scene *scene = NULL;
+    struct tw_gltf_binding binding;
+    rc = tw_gltf_import(path, NULL, log, &scene);
+    if (!rc)
+        rc = tw_gltf_bind(scene, ts, &binding);
+    if (!rc)
+        rc = tw_gltf_place(scene, &binding, ts, proto, placement);
+    tw_gltf_scene_destroy(scene);
+    if (rc)
+        snprintf(err, err_size, "%.900s: %s", path, tw_error_to_str(rc));
+    return rc;
+}
+
 /* Bakes tile k (row-major) of the coarser level b->block_level: its
  * children's .glb files (the level below) merged into one tile-local mesh
  * and simplified by the levels of detail (tiles/lod.c, meshoptimizer) to
@@ -473,20 +530,13 @@ static void bake_block(struct bake *b, uint64_t k)
             goto out;
         }
         child_error = e > child_error ? e : child_error;
-        struct tw_gltf_scene *scene = NULL;
-        struct tw_gltf_binding binding;
-        rc = tw_gltf_import(child, NULL, &b->log, &scene);
-        if (!rc)
-            rc = tw_gltf_bind(scene, ts, &binding);
-        if (!rc)
-            rc = tw_gltf_place(scene, &binding, ts, (uint32_t)proto, placement);
-        if (scene)
-            input += scene->triangle_count;
-        tw_gltf_scene_destroy(scene);
+        const uint64_t before = instance_triangles(ts, (uint32_t)proto);
+        rc = read_child(child, ts, (uint32_t)proto, origin, placement, &b->log, err, sizeof(err));
         if (rc) {
-            fail_run(b, "%s: cannot merge %s: %s", path, child, tw_error_to_str(rc));
+            fail_run(b, "%s: cannot merge %s", path, err);
             goto out;
         }
+        input += instance_triangles(ts, (uint32_t)proto) - before;
     }
     if (input == 0) {
         atomic_fetch_add(&b->empty, 1);

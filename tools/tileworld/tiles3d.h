@@ -16,25 +16,53 @@
 #include <stddef.h>
 #include <stdint.h>
 
-/* One indexed triangle mesh in glTF's frame (y up), metres. Borrowed by the
- * writer for the call. */
+/* One indexed triangle mesh in glTF's frame (y up), metres, mesh-local.
+ * Borrowed by the writer for the call. */
 struct tw_tiles3d_mesh {
     const float *positions;     /* xyz per vertex */
-    const float *normals;       /* xyz per vertex, unit length */
-    const uint8_t *colors;      /* RGBA per vertex (linear, unorm8), or NULL: white */
-    const uint32_t *indices;    /* three per triangle */
-    uint32_t vertex_count;
-    uint32_t triangle_count;
-    double error;               /* metres: a simplified mesh's geometric error, written as
+    const float *normals;       /* xyz per vertex, written as they are (see below) */
+    const uint8_t *colors;      /* RGBA per vertex (unorm8, as stored), or NULL: white */
+    const uint32_t *indices;    /* three per triangle, each < vertex_count */
+    uint32_t vertex_count;      /* > 0 */
+    uint32_t triangle_count;    /* > 0 */
+};
+
+/* One placement of a mesh with a material: a glTF node. */
+struct tw_tiles3d_node {
+    uint32_t mesh;              /* index into the scene's meshes */
+    uint32_t material;          /* index into the scene's materials */
+    float transform[12];        /* affine, row-major 3x4, mesh-local -> tile-local */
+};
+
+/* What one .glb holds: meshes shared by nodes (instancing kept), and the
+ * materials' base colours. Borrowed by the writer for the call. */
+struct tw_tiles3d_scene {
+    const struct tw_tiles3d_mesh *meshes;
+    uint32_t mesh_count;
+    const float (*materials)[4]; /* base colour RGBA */
+    uint32_t material_count;
+    const struct tw_tiles3d_node *nodes;
+    uint32_t node_count;        /* > 0 */
+    double error;               /* metres: a simplified tile's geometric error, written as
                                    asset.extras.geometricError when > 0 */
 };
 
-/* Writes mesh as the binary glTF file path: one node translated by
- * translation (metres, glTF's frame; the mesh's own positions stay as
- * given), one mesh of one primitive (POSITION with its min and max, NORMAL,
- * COLOR_0 when there are colours, uint32 indices), one white material.
- * Deterministic: the same mesh gives the same bytes. */
-int tw_tiles3d_write_glb(const char *path, const struct tw_tiles3d_mesh *mesh,
+/* Writes scene as the binary glTF file path, in the layout that the 3D
+ * Tiles provider reads back exactly (tilesets/tiles3d-glb.c,
+ * asset.extras.tileworld.layout "instances"): a root node translated by
+ * translation (metres, glTF's frame) whose children are the scene's nodes
+ * in order, each with its transform as a column-major matrix (omitted when
+ * it is the identity) and a glTF mesh per distinct (mesh, material) pair of
+ * one primitive, whose accessors are shared by the pairs of one mesh:
+ * POSITION with its min and max, NORMAL, COLOR_0 (unsigned byte,
+ * normalized) when the mesh has colours, uint32 indices; one
+ * double-sided material per scene material (baseColorFactor, metallic 0,
+ * roughness 1). Every float is written so that it reads back to the same
+ * float. NORMAL must be of unit length for glTF: a mesh with a normal
+ * that is not (a scaling transform baked into a merged mesh) gets NORMAL
+ * normalised and the exact normals in _TW_NORMAL. Deterministic: the same
+ * scene gives the same bytes. */
+int tw_tiles3d_write_glb(const char *path, const struct tw_tiles3d_scene *scene,
                          const double translation[3], char *err, size_t err_size);
 
 /* Reads back the geometric error that tw_tiles3d_write_glb() wrote into the
