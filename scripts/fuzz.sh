@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Fuzzes one target with libFuzzer for a fixed time:
 #
-#   scripts/fuzz.sh TARGET SECONDS      TARGET: gltf, manifest, frame or path
+#   scripts/fuzz.sh TARGET SECONDS      TARGET: gltf, manifest, frame, path or glb3d
 #
 # Configures build-fuzz/ once with clang, libFuzzer, AddressSanitizer and
 # UndefinedBehaviorSanitizer (the C++ shim instrumented too), builds only the
@@ -17,7 +17,7 @@
 set -euo pipefail
 
 if [ $# -ne 2 ] || ! [[ $2 =~ ^[0-9]+$ ]]; then
-    echo "usage: $0 gltf|manifest|frame|path SECONDS" >&2
+    echo "usage: $0 gltf|manifest|frame|path|glb3d SECONDS" >&2
     exit 2
 fi
 target=$1
@@ -48,8 +48,14 @@ path)
     add_seed "$root/tests/corpus/path"
     max_len=16384
     ;;
+glb3d)
+    # Small synthetic tiles, one baked cell whole (hence max_len) and
+    # broken variants.
+    add_seed "$root/tests/corpus/glb3d"
+    max_len=524288
+    ;;
 *)
-    echo "$0: unknown target $target (gltf, manifest, frame, path)" >&2
+    echo "$0: unknown target $target (gltf, manifest, frame, path, glb3d)" >&2
     exit 2
     ;;
 esac
