@@ -70,14 +70,20 @@ static json_object *at(json_object *a, int64_t k)
     return k >= 0 && (uint64_t)k < length(a) ? json_object_array_get_idx(a, (size_t)k) : NULL;
 }
 
-/* A non-negative integer member, or -1 when absent or not one. */
-static int64_t get_index(json_object *o, const char *key)
+/* A non-negative integer, or -1 for anything else (a double, a NaN among
+ * them, is not converted). */
+static int64_t index_value(json_object *v)
 {
-    json_object *v = get(o, key);
     if (!v || !json_object_is_type(v, json_type_int))
         return -1;
     const int64_t n = json_object_get_int64(v);
     return n >= 0 ? n : -1;
+}
+
+/* A non-negative integer member, or -1 when absent or not one. */
+static int64_t get_index(json_object *o, const char *key)
+{
+    return index_value(get(o, key));
 }
 
 /* Copies accessor a (components of comp, count elements of n components)
@@ -217,7 +223,7 @@ static int read_document(struct reader *r, struct tw_tileset *ts, uint32_t proto
     json_object *roots = get(scene, "nodes");
     if (rc)
         goto out;
-    const int64_t root_index = length(roots) == 1 ? json_object_get_int64(at(roots, 0)) : -1;
+    const int64_t root_index = length(roots) == 1 ? index_value(at(roots, 0)) : -1;
     json_object *root = at(nodes, root_index);
     json_object *children = get(root, "children"), *translation = get(root, "translation");
     double offset[3] = {0.0, 0.0, 0.0};
@@ -229,10 +235,7 @@ static int read_document(struct reader *r, struct tw_tileset *ts, uint32_t proto
     for (int a = 0; a < 3 && shift; a++)
         offset[a] = shift[a] + (translation ? json_object_get_double(at(translation, a)) : 0.0);
     for (size_t k = 0; k < length(children) && !rc; k++) {
-        json_object *child = at(children, (int64_t)k);
-        const int64_t c = child && json_object_is_type(child, json_type_int)
-                              ? json_object_get_int64(child)
-                              : -1;
+        const int64_t c = index_value(at(children, (int64_t)k));
         json_object *node = c != root_index ? at(nodes, c) : NULL;
         const int64_t g = get_index(node, "mesh");
         json_object *matrix = get(node, "matrix");
