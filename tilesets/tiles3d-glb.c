@@ -23,6 +23,11 @@ struct reader {
     json_object *doc, *accessors, *views;
     const uint8_t *bin;
     uint64_t bin_size;
+    /* Bytes copied out of accessors so far: at most bin_size, as the bake
+     * reads back (its accessors never overlap), so that a file of many
+     * accessors over one buffer view cannot copy its binary chunk many
+     * times over. */
+    uint64_t copied;
     char *why;
     size_t why_size;
 };
@@ -115,6 +120,10 @@ static int read_accessor(struct reader *r, int64_t a, int comp, int n, bool norm
         (uint64_t)offset > (uint64_t)view_length ||
         (uint64_t)(c - 1) * stride + elem > (uint64_t)view_length - offset)
         return fail(r, TW_ERR_FORMAT, "accessors[%lld] lies outside its buffer", (long long)a);
+    if ((uint64_t)c * elem > r->bin_size - r->copied)
+        return fail(r, TW_ERR_FORMAT, "accessors[%lld] reads more than the binary chunk holds "
+                    "(the accessors overlap)", (long long)a);
+    r->copied += (uint64_t)c * elem;
     uint8_t *data = malloc((size_t)(c * elem));
     if (!data)
         return fail(r, TW_ERR_NOMEM, "out of memory");
