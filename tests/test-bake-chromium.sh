@@ -1,0 +1,70 @@
+#!/usr/bin/env bash
+# A baked tileset in a real 3D Tiles client: 3DTilesRendererJS (three.js)
+# in headless Debian Chromium (WebGL through SwiftShader), driven by
+# playwright-core, the page and the baked folder served by node on
+# 127.0.0.1. Two bakes of city: 4 x 4 cells at the origin with a coarser
+# level, drawn once at full detail (the 16 cells) and once at the coarser
+# level (its 4 tiles); and 3 x 2 cells away from the origin (a transform, a
+# grid with unavailable tiles). Each draw: exactly the tiles expected, each
+# where the client's implicit tiling puts it, no error in the page, the
+# loader, the console or the server, and a screenshot of the city's colours,
+# saved in OUTDIR.
+#   test-bake-chromium.sh PATH/TO/tileworld PATH/TO/png-check OUTDIR
+# Skipped (77) without node, /usr/bin/chromium (apt-get install chromium) or
+# the npm packages of tests/web (npm ci --prefix tests/web).
+set -u
+tw=${1:?usage: test-bake-chromium.sh PATH/TO/tileworld PATH/TO/png-check OUTDIR}
+check=${2:?usage: test-bake-chromium.sh PATH/TO/tileworld PATH/TO/png-check OUTDIR}
+out=${3:?usage: test-bake-chromium.sh PATH/TO/tileworld PATH/TO/png-check OUTDIR}
+. "$(dirname "$0")/test-lib.sh"
+web=$(cd "$(dirname "$0")/web" && pwd)
+command -v node >/dev/null || { echo "no node: skipped"; exit 77; }
+[ -x "${CHROMIUM:-/usr/bin/chromium}" ] ||
+    { echo "no ${CHROMIUM:-/usr/bin/chromium} (apt-get install chromium): skipped"; exit 77; }
+for p in 3d-tiles-renderer three playwright-core; do
+    [ -f "$web/node_modules/$p/package.json" ] ||
+        { echo "no npm package $p in tests/web (npm ci --prefix tests/web): skipped"; exit 77; }
+done
+mkdir -p "$out"
+
+# field NAME LINE: the number after NAME in png-check's output.
+field() { awk -v k="$1" '{ for (i = 1; i < NF; i++) if ($i == k) print $(i + 1) }' <<<"$2"; }
+
+# draw NAME DIR QUERY LEVEL: draws DIR with the page's QUERY; the tiles
+# expected are every .glb of level LEVEL.
+draw() {
+    local name=$1 dir=$2 query=$3 level=$4 rc
+    (cd "$dir" && find "content/$level" -name '*.glb' | sort) >"$tmp/$name.expected"
+    node "$web/render-tileset.mjs" "$dir" "$out/$name.png" "$query" >"$out/$name.json" 2>"$tmp/$name.err"
+    rc=$?
+    if [ "$rc" -eq 77 ]; then
+        cat "$tmp/$name.err"
+        echo "skipped"
+        exit 77
+    fi
+    [ "$rc" -eq 0 ] || { bad "$name: the page did not finish:"; cat "$tmp/$name.err" >&2; return; }
+    ok
+    if xargs node "$web/check-render.mjs" "$out/$name.json" <"$tmp/$name.expected" >"$tmp/$name.check"; then
+        ok
+    else
+        bad "$name: $(grep -c FAIL "$tmp/$name.check") checks:"
+        cat "$tmp/$name.check" >&2
+    fi
+    echo "$name: $(tail -n 1 "$tmp/$name.check")"
+    local png
+    png=$("$check" "$out/$name.png") || { bad "$name: the screenshot is no PNG"; return; }
+    [ "$(field size "$png")" = 800x600 ] && [ "$(field colours "$png")" -ge 8 ] &&
+        awk -v s="$(field stddev "$png")" 'BEGIN { exit !(s >= 10) }' && ok ||
+        bad "$name: the screenshot is $png"
+    echo "$name: screenshot $out/$name.png ($png)"
+}
+
+"$tw" bake --tileset city --cells 0,0:3,3 --levels 2 --out "$tmp/origin" --quiet || bad "bake 0,0:3,3"
+# The renderer's error target in pixels: 0 refines to the cells; 250 stops
+# at level 1 (its tiles' screen-space error is about 120 to 190 pixels from
+# this camera, the root's about 380).
+draw origin-cells "$tmp/origin" "error=0" 2
+draw origin-level1 "$tmp/origin" "error=250" 1
+"$tw" bake --tileset city --cells 40,-7:42,-6 --levels 2 --out "$tmp/away" --quiet || bad "bake 40,-7:42,-6"
+draw away-cells "$tmp/away" "error=0" 2
+finish bake-chromium
