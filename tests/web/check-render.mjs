@@ -1,12 +1,18 @@
-// node check-render.mjs RESULT.json EXPECTED_URI...
+// node check-render.mjs [--min-drawn=F] RESULT.json EXPECTED_URI...
 // Judges what render-tileset.mjs printed: the tiles drawn are exactly the
 // EXPECTED_URIs (relative content URIs), each where the client's implicit
 // tiling puts its tile, no error anywhere (page, loader, console, server),
 // and a picture of the palette's colours. Prints one line per failure and
-// a summary line; exit status 1 on any failure.
+// a summary line; exit status 1 on any failure. --min-drawn: the least
+// fraction of the pixels that must differ from the clear colour (0.05; a
+// tenth of it must be coloured).
 import fs from 'node:fs';
 
-const [file, ...expected] = process.argv.slice(2);
+const args = process.argv.slice(2);
+let minDrawn = 0.05;
+if (args.length && args[0].startsWith('--min-drawn='))
+    minDrawn = Number(args.shift().slice('--min-drawn='.length));
+const [file, ...expected] = args;
 const r = JSON.parse(fs.readFileSync(file, 'utf8'));
 const failures = [];
 const check = (ok, what) => { if (!ok) failures.push(what); };
@@ -29,8 +35,8 @@ check(r.drawnMeshes === want.length, `${r.drawnMeshes} meshes drawn, expected ${
 for (const m of r.misplaced)
     failures.push(`misplaced: ${m}`);
 const p = r.picture;
-check(p.drawnFraction >= 0.05, `only ${p.drawnFraction} of the pixels differ from the clear colour`);
-check(p.colouredFraction >= 0.01, `only ${p.colouredFraction} of the pixels are coloured`);
+check(p.drawnFraction >= minDrawn, `only ${p.drawnFraction} of the pixels differ from the clear colour`);
+check(p.colouredFraction >= minDrawn / 10, `only ${p.colouredFraction} of the pixels are coloured`);
 check(p.inPaletteFraction >= 0.9, `only ${p.inPaletteFraction} of the coloured pixels have a hue of the tiles' COLOR_0`);
 check(p.paletteHuesSeen >= 2, `${p.paletteHuesSeen} hues of the palette seen`);
 for (const f of failures)
