@@ -1,15 +1,17 @@
 #!/usr/bin/env bash
-# A baked tileset in a real 3D Tiles client: 3DTilesRendererJS (three.js)
-# in headless Debian Chromium (WebGL through SwiftShader), driven by
-# playwright-core, the page and the baked folder served by node on
-# 127.0.0.1. Two bakes of city: 4 x 4 cells at the origin with a coarser
-# level, drawn once at full detail (the 16 cells) and once at the coarser
-# level (its 4 tiles); 3 x 2 cells away from the origin (a transform, a
-# grid with unavailable tiles); and a row of 64 cells, a quadtree of 7
-# levels whose cells are in 64 child subtrees. Each draw: exactly the tiles expected, each
-# where the client's implicit tiling puts it, no error in the page, the
-# loader, the console or the server, and a screenshot of the city's colours,
-# saved in OUTDIR.
+# A baked tileset in real 3D Tiles clients: 3DTilesRendererJS (three.js)
+# and, where its npm package is there, CesiumJS, in headless Debian Chromium
+# (WebGL through SwiftShader), driven by playwright-core, the page and the
+# baked folder served by node on 127.0.0.1. Three bakes of city: 4 x 4 cells
+# at the origin with a coarser level, drawn once at full detail (the 16
+# cells) and once at the coarser level (its 4 tiles); 3 x 2 cells away from
+# the origin (a transform, a grid with unavailable tiles); and a row of 64
+# cells, a quadtree of 7 levels whose cells are in 64 child subtrees.
+# CesiumJS draws each with the tileset's frame east-north-up on the globe (no
+# globe drawn). Each draw: exactly the tiles expected, each where the
+# client's implicit tiling puts it (3DTilesRendererJS), no error in the page,
+# the loader, the console or the server, and a screenshot of the city's
+# colours, saved in OUTDIR.
 #   test-bake-chromium.sh PATH/TO/tileworld PATH/TO/png-check OUTDIR
 # Skipped (77) without node, /usr/bin/chromium (apt-get install chromium) or
 # the npm packages of tests/web (npm ci --prefix tests/web).
@@ -31,13 +33,13 @@ mkdir -p "$out"
 # field NAME LINE: the number after NAME in png-check's output.
 field() { awk -v k="$1" '{ for (i = 1; i < NF; i++) if ($i == k) print $(i + 1) }' <<<"$2"; }
 
-# draw NAME DIR QUERY LEVEL [MIN_DRAWN]: draws DIR with the page's QUERY;
-# the tiles expected are every .glb of level LEVEL; at least MIN_DRAWN of
-# the pixels drawn (0.05).
-draw() {
-    local name=$1 dir=$2 query=$3 level=$4 min=${5:-0.05} rc
+# draw_in PAGE NAME DIR QUERY LEVEL MIN_DRAWN: draws DIR in PAGE with the
+# page's QUERY; the tiles expected are every .glb of level LEVEL; at least
+# MIN_DRAWN of the pixels drawn.
+draw_in() {
+    local page=$1 name=$2 dir=$3 query=$4 level=$5 min=$6 rc
     (cd "$dir" && find "content/$level" -name '*.glb' | sort) >"$tmp/$name.expected"
-    node "$web/render-tileset.mjs" "$dir" "$out/$name.png" "$query" >"$out/$name.json" 2>"$tmp/$name.err"
+    node "$web/render-tileset.mjs" "$dir" "$out/$name.png" "$query" "$page" >"$out/$name.json" 2>"$tmp/$name.err"
     rc=$?
     if [ "$rc" -eq 77 ]; then
         cat "$tmp/$name.err"
@@ -59,6 +61,24 @@ draw() {
         awk -v s="$(field stddev "$png")" 'BEGIN { exit !(s >= 1) }' && ok ||
         bad "$name: the screenshot is $png"
     echo "$name: screenshot $out/$name.png ($png)"
+}
+
+# draw NAME DIR QUERY LEVEL [MIN_DRAWN]: draw_in 3DTilesRendererJS (0.05 of
+# the pixels unless MIN_DRAWN says otherwise), then in CesiumJS where its npm
+# package is there (no placement check: the palette's hues are those that
+# 3DTilesRendererJS read from the tiles' COLOR_0).
+draw() {
+    local name=$1 dir=$2 query=$3 level=$4 min=${5:-0.05} palette
+    draw_in tileset-3dtr.html "$name" "$dir" "$query" "$level" "$min"
+    [ -f "$web/node_modules/cesium/package.json" ] || return 0
+    palette=$(node -e 'console.log(JSON.parse(require("fs").readFileSync(process.argv[1])).paletteHues.join(","))' \
+        "$out/$name.json") || { bad "$name: no palette"; return; }
+    draw_in tileset-cesium.html "cesium-$name" "$dir" "$query&palette=$palette" "$level" "$min"
+    # Both clients drew the same triangles.
+    node -e 'const t = (f) => JSON.parse(require("fs").readFileSync(f)).drawnTriangles;
+             process.exit(t(process.argv[1]) === t(process.argv[2]) ? 0 : 1)' \
+        "$out/$name.json" "$out/cesium-$name.json" && ok ||
+        bad "$name: CesiumJS drew other triangles than 3DTilesRendererJS"
 }
 
 "$tw" bake --tileset city --cells 0,0:3,3 --levels 2 --out "$tmp/origin" --quiet || bad "bake 0,0:3,3"

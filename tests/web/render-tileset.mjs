@@ -1,11 +1,12 @@
-// node render-tileset.mjs TILESET_DIR SCREENSHOT.png [QUERY]
+// node render-tileset.mjs TILESET_DIR SCREENSHOT.png [QUERY [PAGE]]
 // Serves TILESET_DIR under /tileset/, this folder's page and its
 // node_modules on 127.0.0.1 (a port the system picks), opens the page in
 // headless Debian Chromium (playwright-core; WebGL through SwiftShader),
 // waits for the page's window.result, saves a screenshot of it to
 // SCREENSHOT.png and prints one JSON object: the page's result plus the
 // console's errors and warnings. QUERY (e.g. "error=0&distance=2") goes to the
-// page. Exit status 0 when the page finished, 1 otherwise, 77 when
+// page. PAGE: tileset-3dtr.html (3DTilesRendererJS, the default) or
+// tileset-cesium.html (CesiumJS). Exit status 0 when the page finished, 1 otherwise, 77 when
 // playwright-core or Chromium is missing.
 import http from 'node:http';
 import fs from 'node:fs';
@@ -13,9 +14,9 @@ import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 
 const here = path.dirname(fileURLToPath(import.meta.url));
-const [tilesetDir, screenshot, query = ''] = process.argv.slice(2);
+const [tilesetDir, screenshot, query = '', pageName = 'tileset-3dtr.html'] = process.argv.slice(2);
 if (!tilesetDir || !screenshot) {
-    console.error('usage: node render-tileset.mjs TILESET_DIR SCREENSHOT.png [QUERY]');
+    console.error('usage: node render-tileset.mjs TILESET_DIR SCREENSHOT.png [QUERY [PAGE]]');
     process.exit(2);
 }
 const chromium_path = process.env.CHROMIUM || '/usr/bin/chromium';
@@ -33,6 +34,7 @@ if (!fs.existsSync(chromium_path)) {
 
 const types = {
     '.html': 'text/html', '.js': 'text/javascript', '.mjs': 'text/javascript', '.json': 'application/json',
+    '.css': 'text/css', '.png': 'image/png', '.svg': 'image/svg+xml', '.wasm': 'application/wasm',
     '.glb': 'model/gltf-binary', '.subtree': 'application/octet-stream', '.map': 'application/json',
 };
 const roots = [
@@ -87,7 +89,7 @@ try {
     page.on('pageerror', (e) => console_messages.push(`pageerror: ${e.message}`));
     page.on('requestfailed', (r) => console_messages.push(`requestfailed: ${r.url()} ${r.failure()?.errorText}`));
     const q = `tileset=${encodeURIComponent('/tileset/tileset.json')}${query ? '&' + query : ''}`;
-    await page.goto(`${base}/tileset-page.html?${q}`);
+    await page.goto(`${base}/${pageName}?${q}`);
     await page.waitForFunction(() => window.result && window.result.done, null, { timeout: 240000, polling: 500 });
     const result = await page.evaluate(() => window.result);
     await page.screenshot({ path: screenshot });

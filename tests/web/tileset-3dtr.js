@@ -10,6 +10,7 @@
 import * as THREE from 'three';
 import { TilesRenderer } from '3d-tiles-renderer/three';
 import { ImplicitTilingPlugin } from '3d-tiles-renderer/core/plugins';
+import { pictureFigures } from './picture.js';
 
 const params = new URLSearchParams(location.search);
 const tilesetUrl = params.get('tileset');
@@ -65,51 +66,6 @@ function addPaletteHues(scene, hues) {
     });
 }
 
-function hueOf(r, g, b) {
-    const max = Math.max(r, g, b), min = Math.min(r, g, b), d = max - min;
-    if (d === 0) return 0;
-    let h = max === r ? ((g - b) / d) % 6 : max === g ? (b - r) / d + 2 : (r - g) / d + 4;
-    h *= 60;
-    return h < 0 ? h + 360 : h;
-}
-
-// Figures of the drawn picture, read back from the WebGL canvas.
-function pictureFigures(canvas, paletteHues) {
-    const c2 = document.createElement('canvas');
-    c2.width = canvas.width;
-    c2.height = canvas.height;
-    const ctx = c2.getContext('2d');
-    ctx.drawImage(canvas, 0, 0);
-    const px = ctx.getImageData(0, 0, c2.width, c2.height).data;
-    const bg = [clearColour.r * 255, clearColour.g * 255, clearColour.b * 255];
-    const hues = [...paletteHues];
-    let drawn = 0, coloured = 0, inPalette = 0;
-    const seen = new Set();
-    for (let i = 0; i < px.length; i += 4) {
-        const r = px[i], g = px[i + 1], b = px[i + 2];
-        if (Math.abs(r - bg[0]) + Math.abs(g - bg[1]) + Math.abs(b - bg[2]) <= 6)
-            continue;
-        drawn++;
-        if (Math.max(r, g, b) - Math.min(r, g, b) < 24)
-            continue;
-        coloured++;
-        const h = hueOf(r, g, b);
-        let best = 360, bestHue = -1;
-        for (const p of hues) {
-            const d = Math.min(Math.abs(h - p), 360 - Math.abs(h - p));
-            if (d < best) { best = d; bestHue = p; }
-        }
-        if (best <= 20) {
-            inPalette++;
-            seen.add(bestHue);
-        }
-    }
-    const n = px.length / 4;
-    return {
-        pixels: n, drawnFraction: drawn / n, colouredFraction: coloured / n,
-        inPaletteFraction: coloured ? inPalette / coloured : 0, paletteHuesSeen: seen.size,
-    };
-}
 
 // Where a drawn tile's content lies against the box that the client derived
 // for the tile from the root's box and the tile's implicit coordinates: the
@@ -235,7 +191,7 @@ async function main() {
     Object.assign(result, {
         frames, loadEnds, misplaced, stats, visibleContent: visible, drawnMeshes, drawnTriangles,
         paletteHues: [...paletteHues].sort((a, b) => a - b),
-        picture: pictureFigures(canvas, paletteHues),
+        picture: pictureFigures(canvas, [clearColour.r * 255, clearColour.g * 255, clearColour.b * 255], paletteHues),
         done: true,
     });
 }
