@@ -2,16 +2,16 @@
 # A baked tileset in real 3D Tiles clients: 3DTilesRendererJS (three.js)
 # and, where its npm package is there, CesiumJS, in headless Debian Chromium
 # (WebGL through SwiftShader), driven by playwright-core, the page and the
-# baked folder served by node on 127.0.0.1. Three bakes of city: 4 x 4 cells
+# baked folder served by node on 127.0.0.1. Four bakes of city: 4 x 4 cells
 # at the origin with a coarser level, drawn once at full detail (the 16
 # cells) and once at the coarser level (its 4 tiles); 3 x 2 cells away from
-# the origin (a transform, a grid with unavailable tiles); and a row of 64
-# cells, a quadtree of 7 levels whose cells are in 64 child subtrees.
-# CesiumJS draws each with the tileset's frame east-north-up on the globe (no
-# globe drawn). Each draw: exactly the tiles expected, each where the
-# client's implicit tiling puts it (3DTilesRendererJS), no error in the page,
-# the loader, the console or the server, and a screenshot of the city's
-# colours, saved in OUTDIR.
+# the origin (a transform, a grid with unavailable tiles); 2 x 2 cells a
+# million cells from the origin; and a row of 64 cells, a quadtree of 7
+# levels whose cells are in 64 child subtrees. CesiumJS draws each with the
+# tileset's frame east-north-up on the globe (no globe drawn). Each draw:
+# exactly the tiles expected, each where the client's implicit tiling puts
+# it (3DTilesRendererJS), no error in the page, the loader, the console or
+# the server, and a screenshot of the city's colours, saved in OUTDIR.
 #   test-bake-chromium.sh PATH/TO/tileworld PATH/TO/png-check OUTDIR
 # Skipped (77) without node, /usr/bin/chromium (apt-get install chromium) or
 # the npm packages of tests/web (npm ci --prefix tests/web).
@@ -89,6 +89,11 @@ draw origin-cells "$tmp/origin" "error=0" 2
 draw origin-level1 "$tmp/origin" "error=250" 1
 "$tw" bake --tileset city --cells 40,-7:42,-6 --levels 2 --out "$tmp/away" --quiet || bad "bake 40,-7:42,-6"
 draw away-cells "$tmp/away" "error=0" 2
+# A million cells from the origin (80,000 km): the transform holds the
+# offset, each tile still where its box says within 1 cm.
+"$tw" bake --tileset city --cells 1000000,1000000:1000001,1000001 --out "$tmp/far" --quiet ||
+    bad "bake 1000000,1000000:1000001,1000001"
+draw far-cells "$tmp/far" "error=0" 1
 # The camera frames the root's box, 64 x 64 cells: the row is a thin strip.
 "$tw" bake --tileset city --cells 0,0:63,0 --out "$tmp/row" --quiet || bad "bake 0,0:63,0"
 [ "$(find "$tmp/row/subtrees" -name '*.subtree' | wc -l)" -eq 65 ] && ok || bad "row: not 65 subtrees"

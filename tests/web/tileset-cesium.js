@@ -6,8 +6,8 @@
 // ?tileset=URL    tileset.json
 // ?error=PX       the tileset's maximumScreenSpaceError
 // The tileset's frame is put east-north-up at 8.54 E, 47.37 N (the README's
-// way to put a bake on the globe); the camera frames its root's bounding
-// sphere.
+// way to put a bake on the globe); the camera is placed from the root's box
+// as on 3DTilesRendererJS's page.
 import { pictureFigures } from './picture.js';
 
 const Cesium = window.Cesium;
@@ -42,10 +42,29 @@ async function main() {
     tileset.tileVisible.addEventListener((tile) => visible.add(relative(tile.content.url)));
     scene.light = new Cesium.DirectionalLight({ direction: new Cesium.Cartesian3(-0.4, 0.3, -1), intensity: 3 });
 
-    const sphere = tileset.boundingSphere;
-    widget.camera.viewBoundingSphere(sphere,
-        new Cesium.HeadingPitchRange(Cesium.Math.toRadians(-30), Cesium.Math.toRadians(-40), sphere.radius * 2.2));
-    widget.camera.lookAtTransform(Cesium.Matrix4.IDENTITY);
+    // The camera as 3DTilesRendererJS's page places it, in the tileset's
+    // frame (root transform, then the model matrix): looking at the root
+    // box's centre from the south-east, 40 degrees up, z up.
+    const json = await (await fetch(tilesetUrl)).json();
+    const box = json.root.boundingVolume.box;
+    const frame = Cesium.Matrix4.multiply(tileset.modelMatrix,
+        json.root.transform ? Cesium.Matrix4.fromColumnMajorArray(json.root.transform) : Cesium.Matrix4.IDENTITY,
+        new Cesium.Matrix4());
+    const C3 = Cesium.Cartesian3;
+    const centre = new C3(box[0], box[1], box[2]);
+    const radius = C3.magnitude(C3.add(C3.add(new C3(box[3], box[4], box[5]), new C3(box[6], box[7], box[8]), new C3()),
+                                       new C3(box[9], box[10], box[11]), new C3()));
+    const dir = C3.normalize(new C3(0.35, -0.55, 0.6), new C3());
+    const eye = C3.add(centre, C3.multiplyByScalar(dir, radius * 2.2, new C3()), new C3());
+    const point = (p) => Cesium.Matrix4.multiplyByPoint(frame, p, new C3());
+    const vector = (v) => C3.normalize(Cesium.Matrix4.multiplyByPointAsVector(frame, v, new C3()), new C3());
+    const look = vector(C3.negate(dir, new C3()));
+    const right = C3.normalize(C3.cross(look, vector(C3.UNIT_Z), new C3()), new C3());
+    widget.camera.frustum.fov = Cesium.Math.toRadians(50 * 800 / 600);
+    widget.camera.setView({
+        destination: point(eye),
+        orientation: { direction: look, up: C3.cross(right, look, new C3()) },
+    });
 
     let loaded = false, quiet = 0, frames = 0;
     tileset.allTilesLoaded.addEventListener(() => { loaded = true; });
