@@ -3,15 +3,15 @@
 # and, where its npm package is there, CesiumJS, in headless Debian Chromium
 # (WebGL through SwiftShader), driven by playwright-core, the page and the
 # baked folder served by node on 127.0.0.1. Four bakes of city: 4 x 4 cells
-# at the origin with a coarser level, drawn once at full detail (the 16
-# cells) and once at the coarser level (its 4 tiles); 3 x 2 cells away from
-# the origin (a transform, a grid with unavailable tiles); 2 x 2 cells a
-# million cells from the origin; and a row of 64 cells, a quadtree of 7
-# levels whose cells are in 64 child subtrees. CesiumJS draws each with the
-# tileset's frame east-north-up on the globe (no globe drawn). Each draw:
-# exactly the tiles expected, each where the client's implicit tiling puts
-# it (3DTilesRendererJS), no error in the page, the loader, the console or
-# the server, and a screenshot of the city's colours, saved in OUTDIR.
+# at the origin with coarser levels, drawn at full detail (the 16 cells), at
+# level 1 (4 tiles) and at the root (1 tile); 3 x 2 cells away from the
+# origin (a transform, a grid with unavailable tiles); 2 x 2 cells a million
+# cells from the origin; and a row of 64 cells, a quadtree of 7 levels whose
+# cells are in 64 child subtrees. CesiumJS draws each with the tileset's
+# frame east-north-up on the globe (no globe drawn). Each draw: exactly the
+# tiles expected, each where the client's implicit tiling puts it
+# (3DTilesRendererJS), no error in the page, the loader, the console or the
+# server, and a screenshot of the city's colours, saved in OUTDIR.
 #   test-bake-chromium.sh PATH/TO/tileworld PATH/TO/png-check OUTDIR
 # Skipped (77) without node, /usr/bin/chromium (apt-get install chromium) or
 # the npm packages of tests/web (npm ci --prefix tests/web).
@@ -81,12 +81,15 @@ draw() {
         bad "$name: CesiumJS drew other triangles than 3DTilesRendererJS"
 }
 
-"$tw" bake --tileset city --cells 0,0:3,3 --levels 2 --out "$tmp/origin" --quiet || bad "bake 0,0:3,3"
-# The renderer's error target in pixels: 0 refines to the cells; 250 stops
-# at level 1 (its tiles' screen-space error is about 120 to 190 pixels from
-# this camera, the root's about 380).
+"$tw" bake --tileset city --cells 0,0:3,3 --levels 3 --out "$tmp/origin" --quiet || bad "bake 0,0:3,3"
+# The renderers' error target in pixels: 0 refines to the cells; 250 stops
+# at level 1 (from this camera its tiles' screen-space error is 120 to 190
+# pixels, the root's 350 to 500); 600 at the root (CesiumJS draws nothing
+# from 700 to 900 up: the tileset's geometricError, twice the root's, is
+# then small enough on screen).
 draw origin-cells "$tmp/origin" "error=0" 2
 draw origin-level1 "$tmp/origin" "error=250" 1
+draw origin-root "$tmp/origin" "error=600" 0
 "$tw" bake --tileset city --cells 40,-7:42,-6 --levels 2 --out "$tmp/away" --quiet || bad "bake 40,-7:42,-6"
 draw away-cells "$tmp/away" "error=0" 2
 # A million cells from the origin (80,000 km): the transform holds the

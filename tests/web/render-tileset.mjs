@@ -90,7 +90,14 @@ try {
     page.on('requestfailed', (r) => console_messages.push(`requestfailed: ${r.url()} ${r.failure()?.errorText}`));
     const q = `tileset=${encodeURIComponent('/tileset/tileset.json')}${query ? '&' + query : ''}`;
     await page.goto(`${base}/${pageName}?${q}`);
-    await page.waitForFunction(() => window.result && window.result.done, null, { timeout: 240000, polling: 500 });
+    try {
+        await page.waitForFunction(() => window.result && window.result.done, null,
+                                   { timeout: Number(process.env.TW_PAGE_TIMEOUT_MS || 240000), polling: 500 });
+    } catch (e) {
+        // What the page had when it gave up.
+        console_messages.push(`page state: ${await page.evaluate(() => JSON.stringify(window.result))}`);
+        throw e;
+    }
     const result = await page.evaluate(() => window.result);
     await page.screenshot({ path: screenshot });
     result.console = console_messages;

@@ -32,9 +32,9 @@ async function main() {
     scene.fog.enabled = false;
     scene.renderError.addEventListener((s, e) => fail(`renderError: ${e}`));
 
+    const json = await (await fetch(tilesetUrl)).json();
     const tileset = await Cesium.Cesium3DTileset.fromUrl(tilesetUrl, { maximumScreenSpaceError: errorTarget });
     tileset.modelMatrix = Cesium.Transforms.eastNorthUpToFixedFrame(Cesium.Cartesian3.fromDegrees(8.54, 47.37, 400));
-    scene.primitives.add(tileset);
     let failed = 0;
     tileset.tileFailed.addEventListener((e) => { failed++; fail(`tileFailed ${e.url}: ${e.message}`); });
     tileset.tileLoad.addEventListener((tile) => result.loadedModels.push(relative(tile.content.url)));
@@ -45,7 +45,6 @@ async function main() {
     // The camera as 3DTilesRendererJS's page places it, in the tileset's
     // frame (root transform, then the model matrix): looking at the root
     // box's centre from the south-east, 40 degrees up, z up.
-    const json = await (await fetch(tilesetUrl)).json();
     const box = json.root.boundingVolume.box;
     const frame = Cesium.Matrix4.multiply(tileset.modelMatrix,
         json.root.transform ? Cesium.Matrix4.fromColumnMajorArray(json.root.transform) : Cesium.Matrix4.IDENTITY,
@@ -66,12 +65,19 @@ async function main() {
         orientation: { direction: look, up: C3.cross(right, look, new C3()) },
     });
 
+    // Listening before the tileset is drawn: a load can end at its first frame.
     let loaded = false, quiet = 0, frames = 0;
     tileset.allTilesLoaded.addEventListener(() => { loaded = true; });
+    scene.primitives.add(tileset);
     await new Promise((resolve) => {
         const post = () => {
             frames++;
-            quiet = loaded && tileset.tilesLoaded ? quiet + 1 : 0;
+            // allTilesLoaded is not raised where nothing was to load (the
+            // tileset's geometricError small enough on screen: nothing drawn).
+            quiet = (loaded || frames > 100) && tileset.tilesLoaded ? quiet + 1 : 0;
+            result.waiting = { frames, loaded, tilesLoaded: tileset.tilesLoaded, visible: [...visible],
+                               pending: tileset.statistics.numberOfPendingRequests,
+                               processing: tileset.statistics.numberOfTilesProcessing };
             if (quiet >= 10 || frames > 20000) {
                 scene.postRender.removeEventListener(post);
                 resolve();
