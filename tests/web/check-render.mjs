@@ -31,13 +31,13 @@ const want = [...expected].sort();
 const got = r.visibleContent;
 check(JSON.stringify(got) === JSON.stringify(want),
       `drawn ${got.length} tiles [${got.join(' ')}], expected ${want.length} [${want.join(' ')}]`);
-check(r.drawnMeshes === want.length, `${r.drawnMeshes} meshes drawn, expected ${want.length}`);
+check(r.drawnTiles === want.length, `${r.drawnTiles} tiles drew meshes, expected ${want.length}`);
 for (const m of r.misplaced)
     failures.push(`misplaced: ${m}`);
 const p = r.picture;
 check(p.drawnFraction >= minDrawn, `only ${p.drawnFraction} of the pixels differ from the clear colour`);
 check(p.colouredFraction >= minDrawn / 10, `only ${p.colouredFraction} of the pixels are coloured`);
-check(p.inPaletteFraction >= 0.9, `only ${p.inPaletteFraction} of the coloured pixels have a hue of the tiles' COLOR_0`);
+check(p.inPaletteFraction >= 0.9, `only ${p.inPaletteFraction} of the coloured pixels have a hue of the tiles' colours (COLOR_0 and materials)`);
 check(p.paletteHuesSeen >= 2, `${p.paletteHuesSeen} hues of the palette seen`);
 for (const f of failures)
     console.log(`FAIL: ${f}`);

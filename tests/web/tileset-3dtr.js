@@ -48,20 +48,31 @@ function cameraFromRoot(json) {
     return { camera, centre, radius };
 }
 
-// The hues (degrees) of the distinct colours in a loaded glTF scene's
-// COLOR_0 attributes whose chroma is not small.
+// The hues (degrees) of the distinct colours in a loaded glTF scene whose
+// chroma is not small: its COLOR_0 attributes (the small instances the
+// library merges) times their material's colour, and the colours of the
+// materials of meshes without COLOR_0 (the instances drawn as they are).
 function addPaletteHues(scene, hues) {
     const c = new THREE.Color();
+    const add = () => {
+        const hsl = c.getHSL({});
+        const chroma = Math.max(c.r, c.g, c.b) - Math.min(c.r, c.g, c.b);
+        if (chroma > 0.1)
+            hues.add(Math.round(hsl.h * 360));
+    };
     scene.traverse((o) => {
-        const colours = o.geometry && o.geometry.getAttribute('color');
-        if (!colours)
+        if (!o.isMesh)
             return;
+        const m = o.material && o.material.color ? o.material.color : new THREE.Color(1, 1, 1);
+        const colours = o.geometry && o.geometry.getAttribute('color');
+        if (!colours) {
+            c.copy(m);
+            add();
+            return;
+        }
         for (let i = 0; i < colours.count; i++) {
-            c.setRGB(colours.getX(i), colours.getY(i), colours.getZ(i));
-            const hsl = c.getHSL({});
-            const chroma = Math.max(c.r, c.g, c.b) - Math.min(c.r, c.g, c.b);
-            if (chroma > 0.1)
-                hues.add(Math.round(hsl.h * 360));
+            c.setRGB(colours.getX(i) * m.r, colours.getY(i) * m.g, colours.getZ(i) * m.b);
+            add();
         }
     });
 }
@@ -172,6 +183,16 @@ async function main() {
             misplaced.push(place);
     }
     visible.sort();
+    // The tiles whose content has a mesh (a tile holds one glTF node per
+    // drawn instance, a mesh each).
+    let drawnTiles = 0;
+    for (const t of tiles.visibleTiles) {
+        const sc = t.content && t.content.uri && t.engineData && t.engineData.scene;
+        let any = false;
+        if (sc)
+            sc.traverse((o) => { any = any || o.isMesh; });
+        drawnTiles += any ? 1 : 0;
+    }
     let drawnMeshes = 0, drawnTriangles = 0;
     tiles.group.traverse((o) => {
         if (o.isMesh && o.visible) {
@@ -189,7 +210,7 @@ async function main() {
         if (typeof v === 'number')
             stats[k] = v;
     Object.assign(result, {
-        frames, loadEnds, misplaced, stats, visibleContent: visible, drawnMeshes, drawnTriangles,
+        frames, loadEnds, misplaced, stats, visibleContent: visible, drawnTiles, drawnMeshes, drawnTriangles,
         paletteHues: [...paletteHues].sort((a, b) => a - b),
         picture: pictureFigures(canvas, [clearColour.r * 255, clearColour.g * 255, clearColour.b * 255], paletteHues),
         done: true,

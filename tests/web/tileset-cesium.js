@@ -94,7 +94,7 @@ async function main() {
     stats.failed = failed;
     Object.assign(result, {
         frames, stats, visibleContent: [...visible].sort(),
-        drawnMeshes: visible.size, drawnTriangles: stats.numberOfTrianglesSelected, misplaced: [],
+        drawnTiles: visible.size, drawnMeshes: visible.size, drawnTriangles: stats.numberOfTrianglesSelected, misplaced: [],
         picture: pictureFigures(scene.canvas, [0, 0, 0], result.paletteHues = paletteFromQuery()),
         done: true,
     });
