@@ -140,6 +140,16 @@ static struct tw_object wall_at(const struct tw_camera *c)
     return o;
 }
 
+/* A world of s drawn by method m, with the oracle's check every frame. */
+static struct tw_world *verified_world(struct tw_world_settings s, enum tw_method m)
+{
+    s.method = m;
+    s.verify = true;
+    struct tw_world *w = NULL;
+    CHECK(tw_world_create(&s, &w) == TW_OK);
+    return w;
+}
+
 struct run {
     uint64_t missed, triangles_wall, frames_rebuilt;
     uint32_t objects_seen;
@@ -160,10 +170,7 @@ static void walk(struct tw_world_settings s, const struct tw_path *path, enum tw
                  bool objects, bool wall, struct run *r)
 {
     memset(r, 0, sizeof(*r));
-    s.method = m;
-    s.verify = true;
-    struct tw_world *w = NULL;
-    CHECK(tw_world_create(&s, &w) == TW_OK);
+    struct tw_world *w = verified_world(s, m);
     if (!w)
         return;
     const struct tw_cell centre = path->keys[0].pos.cell;
@@ -212,10 +219,7 @@ static void walk(struct tw_world_settings s, const struct tw_path *path, enum tw
  * wear its BVH down until it is built afresh. */
 static void refits(struct tw_world_settings s, const struct tw_camera *cam)
 {
-    s.method = TW_METHOD_TILEQUERY_CHC;
-    s.verify = true;
-    struct tw_world *w = NULL;
-    CHECK(tw_world_create(&s, &w) == TW_OK);
+    struct tw_world *w = verified_world(s, TW_METHOD_TILEQUERY_CHC);
     if (!w)
         return;
     const struct tw_cell centre = cam->pos.cell;
@@ -281,10 +285,7 @@ static void refits(struct tw_world_settings s, const struct tw_camera *cam)
  * behind the street's buildings, and the propagation would stop there). */
 static void sky(struct tw_world_settings s, const struct tw_camera *start)
 {
-    s.method = TW_METHOD_TILEQUERY_CHC;
-    s.verify = true;
-    struct tw_world *w = NULL;
-    CHECK(tw_world_create(&s, &w) == TW_OK);
+    struct tw_world *w = verified_world(s, TW_METHOD_TILEQUERY_CHC);
     if (!w)
         return;
     const struct tw_cell centre = start->pos.cell;
