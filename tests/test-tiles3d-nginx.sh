@@ -18,8 +18,8 @@
 # the 404's is checked); the walk ends with status 0, within a bound
 # (timeout). Then ETag revalidation: a second walk with
 # --http-cache gets 304s and serves them from the cache. Then the server
-# stopped mid-walk: the walk goes on, refuses what it cannot fetch, and
-# ends.
+# stopped mid-walk: the walk goes on, serves what its cache holds (stale
+# copies), refuses what it cannot fetch, and ends.
 # Usage: test-tiles3d-nginx.sh TILEWORLD
 set -u
 tw=$1
@@ -140,11 +140,17 @@ timeout 60 "$tw" "${walk[@]}" --frames 30 --policy wait --http-cache "$cache" --
 bytes=$(du -sb "$cache" | cut -f1)
 [ "$bytes" -le $((100 * 1024 + 4096)) ] || fail "the cache holds $bytes bytes over a limit of 100K"
 
-# The server stopped mid-walk: once the walk has fetched a few tiles.
+# The server stopped mid-walk: once the walk has fetched a few tiles. The
+# cache holds the first 20 frames' tiles (a walk before): those are served
+# from it once the server is gone (stale-if-error), the others refused.
+stale=$tmp/stale-cache
+timeout 60 "$tw" walk --tileset "$url" --frames 20 --view-distance 150 --png-every 0 \
+    --size 160x90 --workers 1 --policy wait --http-timeout 500 --http-cache "$stale" --out "$tmp/fill" \
+    >/dev/null 2>"$tmp/fill.err" || fail "the walk filling the cache fails"
 : >"$tmp/nginx/access.log"
 timeout 60 "$tw" walk --tileset "$url" --frames 60 --view-distance 150 --png-every 0 \
-    --size 160x90 --workers 1 --policy wait --http-timeout 500 --out "$tmp/stop" \
-    >"$tmp/stop.out" 2>"$tmp/stop.err" &
+    --size 160x90 --workers 1 --policy wait --http-timeout 500 --http-cache "$stale" \
+    --out "$tmp/stop" >"$tmp/stop.out" 2>"$tmp/stop.err" &
 walker=$!
 for _ in $(seq 100); do
     [ "$(grep -c '\.glb' "$tmp/nginx/access.log" 2>/dev/null)" -ge 4 ] && break
@@ -156,7 +162,10 @@ rc=$?
 [ "$rc" = 0 ] || fail "the walk whose server stopped exits $rc: $(tail -3 "$tmp/stop.err")"
 grep -q "Couldn't connect to server after 4 attempts\|after 4 attempts" "$tmp/stop.err" ||
     fail "no refusal after the server stopped: $(tail -5 "$tmp/stop.err")"
-grep "3D Tiles:" "$tmp/stop.err" | tail -1
+line=$(grep "3D Tiles:" "$tmp/stop.err" | tail -1)
+echo "server stopped: $line"
+n=$(sed -n 's/.* \([0-9]*\) stale copies.*/\1/p' <<<"$line")
+{ [ -n "$n" ] && [ "$n" -ge 1 ]; } || fail "no stale copy served from the cache once the server stopped: $line"
 
 if [ "$fails" != 0 ]; then
     echo "$fails failure(s)"

@@ -34,7 +34,7 @@ struct tw_http {
     pthread_mutex_t cache_lock;     /* one eviction at a time */
     _Atomic uint64_t cache_bytes;   /* the cache's files, as last counted plus writes since */
     _Atomic bool cancelled;
-    _Atomic uint64_t requests, bytes, cache_hits, not_modified, retries, failures;
+    _Atomic uint64_t requests, bytes, cache_hits, not_modified, retries, failures, stale;
 };
 
 static pthread_once_t global_once = PTHREAD_ONCE_INIT;
@@ -294,6 +294,7 @@ void tw_http_stats(const struct tw_http *h, struct tw_tiles3d_stats *out)
     out->not_modified = atomic_load(&h->not_modified);
     out->retries = atomic_load(&h->retries);
     out->failures = atomic_load(&h->failures);
+    out->stale = atomic_load(&h->stale);
 }
 
 /* ---- one request ----------------------------------------------------------------- */
@@ -515,6 +516,17 @@ int tw_http_get(struct tw_http *h, const char *url, uint64_t max_bytes, void **b
         else
             snprintf(err, err_size, "%s", curl_easy_strerror(cr));
         if (!retry || attempt >= attempts) {
+            /* The server cannot answer now (a 5xx, a timeout, a lost
+             * connection, retries spent): a copy in the cache is better than
+             * a hole (HTTP's stale-if-error). Not for a 404 or another 4xx:
+             * the server said what it has. */
+            char etag[256];
+            if (use_cache && may_pass(cr, code) && !atomic_load(&h->cancelled) &&
+                cache_read(h, url, etag, sizeof(etag), body, size)) {
+                cache_touch(h, url);
+                atomic_fetch_add(&h->stale, 1);
+                return TW_OK;
+            }
             if (attempt > 1) {
                 const size_t n = strlen(err);
                 snprintf(err + n, err_size - n, " after %u attempts", attempt);

@@ -307,6 +307,9 @@ struct tw_tiles3d_stats {
     uint64_t not_modified;  /* 304 answers to If-None-Match */
     uint64_t retries;       /* attempts after a failure that may pass */
     uint64_t failures;      /* requests given up: a 404, another 4xx, retries spent */
+    uint64_t stale;         /* bodies served from the cache because the server could not
+                               answer (a 5xx, a timeout, a lost connection, after the
+                               retries), as HTTP's stale-if-error; not in failures */
 };
 
 /* A tile provider that streams a tileset written by `tileworld bake` (3D

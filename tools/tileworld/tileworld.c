@@ -601,10 +601,11 @@ static int run(const struct options *o, bool bench)
         struct tw_tiles3d_stats hs;
         tw_tiles3d_provider_stats(shown.tiles3d, &hs);
         tw_cli_message(program, "3D Tiles: %llu requests, %llu bytes, %llu cache hits, %llu "
-                       "not modified (304), %llu retries, %llu failures",
+                       "not modified (304), %llu retries, %llu failures, %llu stale copies",
                        (unsigned long long)hs.requests, (unsigned long long)hs.bytes,
                        (unsigned long long)hs.cache_hits, (unsigned long long)hs.not_modified,
-                       (unsigned long long)hs.retries, (unsigned long long)hs.failures);
+                       (unsigned long long)hs.retries, (unsigned long long)hs.failures,
+                       (unsigned long long)hs.stale);
     }
 out:
     tw_context_destroy(ctx);
