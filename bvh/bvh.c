@@ -450,10 +450,12 @@ double tw_bvh_spread(const struct tw_bvh *bvh)
     return leaves > 0.0 ? 1.0 + inner / leaves : 1.0;
 }
 
-/* Copies n nodes of from into to, moving their links by node_shift and
- * their cluster and tight ranges by the shifts given, one level deeper. */
+/* Copies the nodes of from into to, moving their links by node_shift and
+ * their cluster ranges by cluster_shift, one level deeper; their tight
+ * boxes from tight_at on: from's own (tight) or one each, the node's box
+ * (!tight). */
 static void copy_nodes(struct tw_bvh_node *to, const struct tw_bvh *from, uint32_t node_shift,
-                       uint32_t cluster_shift, uint32_t tight_shift)
+                       uint32_t cluster_shift, uint32_t tight_at, bool tight)
 {
     for (uint32_t i = 0; i < from->node_count; i++) {
         struct tw_bvh_node n = from->nodes[i];
@@ -462,47 +464,40 @@ static void copy_nodes(struct tw_bvh_node *to, const struct tw_bvh *from, uint32
             if (n.child[k] != TW_BVH_NONE)
                 n.child[k] += node_shift;
         n.first_cluster += cluster_shift;
-        n.first_tight += tight_shift;
+        if (tight) {
+            n.first_tight += tight_at;
+        } else {
+            n.first_tight = tight_at + i;
+            n.tight_count = 1;
+        }
         n.depth++;
         to[i] = n;
     }
 }
 
-int tw_bvh_join(const struct tw_bvh *a, uint32_t a_clusters, const struct tw_bvh *b,
-                struct tw_bvh **out)
+/* b's part of j (nodes 1 + a's onwards, b_capacity of them; its tight
+ * boxes one a node, after a's) and the root, from b; the slots b does not
+ * fill are leaves of no cluster that no node links to. */
+static void join_second(struct tw_bvh *j, const struct tw_bvh *a, const struct tw_bvh *b,
+                        uint32_t a_clusters, uint32_t b_capacity)
 {
-    *out = NULL;
-    if ((uint64_t)a->node_count + b->node_count + 1 > UINT32_MAX ||
-        (uint64_t)a->tight_box_count + b->tight_box_count + 1 > UINT32_MAX ||
-        (uint64_t)a->cluster_count + b->cluster_count > UINT32_MAX)
-        return TW_ERR_LIMIT;
-    struct tw_bvh *j = calloc(1, sizeof(*j));
-    if (!j)
-        return TW_ERR_NOMEM;
-    j->node_count = 1 + a->node_count + b->node_count;
-    j->cluster_count = a->cluster_count + b->cluster_count;
-    j->tight_box_count = a->tight_box_count + b->tight_box_count + 1;
-    j->nodes = malloc((size_t)j->node_count * sizeof(*j->nodes));
-    j->cluster_order = malloc((size_t)j->cluster_count * sizeof(*j->cluster_order));
-    j->tight_boxes = malloc((size_t)j->tight_box_count * sizeof(*j->tight_boxes));
-    if (!j->nodes || !j->cluster_order || !j->tight_boxes) {
-        tw_bvh_destroy(j);
-        return TW_ERR_NOMEM;
+    const uint32_t first = 1 + a->node_count;
+    copy_nodes(j->nodes + first, b, first, a->cluster_count, a->tight_box_count, false);
+    for (uint32_t i = 0; i < b->node_count; i++)
+        j->tight_boxes[a->tight_box_count + i] = b->nodes[i].box;
+    for (uint32_t i = b->node_count; i < b_capacity; i++) {
+        j->nodes[first + i] = (struct tw_bvh_node){
+            .box = b->nodes[0].box, .parent = 0, .child = {TW_BVH_NONE, TW_BVH_NONE},
+            .first_tight = a->tight_box_count + i, .tight_count = 1, .depth = 1};
+        j->tight_boxes[a->tight_box_count + i] = b->nodes[0].box;
     }
-    copy_nodes(j->nodes + 1, a, 1, 0, 0);
-    copy_nodes(j->nodes + 1 + a->node_count, b, 1 + a->node_count, a->cluster_count,
-               a->tight_box_count);
-    memcpy(j->cluster_order, a->cluster_order, (size_t)a->cluster_count * sizeof(uint32_t));
     for (uint32_t c = 0; c < b->cluster_count; c++)
         j->cluster_order[a->cluster_count + c] = b->cluster_order[c] + a_clusters;
-    memcpy(j->tight_boxes, a->tight_boxes, (size_t)a->tight_box_count * sizeof(struct tw_box));
-    memcpy(j->tight_boxes + a->tight_box_count, b->tight_boxes,
-           (size_t)b->tight_box_count * sizeof(struct tw_box));
     const struct tw_bvh_node *ra = &a->nodes[0], *rb = &b->nodes[0];
     struct tw_bvh_node *root = &j->nodes[0];
     *root = (struct tw_bvh_node){
         .parent = TW_BVH_NONE,
-        .child = {1, 1 + a->node_count},
+        .child = {1, first},
         .first_tight = j->tight_box_count - 1,
         .tight_count = 1,
         .triangle_count = ra->triangle_count + rb->triangle_count,
@@ -511,20 +506,68 @@ int tw_bvh_join(const struct tw_bvh *a, uint32_t a_clusters, const struct tw_bvh
     root->box = ra->box;
     tw_box_add_box(&root->box, &rb->box);
     j->tight_boxes[root->first_tight] = root->box;
+    j->cluster_count = a->cluster_count + b->cluster_count;
     j->leaf_count = a->leaf_count + b->leaf_count;
     j->depth = 1 + (a->depth > b->depth ? a->depth : b->depth);
-    j->tight_depth = b->tight_depth;
+    j->tight_depth = a->tight_depth;
+}
+
+int tw_bvh_join(const struct tw_bvh *a, uint32_t a_clusters, const struct tw_bvh *b,
+                uint32_t b_capacity, struct tw_bvh **out)
+{
+    *out = NULL;
+    if (b_capacity < b->node_count)
+        b_capacity = b->node_count;
+    if ((uint64_t)a->node_count + b_capacity + 1 > UINT32_MAX ||
+        (uint64_t)a->tight_box_count + b_capacity + 1 > UINT32_MAX ||
+        (uint64_t)a->cluster_count + b->cluster_count > UINT32_MAX)
+        return TW_ERR_LIMIT;
+    struct tw_bvh *j = calloc(1, sizeof(*j));
+    if (!j)
+        return TW_ERR_NOMEM;
+    j->node_count = 1 + a->node_count + b_capacity;
+    j->tight_box_count = a->tight_box_count + b_capacity + 1;
+    j->nodes = malloc((size_t)j->node_count * sizeof(*j->nodes));
+    j->cluster_order = malloc(((size_t)a->cluster_count + b->cluster_count) *
+                              sizeof(*j->cluster_order));
+    j->tight_boxes = malloc((size_t)j->tight_box_count * sizeof(*j->tight_boxes));
+    if (!j->nodes || !j->cluster_order || !j->tight_boxes) {
+        tw_bvh_destroy(j);
+        return TW_ERR_NOMEM;
+    }
+    copy_nodes(j->nodes + 1, a, 1, 0, 0, true);
+    memcpy(j->cluster_order, a->cluster_order, (size_t)a->cluster_count * sizeof(uint32_t));
+    memcpy(j->tight_boxes, a->tight_boxes, (size_t)a->tight_box_count * sizeof(struct tw_box));
+    join_second(j, a, b, a_clusters, b_capacity);
     j->bytes = bvh_bytes(j);
     *out = j;
     return TW_OK;
 }
 
+int tw_bvh_rejoin(struct tw_bvh *j, const struct tw_bvh *a, uint32_t a_clusters,
+                  const struct tw_bvh *b)
+{
+    const uint32_t capacity = j->node_count - 1 - a->node_count;
+    if (b->node_count > capacity)
+        return TW_ERR_LIMIT;
+    const size_t clusters = (size_t)a->cluster_count + b->cluster_count;
+    if (clusters != j->cluster_count) {
+        uint32_t *order = realloc(j->cluster_order, clusters * sizeof(*order));
+        if (!order)
+            return TW_ERR_NOMEM;
+        j->cluster_order = order;
+    }
+    join_second(j, a, b, a_clusters, capacity);
+    j->bytes = bvh_bytes(j);
+    return TW_OK;
+}
+
 void tw_bvh_join_refit(struct tw_bvh *j, const struct tw_bvh *a, const struct tw_bvh *b)
 {
-    for (uint32_t i = 0; i < b->node_count; i++)
+    for (uint32_t i = 0; i < b->node_count; i++) {
         j->nodes[1 + a->node_count + i].box = b->nodes[i].box;
-    memcpy(j->tight_boxes + a->tight_box_count, b->tight_boxes,
-           (size_t)b->tight_box_count * sizeof(struct tw_box));
+        j->tight_boxes[a->tight_box_count + i] = b->nodes[i].box;
+    }
     struct tw_bvh_node *root = &j->nodes[0];
     root->box = a->nodes[0].box;
     tw_box_add_box(&root->box, &b->nodes[0].box);

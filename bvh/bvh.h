@@ -96,10 +96,20 @@ double tw_bvh_spread(const struct tw_bvh *bvh);
 
 /* Joins two BVHs under a new root: one over the clusters of a prototype
  * made of a's prototype's clusters (first) and b's (numbered after the
- * a_clusters of a's). Node 0 is the new root, a's nodes follow from 1, b's
- * from 1 + a->node_count. Copies; a and b are unchanged and may go. */
+ * a_clusters of a's). Node 0 is the new root, a's nodes follow from 1 with
+ * their tight boxes, then b_capacity slots (at least b's node count) for
+ * b's nodes, each its own box as tight box; the slots b leaves are leaves
+ * of no cluster that no node links to. Copies; a and b are unchanged and
+ * may go. The node count stays while another b of at most b_capacity
+ * nodes takes b's place (tw_bvh_rejoin): what is kept per node of the
+ * joined tree (a's part) keeps its meaning. */
 int tw_bvh_join(const struct tw_bvh *a, uint32_t a_clusters, const struct tw_bvh *b,
-                struct tw_bvh **out);
+                uint32_t b_capacity, struct tw_bvh **out);
+
+/* Puts another b into j (made by tw_bvh_join with this a), in place:
+ * TW_ERR_LIMIT when b has more nodes than j's slots for it. */
+int tw_bvh_rejoin(struct tw_bvh *j, const struct tw_bvh *a, uint32_t a_clusters,
+                  const struct tw_bvh *b);
 
 /* After b was refitted: its boxes into j (made by tw_bvh_join(a, _, b)) and
  * the root's box. */

@@ -272,6 +272,13 @@ int tw_renderer_add_composite(struct tw_renderer *r, uint32_t first, uint32_t se
     return TW_OK;
 }
 
+void tw_renderer_set_content_bvh(struct tw_renderer *r, uint32_t content,
+                                 const struct tw_bvh *bvh)
+{
+    if (content < r->content_count && r->contents[content].live && r->contents[content].own)
+        r->contents[content].bvh = bvh;
+}
+
 void tw_renderer_remove_content(struct tw_renderer *r, uint32_t content)
 {
     if (content >= r->content_count || !r->contents[content].live || !r->contents[content].own)

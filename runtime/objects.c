@@ -245,6 +245,45 @@ static void refit_composite(struct composite *c, const struct group *g)
     c->refits = g->refits;
 }
 
+/* The node slots a composite keeps for its group's BVH: twice what it
+ * has, 16 at least, a power of two, so that objects coming and going
+ * rebuild the group's BVH into the same composite (its key, and the
+ * culling state of the tile's part, kept) until the group doubles. */
+static uint32_t group_capacity(const struct tw_bvh *b)
+{
+    uint32_t cap = 16;
+    while (cap < 2 * b->node_count && cap < (1u << 30))
+        cap *= 2;
+    return cap;
+}
+
+/* Puts group g's clusters and BVH, built afresh, into composite c. */
+static int rejoin_composite(struct composite *c, const struct group *g)
+{
+    const uint32_t split = c->tile_proto->cluster_count;
+    const uint64_t n = (uint64_t)split + g->proto.cluster_count;
+    if (n > UINT32_MAX)
+        return TW_ERR_LIMIT;
+    if (n != c->proto.cluster_count) {
+        struct tw_cluster *cl = realloc(c->proto.clusters, (size_t)n * sizeof(*cl));
+        if (!cl)
+            return TW_ERR_NOMEM;
+        c->proto.clusters = cl;
+    }
+    int err = tw_bvh_rejoin(c->bvh, c->tile_bvh, split, g->bvh);
+    if (err)
+        return err;
+    memcpy(c->proto.clusters + split, g->proto.clusters,
+           (size_t)g->proto.cluster_count * sizeof(struct tw_cluster));
+    c->proto.cluster_count = (uint32_t)n;
+    c->proto.triangle_count = c->tile_proto->triangle_count + g->proto.triangle_count;
+    c->proto.box = c->tile_proto->box;
+    tw_box_add_box(&c->proto.box, &g->proto.box);
+    c->version = g->version;
+    c->refits = g->refits;
+    return TW_OK;
+}
+
 /* A composite of tile (the cell's, not empty) and group g. */
 static int make_composite(struct tw_world *w, struct group *g, const struct tw_cull_tile *tile,
                           struct composite **out)
@@ -278,7 +317,7 @@ static int make_composite(struct tw_world *w, struct group *g, const struct tw_c
         c->proto.box = tile->proto->box;
         tw_box_add_box(&c->proto.box, &g->proto.box);
         c->proto.weight = 1.0f;
-        err = tw_bvh_join(tile->bvh, split, g->bvh, &c->bvh);
+        err = tw_bvh_join(tile->bvh, split, g->bvh, group_capacity(g->bvh), &c->bvh);
     }
     if (!err)
         err = tw_renderer_add_composite(w->renderer, tile->content, g->content, split, &c->proto,
@@ -390,11 +429,16 @@ static int group_build(struct tw_world *w, struct group *g)
     snprintf(g->proto.name, sizeof(g->proto.name), "objects of (%lld, %lld)",
              (long long)g->cell.i, (long long)g->cell.j);
     g->proto.weight = 1.0f;
-    group_release(w, g);
+    tw_bvh_destroy(g->bvh);
+    g->bvh = NULL;
+    /* The group's content keeps its id (the composites that name it keep
+     * theirs): its BVH is the new one. */
     int err = tw_bvh_build_median(&g->proto, &w->t.bvh, &g->bvh);
-    if (!err)
+    if (!err && g->content == UINT32_MAX)
         err = tw_renderer_add_content(w->renderer, ob->model_content, &g->proto, g->bvh,
                                       &g->content);
+    else if (!err)
+        tw_renderer_set_content_bvh(w->renderer, g->content, g->bvh);
     if (err)
         return err;
     g->spread = tw_bvh_spread(g->bvh);
@@ -402,7 +446,6 @@ static int group_build(struct tw_world *w, struct group *g)
     g->key = new_key(ob, TW_CULL_KEY_EMPTY);
     g->rebuild = g->moved = false;
     ob->rebuilds++;
-    forget_composite(w, g->cell);
     return TW_OK;
 }
 
@@ -771,9 +814,14 @@ int tw_objects_tile(struct tw_world *w, struct tw_cell cell, struct tw_cull_tile
     uint64_t *v = tw_cell_map_find(ob->composite_of, cell);
     struct composite *head = v ? (struct composite *)(uintptr_t)*v : NULL, *c = head;
     while (c && (c->tile_key != tile->key || c->tile_content != tile->content ||
-                 c->tile_proto != tile->proto || c->tile_bvh != tile->bvh ||
-                 c->version != g->version))
+                 c->tile_proto != tile->proto || c->tile_bvh != tile->bvh))
         c = c->next;
+    /* The group built afresh since: into the same composite while its
+     * slots hold it (rejoin_composite), else a composite afresh. */
+    if (c && c->version != g->version && rejoin_composite(c, g) != TW_OK)
+        c->version = UINT32_MAX;    /* stale: pruned below */
+    if (c && c->version != g->version)
+        c = NULL;
     if (!c) {
         int err = make_composite(w, g, tile, &c);
         if (err)
@@ -784,7 +832,7 @@ int tw_objects_tile(struct tw_world *w, struct tw_cell cell, struct tw_cull_tile
         uint32_t kept = 1;
         for (struct composite *o = head; o;) {
             struct composite *next = o->next;
-            if (o->version == g->version && o->used + 2 >= w->frame_serial &&
+            if (o->version != UINT32_MAX && o->used + 2 >= w->frame_serial &&
                 kept < COMPOSITES_PER_CELL) {
                 *link = o;
                 link = &o->next;

@@ -80,6 +80,9 @@ int tw_renderer_add_content(struct tw_renderer *r, uint32_t like, const struct t
 int tw_renderer_add_composite(struct tw_renderer *r, uint32_t first, uint32_t second,
                               uint32_t split, const struct tw_prototype *proto,
                               const struct tw_bvh *bvh, uint32_t *out);
+/* An added content's BVH, built afresh over the same prototype. */
+void tw_renderer_set_content_bvh(struct tw_renderer *r, uint32_t content,
+                                 const struct tw_bvh *bvh);
 /* Drops an added content or composite; its id may be reused. */
 void tw_renderer_remove_content(struct tw_renderer *r, uint32_t content);
 /* A composite's clusters as runs of one part each, in order: fn is called
