@@ -65,8 +65,6 @@ struct group {
 };
 
 struct composite {
-    struct tw_cell cell;
-    uint32_t group;
     /* The tile it joins, as tw_world_get_tile() gave it. */
     uint32_t tile_key, tile_content;
     const struct tw_prototype *tile_proto;
@@ -100,7 +98,6 @@ struct tw_objects {
     struct tw_cell_map *composite_of;   /* cell -> its struct composite list */
     uint32_t next_key;
     bool changed;                   /* since the last frame */
-    struct tw_box bound;            /* the provider's */
     /* The last frame's work. */
     uint32_t rebuilds;
     double ms;
@@ -257,24 +254,19 @@ static uint32_t group_capacity(const struct tw_bvh *b)
     return cap;
 }
 
-/* Puts group g's clusters and BVH, built afresh, into composite c. */
-static int rejoin_composite(struct composite *c, const struct group *g)
+/* Group g's clusters into composite c, after the tile's (c's clusters
+ * hold the tile's already), and what they make together. */
+static int put_group(struct composite *c, const struct group *g)
 {
     const uint32_t split = c->tile_proto->cluster_count;
     const uint64_t n = (uint64_t)split + g->proto.cluster_count;
     if (n > UINT32_MAX)
         return TW_ERR_LIMIT;
-    if (n != c->proto.cluster_count) {
-        struct tw_cluster *cl = realloc(c->proto.clusters, (size_t)n * sizeof(*cl));
-        if (!cl)
-            return TW_ERR_NOMEM;
-        c->proto.clusters = cl;
-    }
-    int err = tw_bvh_rejoin(c->bvh, c->tile_bvh, split, g->bvh);
-    if (err)
-        return err;
-    memcpy(c->proto.clusters + split, g->proto.clusters,
-           (size_t)g->proto.cluster_count * sizeof(struct tw_cluster));
+    struct tw_cluster *cl = realloc(c->proto.clusters, (size_t)n * sizeof(*cl));
+    if (!cl)
+        return TW_ERR_NOMEM;
+    c->proto.clusters = cl;
+    memcpy(cl + split, g->proto.clusters, (size_t)g->proto.cluster_count * sizeof(*cl));
     c->proto.cluster_count = (uint32_t)n;
     c->proto.triangle_count = c->tile_proto->triangle_count + g->proto.triangle_count;
     c->proto.box = c->tile_proto->box;
@@ -282,6 +274,14 @@ static int rejoin_composite(struct composite *c, const struct group *g)
     c->version = g->version;
     c->refits = g->refits;
     return TW_OK;
+}
+
+/* Puts group g, built afresh, into composite c: its clusters, and its BVH
+ * into the slots c keeps for it. */
+static int rejoin_composite(struct composite *c, const struct group *g)
+{
+    const int err = put_group(c, g);
+    return err ? err : tw_bvh_rejoin(c->bvh, c->tile_bvh, c->tile_proto->cluster_count, g->bvh);
 }
 
 /* A composite of tile (the cell's, not empty) and group g. */
@@ -293,32 +293,21 @@ static int make_composite(struct tw_world *w, struct group *g, const struct tw_c
     if (!c)
         return TW_ERR_NOMEM;
     c->content = UINT32_MAX;
-    c->cell = g->cell;
     c->tile_key = tile->key;
     c->tile_content = tile->content;
     c->tile_proto = tile->proto;
     c->tile_bvh = tile->bvh;
-    c->version = g->version;
-    c->refits = g->refits;
     const uint32_t split = tile->proto->cluster_count;
-    const uint64_t n = (uint64_t)split + g->proto.cluster_count;
-    int err = n > UINT32_MAX ? TW_ERR_LIMIT : TW_OK;
-    if (!err) {
-        c->proto.clusters = malloc((size_t)n * sizeof(*c->proto.clusters));
-        err = c->proto.clusters ? TW_OK : TW_ERR_NOMEM;
-    }
+    snprintf(c->proto.name, sizeof(c->proto.name), "%.24s with objects", tile->proto->name);
+    c->proto.weight = 1.0f;
+    c->proto.clusters = malloc(((size_t)split + 1) * sizeof(*c->proto.clusters));
+    int err = c->proto.clusters ? TW_OK : TW_ERR_NOMEM;
     if (!err) {
         memcpy(c->proto.clusters, tile->proto->clusters, (size_t)split * sizeof(struct tw_cluster));
-        memcpy(c->proto.clusters + split, g->proto.clusters,
-               (size_t)g->proto.cluster_count * sizeof(struct tw_cluster));
-        snprintf(c->proto.name, sizeof(c->proto.name), "%.24s with objects", tile->proto->name);
-        c->proto.cluster_count = (uint32_t)n;
-        c->proto.triangle_count = tile->proto->triangle_count + g->proto.triangle_count;
-        c->proto.box = tile->proto->box;
-        tw_box_add_box(&c->proto.box, &g->proto.box);
-        c->proto.weight = 1.0f;
-        err = tw_bvh_join(tile->bvh, split, g->bvh, group_capacity(g->bvh), &c->bvh);
+        err = put_group(c, g);
     }
+    if (!err)
+        err = tw_bvh_join(tile->bvh, split, g->bvh, group_capacity(g->bvh), &c->bvh);
     if (!err)
         err = tw_renderer_add_composite(w->renderer, tile->content, g->content, split, &c->proto,
                                         c->bvh, &c->content);
@@ -514,7 +503,6 @@ int tw_objects_create(struct tw_world *w)
     w->objects = ob;
     ob->models = models;
     ob->next_key = KEY_FIRST;
-    ob->bound = w->provider.bound;
     int err = tw_cell_map_create(&ob->group_of);
     if (!err)
         err = tw_cell_map_create(&ob->composite_of);
@@ -759,7 +747,7 @@ int tw_objects_apply(struct tw_world *w)
     if (!ob->changed)
         return TW_OK;
     const double t0 = tw_clock_monotonic_ms();
-    struct tw_box box = ob->bound;
+    struct tw_box box = w->provider.bound;
     int err = TW_OK;
     for (size_t k = 0; k < ob->group_count && !err; k++) {
         struct group *g = ob->groups[k];
