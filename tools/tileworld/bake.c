@@ -507,7 +507,6 @@ static void bake_block(struct bake *b, uint64_t k)
     }
     struct tw_tileset *ts = NULL;
     struct tw_lods lods = {0};
-    uint64_t input = 0;
     double child_error = 0.0;
     int rc = tw_tileset_create("block", (float)side * b->world.footprint[0],
                                (float)side * b->world.footprint[1], &ts);
@@ -530,14 +529,14 @@ static void bake_block(struct bake *b, uint64_t k)
             goto out;
         }
         child_error = e > child_error ? e : child_error;
-        const uint64_t before = instance_triangles(ts, (uint32_t)proto);
         rc = read_child(child, ts, (uint32_t)proto, origin, placement, &b->log, err, sizeof(err));
         if (rc) {
             fail_run(b, "%s: cannot merge %s", path, err);
             goto out;
         }
-        input += instance_triangles(ts, (uint32_t)proto) - before;
     }
+    /* The block's prototype holds its children's instances only. */
+    const uint64_t input = instance_triangles(ts, (uint32_t)proto);
     if (input == 0) {
         atomic_fetch_add(&b->empty, 1);
         goto out;
