@@ -441,10 +441,11 @@ static uint64_t instance_triangles(const struct tw_tileset *ts, uint32_t p)
 
 /* Adds the .glb file path (a tile of the level below) to prototype proto
  * of ts, moved by -origin: the bake's own layout read as it is
- * (tilesets/tiles3d-glb.c), other glTF through the general importer. */
+ * (tilesets/tiles3d-glb.c), other glTF through the general importer.
+ * *error: the geometric error written into it (0: none). */
 static int read_child(const char *path, struct tw_tileset *ts, uint32_t proto,
                       const double origin[3], const float placement[12], const struct tw_log *log,
-                      char *err, size_t err_size)
+                      double *error, char *err, size_t err_size)
 {
     FILE *f = fopen(path, "rb");
     uint8_t *data = NULL;
@@ -459,9 +460,15 @@ static int read_child(const char *path, struct tw_tileset *ts, uint32_t proto,
         free(data);
         return TW_ERR_IO;
     }
+    int rc = tw_tiles3d_glb_error(data, (size_t)n, error);
+    if (rc) {
+        snprintf(err, err_size, "%.900s: not a binary glTF file of tileworld bake", path);
+        free(data);
+        return rc;
+    }
     const double shift[3] = {-origin[0], -origin[1], -origin[2]};
     char why[512];
-    int rc = tw_tiles3d_glb_read(data, (size_t)n, ts, proto, shift, why, sizeof(why));
+    rc = tw_tiles3d_glb_read(data, (size_t)n, ts, proto, shift, why, sizeof(why));
     free(data);
     if (rc < 0)
         snprintf(err, err_size, "%.600s: %.500s", path, why);
@@ -523,17 +530,13 @@ static void bake_block(struct bake *b, uint64_t k)
             !exists(child))
             continue;
         double e = 0.0;
-        rc = tw_tiles3d_read_glb_error(child, &e, err, sizeof(err));
-        if (rc) {
-            fail_run(b, "%s", err);
-            goto out;
-        }
-        child_error = e > child_error ? e : child_error;
-        rc = read_child(child, ts, (uint32_t)proto, origin, placement, &b->log, err, sizeof(err));
+        rc = read_child(child, ts, (uint32_t)proto, origin, placement, &b->log, &e, err,
+                        sizeof(err));
         if (rc) {
             fail_run(b, "%s: cannot merge %s", path, err);
             goto out;
         }
+        child_error = e > child_error ? e : child_error;
     }
     /* The block's prototype holds its children's instances only. */
     const uint64_t input = instance_triangles(ts, (uint32_t)proto);

@@ -493,6 +493,31 @@ static uint32_t get_u32(const uint8_t *p)
     return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
 }
 
+int tw_tiles3d_glb_error(const void *data, size_t size, double *error)
+{
+    const uint8_t *d = data;
+    *error = 0.0;
+    if (size < 20 || memcmp(d, "glTF", 4) != 0 || memcmp(d + 16, "JSON", 4) != 0)
+        return TW_ERR_FORMAT;
+    const uint32_t n = get_u32(d + 12);
+    if (n > size - 20 || n > INT32_MAX)
+        return TW_ERR_FORMAT;
+    json_tokener *tok = json_tokener_new();
+    if (!tok)
+        return TW_ERR_NOMEM;
+    json_object *root = json_tokener_parse_ex(tok, (const char *)d + 20, (int)n);
+    json_tokener_free(tok);
+    if (!root)
+        return TW_ERR_FORMAT;
+    json_object *asset = NULL, *extras = NULL, *e = NULL;
+    if (json_object_object_get_ex(root, "asset", &asset) &&
+        json_object_object_get_ex(asset, "extras", &extras) &&
+        json_object_object_get_ex(extras, "geometricError", &e))
+        *error = json_object_get_double(e);
+    json_object_put(root);
+    return TW_OK;
+}
+
 int tw_tiles3d_read_glb_error(const char *path, double *error, char *err, size_t err_size)
 {
     *error = 0.0;
@@ -501,30 +526,21 @@ int tw_tiles3d_read_glb_error(const char *path, double *error, char *err, size_t
         snprintf(err, err_size, "%s: %s", path, strerror(errno));
         return TW_ERR_IO;
     }
+    /* The header and the JSON chunk only: the binary chunk is not needed. */
     uint8_t head[20];
-    char *json = NULL;
+    uint8_t *start = NULL;
     int rc = TW_ERR_FORMAT;
-    if (fread(head, 1, sizeof(head), f) != sizeof(head) || memcmp(head, "glTF", 4) != 0 ||
-        memcmp(head + 16, "JSON", 4) != 0)
-        goto out;
-    const uint32_t n = get_u32(head + 12);
-    if (n > (64u << 20) || !(json = malloc((size_t)n + 1)) || fread(json, 1, n, f) != n)
-        goto out;
-    json[n] = '\0';
-    json_object *root = json_tokener_parse(json);
-    if (!root)
-        goto out;
-    json_object *asset = NULL, *extras = NULL, *e = NULL;
-    if (json_object_object_get_ex(root, "asset", &asset) &&
-        json_object_object_get_ex(asset, "extras", &extras) &&
-        json_object_object_get_ex(extras, "geometricError", &e))
-        *error = json_object_get_double(e);
-    json_object_put(root);
-    rc = TW_OK;
-out:
+    if (fread(head, 1, sizeof(head), f) == sizeof(head)) {
+        const uint32_t n = get_u32(head + 12);
+        if (n <= (64u << 20) && (start = malloc(20 + (size_t)n))) {
+            memcpy(start, head, 20);
+            if (fread(start + 20, 1, n, f) == n)
+                rc = tw_tiles3d_glb_error(start, 20 + (size_t)n, error);
+        }
+    }
     if (rc)
         snprintf(err, err_size, "%s: not a binary glTF file of tileworld bake", path);
-    free(json);
+    free(start);
     fclose(f);
     return rc;
 }

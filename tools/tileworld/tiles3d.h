@@ -69,6 +69,9 @@ int tw_tiles3d_write_glb(const char *path, const struct tw_tiles3d_scene *scene,
  * binary glTF file path: 0 when it has none. TW_ERR_IO or TW_ERR_FORMAT,
  * with the reason in err, for a file that cannot be read or is no GLB. */
 int tw_tiles3d_read_glb_error(const char *path, double *error, char *err, size_t err_size);
+/* The same from the file's bytes in memory (size of them at data):
+ * TW_ERR_FORMAT for no GLB. */
+int tw_tiles3d_glb_error(const void *data, size_t size, double *error);
 
 /* A quadtree subtree's availability: bits in Morton order, level after
  * level (level l of the subtree starts at bit (4^l - 1) / 3), as the
