@@ -113,14 +113,6 @@ static void put_u64(uint8_t *p, uint64_t v)
         p[k] = (uint8_t)(v >> (8 * k));
 }
 
-static json_object *int_array(const int64_t *v, int n)
-{
-    json_object *a = json_object_new_array();
-    for (int k = 0; k < n; k++)
-        json_object_array_add(a, json_object_new_int64(v[k]));
-    return a;
-}
-
 static json_object *double_array(const double *v, int n)
 {
     json_object *a = json_object_new_array();
@@ -129,18 +121,23 @@ static json_object *double_array(const double *v, int n)
     return a;
 }
 
-static json_object *buffer_view(uint64_t offset, uint64_t length, int target)
+/* A view of buffer 0; target and stride are left out when 0. */
+static json_object *buffer_view(uint64_t offset, uint64_t length, int stride, int target)
 {
     json_object *v = json_object_new_object();
     json_object_object_add(v, "buffer", json_object_new_int(0));
     json_object_object_add(v, "byteOffset", json_object_new_int64((int64_t)offset));
     json_object_object_add(v, "byteLength", json_object_new_int64((int64_t)length));
-    json_object_object_add(v, "target", json_object_new_int(target));
+    if (target)
+        json_object_object_add(v, "target", json_object_new_int(target));
+    if (stride)
+        json_object_object_add(v, "byteStride", json_object_new_int(stride));
     return v;
 }
 
-static json_object *accessor(int view, int component, uint32_t count, const char *type,
-                             bool normalized)
+/* An accessor; offset is left out when 0. */
+static json_object *accessor(int view, uint64_t offset, int component, uint32_t count,
+                             const char *type, bool normalized)
 {
     json_object *a = json_object_new_object();
     json_object_object_add(a, "bufferView", json_object_new_int(view));
@@ -149,6 +146,8 @@ static json_object *accessor(int view, int component, uint32_t count, const char
         json_object_object_add(a, "normalized", json_object_new_boolean(1));
     json_object_object_add(a, "count", json_object_new_int64(count));
     json_object_object_add(a, "type", json_object_new_string(type));
+    if (offset)
+        json_object_object_add(a, "byteOffset", json_object_new_int64((int64_t)offset));
     return a;
 }
 
@@ -173,23 +172,6 @@ static json_object *float_array(const float *v, int n)
     json_object *a = json_object_new_array();
     for (int k = 0; k < n; k++)
         json_object_array_add(a, float_number(v[k]));
-    return a;
-}
-
-static json_object *strided_view(uint64_t offset, uint64_t length, int stride, int target)
-{
-    json_object *v = buffer_view(offset, length, target);
-    if (stride)
-        json_object_object_add(v, "byteStride", json_object_new_int(stride));
-    return v;
-}
-
-static json_object *accessor_at(int view, uint64_t offset, int component, uint32_t count,
-                                const char *type, bool normalized)
-{
-    json_object *a = accessor(view, component, count, type, normalized);
-    if (offset)
-        json_object_object_add(a, "byteOffset", json_object_new_int64((int64_t)offset));
     return a;
 }
 
@@ -302,8 +284,9 @@ int tw_tiles3d_write_glb(const char *path, const struct tw_tiles3d_scene *sc,
     json_object_object_add(root, "asset", asset);
     json_object_object_add(root, "scene", json_object_new_int(0));
     json_object *scene = json_object_new_object();
-    const int64_t zero = 0;
-    json_object_object_add(scene, "nodes", int_array(&zero, 1));
+    json_object *scene_nodes = json_object_new_array();
+    json_object_array_add(scene_nodes, json_object_new_int(0));
+    json_object_object_add(scene, "nodes", scene_nodes);
     json_object *scenes = json_object_new_array();
     json_object_array_add(scenes, scene);
     json_object_object_add(root, "scenes", scenes);
@@ -336,11 +319,11 @@ int tw_tiles3d_write_glb(const char *path, const struct tw_tiles3d_scene *sc,
 
     /* Views: 0 the floats, 1 the indices, 2 the colours (if any). */
     json_object *views = json_object_new_array();
-    json_object_array_add(views, strided_view(0, floats, 12, GL_ARRAY_BUFFER));
-    json_object_array_add(views, strided_view(floats + colours, indices, 0,
+    json_object_array_add(views, buffer_view(0, floats, 12, GL_ARRAY_BUFFER));
+    json_object_array_add(views, buffer_view(floats + colours, indices, 0,
                                               GL_ELEMENT_ARRAY_BUFFER));
     if (colours)
-        json_object_array_add(views, strided_view(floats, colours, 4, GL_ARRAY_BUFFER));
+        json_object_array_add(views, buffer_view(floats, colours, 4, GL_ARRAY_BUFFER));
     json_object_object_add(root, "bufferViews", views);
     json_object *accessors = json_object_new_array();
     int32_t next = 0;
@@ -356,27 +339,27 @@ int tw_tiles3d_write_glb(const char *path, const struct tw_tiles3d_scene *sc,
                 lo[a] = x < lo[a] ? x : lo[a];
                 hi[a] = x > hi[a] ? x : hi[a];
             }
-        json_object *position = accessor_at(0, l->pos, GL_FLOAT, m->vertex_count, "VEC3", false);
+        json_object *position = accessor(0, l->pos, GL_FLOAT, m->vertex_count, "VEC3", false);
         json_object_object_add(position, "min", float_array(lo, 3));
         json_object_object_add(position, "max", float_array(hi, 3));
         json_object_array_add(accessors, position);
         l->a_pos = next++;
-        json_object_array_add(accessors, accessor_at(0, l->nrm, GL_FLOAT, m->vertex_count,
+        json_object_array_add(accessors, accessor(0, l->nrm, GL_FLOAT, m->vertex_count,
                                                      "VEC3", false));
         l->a_nrm = next++;
         l->a_exact = -1;
         if (!l->unit) {
-            json_object_array_add(accessors, accessor_at(0, l->exact, GL_FLOAT, m->vertex_count,
+            json_object_array_add(accessors, accessor(0, l->exact, GL_FLOAT, m->vertex_count,
                                                          "VEC3", false));
             l->a_exact = next++;
         }
         l->a_col = -1;
         if (m->colors) {
-            json_object_array_add(accessors, accessor_at(2, l->col, GL_UNSIGNED_BYTE,
+            json_object_array_add(accessors, accessor(2, l->col, GL_UNSIGNED_BYTE,
                                                          m->vertex_count, "VEC4", true));
             l->a_col = next++;
         }
-        json_object_array_add(accessors, accessor_at(1, l->idx, GL_UNSIGNED_INT,
+        json_object_array_add(accessors, accessor(1, l->idx, GL_UNSIGNED_INT,
                                                      3 * m->triangle_count, "SCALAR", false));
         l->a_idx = next++;
     }
@@ -583,13 +566,9 @@ static json_object *availability(const uint8_t *s, uint64_t bits, uint8_t *bin, 
     /* Bits past the end are zero (the caller's array may hold more). */
     if (bits % 8)
         bin[*used + bytes - 1] &= (uint8_t)((1u << (bits % 8)) - 1u);
-    json_object *v = json_object_new_object();
-    json_object_object_add(v, "buffer", json_object_new_int(0));
-    json_object_object_add(v, "byteOffset", json_object_new_int64((int64_t)*used));
-    json_object_object_add(v, "byteLength", json_object_new_int64((int64_t)bytes));
     json_object_object_add(a, "bitstream", json_object_new_int((int)json_object_array_length(views)));
     json_object_object_add(a, "availableCount", json_object_new_int64((int64_t)set));
-    json_object_array_add(views, v);
+    json_object_array_add(views, buffer_view(*used, bytes, 0, 0));
     *used += (bytes + 7) & ~(uint64_t)7;
     return a;
 }
