@@ -806,11 +806,16 @@ static json_object *doubles(const double *v, int n)
     return a;
 }
 
+/* The box that every cell's content lies in (cell-local). */
+static const struct tw_box *world_bound(const struct bake *b)
+{
+    return b->world.tileset ? &b->world.tileset->common_box : &b->world.source->bound;
+}
+
 /* The height range (glTF y) that every cell's content lies in. */
 static void height_range(const struct bake *b, double *lo, double *hi)
 {
-    const struct tw_box *box = b->world.tileset ? &b->world.tileset->common_box
-                                                : &b->world.source->bound;
+    const struct tw_box *box = world_bound(b);
     *lo = box->min[1];
     *hi = box->max[1];
     if (!(*hi > *lo)) {
@@ -882,8 +887,7 @@ static int write_tileset_json(struct bake *b, uint32_t subtree_levels, const dou
     json_object_object_add(root, "root", tile);
     /* What a tileworld client needs to map the tiles back to cells (the
      * library's 3D Tiles provider); generic clients ignore extras. */
-    const struct tw_box *bound = b->world.tileset ? &b->world.tileset->common_box
-                                                  : &b->world.source->bound;
+    const struct tw_box *bound = world_bound(b);
     json_object *tw = json_object_new_object();
     const double footprint[2] = {w, d};
     json_object_object_add(tw, "footprint", doubles(footprint, 2));
