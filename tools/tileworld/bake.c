@@ -249,6 +249,14 @@ static int tile_path(const struct bake *b, char *out, size_t size, const char *k
     return n > 0 && (size_t)n < size ? TW_OK : TW_ERR_IO;
 }
 
+/* The tiles of level `level` that overlap the rectangle: w x h of them. */
+static void level_size(const struct bake *b, uint32_t level, uint64_t *w, uint64_t *h)
+{
+    const uint32_t up = b->leaf - level;
+    *w = ((b->nx - 1) >> up) + 1;
+    *h = ((b->ny - 1) >> up) + 1;
+}
+
 static bool exists(const char *path)
 {
     struct stat st;
@@ -498,7 +506,8 @@ static int read_child(const char *path, struct tw_tileset *ts, uint32_t proto,
 static void bake_block(struct bake *b, uint64_t k)
 {
     const uint32_t level = b->block_level, up = b->leaf - level;
-    const uint64_t w = ((b->nx - 1) >> up) + 1;
+    uint64_t w, h;
+    level_size(b, level, &w, &h);
     const uint64_t x = k % w, y = k / w;
     const uint64_t side = 1ull << up;
     const double origin[3] = {(double)(x * side) * b->world.footprint[0], 0.0,
@@ -596,8 +605,9 @@ static int run_jobs(struct bake *b)
     if (cells) {
         mine = total > b->shard ? (total - b->shard + b->shards - 1) / b->shards : 0;
     } else {
-        const uint32_t up = b->leaf - b->block_level;
-        mine = (((b->nx - 1) >> up) + 1) * (((b->ny - 1) >> up) + 1);
+        uint64_t w, h;
+        level_size(b, b->block_level, &w, &h);
+        mine = w * h;
     }
     if (mine == 0)
         return 0;
@@ -945,9 +955,7 @@ static int finish(struct bake *b)
     uint64_t with_content = 0, subtrees = 0;
     char path[4096];
     for (uint32_t l = 0; l <= b->leaf; l++) {
-        const uint32_t up = b->leaf - l;
-        lv[l].w = ((b->nx - 1) >> up) + 1;
-        lv[l].h = ((b->ny - 1) >> up) + 1;
+        level_size(b, l, &lv[l].w, &lv[l].h);
         lv[l].tile = calloc(lv[l].w * lv[l].h, 1);
         lv[l].content = calloc(lv[l].w * lv[l].h, 1);
         if (!lv[l].tile || !lv[l].content) {
