@@ -84,7 +84,9 @@ static int older_first(const void *a, const void *b)
 }
 
 /* Counts the cache's files and, with evict, removes the oldest until the
- * rest fit the limit. Returns the bytes that stay. */
+ * rest fit 7/8 of the limit, so that the next scan comes only after an
+ * eighth of the cache has been written again, not at every write of a
+ * full cache. Returns the bytes that stay. */
 static uint64_t cache_scan(struct tw_http *h, bool evict)
 {
     DIR *d = opendir(h->cache_dir);
@@ -116,9 +118,10 @@ static uint64_t cache_scan(struct tw_http *h, bool evict)
         total += (uint64_t)st.st_size;
         count++;
     }
+    const uint64_t keep = h->settings.cache_max_bytes - h->settings.cache_max_bytes / 8;
     if (evict && total > h->settings.cache_max_bytes) {
         qsort(list, count, sizeof(*list), older_first);
-        for (size_t k = 0; k < count && total > h->settings.cache_max_bytes; k++)
+        for (size_t k = 0; k < count && total > keep; k++)
             if (unlinkat(dirfd(d), list[k].name, 0) == 0)
                 total -= list[k].bytes;
     }
@@ -203,14 +206,17 @@ static void cache_write(struct tw_http *h, const char *url, const char *etag, co
         unlink(tmp);
         return;
     }
-    bool ok = fprintf(f, "%s%s\n%s\n", cache_magic, url, etag) > 0 &&
-              fwrite(body, 1, size, f) == size;
+    const int header = fprintf(f, "%s%s\n%s\n", cache_magic, url, etag);
+    bool ok = header > 0 && fwrite(body, 1, size, f) == size;
     ok = fclose(f) == 0 && ok;
     if (!ok || rename(tmp, path) != 0) {
         unlink(tmp);
         return;
     }
-    const uint64_t total = atomic_fetch_add(&h->cache_bytes, size + strlen(url) + 64) + size;
+    /* A file replaced stays counted too: the count errs high, and the
+     * scan it brings on counts again. */
+    const uint64_t written = (uint64_t)header + size;
+    const uint64_t total = atomic_fetch_add(&h->cache_bytes, written) + written;
     if (total > h->settings.cache_max_bytes) {
         pthread_mutex_lock(&h->cache_lock);
         if (atomic_load(&h->cache_bytes) > h->settings.cache_max_bytes)
