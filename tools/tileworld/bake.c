@@ -284,6 +284,13 @@ static void fail_run(struct bake *b, const char *fmt, ...)
     pthread_mutex_unlock(&b->lock);
 }
 
+/* Whether instance in of ts is drawn as it is: not merged into another
+ * mesh, and of some triangles. */
+static bool draws(const struct tw_tileset *ts, const struct tw_instance *in)
+{
+    return in->merged_into == TW_INSTANCE_NONE && ts->meshes[in->mesh].triangle_count > 0;
+}
+
 /* Writes prototype p of ts (finished) as the glTF file path, placed at
  * translation: what the renderer draws of it, as it draws it. Every
  * instance that draws (merged_into TW_INSTANCE_NONE: the large instances
@@ -315,7 +322,7 @@ static int write_prototype(const struct tw_tileset *ts, uint32_t p, const char *
         material_map[k] = UINT32_MAX;
     for (uint32_t k = 0; k < ni; k++) {
         const struct tw_instance *in = &proto->instances[k];
-        if (in->merged_into == TW_INSTANCE_NONE && ts->meshes[in->mesh].triangle_count > 0) {
+        if (draws(ts, in)) {
             mesh_map[in->mesh] = 0;
             material_map[in->material] = 0;
         }
@@ -340,7 +347,7 @@ static int write_prototype(const struct tw_tileset *ts, uint32_t p, const char *
     }
     for (uint32_t k = 0; k < ni; k++) {
         const struct tw_instance *in = &proto->instances[k];
-        if (in->merged_into != TW_INSTANCE_NONE || ts->meshes[in->mesh].triangle_count == 0)
+        if (!draws(ts, in))
             continue;
         struct tw_tiles3d_node *n = &nodes[node_count++];
         n->mesh = mesh_map[in->mesh];
