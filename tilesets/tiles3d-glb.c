@@ -10,14 +10,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "tilesets/gltf-private.h"
 #include "tilesets/tilesets-private.h"
 #include "tileworld/tiles.h"
-
-enum {
-    GL_UNSIGNED_BYTE = 5121,
-    GL_UNSIGNED_INT = 5125,
-    GL_FLOAT = 5126,
-};
 
 struct reader {
     json_object *doc, *accessors, *views;
@@ -45,14 +40,6 @@ static int fail(struct reader *r, int err, const char *fmt, ...)
     vsnprintf(r->why, r->why_size, fmt, ap);
     va_end(ap);
     return err;
-}
-
-static uint64_t get_le(const uint8_t *b, int n)
-{
-    uint64_t v = 0;
-    for (int k = n - 1; k >= 0; k--)
-        v = v << 8 | b[k];
-    return v;
 }
 
 static json_object *get(json_object *o, const char *key)
@@ -98,7 +85,7 @@ static int read_accessor(struct reader *r, int64_t a, int comp, int n, bool norm
 {
     *out = NULL;
     static const char *const types[] = {NULL, "SCALAR", NULL, "VEC3", "VEC4"};
-    const size_t size = comp == GL_UNSIGNED_BYTE ? 1 : 4;
+    const size_t size = tw_gltf_component_size(comp);
     json_object *acc = at(r->accessors, a);
     json_object *type = get(acc, "type"), *norm = get(acc, "normalized");
     const int64_t view_index = get_index(acc, "bufferView"), c = get_index(acc, "count");
@@ -146,15 +133,15 @@ static int add_mesh(struct reader *r, struct tw_tileset *ts, json_object *prim, 
     uint32_t *idx = NULL;
     uint8_t *rgba = NULL;
     uint32_t nv = 0, nn = 0, nc = 0, ni = 0;
-    int rc = read_accessor(r, get_index(attributes, "POSITION"), GL_FLOAT, 3, false, &nv,
-                           (void **)&pos);
+    int rc = read_accessor(r, get_index(attributes, "POSITION"), TW_GLTF_COMP_FLOAT, 3, false,
+                           &nv, (void **)&pos);
     if (!rc)
-        rc = read_accessor(r, normal, GL_FLOAT, 3, false, &nn, (void **)&nrm);
+        rc = read_accessor(r, normal, TW_GLTF_COMP_FLOAT, 3, false, &nn, (void **)&nrm);
     if (!rc && colour >= 0)
-        rc = read_accessor(r, colour, GL_UNSIGNED_BYTE, 4, true, &nc, (void **)&rgba);
+        rc = read_accessor(r, colour, TW_GLTF_COMP_UNSIGNED_BYTE, 4, true, &nc, (void **)&rgba);
     if (!rc)
-        rc = read_accessor(r, get_index(prim, "indices"), GL_UNSIGNED_INT, 1, false, &ni,
-                           (void **)&idx);
+        rc = read_accessor(r, get_index(prim, "indices"), TW_GLTF_COMP_UNSIGNED_INT, 1, false,
+                           &ni, (void **)&idx);
     if (!rc && (nn != nv || (rgba && nc != nv) || ni % 3 != 0))
         rc = fail(r, TW_ERR_FORMAT, "a mesh's accessors do not agree in count");
     if (!rc) {
@@ -282,10 +269,10 @@ int tw_tiles3d_glb_read(const void *data, size_t size, struct tw_tileset *ts, ui
     struct reader r = {.why = why, .why_size = why_size};
     const uint8_t *d = data;
     why[0] = '\0';
-    if (size < 28 || memcmp(d, "glTF", 4) != 0 || get_le(d + 4, 4) != 2 ||
+    if (size < 28 || memcmp(d, "glTF", 4) != 0 || tw_gltf_le32(d + 4) != 2 ||
         memcmp(d + 16, "JSON", 4) != 0)
         return fail(&r, TW_ERR_FORMAT, "not a binary glTF 2.0 file");
-    const uint64_t json_len = get_le(d + 12, 4);
+    const uint64_t json_len = tw_gltf_le32(d + 12);
     if (json_len > size - 20 || json_len > INT32_MAX)
         return fail(&r, TW_ERR_FORMAT, "its JSON chunk is longer than the file");
     json_tokener *tok = json_tokener_new();
@@ -302,12 +289,12 @@ int tw_tiles3d_glb_read(const void *data, size_t size, struct tw_tileset *ts, ui
     int rc = TW_OK;
     const uint64_t bin_at = 20 + json_len;
     if (bin_at + 8 > size || memcmp(d + bin_at + 4, "BIN\0", 4) != 0 ||
-        get_le(d + bin_at, 4) > size - bin_at - 8) {
+        tw_gltf_le32(d + bin_at) > size - bin_at - 8) {
         rc = fail(&r, TW_ERR_FORMAT, "no binary chunk after the JSON");
         goto out;
     }
     r.bin = d + bin_at + 8;
-    r.bin_size = get_le(d + bin_at, 4);
+    r.bin_size = tw_gltf_le32(d + bin_at);
     r.accessors = get(r.doc, "accessors");
     r.views = get(r.doc, "bufferViews");
     if (!r.accessors || !json_object_is_type(r.accessors, json_type_array) || !r.views ||
