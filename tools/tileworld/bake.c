@@ -674,6 +674,30 @@ static int run_jobs(struct bake *b)
 
 /* ---- the bake's record ------------------------------------------------------- */
 
+static json_object *doubles(const double *v, int n)
+{
+    json_object *a = json_object_new_array();
+    for (int k = 0; k < n; k++)
+        json_object_array_add(a, json_object_new_double(v[k]));
+    return a;
+}
+
+/* The rectangle as [I0, J0, I1, J1]. */
+static json_object *cells_json(const struct bake *b)
+{
+    const int64_t corners[4] = {b->first.i, b->first.j, b->last.i, b->last.j};
+    json_object *a = json_object_new_array();
+    for (int k = 0; k < 4; k++)
+        json_object_array_add(a, json_object_new_int64(corners[k]));
+    return a;
+}
+
+static json_object *footprint_json(const struct bake *b)
+{
+    const double footprint[2] = {b->world.footprint[0], b->world.footprint[1]};
+    return doubles(footprint, 2);
+}
+
 /* DIR/bake.json: what decides the cells' files. A rerun, a shard or --finish
  * with other settings would mix two worlds in one folder: refused. --levels
  * is not among them: coarser levels may be added to a bake later. */
@@ -685,16 +709,8 @@ static int check_record(struct bake *b)
     json_object_object_add(rec, "seed",
                            json_object_new_uint64(b->cli.world.selection.seed));
     json_object_object_add(rec, "repeat", json_object_new_int64(b->cli.world.selection.repeat));
-    json_object *cells = json_object_new_array();
-    json_object_array_add(cells, json_object_new_int64(b->first.i));
-    json_object_array_add(cells, json_object_new_int64(b->first.j));
-    json_object_array_add(cells, json_object_new_int64(b->last.i));
-    json_object_array_add(cells, json_object_new_int64(b->last.j));
-    json_object_object_add(rec, "cells", cells);
-    json_object *fp = json_object_new_array();
-    json_object_array_add(fp, json_object_new_double(b->world.footprint[0]));
-    json_object_array_add(fp, json_object_new_double(b->world.footprint[1]));
-    json_object_object_add(rec, "footprint", fp);
+    json_object_object_add(rec, "cells", cells_json(b));
+    json_object_object_add(rec, "footprint", footprint_json(b));
     const char *text = json_object_to_json_string_ext(rec, JSON_C_TO_STRING_PRETTY |
                                                                JSON_C_TO_STRING_NOSLASHESCAPE);
     char path[4096], err[1200];
@@ -815,14 +831,6 @@ out:
     return rc;
 }
 
-static json_object *doubles(const double *v, int n)
-{
-    json_object *a = json_object_new_array();
-    for (int k = 0; k < n; k++)
-        json_object_array_add(a, json_object_new_double(v[k]));
-    return a;
-}
-
 /* The box that every cell's content lies in (cell-local). */
 static const struct tw_box *world_bound(const struct bake *b)
 {
@@ -906,13 +914,8 @@ static int write_tileset_json(struct bake *b, uint32_t subtree_levels, const dou
      * library's 3D Tiles provider); generic clients ignore extras. */
     const struct tw_box *bound = world_bound(b);
     json_object *tw = json_object_new_object();
-    const double footprint[2] = {w, d};
-    json_object_object_add(tw, "footprint", doubles(footprint, 2));
-    const int64_t cells[4] = {b->first.i, b->first.j, b->last.i, b->last.j};
-    json_object *cells_json = json_object_new_array();
-    for (int k = 0; k < 4; k++)
-        json_object_array_add(cells_json, json_object_new_int64(cells[k]));
-    json_object_object_add(tw, "cells", cells_json);
+    json_object_object_add(tw, "footprint", footprint_json(b));
+    json_object_object_add(tw, "cells", cells_json(b));
     const double bmin[3] = {bound->min[0], bound->min[1], bound->min[2]};
     const double bmax[3] = {bound->max[0], bound->max[1], bound->max[2]};
     json_object *bound_json = json_object_new_object();
