@@ -31,7 +31,7 @@ walk=(walk --frames 60 --view-distance 150 --deterministic --png-every 20 --size
     >"$tmp/file.out" 2>"$tmp/file.err"
 rc=$?
 [ "$rc" = 0 ] || fail "the file:// walk exits $rc: $(tail -3 "$tmp/file.err" "$tmp/file.out")"
-grep -q "0 failures" "$tmp/file.err" || fail "the file:// walk failed requests: $(grep '3D Tiles' "$tmp/file.err")"
+grep -q "3D Tiles: .*, 0 failures" "$tmp/file.err" || fail "the file:// walk failed requests: $(grep '3D Tiles' "$tmp/file.err")"
 "$tw" "${walk[@]}" --tileset city-gen --out "$tmp/gen" >"$tmp/gen.out" 2>"$tmp/gen.err" ||
     fail "the city-gen walk fails: $(tail -3 "$tmp/gen.err")"
 n=0
