@@ -477,7 +477,7 @@ int tw_objects_create(struct tw_world *w)
                       "cannot create the world: its object models are not a finished tileset");
         return TW_ERR_INVALID;
     }
-    if (w->t.hlod_levels > 1) {
+    if (tw_world_hlod_wanted(w) > 1) {
         tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot create the world: moving objects are not "
                       "there with hierarchical cells (a block's proxy would leave them out)");
         return TW_ERR_STATE;

@@ -66,13 +66,83 @@ static int proxy_generate(void *user, struct tw_cell block, struct tw_tileset *t
     return err;
 }
 
+_Static_assert(TW_PROVIDER_MAX_LEVELS + 1 <= TW_CULL_MAX_LEVELS,
+               "a provider's levels and its cells fit the hierarchy");
+
+/* A block of the provider's own coarser levels, on a worker. */
+static int provider_level_generate(void *user, struct tw_cell block, struct tw_tileset *ts)
+{
+    const struct tw_world_hlod_level *l = user;
+    const struct tw_tile_provider *p = &l->w->provider;
+    return p->generate_level(p->user, l->level, block, ts);
+}
+
+uint32_t tw_world_hlod_wanted(const struct tw_world *w)
+{
+    if (!w->lod_on)
+        return 0;
+    const struct tw_tile_provider *p = &w->provider;
+    const uint32_t own = p->generate_level ? p->levels : 0;
+    /* 0: the provider's own levels where it has them; else cells only. */
+    if (w->t.hlod_levels == 0)
+        return own ? own + 1 : 0;
+    return own && w->t.hlod_levels > own + 1 ? own + 1 : w->t.hlod_levels;
+}
+
+/* The world uses a provider's own coarser levels: each level's blocks are
+ * the provider's, with the provider's error. */
+static int start_provider_levels(struct tw_world *w, uint32_t count)
+{
+    struct tw_world_hlod *h = &w->hlod;
+    const struct tw_tile_provider *p = &w->provider;
+    h->count = count;
+    for (uint32_t k = 1; k < count; k++) {
+        struct tw_world_hlod_level *l = &h->levels[k];
+        l->w = w;
+        l->level = k;
+        l->error = p->level_error[k - 1];
+        struct tw_cull_grid g = {.footprint = {p->footprint[0], p->footprint[1]},
+                                 .common_box = p->bound};
+        snprintf(l->name, sizeof(l->name), "%.24s blocks of %ux%u", p->name ? p->name : "",
+                 1u << k, 1u << k);
+        l->provider = (struct tw_tile_provider){
+            .name = l->name,
+            .footprint = {(float)(1u << k) * p->footprint[0], (float)(1u << k) * p->footprint[1]},
+            .bound = tw_cull_node_box(&g, k),
+            .generate = provider_level_generate,
+            .user = l,
+            .max_cluster_triangles = p->max_cluster_triangles,
+        };
+        tw_log_printf(&w->s.log, TW_LOG_INFO,
+                      "hierarchical cells: the provider's blocks of %ux%u cells, error %.3g m",
+                      1u << k, 1u << k, (double)l->error);
+        const struct tw_stream_settings ss =
+            tw_world_stream_settings(w, &l->provider, HLOD_KEY_BASE + (k << HLOD_KEY_SHIFT));
+        const int err = tw_stream_create(&ss, &l->stream);
+        if (err)
+            return err;
+    }
+    return TW_OK;
+}
+
 int tw_world_hlod_start(struct tw_world *w)
 {
     struct tw_world_hlod *h = &w->hlod;
-    const uint32_t count = w->t.hlod_levels;
-    if (count < 2 || !w->lod_on)
+    const uint32_t count = tw_world_hlod_wanted(w);
+    if (count < 2)
         return TW_OK;
     const struct tw_tile_provider *p = &w->provider;
+    if (p->generate_level && p->levels > 0) {
+        for (uint32_t k = 1; k < count; k++)
+            if (!(p->level_error[k - 1] >= 0.0f) || !isfinite(p->level_error[k - 1])) {
+                tw_log_printf(&w->s.log, TW_LOG_ERROR,
+                              "cannot create the world: %s: level %u's error is %g metres",
+                              p->name ? p->name : "the provider", k,
+                              (double)p->level_error[k - 1]);
+                return TW_ERR_INVALID;
+            }
+        return start_provider_levels(w, count);
+    }
     if (count > TW_CULL_MAX_LEVELS) {
         tw_log_printf(&w->s.log, TW_LOG_ERROR, "hierarchical cells: %u levels, at most %u",
                       count, TW_CULL_MAX_LEVELS);
@@ -83,7 +153,8 @@ int tw_world_hlod_start(struct tw_world *w)
      * is called on the render thread only. */
     if (w->s.provider || w->s.selection.fn) {
         tw_log_printf(&w->s.log, TW_LOG_ERROR,
-                      "hierarchical cells need a tileset selected by the library (%s %s)",
+                      "hierarchical cells need a tileset selected by the library or a provider "
+                      "with coarser levels of its own (%s %s)",
                       w->s.provider ? "provider" : "the selection of",
                       w->s.provider ? (p->name ? p->name : "(unnamed)")
                                     : "the tileset is a host's callback");

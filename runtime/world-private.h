@@ -240,6 +240,10 @@ struct tw_stream_settings tw_world_stream_settings(struct tw_world *w,
 /* world-hlod.c */
 /* Makes the streams of the blocks' proxies when the tuning asks for levels
  * (and levels of detail are on). Between enter and leave. */
+/* The levels of hierarchical cells the world asks for, cells included
+ * (< 2: none): the tuning's, or the provider's own coarser levels where the
+ * tuning says nothing; none without levels of detail. */
+uint32_t tw_world_hlod_wanted(const struct tw_world *w);
 int tw_world_hlod_start(struct tw_world *w);
 /* Stops them; returns how many of their threads were left behind. */
 uint32_t tw_world_hlod_stop(struct tw_world *w);

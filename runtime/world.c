@@ -361,7 +361,7 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
     int err = tw_world_resolve_provider(w);
     /* Every frame's cost is bounded: tile-query propagation may visit every
      * cell within reach, so the reach must stay within the per-frame limit. */
-    if (!err && !(w->lod_on && w->t.hlod_levels > 1)) {
+    if (!err && tw_world_hlod_wanted(w) < 2) {
         const double reach = tw_tiles_cells_in_reach(&w->provider.bound, w->provider.footprint[0],
                                                      w->provider.footprint[1], w->s.view_distance);
         if (!(reach <= TW_TILES_MAX_CELLS_IN_VIEW)) {

@@ -46,6 +46,14 @@ struct tw_tiles3d_provider {
     uint64_t nx, ny;                /* its cells along i and j */
     uint8_t *has_content;           /* nx * ny, row-major along i */
     uint64_t cells_with_content;
+    /* The bake's coarser levels (extras.tileworld.levels) that line up with
+     * the world's blocks: level k's tile (x, y) is block (I0 / 2^k + x,
+     * J0 / 2^k + y), there when one of its cells has content. */
+    uint32_t levels;                /* offered; <= levels_baked */
+    uint32_t levels_baked;
+    float level_error[TW_PROVIDER_MAX_LEVELS];
+    uint8_t *block_content[TW_PROVIDER_MAX_LEVELS];   /* [k - 1]: row-major, ceil(n / 2^k) */
+    _Atomic uint64_t cells_read, blocks_read;
 };
 
 void tw_tiles3d_default_settings(struct tw_tiles3d_settings *s)
@@ -96,6 +104,8 @@ static void release(struct tw_tiles3d_provider *p)
     free(p->content_template);
     free(p->subtree_template);
     free(p->has_content);
+    for (uint32_t k = 0; k < TW_PROVIDER_MAX_LEVELS; k++)
+        free(p->block_content[k]);
     free(p);
 }
 
@@ -434,6 +444,33 @@ static int parse_tileset(struct tw_tiles3d_provider *p, const char *text, size_t
         json_object_put(doc);
         return TW_ERR_NOMEM;
     }
+    json_object *levels_list = NULL;
+    if (json_object_object_get_ex(tw, "levels", &levels_list)) {
+        const size_t n = json_object_is_type(levels_list, json_type_array)
+                             ? json_object_array_length(levels_list)
+                             : SIZE_MAX;
+        if (n > TW_PROVIDER_MAX_LEVELS || n > p->leaf) {
+            why = "extras.tileworld.levels is not a list of at most 11 levels above the cells";
+            goto bad;
+        }
+        for (size_t k = 0; k < n; k++) {
+            json_object *lv = json_object_array_get_idx(levels_list, k), *c = NULL, *e = NULL;
+            double err = -1.0;
+            if (!json_object_is_type(lv, json_type_object) ||
+                !json_object_object_get_ex(lv, "cells", &c) ||
+                json_object_get_int64(c) != (int64_t)1 << (k + 1) ||
+                !json_object_object_get_ex(lv, "geometricError", &e) ||
+                !(json_object_is_type(e, json_type_double) ||
+                  json_object_is_type(e, json_type_int)) ||
+                !((err = json_object_get_double(e)) >= 0.0 && err <= 1e9)) {
+                why = "extras.tileworld.levels[k] is not {cells: 2^(k+1), geometricError: "
+                      "metres}";
+                goto bad;
+            }
+            p->level_error[k] = (float)err;
+        }
+        p->levels_baked = (uint32_t)n;
+    }
     struct tw_tile_provider *tp = &p->provider;
     tp->footprint[0] = (float)fp[0];
     tp->footprint[1] = (float)fp[1];
@@ -537,12 +574,11 @@ static int drop_root_translation(const uint8_t *data, size_t size, uint8_t **out
     return TW_OK;
 }
 
-static int tiles3d_generate(void *user, struct tw_cell cell, struct tw_tileset *ts)
+/* Fetches the quadtree's tile (level, x, y), the cells' level or a coarser
+ * one, and reads it into ts as its prototype name. */
+static int fetch_tile(struct tw_tiles3d_provider *p, uint32_t level, uint64_t x, uint64_t y,
+                      const char *name, struct tw_tileset *ts)
 {
-    struct tw_tiles3d_provider *p = user;
-    atomic_fetch_add(&p->refs, 1);
-    const uint64_t x = (uint64_t)cell.i - (uint64_t)p->first.i;
-    const uint64_t y = (uint64_t)cell.j - (uint64_t)p->first.j;
     char *url = NULL;
     void *data = NULL;
     uint8_t *glb = NULL;
@@ -552,11 +588,7 @@ static int tiles3d_generate(void *user, struct tw_cell cell, struct tw_tileset *
     long status = 0;
     bool missing = false;
     int rc;
-    if (x >= p->nx || y >= p->ny || !p->has_content[y * p->nx + x]) {
-        rc = TW_GENERATE_EMPTY;
-        goto out;
-    }
-    url = expand(p, p->content_template, p->leaf, x, y);
+    url = expand(p, p->content_template, level, x, y);
     if (!url) {
         rc = tw_tileset_fail(ts, TW_ERR_NOMEM, "out of memory");
         goto out;
@@ -569,8 +601,6 @@ static int tiles3d_generate(void *user, struct tw_cell cell, struct tw_tileset *
                              missing ? " (the subtree says the tile is there)" : "");
         goto out;
     }
-    char name[48];
-    snprintf(name, sizeof(name), "%lld,%lld", (long long)cell.i, (long long)cell.j);
     const int proto = tw_tileset_add_prototype(ts, name, 1.0f);
     if (proto < 0) {
         rc = tw_tileset_fail(ts, proto, "%s: cannot make the tile: %s", shown,
@@ -613,9 +643,88 @@ out:
     free(glb);
     free(data);
     free(url);
+    return rc;
+}
+
+static int tiles3d_generate(void *user, struct tw_cell cell, struct tw_tileset *ts)
+{
+    struct tw_tiles3d_provider *p = user;
+    atomic_fetch_add(&p->refs, 1);
+    const uint64_t x = (uint64_t)cell.i - (uint64_t)p->first.i;
+    const uint64_t y = (uint64_t)cell.j - (uint64_t)p->first.j;
+    int rc = TW_GENERATE_EMPTY;
+    if (x < p->nx && y < p->ny && p->has_content[y * p->nx + x]) {
+        char name[48];
+        snprintf(name, sizeof(name), "%lld,%lld", (long long)cell.i, (long long)cell.j);
+        rc = fetch_tile(p, p->leaf, x, y, name, ts);
+        if (rc == TW_OK)
+            atomic_fetch_add(&p->cells_read, 1);
+    }
     release(p);
     return rc;
 }
+
+/* The tiles of level k's blocks along i and j. */
+static void level_size(const struct tw_tiles3d_provider *p, uint32_t k, uint64_t *w, uint64_t *h)
+{
+    *w = (p->nx + (1ull << k) - 1) >> k;
+    *h = (p->ny + (1ull << k) - 1) >> k;
+}
+
+static int tiles3d_generate_level(void *user, uint32_t k, struct tw_cell block,
+                                  struct tw_tileset *ts)
+{
+    struct tw_tiles3d_provider *p = user;
+    if (k < 1 || k > p->levels)
+        return tw_tileset_fail(ts, TW_ERR_INVALID, "level %u: the tileset has levels 1 to %u",
+                               k, p->levels);
+    atomic_fetch_add(&p->refs, 1);
+    /* The corner lines up with the level's blocks (levels_offered). */
+    const uint64_t x = (uint64_t)block.i - (uint64_t)(p->first.i >> k);
+    const uint64_t y = (uint64_t)block.j - (uint64_t)(p->first.j >> k);
+    uint64_t w, h;
+    level_size(p, k, &w, &h);
+    int rc = TW_GENERATE_EMPTY;
+    if (x < w && y < h && p->block_content[k - 1][y * w + x]) {
+        char name[64];
+        snprintf(name, sizeof(name), "block %ux%u %lld,%lld", 1u << k, 1u << k,
+                 (long long)block.i, (long long)block.j);
+        rc = fetch_tile(p, p->leaf - k, x, y, name, ts);
+        if (rc == TW_OK)
+            atomic_fetch_add(&p->blocks_read, 1);
+    }
+    release(p);
+    return rc;
+}
+
+/* The baked levels that the world's blocks can use: level k's blocks start
+ * at multiples of 2^k cells and the bake's at its corner, so the corner
+ * must be one. A block is there when one of its cells is: the bake writes
+ * a block wherever a child has triangles. */
+static int levels_offered(struct tw_tiles3d_provider *p)
+{
+    uint32_t n = 0;
+    while (n < p->levels_baked && ((uint64_t)p->first.i & ((2ull << n) - 1)) == 0 &&
+           ((uint64_t)p->first.j & ((2ull << n) - 1)) == 0)
+        n++;
+    for (uint32_t k = 1; k <= n; k++) {
+        uint64_t w, h, cw, ch;
+        level_size(p, k, &w, &h);
+        level_size(p, k - 1, &cw, &ch);
+        const uint8_t *below = k == 1 ? p->has_content : p->block_content[k - 2];
+        uint8_t *q = calloc(w * h, 1);
+        if (!q)
+            return TW_ERR_NOMEM;
+        for (uint64_t y = 0; y < ch; y++)
+            for (uint64_t x = 0; x < cw; x++)
+                if (below[y * cw + x])
+                    q[(y >> 1) * w + (x >> 1)] = 1;
+        p->block_content[k - 1] = q;
+    }
+    p->levels = n;
+    return TW_OK;
+}
+
 
 /* ---- the public calls -------------------------------------------------------------------- */
 
@@ -674,6 +783,10 @@ int tw_tiles3d_provider_create(const char *url, const struct tw_tiles3d_settings
     uint64_t subtrees = 0;
     if ((rc = load_subtree(p, 0, 0, 0, &subtrees)))
         goto fail;
+    if ((rc = levels_offered(p))) {
+        tw_log_printf(log, TW_LOG_ERROR, "3D Tiles: out of memory");
+        goto fail;
+    }
     struct tw_tile_provider *tp = &p->provider;
     tp->name = p->url;
     tp->shared = NULL;
@@ -681,6 +794,17 @@ int tw_tiles3d_provider_create(const char *url, const struct tw_tiles3d_settings
     tp->generate = tiles3d_generate;
     tp->user = p;
     tp->max_cluster_triangles = p->settings.max_cluster_triangles;
+    tp->levels = p->levels;
+    tp->generate_level = p->levels ? tiles3d_generate_level : NULL;
+    for (uint32_t k = 0; k < p->levels; k++)
+        tp->level_error[k] = p->level_error[k];
+    if (p->levels < p->levels_baked)
+        tw_log_printf(log, TW_LOG_WARN,
+                      "3D Tiles: %s: %u of its %u coarser levels are used: its corner %lld,%lld "
+                      "is not a multiple of %u cells, where the world's blocks of level %u start",
+                      shown, p->levels, p->levels_baked, (long long)p->first.i,
+                      (long long)p->first.j, 2u << p->levels, p->levels + 1);
+
     tw_log_printf(log, TW_LOG_INFO,
                   "3D Tiles: %s: cells %lld,%lld to %lld,%lld, %llu with content, %u levels, "
                   "%llu subtree files", shown, (long long)p->first.i, (long long)p->first.j,
@@ -707,6 +831,10 @@ void tw_tiles3d_provider_stats(const struct tw_tiles3d_provider *p, struct tw_ti
     memset(out, 0, sizeof(*out));
     if (p && p->http)
         tw_http_stats(p->http, out);
+    if (p) {
+        out->cells = atomic_load(&p->cells_read);
+        out->blocks = atomic_load(&p->blocks_read);
+    }
 }
 
 void tw_tiles3d_provider_destroy(struct tw_tiles3d_provider *p)

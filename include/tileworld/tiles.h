@@ -298,6 +298,10 @@ struct tw_drawn_cluster {
  * on a worker; no error, no refusal. */
 #define TW_GENERATE_EMPTY 1
 
+/* The most coarser levels a tw_tile_provider may have of its own (blocks
+ * of up to 2^11 x 2^11 cells). */
+#define TW_PROVIDER_MAX_LEVELS 11u
+
 /* A world generator: what each cell holds, made on demand. A fixed tileset
  * with a selection is the special case in which every cell's content is
  * shared (one of the tileset's prototypes).
@@ -338,6 +342,22 @@ struct tw_tile_provider {
     int (*generate)(void *user, struct tw_cell cell, struct tw_tileset *ts);
     void *user;                         /* passed to content() and generate() */
     uint32_t max_cluster_triangles;     /* for generated tiles; 0: 2048 */
+    /* Coarser levels of the provider's own, drawn far away (a baked
+     * tileset's; README "Hierarchical cells"); 0: none. Level k, 1 <= k <=
+     * levels <= TW_PROVIDER_MAX_LEVELS, holds blocks of 2^k x 2^k cells:
+     * block (bi, bj) is the cells (bi 2^k + x, bj 2^k + z), 0 <= x, z <
+     * 2^k, its tile block-local (the corner of cell (bi 2^k, bj 2^k) at the
+     * origin, footprint 2^k W x 2^k D) and inside the common box stretched
+     * over the block. level_error[k - 1] is the level's geometric error in
+     * metres (how far a block's surfaces may lie from its cells'): a block
+     * is drawn instead of its cells where that error projects to at most
+     * the world's max_screen_error pixels, with levels of detail on.
+     * generate_level() writes a block's tile as generate() writes a cell's:
+     * the same threads, rules and return values. */
+    uint32_t levels;
+    float level_error[TW_PROVIDER_MAX_LEVELS];
+    int (*generate_level)(void *user, uint32_t level, struct tw_cell block,
+                          struct tw_tileset *ts);
 };
 
 /* For a provider's generate() that cannot make its tile: records why in

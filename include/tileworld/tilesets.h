@@ -310,6 +310,8 @@ struct tw_tiles3d_stats {
     uint64_t stale;         /* bodies served from the cache because the server could not
                                answer (a 5xx, a timeout, a lost connection, after the
                                retries), as HTTP's stale-if-error; not in failures */
+    uint64_t cells;         /* cells' tiles read (generate()) */
+    uint64_t blocks;        /* tiles of coarser levels read (generate_level()) */
 };
 
 /* A tile provider that streams a tileset written by `tileworld bake` (3D
@@ -324,7 +326,12 @@ struct tw_tiles3d_provider;
  * others (a table lookup); generate() GETs the cell's
  * content/L/X/Y.glb on the calling worker thread and imports it (its
  * geometry is tile-local: the node's translation, the cell's offset in
- * the rectangle, is dropped). How many fetches run at once is how many
+ * the rectangle, is dropped). A bake with coarser levels (`bake --levels
+ * N`, extras.tileworld.levels) gives the provider levels of its own
+ * (tw_tile_provider.levels, generate_level()): the bake's levels whose
+ * blocks line up with the world's (its corner a multiple of 2^k cells;
+ * a warning names the levels left out), which a world with levels of
+ * detail draws far away. How many fetches run at once is how many
  * workers the world has (tw_world_settings.workers): the provider adds no
  * threads. A tile that cannot be had (a 404 of an available tile, a
  * 4xx, retries spent, a malformed glb) is refused with its cause

@@ -922,6 +922,21 @@ static int write_tileset_json(struct bake *b, uint32_t subtree_levels, const dou
     json_object_object_add(bound_json, "min", doubles(bmin, 3));
     json_object_object_add(bound_json, "max", doubles(bmax, 3));
     json_object_object_add(tw, "bound", bound_json);
+    /* The coarser levels with content, for a tileworld client's far cells:
+     * blocks of 2^k x 2^k cells from the rectangle's corner, each level's
+     * largest error (3D Tiles' own per-level errors are the implicit
+     * halving's, larger). */
+    if (b->levels > 1) {
+        json_object *levels = json_object_new_array();
+        for (uint32_t k = 1; k < b->levels && k <= b->leaf; k++) {
+            json_object *lv = json_object_new_object();
+            json_object_object_add(lv, "cells", json_object_new_int64((int64_t)1 << k));
+            json_object_object_add(lv, "geometricError",
+                                   json_object_new_double(level_error[b->leaf - k]));
+            json_object_array_add(levels, lv);
+        }
+        json_object_object_add(tw, "levels", levels);
+    }
     json_object_object_add(tw, "tileset", json_object_new_string(b->cli.tileset));
     json_object_object_add(tw, "seed", json_object_new_uint64(b->cli.world.selection.seed));
     json_object *extras = json_object_new_object();

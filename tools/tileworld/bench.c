@@ -324,6 +324,9 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
         progress(&line, run, f + 1, run->path->count,
                  total_ms / ((f + 1) * (double)run->method_count));
     }
+    report.about.has_totals = tw_world_cache_totals(world, &report.about.totals) == TW_OK;
+    report.about.has_tiles3d = run->tiles3d != NULL;
+    tw_tiles3d_provider_stats(run->tiles3d, &report.about.tiles3d);
     rc = tw_report_close(&report, true, run->figures, err, err_size);
     run->conservative_missed_pixels = 0;
     for (uint32_t m = 0; m < run->method_count && run->about.verified; m++)

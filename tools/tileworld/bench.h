@@ -47,6 +47,9 @@ struct tw_run {
      * the view distance, are the run's) drive from before the first frame,
      * each moved to where it is at frame / 30 s before every frame. */
     uint32_t cars;                      /* 0..TW_RUN_MAX_CARS */
+    /* The 3D Tiles provider behind the world (borrowed; NULL: none): its
+     * counters go into summary.json. */
+    const struct tw_tiles3d_provider *tiles3d;
     const struct tw_tileset *car_models;
     struct tw_traffic_settings traffic;
     uint32_t scenario_frames;           /* tw_run_scenarios: frames of each scenario (0: its own) */

@@ -944,6 +944,30 @@ int tw_report_close(struct tw_report *r, bool markdown,
     json_object_object_add(root, "cars", json_object_new_int64(about->cars));
     if (about->mutate_query_shrink > 0.0f)
         json_object_object_add(root, "mutate_query_shrink", number_g(about->mutate_query_shrink));
+    if (about->has_totals) {
+        const struct tw_cache_totals *t = &about->totals;
+        json_object *o = json_object_new_object();
+        json_object_object_add(o, "loads_requested", json_object_new_int64((int64_t)t->loads_requested));
+        json_object_object_add(o, "loads_done", json_object_new_int64((int64_t)t->loads_done));
+        json_object_object_add(o, "evictions", json_object_new_int64((int64_t)t->evictions));
+        json_object_object_add(o, "reloads", json_object_new_int64((int64_t)t->reloads));
+        json_object_object_add(o, "refused", json_object_new_int64((int64_t)t->refused));
+        json_object_object_add(root, "tile_cache", o);
+    }
+    if (about->has_tiles3d) {
+        const struct tw_tiles3d_stats *h = &about->tiles3d;
+        json_object *o = json_object_new_object();
+        json_object_object_add(o, "cells", json_object_new_int64((int64_t)h->cells));
+        json_object_object_add(o, "blocks", json_object_new_int64((int64_t)h->blocks));
+        json_object_object_add(o, "requests", json_object_new_int64((int64_t)h->requests));
+        json_object_object_add(o, "bytes", json_object_new_int64((int64_t)h->bytes));
+        json_object_object_add(o, "cache_hits", json_object_new_int64((int64_t)h->cache_hits));
+        json_object_object_add(o, "not_modified", json_object_new_int64((int64_t)h->not_modified));
+        json_object_object_add(o, "retries", json_object_new_int64((int64_t)h->retries));
+        json_object_object_add(o, "failures", json_object_new_int64((int64_t)h->failures));
+        json_object_object_add(o, "stale", json_object_new_int64((int64_t)h->stale));
+        json_object_object_add(root, "tiles3d", o);
+    }
     json_object *ran = json_object_new_object();
     json_object_object_add(ran, "context", json_object_new_string(
                                tw_report_escape(known(about->context), false, text, sizeof(text))));

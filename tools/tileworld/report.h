@@ -12,6 +12,7 @@
 #include "runtime/runtime-internal.h"
 #include "tiles/tiles-internal.h"
 #include "tileworld/runtime.h"
+#include "tileworld/tilesets.h"
 #include "tools/outfile.h"
 
 /* The folder of the chart data, inside a run's folder. */
@@ -145,6 +146,13 @@ struct tw_report_about {
     /* --allow-missed: a conservative method's missed pixels are reported,
      * not a failure. */
     bool allow_missed;
+    /* Set before tw_report_close(): what the world's tile cache did over the
+     * run (generated tiles: loads, evictions, refusals), and what a 3D
+     * Tiles provider fetched (has_tiles3d). */
+    bool has_totals;
+    struct tw_cache_totals totals;
+    bool has_tiles3d;
+    struct tw_tiles3d_stats tiles3d;
 };
 
 struct tw_report {

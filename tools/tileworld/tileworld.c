@@ -504,6 +504,7 @@ static int run(const struct options *o, bool bench)
         }
     }
     r.cars = o->cars;
+    r.tiles3d = shown.tiles3d;
     r.car_models = car_models;
     r.tileset = shown.tileset;
     r.provider = shown.source;
@@ -600,8 +601,10 @@ static int run(const struct options *o, bool bench)
     if (shown.tiles3d && !o->cli.quiet) {
         struct tw_tiles3d_stats hs;
         tw_tiles3d_provider_stats(shown.tiles3d, &hs);
-        tw_cli_message(program, "3D Tiles: %llu requests, %llu bytes, %llu cache hits, %llu "
+        tw_cli_message(program, "3D Tiles: %llu cells and %llu blocks of coarser levels read; "
+                       "%llu requests, %llu bytes, %llu cache hits, %llu "
                        "not modified (304), %llu retries, %llu failures, %llu stale copies",
+                       (unsigned long long)hs.cells, (unsigned long long)hs.blocks,
                        (unsigned long long)hs.requests, (unsigned long long)hs.bytes,
                        (unsigned long long)hs.cache_hits, (unsigned long long)hs.not_modified,
                        (unsigned long long)hs.retries, (unsigned long long)hs.failures,
