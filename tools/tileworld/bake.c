@@ -567,13 +567,24 @@ static void bake_block(struct bake *b, uint64_t k)
         fail_run(b, "%s: cannot simplify the block: %s", path, tw_error_to_str(rc));
         goto out;
     }
-    /* The first level of at most a quarter of the input, else the coarsest. */
-    uint32_t pick = 0;
-    for (uint32_t l = 1; l <= lods.count[0]; l++) {
-        pick = l;
-        if (4 * lods.levels->prototypes[lods.first[0] + l - 1].triangle_count <= input)
-            break;
+    /* Each level's blocks may add the error its children have (so the
+     * errors double from level to level, as the blocks' sides do): the
+     * coarsest simplification within it. Above the cells, whose error is
+     * 0, the error of the first simplification of at most a quarter of the
+     * input (else of the coarsest). */
+    const float *err_of = lods.error + lods.first[0];
+    double allowed = child_error;
+    if (up == 1) {
+        allowed = 0.0;
+        for (uint32_t l = 1; l <= lods.count[0]; l++) {
+            allowed = err_of[l - 1];
+            if (4 * lods.levels->prototypes[lods.first[0] + l - 1].triangle_count <= input)
+                break;
+        }
     }
+    uint32_t pick = 0;
+    while (pick < lods.count[0] && err_of[pick] <= allowed)
+        pick++;
     const double error = child_error + (pick ? lods.error[lods.first[0] + pick - 1] : 0.0);
     rc = write_prototype(pick ? lods.levels : ts, pick ? lods.first[0] + pick - 1 : 0, path,
                          origin, error > 0.0 ? error : 1e-6, err, sizeof(err));
