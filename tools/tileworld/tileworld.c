@@ -684,7 +684,7 @@ static int print_calibration(const struct options *o, const struct tw_cli_world 
 }
 
 /* info on a provider: its name, footprint, bound and shared tileset. */
-static int info_provider(const struct tw_cli_world *shown)
+static int info_provider(const struct options *o, const struct tw_cli_world *shown)
 {
     const struct tw_tile_provider *p = shown->source;
     char name[1024];
@@ -702,6 +702,26 @@ static int info_provider(const struct tw_cli_world *shown)
                (unsigned long long)tw_tileset_geometry_bytes(p->shared));
     else
         printf("shared tileset: none (no two cells share content)\n");
+    if (p->levels > 0 && p->generate_level) {
+        /* Where a world would draw each level's blocks (README
+         * "Hierarchical cells"): from E_k f / PX on, at the run's size. */
+        struct tw_world_settings ws = o->cli.world;
+        tw_world_default_settings(&ws);
+        const double focal =
+            0.5 * ws.height / tan(0.5 * ws.fov_y * 3.14159265358979323846 / 180.0);
+        printf("coarser levels of its own (used with --max-screen-error %g at %ux%u%s):\n",
+               (double)ws.max_screen_error, ws.width, ws.height,
+               o->cli.tuning.hlod_levels == 1 ? "; not with --hlod-levels 1" : "");
+        for (uint32_t k = 1; k <= p->levels; k++) {
+            const double e = p->level_error[k - 1];
+            if (ws.max_screen_error > 0.0f)
+                printf("  blocks of %ux%u cells: error %.3g m, drawn from %.0f m on\n", 1u << k,
+                       1u << k, e, e * focal / ws.max_screen_error);
+            else
+                printf("  blocks of %ux%u cells: error %.3g m, not drawn at full detail\n",
+                       1u << k, 1u << k, e);
+        }
+    }
     return 0;
 }
 
@@ -724,7 +744,7 @@ static int info(const struct options *o)
     struct tw_cli_world shown;
     tw_cli_world_load(&o->cli, o->cluster_triangles, &log, &shown);
     if (shown.provider || shown.tiles3d) {
-        int rc = info_provider(&shown);
+        int rc = info_provider(o, &shown);
         if (!rc && o->calibrate)
             rc = print_calibration(o, &shown, &log);
         else if (!rc)
