@@ -86,7 +86,7 @@ struct tw_world_hlod_level {
     const struct tw_world *w;
     uint32_t level;
     float error;                    /* E_k: the error a proxy of this level may have */
-    char name[48];
+    char name[64];
     struct tw_tile_provider provider;
     struct tw_stream *stream;
 };
