@@ -19,11 +19,19 @@ bool tw_outfile_tmp_name(const char *path, char *out, size_t size)
     return n > 0 && (size_t)n < size;
 }
 
-int tw_outfile_open(struct tw_outfile *o, const char *path, char *err, size_t err_size)
+static int open_tmp(struct tw_outfile *o, const char *path, bool unique, char *err,
+                    size_t err_size)
 {
     memset(o, 0, sizeof(*o));
     const int n = snprintf(o->path, sizeof(o->path), "%s", path);
-    if (n < 0 || (size_t)n >= sizeof(o->path) || !tw_outfile_tmp_name(path, o->tmp, sizeof(o->tmp))) {
+    bool fits = n >= 0 && (size_t)n < sizeof(o->path) &&
+                tw_outfile_tmp_name(path, o->tmp, sizeof(o->tmp));
+    if (fits && unique) {
+        const size_t used = strlen(o->tmp);
+        const int m = snprintf(o->tmp + used, sizeof(o->tmp) - used, ".%ld", (long)getpid());
+        fits = m > 0 && (size_t)m < sizeof(o->tmp) - used;
+    }
+    if (!fits) {
         snprintf(err, err_size, "%s: cannot write: %s", path, strerror(ENAMETOOLONG));
         return TW_ERR_IO;
     }
@@ -44,6 +52,16 @@ int tw_outfile_open(struct tw_outfile *o, const char *path, char *err, size_t er
         return TW_ERR_IO;
     }
     return TW_OK;
+}
+
+int tw_outfile_open(struct tw_outfile *o, const char *path, char *err, size_t err_size)
+{
+    return open_tmp(o, path, false, err, err_size);
+}
+
+int tw_outfile_open_unique(struct tw_outfile *o, const char *path, char *err, size_t err_size)
+{
+    return open_tmp(o, path, true, err, err_size);
 }
 
 static bool failed(struct tw_outfile *o)

@@ -34,6 +34,12 @@ bool tw_outfile_tmp_name(const char *path, char *out, size_t size);
  * writes "PATH: cannot write: reason" into err and returns TW_ERR_IO. */
 int tw_outfile_open(struct tw_outfile *o, const char *path, char *err, size_t err_size);
 
+/* The same under a temporary name of this process's own, DIR/.NAME.tmp.PID:
+ * for files that several processes may write into one folder at once (a
+ * bake's shards), where one's temporary must not be another's. What a
+ * killed process leaves is not replaced. */
+int tw_outfile_open_unique(struct tw_outfile *o, const char *path, char *err, size_t err_size);
+
 /* Formatted and raw writes. false once a write has failed (then nothing
  * more is written; tw_outfile_commit reports it). */
 bool tw_outfile_printf(struct tw_outfile *o, const char *fmt, ...)

@@ -2,7 +2,6 @@
 #include "tools/tileworld/tiles3d.h"
 
 #include <errno.h>
-#include <fcntl.h>
 #include <json-c/json.h>
 #include <math.h>
 #include <stdio.h>
@@ -12,6 +11,7 @@
 #include <unistd.h>
 
 #include "tileworld/tiles.h"
+#include "tools/outfile.h"
 
 /* glTF's numbers for what the writer uses. */
 enum {
@@ -53,46 +53,11 @@ int tw_tiles3d_make_parents(const char *path, char *err, size_t err_size)
 static int write_pieces(const char *path, const void *const *data, const size_t *size,
                         int count, char *err, size_t err_size)
 {
-    char tmp[4200];
-    const char *slash = strrchr(path, '/');
-    const int dir_len = slash ? (int)(slash - path + 1) : 0;
-    const int n = snprintf(tmp, sizeof(tmp), "%.*s.%s.tmp.%ld", dir_len, path, path + dir_len,
-                           (long)getpid());
-    if (n < 0 || (size_t)n >= sizeof(tmp)) {
-        snprintf(err, err_size, "%s: cannot write: %s", path, strerror(ENAMETOOLONG));
-        return TW_ERR_IO;
-    }
-    const int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-    if (fd < 0) {
-        snprintf(err, err_size, "%s: cannot write: %s", path, strerror(errno));
-        return TW_ERR_IO;
-    }
-    int e = 0;
-    for (int k = 0; k < count && !e; k++) {
-        const char *p = data[k];
-        size_t left = size[k];
-        while (left > 0) {
-            const ssize_t w = write(fd, p, left);
-            if (w < 0 && errno == EINTR)
-                continue;
-            if (w <= 0) {
-                e = w < 0 ? errno : EIO;
-                break;
-            }
-            p += w;
-            left -= (size_t)w;
-        }
-    }
-    if (close(fd) != 0 && !e)
-        e = errno;
-    if (!e && rename(tmp, path) != 0)
-        e = errno;
-    if (e) {
-        unlink(tmp);
-        snprintf(err, err_size, "%s: cannot write: %s", path, strerror(e));
-        return TW_ERR_IO;
-    }
-    return TW_OK;
+    struct tw_outfile o;
+    int rc = tw_outfile_open_unique(&o, path, err, err_size);
+    for (int k = 0; k < count && !rc; k++)
+        tw_outfile_write(&o, data[k], size[k]);
+    return rc ? rc : tw_outfile_commit(&o, err, err_size);
 }
 
 int tw_tiles3d_write_file(const char *path, const void *data, size_t size, char *err,
