@@ -401,6 +401,22 @@ void tw_cli_world_finish(struct tw_cli_world *w)
     memset(w, 0, sizeof(*w));
 }
 
+void tw_cli_world_tiles3d_line(const char *program, const struct tw_cli_world *w)
+{
+    if (!w->tiles3d)
+        return;
+    struct tw_tiles3d_stats hs;
+    tw_tiles3d_provider_stats(w->tiles3d, &hs);
+    tw_cli_message(program, "3D Tiles: %llu cells and %llu blocks of coarser levels read; "
+                   "%llu requests, %llu bytes, %llu cache hits, %llu not modified (304), %llu "
+                   "retries, %llu failures, %llu stale copies",
+                   (unsigned long long)hs.cells, (unsigned long long)hs.blocks,
+                   (unsigned long long)hs.requests, (unsigned long long)hs.bytes,
+                   (unsigned long long)hs.cache_hits, (unsigned long long)hs.not_modified,
+                   (unsigned long long)hs.retries, (unsigned long long)hs.failures,
+                   (unsigned long long)hs.stale);
+}
+
 int tw_cli_world_exit_status(int err)
 {
     return err == TW_ERR_INVALID || err == TW_ERR_LIMIT ? TW_CLI_EXIT_USAGE : 1;

@@ -228,6 +228,10 @@ void tw_cli_world_load(const struct tw_cli *c, uint32_t cluster_triangles,
 void tw_cli_world_apply(const struct tw_cli_world *w, struct tw_world_settings *ws);
 /* Frees what w owns; accepts a zeroed w. */
 void tw_cli_world_finish(struct tw_cli_world *w);
+/* For a baked tileset streamed back (w->tiles3d), the line that ends a
+ * run on stderr: the tiles read and what the fetches did. Nothing for
+ * another world. */
+void tw_cli_world_tiles3d_line(const char *program, const struct tw_cli_world *w);
 
 /* How a failed tw_world_create() ends a program: for bad input
  * (TW_ERR_INVALID, TW_ERR_LIMIT) TW_CLI_EXIT_USAGE, else 1. */

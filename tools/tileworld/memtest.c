@@ -316,6 +316,7 @@ int tw_memtest_main(int argc, char **argv)
         char verdict[1000];
         tw_memtest_verdict_text(results, runs, verdict, sizeof(verdict));
         tw_cli_message(program, "wrote %s/summary.md: %s", o.out, verdict);
+        tw_cli_world_tiles3d_line(program, &shown);
     }
     status = all ? 0 : 3;
 out:

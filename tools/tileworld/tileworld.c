@@ -601,18 +601,8 @@ static int run(const struct options *o, bool bench)
     fflush(stdout);
     if (missed && !o->allow_missed)
         rc = 3;
-    if (shown.tiles3d && !o->cli.quiet) {
-        struct tw_tiles3d_stats hs;
-        tw_tiles3d_provider_stats(shown.tiles3d, &hs);
-        tw_cli_message(program, "3D Tiles: %llu cells and %llu blocks of coarser levels read; "
-                       "%llu requests, %llu bytes, %llu cache hits, %llu "
-                       "not modified (304), %llu retries, %llu failures, %llu stale copies",
-                       (unsigned long long)hs.cells, (unsigned long long)hs.blocks,
-                       (unsigned long long)hs.requests, (unsigned long long)hs.bytes,
-                       (unsigned long long)hs.cache_hits, (unsigned long long)hs.not_modified,
-                       (unsigned long long)hs.retries, (unsigned long long)hs.failures,
-                       (unsigned long long)hs.stale);
-    }
+    if (!o->cli.quiet)
+        tw_cli_world_tiles3d_line(program, &shown);
 out:
     tw_context_destroy(ctx);
     tw_path_finish(&path);
