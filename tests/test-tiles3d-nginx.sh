@@ -16,7 +16,8 @@
 # tile is refused (every cause checked); under --policy skip the frames are
 # drawn with holes meanwhile (the walk may end before the slow refusals:
 # the 404's is checked); the walk ends with status 0, within a bound
-# (timeout). Then ETag revalidation: a second walk with
+# (timeout), and summary.json counts the four refusals (tile_cache.refused)
+# and the provider's failures (tiles3d.failures). Then ETag revalidation: a second walk with
 # --http-cache gets 304s and serves them from the cache. Then the server
 # stopped mid-walk: the walk goes on, serves what its cache holds (stale
 # copies), refuses what it cannot fetch, and ends.
@@ -118,6 +119,15 @@ for policy in skip wait; do
             fail "--policy skip: no 404 refusal: $(grep -i error "$tmp/$policy.err" | head -3)"
     fi
     grep "3D Tiles:" "$tmp/$policy.err" | tail -1
+    # summary.json counts them: the world's refusals, the provider's failures.
+    if [ "$policy" = wait ]; then
+        refused=$(sed -n 's/.*"refused": \([0-9]*\).*/\1/p' "$tmp/$policy/summary.json")
+        failures=$(sed -n 's/.*"failures": \([0-9]*\).*/\1/p' "$tmp/$policy/summary.json")
+        { [ -n "$refused" ] && [ "$refused" -ge 4 ]; } ||
+            fail "summary.json's tile_cache.refused is ${refused:-missing}, not 4 or more"
+        { [ -n "$failures" ] && [ "$failures" -ge 4 ]; } ||
+            fail "summary.json's tiles3d.failures is ${failures:-missing}, not 4 or more"
+    fi
 done
 grep -c "3/3/3.glb" "$tmp/nginx/access.log" | awk '{ exit !($1 >= 1) }' || fail "the 404 was never asked for"
 
