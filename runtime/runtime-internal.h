@@ -133,6 +133,19 @@ int tw_world_frame_fixed(struct tw_world *w, const struct tw_camera *cam,
                          struct tw_frame_stats *stats);
 
 
+/* A provider's tile for cell as a world makes it (runtime/workers.c):
+ * generate() into a fresh tileset named "I,J", then the world's checks: a
+ * positive return other than TW_GENERATE_EMPTY is refused, a failure
+ * carries the provider's own reason (tw_tileset_fail), at most
+ * max_triangles triangles (0: no cap), exactly one prototype, finished into
+ * the provider's clusters, inside its bound. Returns TW_OK with *out (the
+ * caller's to destroy), TW_GENERATE_EMPTY, or a negative error with the
+ * cause in why; *out is NULL but on TW_OK. Thread-safe as generate() is:
+ * the world's workers and `tileworld bake` make their tiles with it. */
+int tw_provider_make_tile(const struct tw_tile_provider *p, struct tw_cell cell,
+                          uint64_t max_triangles, struct tw_tileset **out, char *why,
+                          size_t why_size);
+
 /* Moves every key by (di, dj) cells; TW_ERR_INVALID on int64 overflow. */
 int tw_path_translate(struct tw_path *p, int64_t di, int64_t dj);
 

@@ -10,6 +10,7 @@
  * comes back to find itself left behind drops its result, frees what it
  * owns and ends without touching the stream again.
  */
+#include "runtime/runtime-internal.h"
 #include "runtime/stream-private.h"
 #include "tiles/array.h"
 #include "tiles/tiles-internal.h"
@@ -43,6 +44,84 @@ static bool box_inside(const struct tw_box *b, const struct tw_box *bound)
     return true;
 }
 
+static int refuse(char *why, size_t why_size, int err, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(why, why_size, fmt, ap);
+    va_end(ap);
+    return err;
+}
+
+int tw_provider_make_tile(const struct tw_tile_provider *p, struct tw_cell cell,
+                          uint64_t max_triangles, struct tw_tileset **out, char *why,
+                          size_t why_size)
+{
+    *out = NULL;
+    why[0] = '\0';
+    char name[64];
+    snprintf(name, sizeof(name), "%lld,%lld", (long long)cell.i, (long long)cell.j);
+    struct tw_tileset *ts = NULL;
+    int err = tw_tileset_create(name, p->footprint[0], p->footprint[1], &ts);
+    if (err)
+        return refuse(why, why_size, err, "cannot make a tileset: %s", tw_error_to_str(err));
+    err = p->generate(p->user, cell, ts);
+    if (err == TW_GENERATE_EMPTY)
+        goto out;
+    if (err > 0) {
+        err = refuse(why, why_size, TW_ERR_INVALID, "the provider's generate() returned %d: "
+                     "neither TW_OK, TW_GENERATE_EMPTY nor an error", err);
+        goto out;
+    }
+    if (err) {
+        const char *reason = tw_tileset_failure(ts);
+        if (reason)
+            refuse(why, why_size, err, "the provider could not make it: %s (%s)", reason,
+                   tw_error_to_str(err));
+        else
+            refuse(why, why_size, err, "the provider could not make it: %s",
+                   tw_error_to_str(err));
+        goto out;
+    }
+    uint64_t triangles = 0;
+    for (uint32_t k = 0; k < ts->prototype_count; k++)
+        for (uint32_t q = 0; q < ts->prototypes[k].instance_count; q++)
+            triangles += ts->meshes[ts->prototypes[k].instances[q].mesh].triangle_count;
+    if (max_triangles && triangles > max_triangles) {
+        err = refuse(why, why_size, TW_ERR_LIMIT, "the tile has %llu triangles, over the cap of "
+                     "%llu a tile (max_tile_triangles)", (unsigned long long)triangles,
+                     (unsigned long long)max_triangles);
+        goto out;
+    }
+    if (ts->prototype_count != 1) {
+        err = refuse(why, why_size, TW_ERR_INVALID,
+                     "the provider made %u prototypes for it (one is needed)",
+                     ts->prototype_count);
+        goto out;
+    }
+    err = tw_tileset_finish(ts, p->max_cluster_triangles ? p->max_cluster_triangles : 2048);
+    if (err) {
+        refuse(why, why_size, err, "the generated tile cannot be finished: %s",
+               tw_error_to_str(err));
+        goto out;
+    }
+    const struct tw_box *b = &ts->prototypes[0].box;
+    if (!box_inside(b, &p->bound)) {
+        err = refuse(why, why_size, TW_ERR_LIMIT,
+                     "the tile's box [%g %g %g]-[%g %g %g] exceeds the provider's bound "
+                     "[%g %g %g]-[%g %g %g]",
+                     b->min[0], b->min[1], b->min[2], b->max[0], b->max[1], b->max[2],
+                     p->bound.min[0], p->bound.min[1], p->bound.min[2], p->bound.max[0],
+                     p->bound.max[1], p->bound.max[2]);
+        goto out;
+    }
+    *out = ts;
+    return TW_OK;
+out:
+    tw_tileset_destroy(ts);
+    return err;
+}
+
 static void fail(struct job_result *r, int err, const char *fmt, ...)
 {
     r->err = err;
@@ -59,58 +138,14 @@ void tw_stream_job_run(struct worker *wk, struct tw_cell cell, struct job_result
     const struct tw_tile_provider *p = &wk->provider;
     memset(r, 0, sizeof(*r));
     wk->message[0] = '\0';
-    char name[64];
-    snprintf(name, sizeof(name), "%lld,%lld", (long long)cell.i, (long long)cell.j);
-    int err = tw_tileset_create(name, p->footprint[0], p->footprint[1], &r->ts);
-    if (err) {
-        fail(r, err, "cannot make a tileset: %s", tw_error_to_str(err));
-        return;
-    }
-    err = p->generate(p->user, cell, r->ts);
+    char why[sizeof(r->message)];
+    int err = tw_provider_make_tile(p, cell, wk->max_triangles, &r->ts, why, sizeof(why));
     if (err == TW_GENERATE_EMPTY) {
         r->empty = true;
         goto out;
     }
-    if (err > 0) {
-        fail(r, TW_ERR_INVALID, "the provider's generate() returned %d: neither TW_OK, "
-             "TW_GENERATE_EMPTY nor an error", err);
-        goto out;
-    }
     if (err) {
-        const char *why = tw_tileset_failure(r->ts);
-        if (why)
-            fail(r, err, "the provider could not make it: %s (%s)", why, tw_error_to_str(err));
-        else
-            fail(r, err, "the provider could not make it: %s", tw_error_to_str(err));
-        goto out;
-    }
-    uint64_t triangles = 0;
-    for (uint32_t k = 0; k < r->ts->prototype_count; k++)
-        for (uint32_t q = 0; q < r->ts->prototypes[k].instance_count; q++)
-            triangles += r->ts->meshes[r->ts->prototypes[k].instances[q].mesh].triangle_count;
-    if (wk->max_triangles && triangles > wk->max_triangles) {
-        fail(r, TW_ERR_LIMIT, "the tile has %llu triangles, over the cap of %llu a tile "
-             "(max_tile_triangles)", (unsigned long long)triangles,
-             (unsigned long long)wk->max_triangles);
-        goto out;
-    }
-    if (r->ts->prototype_count != 1) {
-        fail(r, TW_ERR_INVALID, "the provider made %u prototypes for it (one is needed)",
-             r->ts->prototype_count);
-        goto out;
-    }
-    err = tw_tileset_finish(r->ts, p->max_cluster_triangles ? p->max_cluster_triangles : 2048);
-    if (err) {
-        fail(r, err, "the generated tile cannot be finished: %s", tw_error_to_str(err));
-        goto out;
-    }
-    const struct tw_box *b = &r->ts->prototypes[0].box;
-    if (!box_inside(b, &p->bound)) {
-        fail(r, TW_ERR_LIMIT,
-             "the tile's box [%g %g %g]-[%g %g %g] exceeds the provider's bound "
-             "[%g %g %g]-[%g %g %g]",
-             b->min[0], b->min[1], b->min[2], b->max[0], b->max[1], b->max[2], p->bound.min[0],
-             p->bound.min[1], p->bound.min[2], p->bound.max[0], p->bound.max[1], p->bound.max[2]);
+        fail(r, err, "%s", why);
         goto out;
     }
     /* The tile lives long among the short-lived allocations that made it:

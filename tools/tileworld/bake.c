@@ -408,31 +408,21 @@ static void bake_cell(struct bake *b, uint64_t k)
         if (c != TW_TILE_OWN) {
             rc = write_prototype(src->shared, c, path, translation, 0.0, err, sizeof(err));
         } else {
-            char name[64];
-            snprintf(name, sizeof(name), "%lld,%lld", (long long)cell.i, (long long)cell.j);
+            /* As a world makes it: the same checks (one prototype, the
+             * provider's bound, the default cap on triangles), the
+             * provider's own reason when it fails. */
             struct tw_tileset *ts = NULL;
-            rc = tw_tileset_create(name, src->footprint[0], src->footprint[1], &ts);
-            if (!rc)
-                rc = src->generate(src->user, cell, ts);
+            char why[512];
+            rc = tw_provider_make_tile(src, cell, TW_MAX_TILE_TRIANGLES, &ts, why, sizeof(why));
             if (rc == TW_GENERATE_EMPTY) {
-                tw_tileset_destroy(ts);
                 atomic_fetch_add(&b->empty, 1);
                 return;
             }
-            if (rc) {
-                snprintf(err, sizeof(err), "cell %lld,%lld: %s cannot make it: %s", (long long)cell.i,
-                         (long long)cell.j, src->name ? src->name : "the provider",
-                         tw_error_to_str(rc));
-            } else {
-                rc = tw_tileset_finish(ts, src->max_cluster_triangles ? src->max_cluster_triangles
-                                                                      : 2048);
-                if (rc)
-                    snprintf(err, sizeof(err), "cell %lld,%lld: the generated tile cannot be "
-                             "finished: %s", (long long)cell.i, (long long)cell.j,
-                             tw_error_to_str(rc));
-                else
-                    rc = write_prototype(ts, 0, path, translation, 0.0, err, sizeof(err));
-            }
+            if (rc)
+                snprintf(err, sizeof(err), "cell %lld,%lld: %s: %s", (long long)cell.i,
+                         (long long)cell.j, src->name ? src->name : "the provider", why);
+            else
+                rc = write_prototype(ts, 0, path, translation, 0.0, err, sizeof(err));
             tw_tileset_destroy(ts);
         }
     }
