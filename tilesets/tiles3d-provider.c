@@ -149,12 +149,12 @@ static uint64_t get_le(const uint8_t *b, int n)
     return v;
 }
 
-static uint64_t tiles_below(uint32_t levels)
+uint64_t tw_tiles3d_tiles_below(uint32_t levels)
 {
     return ((1ull << (2 * levels)) - 1) / 3;
 }
 
-static uint64_t morton(uint32_t x, uint32_t y)
+uint64_t tw_tiles3d_morton(uint32_t x, uint32_t y)
 {
     uint64_t m = 0;
     for (int b = 0; b < 32; b++)
@@ -307,7 +307,7 @@ static int load_subtree(struct tw_tiles3d_provider *p, uint32_t root, uint64_t s
                 const uint64_t x = (sx << l) + lx;
                 if (x >= p->nx)
                     break;
-                const uint64_t bit = tiles_below(l) + morton((uint32_t)lx, (uint32_t)ly);
+                const uint64_t bit = tw_tiles3d_tiles_below(l) + tw_tiles3d_morton((uint32_t)lx, (uint32_t)ly);
                 if (available(&tiles, bit) && available(&content, bit)) {
                     p->has_content[y * p->nx + x] = 1;
                     p->cells_with_content++;
@@ -323,7 +323,7 @@ static int load_subtree(struct tw_tiles3d_provider *p, uint32_t root, uint64_t s
                 const uint32_t up = p->leaf - (root + s);
                 if ((cx << up) >= p->nx || (cy << up) >= p->ny)
                     continue;
-                if (available(&children, morton((uint32_t)lx, (uint32_t)ly)))
+                if (available(&children, tw_tiles3d_morton((uint32_t)lx, (uint32_t)ly)))
                     rc = load_subtree(p, root + s, cx, cy, fetched);
             }
     }

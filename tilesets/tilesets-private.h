@@ -305,6 +305,13 @@ int tw_gltf_import_fd(int fd, int dir_fd, const char *name,
 void tw_gltf_placement(const float position[3], float yaw_degrees, float scale,
                        float out[12]);
 
+/* ---- implicit tiling's indices (tiles3d-provider.c; the bake's writer uses them) ---- */
+
+/* The number of tiles of a quadtree's levels [0, levels): (4^levels - 1) / 3. */
+uint64_t tw_tiles3d_tiles_below(uint32_t levels);
+/* The Morton index of (x, y): x's bits in the even places, y's in the odd. */
+uint64_t tw_tiles3d_morton(uint32_t x, uint32_t y);
+
 /* ---- the .glb layout of tileworld bake (tiles3d-glb.c) ---------------------------- */
 
 /* What tw_tiles3d_glb_read() returns for a binary glTF file that is not in

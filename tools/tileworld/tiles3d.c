@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "tileworld/tiles.h"
+#include "tilesets/tilesets-private.h"
 #include "tools/outfile.h"
 
 /* glTF's numbers for what the writer uses. */
@@ -491,19 +492,6 @@ int tw_tiles3d_read_glb_error(const char *path, double *error, char *err, size_t
     free(start);
     fclose(f);
     return rc;
-}
-
-uint64_t tw_tiles3d_tiles_below(uint32_t levels)
-{
-    return ((1ull << (2 * levels)) - 1) / 3;
-}
-
-uint64_t tw_tiles3d_morton(uint32_t x, uint32_t y)
-{
-    uint64_t m = 0;
-    for (int b = 0; b < 32; b++)
-        m |= (uint64_t)((x >> b) & 1u) << (2 * b) | (uint64_t)((y >> b) & 1u) << (2 * b + 1);
-    return m;
 }
 
 /* The number of bits set among the first bits of s. */

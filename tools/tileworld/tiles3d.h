@@ -89,10 +89,8 @@ struct tw_tiles3d_subtree {
 int tw_tiles3d_write_subtree(const char *path, const struct tw_tiles3d_subtree *s,
                              char *err, size_t err_size);
 
-/* The number of tiles of a quadtree's levels [0, levels): (4^levels - 1) / 3. */
-uint64_t tw_tiles3d_tiles_below(uint32_t levels);
-/* The Morton index of (x, y): x's bits in the even places, y's in the odd. */
-uint64_t tw_tiles3d_morton(uint32_t x, uint32_t y);
+/* tw_tiles3d_tiles_below() and tw_tiles3d_morton(), the implicit tiling's
+ * indices, are the provider's (tilesets/tilesets-private.h). */
 
 /* Writes size bytes at data as path, whole or not at all (see above). */
 int tw_tiles3d_write_file(const char *path, const void *data, size_t size, char *err,
