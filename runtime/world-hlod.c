@@ -89,6 +89,32 @@ uint32_t tw_world_hlod_wanted(const struct tw_world *w)
     return own && w->t.hlod_levels > own + 1 ? own + 1 : w->t.hlod_levels;
 }
 
+/* Level k's stream: its "cells" are the level's blocks, each a tile of
+ * the block's footprint inside the common box stretched over the block,
+ * made by generate (l its user). */
+static int start_level(struct tw_world *w, struct tw_world_hlod_level *l,
+                       int (*generate)(void *, struct tw_cell, struct tw_tileset *),
+                       uint32_t max_cluster_triangles)
+{
+    const struct tw_tile_provider *p = &w->provider;
+    const uint32_t k = l->level;
+    struct tw_cull_grid g = {.footprint = {p->footprint[0], p->footprint[1]},
+                             .common_box = p->bound};
+    snprintf(l->name, sizeof(l->name), "%.24s blocks of %ux%u", p->name ? p->name : "",
+             1u << k, 1u << k);
+    l->provider = (struct tw_tile_provider){
+        .name = l->name,
+        .footprint = {(float)(1u << k) * p->footprint[0], (float)(1u << k) * p->footprint[1]},
+        .bound = tw_cull_node_box(&g, k),
+        .generate = generate,
+        .user = l,
+        .max_cluster_triangles = max_cluster_triangles,
+    };
+    const struct tw_stream_settings ss =
+        tw_world_stream_settings(w, &l->provider, HLOD_KEY_BASE + (k << HLOD_KEY_SHIFT));
+    return tw_stream_create(&ss, &l->stream);
+}
+
 /* The world uses a provider's own coarser levels: each level's blocks are
  * the provider's, with the provider's error. */
 static int start_provider_levels(struct tw_world *w, uint32_t count)
@@ -101,24 +127,10 @@ static int start_provider_levels(struct tw_world *w, uint32_t count)
         l->w = w;
         l->level = k;
         l->error = p->level_error[k - 1];
-        struct tw_cull_grid g = {.footprint = {p->footprint[0], p->footprint[1]},
-                                 .common_box = p->bound};
-        snprintf(l->name, sizeof(l->name), "%.24s blocks of %ux%u", p->name ? p->name : "",
-                 1u << k, 1u << k);
-        l->provider = (struct tw_tile_provider){
-            .name = l->name,
-            .footprint = {(float)(1u << k) * p->footprint[0], (float)(1u << k) * p->footprint[1]},
-            .bound = tw_cull_node_box(&g, k),
-            .generate = provider_level_generate,
-            .user = l,
-            .max_cluster_triangles = p->max_cluster_triangles,
-        };
         tw_log_printf(&w->s.log, TW_LOG_INFO,
                       "hierarchical cells: the provider's blocks of %ux%u cells, error %.3g m",
                       1u << k, 1u << k, (double)l->error);
-        const struct tw_stream_settings ss =
-            tw_world_stream_settings(w, &l->provider, HLOD_KEY_BASE + (k << HLOD_KEY_SHIFT));
-        const int err = tw_stream_create(&ss, &l->stream);
+        const int err = start_level(w, l, provider_level_generate, p->max_cluster_triangles);
         if (err)
             return err;
     }
@@ -180,20 +192,7 @@ int tw_world_hlod_start(struct tw_world *w)
                       pays ? "used" : "too many, always refined");
         if (!pays)
             continue;
-        struct tw_cull_grid g = {.footprint = {p->footprint[0], p->footprint[1]},
-                                 .common_box = p->bound};
-        snprintf(l->name, sizeof(l->name), "blocks of %ux%u cells", 1u << k, 1u << k);
-        l->provider = (struct tw_tile_provider){
-            .name = l->name,
-            .footprint = {(float)(1u << k) * p->footprint[0], (float)(1u << k) * p->footprint[1]},
-            .bound = tw_cull_node_box(&g, k),
-            .generate = proxy_generate,
-            .user = l,
-            .max_cluster_triangles = p->shared->max_cluster_triangles,
-        };
-        const struct tw_stream_settings ss =
-            tw_world_stream_settings(w, &l->provider, HLOD_KEY_BASE + (k << HLOD_KEY_SHIFT));
-        const int err = tw_stream_create(&ss, &l->stream);
+        const int err = start_level(w, l, proxy_generate, p->shared->max_cluster_triangles);
         if (err)
             return err;
     }
