@@ -759,6 +759,15 @@ static void write_floor(struct tw_outfile *f, const struct row *rows, int nrows,
     }
 }
 
+/* An object of named counts. */
+static json_object *counts(const char *const *names, const uint64_t *v, int n)
+{
+    json_object *o = json_object_new_object();
+    for (int k = 0; k < n; k++)
+        json_object_object_add(o, names[k], json_object_new_int64((int64_t)v[k]));
+    return o;
+}
+
 int tw_report_close(struct tw_report *r, bool markdown,
                     struct tw_method_figures figures[TW_METHOD_ALL], char *err, size_t err_size)
 {
@@ -946,27 +955,19 @@ int tw_report_close(struct tw_report *r, bool markdown,
         json_object_object_add(root, "mutate_query_shrink", number_g(about->mutate_query_shrink));
     if (about->has_totals) {
         const struct tw_cache_totals *t = &about->totals;
-        json_object *o = json_object_new_object();
-        json_object_object_add(o, "loads_requested", json_object_new_int64((int64_t)t->loads_requested));
-        json_object_object_add(o, "loads_done", json_object_new_int64((int64_t)t->loads_done));
-        json_object_object_add(o, "evictions", json_object_new_int64((int64_t)t->evictions));
-        json_object_object_add(o, "reloads", json_object_new_int64((int64_t)t->reloads));
-        json_object_object_add(o, "refused", json_object_new_int64((int64_t)t->refused));
-        json_object_object_add(root, "tile_cache", o);
+        const char *names[] = {"loads_requested", "loads_done", "evictions", "reloads",
+                               "refused"};
+        const uint64_t v[] = {t->loads_requested, t->loads_done, t->evictions, t->reloads,
+                              t->refused};
+        json_object_object_add(root, "tile_cache", counts(names, v, 5));
     }
     if (about->has_tiles3d) {
         const struct tw_tiles3d_stats *h = &about->tiles3d;
-        json_object *o = json_object_new_object();
-        json_object_object_add(o, "cells", json_object_new_int64((int64_t)h->cells));
-        json_object_object_add(o, "blocks", json_object_new_int64((int64_t)h->blocks));
-        json_object_object_add(o, "requests", json_object_new_int64((int64_t)h->requests));
-        json_object_object_add(o, "bytes", json_object_new_int64((int64_t)h->bytes));
-        json_object_object_add(o, "cache_hits", json_object_new_int64((int64_t)h->cache_hits));
-        json_object_object_add(o, "not_modified", json_object_new_int64((int64_t)h->not_modified));
-        json_object_object_add(o, "retries", json_object_new_int64((int64_t)h->retries));
-        json_object_object_add(o, "failures", json_object_new_int64((int64_t)h->failures));
-        json_object_object_add(o, "stale", json_object_new_int64((int64_t)h->stale));
-        json_object_object_add(root, "tiles3d", o);
+        const char *names[] = {"cells", "blocks", "requests", "bytes", "cache_hits",
+                               "not_modified", "retries", "failures", "stale"};
+        const uint64_t v[] = {h->cells, h->blocks, h->requests, h->bytes, h->cache_hits,
+                              h->not_modified, h->retries, h->failures, h->stale};
+        json_object_object_add(root, "tiles3d", counts(names, v, 9));
     }
     json_object *ran = json_object_new_object();
     json_object_object_add(ran, "context", json_object_new_string(
