@@ -83,9 +83,10 @@ uint32_t tw_world_hlod_wanted(const struct tw_world *w)
         return 0;
     const struct tw_tile_provider *p = &w->provider;
     const uint32_t own = p->generate_level ? p->levels : 0;
-    /* 0: the provider's own levels where it has them; else cells only. */
+    /* 0: the provider's own levels where it has them, unless the world
+     * has moving objects (a block would leave them out); else cells only. */
     if (w->t.hlod_levels == 0)
-        return own ? own + 1 : 0;
+        return own && !w->s.object_models ? own + 1 : 0;
     return own && w->t.hlod_levels > own + 1 ? own + 1 : w->t.hlod_levels;
 }
 

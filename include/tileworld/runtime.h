@@ -187,7 +187,9 @@ struct tw_world_settings {
                                           objects show, model-local (the origin is the
                                           object's position; every box within the world's
                                           footprint of it); borrowed, must outlive the
-                                          world. NULL: no objects */
+                                          world. NULL: no objects. A provider's own
+                                          coarser levels (tiles.h) are not used then: a
+                                          block would leave the objects out */
     uint32_t workers;                  /* threads generating tiles; default: cores - 1,
                                           at least 1 */
     enum tw_stream_policy policy;      /* default TW_STREAM_WAIT */
