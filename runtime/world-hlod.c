@@ -145,17 +145,9 @@ int tw_world_hlod_start(struct tw_world *w)
     if (count < 2)
         return TW_OK;
     const struct tw_tile_provider *p = &w->provider;
-    if (p->generate_level && p->levels > 0) {
-        for (uint32_t k = 1; k < count; k++)
-            if (!(p->level_error[k - 1] >= 0.0f) || !isfinite(p->level_error[k - 1])) {
-                tw_log_printf(&w->s.log, TW_LOG_ERROR,
-                              "cannot create the world: %s: level %u's error is %g metres",
-                              p->name ? p->name : "the provider", k,
-                              (double)p->level_error[k - 1]);
-                return TW_ERR_INVALID;
-            }
+    /* (tw_world_resolve_provider() has checked the levels.) */
+    if (p->generate_level && p->levels > 0)
         return start_provider_levels(w, count);
-    }
     if (count > TW_CULL_MAX_LEVELS) {
         tw_log_printf(&w->s.log, TW_LOG_ERROR, "hierarchical cells: %u levels, at most %u",
                       count, TW_CULL_MAX_LEVELS);

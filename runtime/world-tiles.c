@@ -52,6 +52,19 @@ int tw_world_resolve_provider(struct tw_world *w)
         tw_log_printf(log, TW_LOG_ERROR, "provider %s: neither content() nor generate()", name);
         return TW_ERR_INVALID;
     }
+    /* Its own coarser levels: a generate_level() and an error for each. */
+    if (p->levels > TW_PROVIDER_MAX_LEVELS || (p->levels > 0 && !p->generate_level)) {
+        tw_log_printf(log, TW_LOG_ERROR, "provider %s: %u coarser levels%s (at most %u)", name,
+                      p->levels, p->generate_level ? "" : " and no generate_level()",
+                      TW_PROVIDER_MAX_LEVELS);
+        return TW_ERR_INVALID;
+    }
+    for (uint32_t k = 0; k < p->levels; k++)
+        if (!(p->level_error[k] >= 0.0f) || !isfinite(p->level_error[k])) {
+            tw_log_printf(log, TW_LOG_ERROR, "provider %s: level %u's error is %g metres", name,
+                          k + 1, (double)p->level_error[k]);
+            return TW_ERR_INVALID;
+        }
     if (p->shared) {
         const struct tw_tileset *ts = p->shared;
         if (!ts->finished || ts->footprint[0] != p->footprint[0] ||

@@ -277,6 +277,20 @@ static void test_provider_levels(struct tw_context *ctx, const struct tw_tileset
     CHECK(atomic_load(&tp.blocks[1]) > 0 && atomic_load(&tp.blocks[3]) > 0);
     CHECK(atomic_load(&tp.outside) == 0);
     CHECK(cells > 0 && cells < 20000);
+    /* Levels that cannot be: refused when the world is made. */
+    struct town_provider bad = tp;
+    bad.p.user = &bad;
+    bad.p.levels = TW_PROVIDER_MAX_LEVELS + 1;
+    w = make_world(ctx, NULL, &bad.p, 0, 600.0f, 0.0f, &err);
+    CHECK(!w && err == TW_ERR_INVALID);
+    bad.p.levels = 1;
+    bad.p.generate_level = NULL;
+    w = make_world(ctx, NULL, &bad.p, 0, 600.0f, 0.0f, &err);
+    CHECK(!w && err == TW_ERR_INVALID);
+    bad.p.generate_level = town_generate_level;
+    bad.p.level_error[0] = NAN;
+    w = make_world(ctx, NULL, &bad.p, 0, 600.0f, 0.0f, &err);
+    CHECK(!w && err == TW_ERR_INVALID);
     /* --hlod-levels 1: cells only, and 16 km is out of reach. */
     w = make_world(ctx, NULL, &tp.p, 1, 16000.0f, 0.0f, &err);
     CHECK(!w && err == TW_ERR_LIMIT);
