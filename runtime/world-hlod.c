@@ -84,9 +84,10 @@ uint32_t tw_world_hlod_wanted(const struct tw_world *w)
     const struct tw_tile_provider *p = &w->provider;
     const uint32_t own = p->generate_level ? p->levels : 0;
     /* 0: the provider's own levels where it has them, unless the world
-     * has moving objects (a block would leave them out); else cells only. */
+     * has moving objects (a block would leave them out) or a host draws it
+     * (its hooks are told of cells, not blocks); else cells only. */
     if (w->t.hlod_levels == 0)
-        return own && !w->s.object_models ? own + 1 : 0;
+        return own && !w->s.object_models && !w->s.host.draw ? own + 1 : 0;
     return own && w->t.hlod_levels > own + 1 ? own + 1 : w->t.hlod_levels;
 }
 

@@ -6,8 +6,8 @@
  * callback, is refused. A provider with coarser levels of its own (the
  * same town generated, and blocks of its own) is drawn over its blocks at
  * 16 km: each block asked for holds a cell within reach, no method misses
- * a pixel; with moving objects, or --hlod-levels 1, its levels are left
- * alone (the world is made, with cells only). The town is light (14 to
+ * a pixel; with moving objects, in host rendering or with --hlod-levels 1
+ * its levels are left alone (the world is made, with cells only). The town is light (14 to
  * 110 triangles a cell), so the oracle's and the full-detail image's
  * passes over 20 000 cells stay quick. */
 #include <stdatomic.h>
@@ -242,6 +242,12 @@ static uint32_t town_content(void *user, struct tw_cell cell)
     return TW_TILE_OWN;
 }
 
+static void host_draw(void *user, const struct tw_host_draw *batch)
+{
+    (void)user;
+    (void)batch;
+}
+
 static void test_provider_levels(struct tw_context *ctx, const struct tw_tileset *town)
 {
     struct town_provider tp = {0};
@@ -324,6 +330,17 @@ static void test_provider_levels(struct tw_context *ctx, const struct tw_tileset
     CHECK(!w && err == TW_ERR_LIMIT);
     tw_world_destroy(w);
     tw_tileset_destroy(models);
+    /* In host rendering too (the host's hooks are told of cells). */
+    s.object_models = NULL;
+    s.host.draw = host_draw;
+    w = NULL;
+    err = tw_world_create(&s, &w);
+    CHECK(!w && err == TW_ERR_LIMIT);
+    tw_world_destroy(w);
+    s.view_distance = 600.0f;
+    w = NULL;
+    CHECK(tw_world_create(&s, &w) == TW_OK && w);
+    tw_world_destroy(w);
 }
 
 int main(void)

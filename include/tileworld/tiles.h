@@ -355,8 +355,8 @@ struct tw_tile_provider {
      * generate_level() writes a block's tile as generate() writes a cell's:
      * the same threads, rules and return values. A world refuses more
      * levels, no generate_level() or an error that is not a finite
-     * non-negative number (TW_ERR_INVALID); with moving objects it leaves
-     * the levels unused. */
+     * non-negative number (TW_ERR_INVALID); with moving objects, or in
+     * host rendering, it leaves the levels unused. */
     uint32_t levels;
     float level_error[TW_PROVIDER_MAX_LEVELS];
     int (*generate_level)(void *user, uint32_t level, struct tw_cell block,
