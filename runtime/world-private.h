@@ -238,12 +238,14 @@ struct tw_stream_settings tw_world_stream_settings(struct tw_world *w,
                                                    uint32_t key_base);
 
 /* world-hlod.c */
-/* Makes the streams of the blocks' proxies when the tuning asks for levels
- * (and levels of detail are on). Between enter and leave. */
 /* The levels of hierarchical cells the world asks for, cells included
  * (< 2: none): the tuning's, or the provider's own coarser levels where the
- * tuning says nothing; none without levels of detail. */
+ * tuning says nothing (not with moving objects, nor in host rendering);
+ * none without levels of detail. */
 uint32_t tw_world_hlod_wanted(const struct tw_world *w);
+/* Makes the streams of the blocks (the library's proxies, or a provider's
+ * own levels) that tw_world_hlod_wanted() asks for. Between enter and
+ * leave. */
 int tw_world_hlod_start(struct tw_world *w);
 /* Stops them; returns how many of their threads were left behind. */
 uint32_t tw_world_hlod_stop(struct tw_world *w);

@@ -674,6 +674,15 @@ static int print_calibration(const struct options *o, const struct tw_cli_world 
 }
 
 /* info on a provider: its name, footprint, bound and shared tileset. */
+/* The run's world settings with their defaults into *ws, and its focal
+ * length in pixels (what a level's error is projected with). */
+static double run_focal(const struct options *o, struct tw_world_settings *ws)
+{
+    *ws = o->cli.world;
+    tw_world_default_settings(ws);
+    return 0.5 * ws->height / tan(0.5 * ws->fov_y * 3.14159265358979323846 / 180.0);
+}
+
 static int info_provider(const struct options *o, const struct tw_cli_world *shown)
 {
     const struct tw_tile_provider *p = shown->source;
@@ -695,10 +704,8 @@ static int info_provider(const struct options *o, const struct tw_cli_world *sho
     if (p->levels > 0 && p->generate_level) {
         /* Where a world would draw each level's blocks (README
          * "Hierarchical cells"): from E_k f / PX on, at the run's size. */
-        struct tw_world_settings ws = o->cli.world;
-        tw_world_default_settings(&ws);
-        const double focal =
-            0.5 * ws.height / tan(0.5 * ws.fov_y * 3.14159265358979323846 / 180.0);
+        struct tw_world_settings ws;
+        const double focal = run_focal(o, &ws);
         printf("coarser levels of its own (used with --max-screen-error %g at %ux%u%s):\n",
                (double)ws.max_screen_error, ws.width, ws.height,
                o->cli.tuning.hlod_levels == 1 ? "; not with --hlod-levels 1" : "");
@@ -817,9 +824,8 @@ static int info(const struct options *o)
             /* What --hlod-levels would do, as the world decides it: each
              * level's error, where it starts at the run's size, whether it
              * pays. */
-            struct tw_world_settings ws = o->cli.world;
-            tw_world_default_settings(&ws);
-            const double focal = 0.5 * ws.height / tan(0.5 * ws.fov_y * 3.14159265358979323846 / 180.0);
+            struct tw_world_settings ws;
+            const double focal = run_focal(o, &ws);
             printf("hierarchical cells (--hlod-levels %u; from where a block is %g px across at "
                    "%ux%u):\n", levels, (double)TW_HLOD_BLOCK_PX, ws.width, ws.height);
             for (uint32_t k = 1; k < levels; k++) {
