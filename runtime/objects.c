@@ -89,7 +89,6 @@ struct tw_objects {
     size_t object_count, object_cap;
     uint32_t *free_objects;
     size_t free_object_count, free_object_cap;
-    uint32_t live;
     struct group **groups;          /* one allocation each: the renderer borrows their protos */
     size_t group_count, group_cap;
     uint32_t *free_groups;
@@ -179,14 +178,13 @@ static void place_group(const struct tw_objects *ob, struct group *g)
 
 /* ---- keys ------------------------------------------------------------------------------ */
 
-static uint32_t new_key(struct tw_objects *ob, uint32_t not)
+/* Keys cycle through [KEY_FIRST, KEY_LAST), where no tile's key nor
+ * TW_CULL_KEY_EMPTY lies. */
+static uint32_t new_key(struct tw_objects *ob)
 {
-    uint32_t k;
-    do {
-        k = ob->next_key++;
-        if (ob->next_key >= KEY_LAST)
-            ob->next_key = KEY_FIRST;
-    } while (k == not);
+    const uint32_t k = ob->next_key++;
+    if (ob->next_key >= KEY_LAST)
+        ob->next_key = KEY_FIRST;
     return k;
 }
 
@@ -300,7 +298,8 @@ static int make_composite(struct tw_world *w, struct group *g, const struct tw_c
     const uint32_t split = tile->proto->cluster_count;
     snprintf(c->proto.name, sizeof(c->proto.name), "%.24s with objects", tile->proto->name);
     c->proto.weight = 1.0f;
-    c->proto.clusters = malloc(((size_t)split + 1) * sizeof(*c->proto.clusters));
+    c->proto.clusters =
+        malloc(((size_t)split + g->proto.cluster_count) * sizeof(*c->proto.clusters));
     int err = c->proto.clusters ? TW_OK : TW_ERR_NOMEM;
     if (!err) {
         memcpy(c->proto.clusters, tile->proto->clusters, (size_t)split * sizeof(struct tw_cluster));
@@ -315,7 +314,7 @@ static int make_composite(struct tw_world *w, struct group *g, const struct tw_c
         composite_free(w, c);
         return err;
     }
-    c->key = new_key(ob, tile->key);
+    c->key = new_key(ob);
     *out = c;
     return TW_OK;
 }
@@ -432,7 +431,7 @@ static int group_build(struct tw_world *w, struct group *g)
         return err;
     g->spread = tw_bvh_spread(g->bvh);
     g->version++;
-    g->key = new_key(ob, TW_CULL_KEY_EMPTY);
+    g->key = new_key(ob);
     g->rebuild = g->moved = false;
     ob->rebuilds++;
     return TW_OK;
@@ -484,16 +483,16 @@ int tw_objects_create(struct tw_world *w)
     }
     for (uint32_t p = 0; p < models->prototype_count; p++) {
         const struct tw_box *b = &models->prototypes[p].box;
-        const float r = fmaxf(fmaxf(fabsf(b->min[0]), fabsf(b->max[0])),
-                              fmaxf(fabsf(b->min[2]), fabsf(b->max[2])));
-        if (!(r * 1.41422f <= reach) || !(fabsf(b->min[1]) <= TW_TILES_MAX_COORD) ||
+        /* Its farthest corner in x and z, turned any way. */
+        const float r = 1.41422f * fmaxf(fmaxf(fabsf(b->min[0]), fabsf(b->max[0])),
+                                         fmaxf(fabsf(b->min[2]), fabsf(b->max[2])));
+        if (!(r <= reach) || !(fabsf(b->min[1]) <= TW_TILES_MAX_COORD) ||
             !(fabsf(b->max[1]) <= TW_TILES_MAX_COORD)) {
             tw_log_printf(&w->s.log, TW_LOG_ERROR,
                           "cannot create the world: object model %u ('%.48s') reaches %g m from "
-                          "its origin; a model must lie within %g m of it (the footprint, "
-                          "turned any way)",
-                          p, models->prototypes[p].name, (double)(r * 1.41422f),
-                          (double)(reach / 1.41422f));
+                          "its origin, turned any way; a model must reach no farther than the "
+                          "footprint, %g m",
+                          p, models->prototypes[p].name, (double)r, (double)reach);
             return TW_ERR_LIMIT;
         }
     }
@@ -598,9 +597,10 @@ static int object_add(struct tw_world *w, const struct tw_object *o, uint32_t *i
     if (err)
         return err;
     struct tw_objects *ob = w->objects;
-    if (ob->live >= TW_MAX_OBJECTS) {
-        tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot add an object: there are %u already, "
-                      "the most a world holds", ob->live);
+    const size_t live = ob->object_count - ob->free_object_count;
+    if (live >= TW_MAX_OBJECTS) {
+        tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot add an object: there are %zu already, "
+                      "the most a world holds", live);
         return TW_ERR_LIMIT;
     }
     /* Room first, so that nothing below fails half-way but the group. */
@@ -626,7 +626,6 @@ static int object_add(struct tw_world *w, const struct tw_object *o, uint32_t *i
             group_free(w, gi);
         return err;
     }
-    ob->live++;
     ob->changed = true;
     *id = k;
     return TW_OK;
@@ -696,7 +695,6 @@ static int object_remove(struct tw_world *w, uint32_t id)
         group_free(w, gi);
     ob->objects[id].live = false;
     ob->free_objects[ob->free_object_count++] = id;    /* room: reserved when added */
-    ob->live--;
     ob->changed = true;
     return TW_OK;
 }
@@ -781,7 +779,7 @@ void tw_objects_stats(const struct tw_world *w, struct tw_frame_stats *st)
     const struct tw_objects *ob = w->objects;
     if (!ob)
         return;
-    st->objects = ob->live;
+    st->objects = (uint32_t)(ob->object_count - ob->free_object_count);
     st->object_cells = (uint32_t)tw_cell_map_count(ob->group_of);
     st->object_rebuilds = ob->rebuilds;
     st->ms_objects = ob->ms;

@@ -151,7 +151,7 @@ static struct tw_world *verified_world(struct tw_world_settings s, enum tw_metho
 }
 
 struct run {
-    uint64_t missed, triangles_wall, frames_rebuilt;
+    uint64_t missed, triangles_wall;
     uint32_t objects_seen;
     uint32_t image_hash[FRAMES];
 };
@@ -206,7 +206,6 @@ static void walk(struct tw_world_settings s, const struct tw_path *path, enum tw
         r->missed += st.missed_pixels;
         if (f >= 8 && f < 12)
             r->triangles_wall += st.triangles;
-        r->frames_rebuilt += st.object_rebuilds > 0;
         r->objects_seen = st.objects;
         CHECK(tw_world_read_rgb(w, img) == TW_OK);
         r->image_hash[f] = hash(img, sizeof(img));
@@ -436,14 +435,15 @@ int main(void)
         if (methods[k] == TW_METHOD_TILEQUERY_CHC)
             walled = r;     /* the wall's figures, below */
     }
-    /* Objects are drawn: without them the images differ. */
+    /* Objects are drawn: the same method without them (and without the
+     * wall, as open) gives other images. */
+    walk(s, &path, TW_METHOD_TILEQUERY_CHC, true, false, &open);
     walk(s, &path, TW_METHOD_TILEQUERY_CHC, false, false, &bare);
     uint32_t same = 0;
     for (uint32_t f = 0; f < FRAMES; f++)
-        same += bare.image_hash[f] == base.image_hash[f];
+        same += bare.image_hash[f] == open.image_hash[f];
     CHECK_MSG(same == 0, "%u of %u images are the same without objects", same, FRAMES);
     /* They occlude: the wall in front of the camera hides the street. */
-    walk(s, &path, TW_METHOD_TILEQUERY_CHC, true, false, &open);
     CHECK_MSG(walled.triangles_wall * 5 < open.triangles_wall,
               "tilequery+chc, 4 frames behind a wall: %llu triangles, %llu without it",
               (unsigned long long)walled.triangles_wall, (unsigned long long)open.triangles_wall);
