@@ -441,10 +441,11 @@ struct tw_cull_cells {
     float view_proj[16];
     float view_distance;
     struct tw_cull_levels levels;
+    struct tw_box common_box;
 };
 /* The cells in view of v, front to back: enumerated on the first call for
- * a view, then given back until the view (cell, matrix, view distance)
- * changes. */
+ * a view, then given back until the view (cell, matrix, view distance) or
+ * the grid (its levels, its common box) changes. */
 int tw_cull_cells_of_frame(struct tw_cull_cells *c, const struct tw_view *v,
                            const struct tw_cull_grid *g);
 void tw_cull_cells_finish(struct tw_cull_cells *c);

@@ -77,7 +77,8 @@ int tw_cull_cells_of_frame(struct tw_cull_cells *c, const struct tw_view *v,
     if (c->valid && c->cell.i == v->cell.i && c->cell.j == v->cell.j &&
         c->view_distance == v->view_distance &&
         memcmp(c->view_proj, v->view_proj, sizeof(c->view_proj)) == 0 &&
-        memcmp(&c->levels, &g->levels, sizeof(c->levels)) == 0)
+        memcmp(&c->levels, &g->levels, sizeof(c->levels)) == 0 &&
+        memcmp(&c->common_box, &g->common_box, sizeof(c->common_box)) == 0)
         return TW_OK;
     for (;;) {
         const size_t n = tw_cull_nodes_in_view(v, g, c->cells, c->cap, NULL);
@@ -88,6 +89,7 @@ int tw_cull_cells_of_frame(struct tw_cull_cells *c, const struct tw_view *v,
             c->view_distance = v->view_distance;
             memcpy(c->view_proj, v->view_proj, sizeof(c->view_proj));
             c->levels = g->levels;
+            c->common_box = g->common_box;
             return TW_OK;
         }
         struct tw_cull_cell *cells = realloc(c->cells, sizeof(*cells) * n);

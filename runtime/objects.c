@@ -759,17 +759,9 @@ int tw_objects_apply(struct tw_world *w)
             tw_box_add_box(&box, &g->proto.box);
     }
     ob->changed = false;
-    /* The common box holds every group's box: when it changes, the cells
-     * in view are enumerated again. */
-    if (memcmp(&box, &w->grid.common_box, sizeof(box)) != 0) {
-        w->grid.common_box = box;
-        struct tw_viewport *vp = NULL;
-        bool started = false;
-        for (struct tw_view_state *vs; (vs = tw_world_next_view(w, &vp, &started));) {
-            vs->cells.valid = false;
-            vs->ahead.valid = false;
-        }
-    }
+    /* The common box holds every group's box (the cells in view follow
+     * it: tw_cull_cells_of_frame). */
+    w->grid.common_box = box;
     ob->ms = tw_clock_monotonic_ms() - t0;
     return err;
 }
