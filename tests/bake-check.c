@@ -99,7 +99,7 @@ static bool same_tile(const char *path, const struct tw_tileset *ts, uint32_t p)
     char why[512] = "";
     bool same = data && tw_tileset_create("back", ts->footprint[0], ts->footprint[1], &back) == 0;
     const int proto = same ? tw_tileset_add_prototype(back, "back", 1.0f) : -1;
-    same = same && proto == 0 && tw_tiles3d_glb_read(data, size, back, 0, NULL, why,
+    same = same && proto == 0 && tw_tiles3d_glb_read(data, size, back, 0, NULL, NULL, why,
                                                      sizeof(why)) == TW_OK;
     if (same)
         back->merge_triangles = 1;

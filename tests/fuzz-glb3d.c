@@ -25,8 +25,15 @@ static void read_tile(const uint8_t *data, size_t size, const double *shift)
         abort();
     if (tw_tileset_add_prototype(ts, "0,0", 1.0f) != 0)
         abort();
-    const int rc = tw_tiles3d_glb_read(data, size, ts, 0, shift, why, sizeof(why));
+    double error = -1.0;
+    const int rc = tw_tiles3d_glb_read(data, size, ts, 0, shift, &error, why, sizeof(why));
     if (rc < 0 && (!why[0] || strchr(why, '\n')))
+        abort();
+    if (rc > 0 || (rc == TW_OK && error == -1.0))
+        abort();
+    double alone = -1.0;
+    if (rc == TW_OK && (tw_tiles3d_glb_error(data, size, &alone) != TW_OK ||
+                        !(alone == error || (alone != alone && error != error))))
         abort();
     if (rc == TW_OK) {
         ts->merge_triangles = 1;

@@ -249,8 +249,7 @@ void tw_gltf_shared_finish(struct tw_gltf_shared *shared)
     shared->images = NULL;
 }
 
-/* FNV-1a over n bytes. */
-static uint64_t hash_data(const uint8_t *p, uint64_t n)
+uint64_t tw_hash_bytes(const uint8_t *p, uint64_t n)
 {
     uint64_t h = 0xcbf29ce484222325ull;
     for (uint64_t k = 0; k < n; k++)
@@ -515,7 +514,7 @@ const struct tw_gltf_decoded_image *tw_gltf_load_image(struct tw_gltf_importer *
             size = img->size;
             probe.source = TW_GLTF_SOURCE_DATA;
             probe.bytes = bytes;
-            probe.key[0] = hash_data(bytes, size);
+            probe.key[0] = tw_hash_bytes(bytes, size);
             probe.key[1] = size;
             probe.hash = hash_words(probe.key, 2, TW_GLTF_SOURCE_DATA);
         }

@@ -1,6 +1,7 @@
 /* The fetcher of the 3D Tiles provider (http.h): libcurl easy handles
  * from a pool, retries with back-off, and an ETag cache on disk. */
 #include "tilesets/http.h"
+#include "tilesets/tilesets-private.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -45,26 +46,12 @@ static void global_init(void)
     global_rc = curl_global_init(CURL_GLOBAL_DEFAULT);
 }
 
-bool tw_http_available(void)
-{
-    return true;
-}
-
 /* ---- the cache ---------------------------------------------------------------- */
-
-static uint64_t fnv1a(const char *s)
-{
-    uint64_t h = 1469598103934665603ull;
-    for (; *s; s++) {
-        h ^= (uint8_t)*s;
-        h *= 1099511628211ull;
-    }
-    return h;
-}
 
 static void cache_path(const struct tw_http *h, const char *url, char *out, size_t size)
 {
-    snprintf(out, size, "%s/%016llx.twc", h->cache_dir, (unsigned long long)fnv1a(url));
+    const uint64_t key = tw_hash_bytes((const uint8_t *)url, strlen(url));
+    snprintf(out, size, "%s/%016llx.twc", h->cache_dir, (unsigned long long)key);
 }
 
 struct cache_entry {
@@ -554,11 +541,6 @@ int tw_http_get(struct tw_http *h, const char *url, uint64_t max_bytes, void **b
 struct tw_http {
     int unused;
 };
-
-bool tw_http_available(void)
-{
-    return false;
-}
 
 int tw_http_create(const struct tw_tiles3d_settings *settings, struct tw_http **out, char *err,
                    size_t err_size)

@@ -25,10 +25,6 @@
 
 struct tw_http;
 
-/* Whether this build has libcurl; without it tw_http_create() fails with
- * a message that says so. */
-bool tw_http_available(void);
-
 /* A fetcher with settings (resolved: no zero defaults left); cache_dir is
  * copied (NULL or "": no cache) and made if missing. Fails with
  * TW_ERR_IO and err for a cache folder that cannot be made. */

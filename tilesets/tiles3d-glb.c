@@ -263,30 +263,75 @@ out:
     return rc;
 }
 
+/* The JSON chunk of the binary glTF file at data into *doc, its length in
+ * *json_len; why says what is wrong. */
+static int parse_json(const uint8_t *d, size_t size, json_object **doc, uint64_t *json_len,
+                      const char **why)
+{
+    *doc = NULL;
+    if (size < 20 || memcmp(d, "glTF", 4) != 0 || tw_gltf_le32(d + 4) != 2 ||
+        memcmp(d + 16, "JSON", 4) != 0) {
+        *why = "not a binary glTF 2.0 file";
+        return TW_ERR_FORMAT;
+    }
+    *json_len = tw_gltf_le32(d + 12);
+    if (*json_len > size - 20 || *json_len > INT32_MAX) {
+        *why = "its JSON chunk is longer than the file";
+        return TW_ERR_FORMAT;
+    }
+    json_tokener *tok = json_tokener_new();
+    if (!tok) {
+        *why = "out of memory";
+        return TW_ERR_NOMEM;
+    }
+    *doc = json_tokener_parse_ex(tok, (const char *)d + 20, (int)*json_len);
+    json_tokener_free(tok);
+    if (!*doc) {
+        *why = "its JSON chunk does not parse";
+        return TW_ERR_FORMAT;
+    }
+    return TW_OK;
+}
+
+static double error_of(json_object *doc)
+{
+    json_object *e = get(get(get(doc, "asset"), "extras"), "geometricError");
+    return e ? json_object_get_double(e) : 0.0;
+}
+
+int tw_tiles3d_glb_error(const void *data, size_t size, double *error)
+{
+    json_object *doc;
+    uint64_t json_len;
+    const char *why;
+    const int rc = parse_json(data, size, &doc, &json_len, &why);
+    *error = rc ? 0.0 : error_of(doc);
+    json_object_put(doc);
+    return rc;
+}
+
 int tw_tiles3d_glb_read(const void *data, size_t size, struct tw_tileset *ts, uint32_t proto,
-                        const double *shift, char *why, size_t why_size)
+                        const double *shift, double *error, char *why, size_t why_size)
 {
     struct reader r = {.why = why, .why_size = why_size};
     const uint8_t *d = data;
     why[0] = '\0';
-    if (size < 28 || memcmp(d, "glTF", 4) != 0 || tw_gltf_le32(d + 4) != 2 ||
-        memcmp(d + 16, "JSON", 4) != 0)
-        return fail(&r, TW_ERR_FORMAT, "not a binary glTF 2.0 file");
-    const uint64_t json_len = tw_gltf_le32(d + 12);
-    if (json_len > size - 20 || json_len > INT32_MAX)
-        return fail(&r, TW_ERR_FORMAT, "its JSON chunk is longer than the file");
-    json_tokener *tok = json_tokener_new();
-    if (!tok)
-        return fail(&r, TW_ERR_NOMEM, "out of memory");
-    r.doc = json_tokener_parse_ex(tok, (const char *)d + 20, (int)json_len);
-    json_tokener_free(tok);
+    if (error)
+        *error = 0.0;
+    uint64_t json_len;
+    const char *problem = NULL;
+    int rc = parse_json(d, size, &r.doc, &json_len, &problem);
+    if (rc)
+        return fail(&r, rc, "%s", problem);
     json_object *layout = get(get(get(get(r.doc, "asset"), "extras"), "tileworld"), "layout");
     if (!layout || !json_object_is_type(layout, json_type_string) ||
         strcmp(json_object_get_string(layout), "instances") != 0) {
-        json_object_put(r.doc);
-        return TW_TILES3D_GLB_OTHER;
+        rc = fail(&r, TW_ERR_FORMAT, "not a tile in tileworld bake's layout "
+                  "(asset.extras.tileworld.layout \"instances\")");
+        goto out;
     }
-    int rc = TW_OK;
+    if (error)
+        *error = error_of(r.doc);
     const uint64_t bin_at = 20 + json_len;
     if (bin_at + 8 > size || memcmp(d + bin_at + 4, "BIN\0", 4) != 0 ||
         tw_gltf_le32(d + bin_at) > size - bin_at - 8) {

@@ -6,10 +6,10 @@
  * level, whose content availability becomes one byte per cell; content()
  * reads it. generate() fetches the cell's .glb on the calling worker
  * (http.c) and reads it: a .glb in the bake's own layout rebuilds the
- * tile as it was finished (tiles3d-glb.c), other glTF goes through the
- * general importer. The node translation that places the cell inside the
- * rectangle is dropped, so the tile's geometry is the cell-relative
- * float32 of the file, whatever the rectangle's size.
+ * tile as it was finished (tiles3d-glb.c); other glTF is refused. The
+ * node translation that places the cell inside the rectangle is dropped,
+ * so the tile's geometry is the cell-relative float32 of the file,
+ * whatever the rectangle's size.
  *
  * Thread safety: generate() only reads the provider (the fetcher is
  * thread-safe); what a worker still running at destroy uses stays until it
@@ -46,12 +46,11 @@ struct tw_tiles3d_provider {
     uint64_t nx, ny;                /* its cells along i and j */
     uint8_t *has_content;           /* nx * ny, row-major along i */
     uint64_t cells_with_content;
-    /* The bake's coarser levels (extras.tileworld.levels) that line up with
-     * the world's blocks: level k's tile (x, y) is block (I0 / 2^k + x,
+    /* The bake's coarser levels (extras.tileworld.levels; their errors in
+     * provider.level_error), of which provider.levels line up with the
+     * world's blocks: level k's tile (x, y) is block (I0 / 2^k + x,
      * J0 / 2^k + y), there when one of its cells has content. */
-    uint32_t levels;                /* offered; <= levels_baked */
     uint32_t levels_baked;
-    float level_error[TW_PROVIDER_MAX_LEVELS];
     uint8_t *block_content[TW_PROVIDER_MAX_LEVELS];   /* [k - 1]: row-major, ceil(n / 2^k) */
     _Atomic uint64_t cells_read, blocks_read;
 };
@@ -467,7 +466,7 @@ static int parse_tileset(struct tw_tiles3d_provider *p, const char *text, size_t
                       "metres}";
                 goto bad;
             }
-            p->level_error[k] = (float)err;
+            p->provider.level_error[k] = (float)err;
         }
         p->levels_baked = (uint32_t)n;
     }
@@ -503,77 +502,6 @@ static uint32_t tiles3d_content(void *user, struct tw_cell cell)
     return p->has_content[y * p->nx + x] ? TW_TILE_OWN : TW_TILE_EMPTY;
 }
 
-/* Drops the translation (or a matrix's) of the default scene's root nodes
- * from the binary glTF at data: a new GLB into *out. */
-static int drop_root_translation(const uint8_t *data, size_t size, uint8_t **out,
-                                 size_t *out_size, const char **why)
-{
-    *out = NULL;
-    if (size < 20 || memcmp(data, "glTF", 4) != 0 || get_le(data + 4, 4) != 2 ||
-        memcmp(data + 16, "JSON", 4) != 0) {
-        *why = "not a binary glTF 2.0 file";
-        return TW_ERR_FORMAT;
-    }
-    const uint64_t json_len = get_le(data + 12, 4);
-    if (json_len > size - 20) {
-        *why = "its JSON chunk is longer than the file";
-        return TW_ERR_FORMAT;
-    }
-    json_tokener *tok = json_tokener_new();
-    if (!tok)
-        return TW_ERR_NOMEM;
-    json_object *doc = json_tokener_parse_ex(tok, (const char *)data + 20, (int)json_len);
-    json_tokener_free(tok);
-    if (!doc || !json_object_is_type(doc, json_type_object)) {
-        json_object_put(doc);
-        *why = "its JSON chunk is not a JSON object";
-        return TW_ERR_FORMAT;
-    }
-    json_object *scenes = NULL, *nodes = NULL, *scene_o = NULL, *roots = NULL;
-    json_object_object_get_ex(doc, "nodes", &nodes);
-    json_object_object_get_ex(doc, "scenes", &scenes);
-    const int scene = json_object_object_get_ex(doc, "scene", &scene_o)
-                          ? json_object_get_int(scene_o)
-                          : 0;
-    json_object *s = scenes ? json_object_array_get_idx(scenes, (size_t)scene) : NULL;
-    if (s && nodes && json_object_object_get_ex(s, "nodes", &roots) &&
-        json_object_is_type(roots, json_type_array)) {
-        for (size_t k = 0; k < json_object_array_length(roots); k++) {
-            const int n = json_object_get_int(json_object_array_get_idx(roots, k));
-            json_object *node = json_object_array_get_idx(nodes, (size_t)n), *m = NULL;
-            if (!node || !json_object_is_type(node, json_type_object))
-                continue;
-            json_object_object_del(node, "translation");
-            if (json_object_object_get_ex(node, "matrix", &m) &&
-                json_object_is_type(m, json_type_array) && json_object_array_length(m) == 16)
-                for (size_t e = 12; e < 15; e++)
-                    json_object_array_put_idx(m, e, json_object_new_double(0.0));
-        }
-    }
-    const char *text = json_object_to_json_string_ext(doc, JSON_C_TO_STRING_PLAIN |
-                                                               JSON_C_TO_STRING_NOSLASHESCAPE);
-    const size_t text_len = strlen(text), padded = (text_len + 3) & ~(size_t)3;
-    const size_t rest = size - 20 - (size_t)json_len;
-    const size_t total = 20 + padded + rest;
-    uint8_t *glb = total <= UINT32_MAX ? malloc(total) : NULL;
-    if (!glb) {
-        json_object_put(doc);
-        return TW_ERR_NOMEM;
-    }
-    memcpy(glb, data, 20);
-    for (int k = 0; k < 4; k++) {
-        glb[8 + k] = (uint8_t)(total >> (8 * k));
-        glb[12 + k] = (uint8_t)(padded >> (8 * k));
-    }
-    memcpy(glb + 20, text, text_len);
-    memset(glb + 20 + text_len, ' ', padded - text_len);
-    memcpy(glb + 20 + padded, data + 20 + json_len, rest);
-    json_object_put(doc);
-    *out = glb;
-    *out_size = total;
-    return TW_OK;
-}
-
 /* Fetches the quadtree's tile (level, x, y), the cells' level or a coarser
  * one, and reads it into ts as its prototype name. */
 static int fetch_tile(struct tw_tiles3d_provider *p, uint32_t level, uint64_t x, uint64_t y,
@@ -581,9 +509,7 @@ static int fetch_tile(struct tw_tiles3d_provider *p, uint32_t level, uint64_t x,
 {
     char *url = NULL;
     void *data = NULL;
-    uint8_t *glb = NULL;
-    size_t size = 0, glb_size = 0;
-    struct tw_gltf_scene *scene = NULL;
+    size_t size = 0;
     char err[512], shown[600];
     long status = 0;
     bool missing = false;
@@ -610,37 +536,12 @@ static int fetch_tile(struct tw_tiles3d_provider *p, uint32_t level, uint64_t x,
     /* The bake's own layout: the tile as it was finished, rebuilt exactly;
      * its small instances are merged already, so nothing is merged again
      * (tw_tileset_finish() then only splits the meshes into the same parts). */
-    rc = tw_tiles3d_glb_read(data, size, ts, (uint32_t)proto, NULL, err, sizeof(err));
-    if (rc == TW_OK) {
-        ts->merge_triangles = 1;
-        goto out;
-    }
-    if (rc < 0) {
-        rc = tw_tileset_fail(ts, rc, "%s: %s", shown, err);
-        goto out;
-    }
-    /* Other glTF content (an older bake's one flattened mesh): the general
-     * importer, the root's translation dropped. */
-    const char *why = NULL;
-    rc = drop_root_translation(data, size, &glb, &glb_size, &why);
-    if (rc) {
-        rc = tw_tileset_fail(ts, rc, "%s: %s", shown, why ? why : tw_error_to_str(rc));
-        goto out;
-    }
-    rc = tw_gltf_import_memory(glb, glb_size, url, NULL, &p->settings.gltf, &p->log, &scene);
-    if (rc) {
-        rc = tw_tileset_fail(ts, rc, "%s: not a glTF tile that can be drawn (%s)", shown,
-                             tw_error_to_str(rc));
-        goto out;
-    }
-    struct tw_gltf_binding binding;
-    if (!(rc = tw_gltf_bind(scene, ts, &binding)))
-        rc = tw_gltf_place(scene, &binding, ts, (uint32_t)proto, NULL);
+    rc = tw_tiles3d_glb_read(data, size, ts, (uint32_t)proto, NULL, NULL, err, sizeof(err));
     if (rc)
-        rc = tw_tileset_fail(ts, rc, "%s: cannot make the tile: %s", shown, tw_error_to_str(rc));
+        rc = tw_tileset_fail(ts, rc, "%s: %s", shown, err);
+    else
+        ts->merge_triangles = 1;
 out:
-    tw_gltf_scene_destroy(scene);
-    free(glb);
     free(data);
     free(url);
     return rc;
@@ -675,9 +576,9 @@ static int tiles3d_generate_level(void *user, uint32_t k, struct tw_cell block,
                                   struct tw_tileset *ts)
 {
     struct tw_tiles3d_provider *p = user;
-    if (k < 1 || k > p->levels)
+    if (k < 1 || k > p->provider.levels)
         return tw_tileset_fail(ts, TW_ERR_INVALID, "level %u: the tileset has levels 1 to %u",
-                               k, p->levels);
+                               k, p->provider.levels);
     atomic_fetch_add(&p->refs, 1);
     /* The corner lines up with the level's blocks (levels_offered). */
     const uint64_t x = (uint64_t)block.i - (uint64_t)(p->first.i >> k);
@@ -721,7 +622,7 @@ static int levels_offered(struct tw_tiles3d_provider *p)
                     q[(y >> 1) * w + (x >> 1)] = 1;
         p->block_content[k - 1] = q;
     }
-    p->levels = n;
+    p->provider.levels = n;
     return TW_OK;
 }
 
@@ -794,16 +695,13 @@ int tw_tiles3d_provider_create(const char *url, const struct tw_tiles3d_settings
     tp->generate = tiles3d_generate;
     tp->user = p;
     tp->max_cluster_triangles = p->settings.max_cluster_triangles;
-    tp->levels = p->levels;
-    tp->generate_level = p->levels ? tiles3d_generate_level : NULL;
-    for (uint32_t k = 0; k < p->levels; k++)
-        tp->level_error[k] = p->level_error[k];
-    if (p->levels < p->levels_baked)
+    tp->generate_level = tp->levels ? tiles3d_generate_level : NULL;
+    if (tp->levels < p->levels_baked)
         tw_log_printf(log, TW_LOG_WARN,
                       "3D Tiles: %s: %u of its %u coarser levels are used: its corner %lld,%lld "
                       "is not a multiple of %u cells, where the world's blocks of level %u start",
-                      shown, p->levels, p->levels_baked, (long long)p->first.i,
-                      (long long)p->first.j, 2u << p->levels, p->levels + 1);
+                      shown, tp->levels, p->levels_baked, (long long)p->first.i,
+                      (long long)p->first.j, 2u << tp->levels, tp->levels + 1);
 
     tw_log_printf(log, TW_LOG_INFO,
                   "3D Tiles: %s: cells %lld,%lld to %lld,%lld, %llu with content, %u levels, "

@@ -305,6 +305,9 @@ int tw_gltf_import_fd(int fd, int dir_fd, const char *name,
 void tw_gltf_placement(const float position[3], float yaw_degrees, float scale,
                        float out[12]);
 
+/* FNV-1a over n bytes (gltf-io.c). */
+uint64_t tw_hash_bytes(const uint8_t *p, uint64_t n);
+
 /* ---- implicit tiling's indices (tiles3d-provider.c; the bake's writer uses them) ---- */
 
 /* The number of tiles of a quadtree's levels [0, levels): (4^levels - 1) / 3. */
@@ -314,11 +317,6 @@ uint64_t tw_tiles3d_morton(uint32_t x, uint32_t y);
 
 /* ---- the .glb layout of tileworld bake (tiles3d-glb.c) ---------------------------- */
 
-/* What tw_tiles3d_glb_read() returns for a binary glTF file that is not in
- * the layout (asset.extras.tileworld.layout "instances"): read it with the
- * general importer. */
-#define TW_TILES3D_GLB_OTHER 1
-
 /* Reads the binary glTF file at data (size bytes; borrowed) that `tileworld
  * bake` wrote into ts: every material (tw_tileset_add_material), one mesh
  * per POSITION accessor with its normals (_TW_NORMAL when present, else
@@ -327,10 +325,16 @@ uint64_t tw_tiles3d_morton(uint32_t x, uint32_t y);
  * its matrix, the floats as written. shift NULL: the root node's
  * translation is dropped (the tile's own cell-relative geometry); else each
  * instance is moved by the root's translation plus shift (metres, added in
- * double to each translation). Returns TW_OK, TW_TILES3D_GLB_OTHER (ts
- * untouched), or a negative error with the reason in why (ts then holds
- * part of the file). */
+ * double to each translation). *error (may be NULL): the geometric error
+ * the file says it has (asset.extras.geometricError; 0: none). Returns
+ * TW_OK, or a negative error with the reason in why: TW_ERR_FORMAT for a
+ * file that is no GLB or not in the layout (asset.extras.tileworld.layout
+ * "instances"); ts then may hold part of the file. */
 int tw_tiles3d_glb_read(const void *data, size_t size, struct tw_tileset *ts, uint32_t proto,
-                        const double *shift, char *why, size_t why_size);
+                        const double *shift, double *error, char *why, size_t why_size);
+/* Only the geometric error of the binary glTF file at data (size bytes;
+ * the binary chunk may be left out): 0 when it says none. TW_ERR_FORMAT
+ * for no GLB. */
+int tw_tiles3d_glb_error(const void *data, size_t size, double *error);
 
 #endif

@@ -444,13 +444,11 @@ static uint64_t instance_triangles(const struct tw_tileset *ts, uint32_t p)
     return n;
 }
 
-/* Adds the .glb file path (a tile of the level below) to prototype proto
- * of ts, moved by -origin: the bake's own layout read as it is
- * (tilesets/tiles3d-glb.c), other glTF through the general importer.
- * *error: the geometric error written into it (0: none). */
+/* Adds the .glb file path (a tile of the level below, in the bake's own
+ * layout: tilesets/tiles3d-glb.c) to prototype proto of ts, moved by
+ * -origin. *error: the geometric error written into it (0: none). */
 static int read_child(const char *path, struct tw_tileset *ts, uint32_t proto,
-                      const double origin[3], const float placement[12], const struct tw_log *log,
-                      double *error, char *err, size_t err_size)
+                      const double origin[3], double *error, char *err, size_t err_size)
 {
     FILE *f = fopen(path, "rb");
     uint8_t *data = NULL;
@@ -465,38 +463,19 @@ static int read_child(const char *path, struct tw_tileset *ts, uint32_t proto,
         free(data);
         return TW_ERR_IO;
     }
-    int rc = tw_tiles3d_glb_error(data, (size_t)n, error);
-    if (rc) {
-        snprintf(err, err_size, "%.900s: not a binary glTF file of tileworld bake", path);
-        free(data);
-        return rc;
-    }
     const double shift[3] = {-origin[0], -origin[1], -origin[2]};
     char why[512];
-    rc = tw_tiles3d_glb_read(data, (size_t)n, ts, proto, shift, why, sizeof(why));
+    const int rc = tw_tiles3d_glb_read(data, (size_t)n, ts, proto, shift, error, why, sizeof(why));
     free(data);
-    if (rc < 0)
-        snprintf(err, err_size, "%.600s: %.500s", path, why);
-    if (rc != TW_TILES3D_GLB_OTHER)
-        return rc;
-    struct tw_gltf_scene *scene = NULL;
-    struct tw_gltf_binding binding;
-    rc = tw_gltf_import(path, NULL, log, &scene);
-    if (!rc)
-        rc = tw_gltf_bind(scene, ts, &binding);
-    if (!rc)
-        rc = tw_gltf_place(scene, &binding, ts, proto, placement);
-    tw_gltf_scene_destroy(scene);
     if (rc)
-        snprintf(err, err_size, "%.900s: %s", path, tw_error_to_str(rc));
+        snprintf(err, err_size, "%.600s: %.500s", path, why);
     return rc;
 }
 
 /* Bakes tile k (row-major) of the coarser level b->block_level: its
  * children's .glb files (the level below) merged into one tile-local mesh
  * and simplified by the levels of detail (tiles/lod.c, meshoptimizer) to
- * the first level of at most a quarter of their triangles, so that every
- * level of the quadtree draws about as many triangles as a cell. Its
+ * the coarsest level within the error the level may add (see below). Its
  * geometric error, the simplification's plus its children's, goes into the
  * file (asset.extras.geometricError) for --finish's tileset.json. Skipped
  * when its file exists; nothing when no child has content. */
@@ -528,16 +507,13 @@ static void bake_block(struct bake *b, uint64_t k)
         fail_run(b, "%s: %s", path, tw_error_to_str(rc ? rc : proto));
         goto out;
     }
-    const float placement[12] = {1, 0, 0, (float)-origin[0], 0, 1, 0, 0, 0, 0, 1,
-                                 (float)-origin[2]};
     for (uint32_t c = 0; c < 4; c++) {
         const uint64_t cx = 2 * x + (c & 1), cy = 2 * y + (c >> 1);
         if (tile_path(b, child, sizeof(child), "content", level + 1, cx, cy, "glb") ||
             !exists(child))
             continue;
         double e = 0.0;
-        rc = read_child(child, ts, (uint32_t)proto, origin, placement, &b->log, &e, err,
-                        sizeof(err));
+        rc = read_child(child, ts, (uint32_t)proto, origin, &e, err, sizeof(err));
         if (rc) {
             fail_run(b, "%s: cannot merge %s", path, err);
             goto out;
@@ -675,14 +651,6 @@ static int run_jobs(struct bake *b)
 
 /* ---- the bake's record ------------------------------------------------------- */
 
-static json_object *doubles(const double *v, int n)
-{
-    json_object *a = json_object_new_array();
-    for (int k = 0; k < n; k++)
-        json_object_array_add(a, json_object_new_double(v[k]));
-    return a;
-}
-
 /* The rectangle as [I0, J0, I1, J1]. */
 static json_object *cells_json(const struct bake *b)
 {
@@ -696,7 +664,7 @@ static json_object *cells_json(const struct bake *b)
 static json_object *footprint_json(const struct bake *b)
 {
     const double footprint[2] = {b->world.footprint[0], b->world.footprint[1]};
-    return doubles(footprint, 2);
+    return tw_tiles3d_doubles(footprint, 2);
 }
 
 /* DIR/bake.json: what decides the cells' files. A rerun, a shard or --finish
@@ -737,9 +705,7 @@ static int check_record(struct bake *b)
         tw_cli_message(program, "%s: %s", path, strerror(errno));
         rc = 1;
     } else {
-        char line[8192];
-        const int n = snprintf(line, sizeof(line), "%s\n", text);
-        if (tw_tiles3d_write_file(path, line, (size_t)n, err, sizeof(err))) {
+        if (tw_tiles3d_write_text(path, text, err, sizeof(err))) {
             tw_cli_message(program, "--out %s: cannot bake there: %s", b->out, err);
             rc = 2;
         }
@@ -892,9 +858,9 @@ static int write_tileset_json(struct bake *b, uint32_t subtree_levels, const dou
     json_object_object_add(root, "geometricError",
                            json_object_new_double(b->leaf > 0 ? 2.0 * root_error : diagonal));
     json_object *tile = json_object_new_object();
-    json_object_object_add(tile, "transform", doubles(transform, 16));
+    json_object_object_add(tile, "transform", tw_tiles3d_doubles(transform, 16));
     json_object *volume = json_object_new_object();
-    json_object_object_add(volume, "box", doubles(box, 12));
+    json_object_object_add(volume, "box", tw_tiles3d_doubles(box, 12));
     json_object_object_add(tile, "boundingVolume", volume);
     json_object_object_add(tile, "geometricError", json_object_new_double(root_error));
     json_object_object_add(tile, "refine", json_object_new_string("REPLACE"));
@@ -920,8 +886,8 @@ static int write_tileset_json(struct bake *b, uint32_t subtree_levels, const dou
     const double bmin[3] = {bound->min[0], bound->min[1], bound->min[2]};
     const double bmax[3] = {bound->max[0], bound->max[1], bound->max[2]};
     json_object *bound_json = json_object_new_object();
-    json_object_object_add(bound_json, "min", doubles(bmin, 3));
-    json_object_object_add(bound_json, "max", doubles(bmax, 3));
+    json_object_object_add(bound_json, "min", tw_tiles3d_doubles(bmin, 3));
+    json_object_object_add(bound_json, "max", tw_tiles3d_doubles(bmax, 3));
     json_object_object_add(tw, "bound", bound_json);
     /* The coarser levels with content, for a tileworld client's far cells:
      * blocks of 2^k x 2^k cells from the rectangle's corner, each level's
@@ -948,19 +914,11 @@ static int write_tileset_json(struct bake *b, uint32_t subtree_levels, const dou
                                                                 JSON_C_TO_STRING_NOSLASHESCAPE);
     char path[4096], err[1200];
     snprintf(path, sizeof(path), "%s/tileset.json", b->out);
-    char *line = malloc(strlen(text) + 2);
     int rc = 0;
-    if (!line) {
-        tw_cli_message(program, "bake --finish: %s", tw_error_to_str(TW_ERR_NOMEM));
+    if (tw_tiles3d_write_text(path, text, err, sizeof(err))) {
+        tw_cli_message(program, "bake --finish: %s", err);
         rc = 1;
-    } else {
-        const int n = sprintf(line, "%s\n", text);
-        if (tw_tiles3d_write_file(path, line, (size_t)n, err, sizeof(err))) {
-            tw_cli_message(program, "bake --finish: %s", err);
-            rc = 1;
-        }
     }
-    free(line);
     json_object_put(root);
     return rc;
 }

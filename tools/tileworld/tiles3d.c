@@ -61,10 +61,11 @@ static int write_pieces(const char *path, const void *const *data, const size_t 
     return rc ? rc : tw_outfile_commit(&o, err, err_size);
 }
 
-int tw_tiles3d_write_file(const char *path, const void *data, size_t size, char *err,
-                          size_t err_size)
+int tw_tiles3d_write_text(const char *path, const char *text, char *err, size_t err_size)
 {
-    return write_pieces(path, &data, &size, 1, err, err_size);
+    const void *pieces[2] = {text, "\n"};
+    const size_t sizes[2] = {strlen(text), 1};
+    return write_pieces(path, pieces, sizes, 2, err, err_size);
 }
 
 static void put_u32(uint8_t *p, uint32_t v)
@@ -79,7 +80,7 @@ static void put_u64(uint8_t *p, uint64_t v)
         p[k] = (uint8_t)(v >> (8 * k));
 }
 
-static json_object *double_array(const double *v, int n)
+json_object *tw_tiles3d_doubles(const double *v, int n)
 {
     json_object *a = json_object_new_array();
     for (int k = 0; k < n; k++)
@@ -260,7 +261,7 @@ int tw_tiles3d_write_glb(const char *path, const struct tw_tiles3d_scene *sc,
     json_object *nodes = json_object_new_array();
     json_object *top = json_object_new_object();
     if (translation[0] != 0.0 || translation[1] != 0.0 || translation[2] != 0.0)
-        json_object_object_add(top, "translation", double_array(translation, 3));
+        json_object_object_add(top, "translation", tw_tiles3d_doubles(translation, 3));
     json_object *children = json_object_new_array();
     for (uint32_t k = 0; k < nn; k++)
         json_object_array_add(children, json_object_new_int64((int64_t)k + 1));
@@ -440,31 +441,6 @@ out:
 static uint32_t get_u32(const uint8_t *p)
 {
     return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-
-int tw_tiles3d_glb_error(const void *data, size_t size, double *error)
-{
-    const uint8_t *d = data;
-    *error = 0.0;
-    if (size < 20 || memcmp(d, "glTF", 4) != 0 || memcmp(d + 16, "JSON", 4) != 0)
-        return TW_ERR_FORMAT;
-    const uint32_t n = get_u32(d + 12);
-    if (n > size - 20 || n > INT32_MAX)
-        return TW_ERR_FORMAT;
-    json_tokener *tok = json_tokener_new();
-    if (!tok)
-        return TW_ERR_NOMEM;
-    json_object *root = json_tokener_parse_ex(tok, (const char *)d + 20, (int)n);
-    json_tokener_free(tok);
-    if (!root)
-        return TW_ERR_FORMAT;
-    json_object *asset = NULL, *extras = NULL, *e = NULL;
-    if (json_object_object_get_ex(root, "asset", &asset) &&
-        json_object_object_get_ex(asset, "extras", &extras) &&
-        json_object_object_get_ex(extras, "geometricError", &e))
-        *error = json_object_get_double(e);
-    json_object_put(root);
-    return TW_OK;
 }
 
 int tw_tiles3d_read_glb_error(const char *path, double *error, char *err, size_t err_size)

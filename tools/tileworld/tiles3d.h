@@ -69,9 +69,6 @@ int tw_tiles3d_write_glb(const char *path, const struct tw_tiles3d_scene *scene,
  * binary glTF file path: 0 when it has none. TW_ERR_IO or TW_ERR_FORMAT,
  * with the reason in err, for a file that cannot be read or is no GLB. */
 int tw_tiles3d_read_glb_error(const char *path, double *error, char *err, size_t err_size);
-/* The same from the file's bytes in memory (size of them at data):
- * TW_ERR_FORMAT for no GLB. */
-int tw_tiles3d_glb_error(const void *data, size_t size, double *error);
 
 /* A quadtree subtree's availability: bits in Morton order, level after
  * level (level l of the subtree starts at bit (4^l - 1) / 3), as the
@@ -92,9 +89,11 @@ int tw_tiles3d_write_subtree(const char *path, const struct tw_tiles3d_subtree *
 /* tw_tiles3d_tiles_below() and tw_tiles3d_morton(), the implicit tiling's
  * indices, are the provider's (tilesets/tilesets-private.h). */
 
-/* Writes size bytes at data as path, whole or not at all (see above). */
-int tw_tiles3d_write_file(const char *path, const void *data, size_t size, char *err,
-                          size_t err_size);
+/* Writes text and a newline as path, whole or not at all (see above). */
+int tw_tiles3d_write_text(const char *path, const char *text, char *err, size_t err_size);
+
+/* A JSON array of the n numbers at v. */
+struct json_object *tw_tiles3d_doubles(const double *v, int n);
 
 /* Makes the folders of path (everything before its last '/'), as mkdir -p;
  * folders that exist already, or that another process makes meanwhile,
