@@ -1,6 +1,7 @@
 /* The GPU store: tilesets' meshes uploaded into GL buffers, the contents
  * they hold, released (renderer.h). */
 #include "runtime/renderer-private.h"
+#include "tiles/array.h"
 #include "tiles/tiles-internal.h"
 
 #include <assert.h>
@@ -236,10 +237,17 @@ const struct tw_prototype *tw_renderer_content(const struct tw_renderer *r, uint
     return c->own ? c->own : &r->buffers[c->buffers].ts->prototypes[c->proto];
 }
 
+/* A live content that is no composite: what a content of its own or a
+ * composite's part is made from. */
+static bool plain_content(const struct tw_renderer *r, uint32_t c)
+{
+    return c < r->content_count && r->contents[c].live && !r->contents[c].composite;
+}
+
 int tw_renderer_add_content(struct tw_renderer *r, uint32_t like, const struct tw_prototype *proto,
                             const struct tw_bvh *bvh, uint32_t *out)
 {
-    if (like >= r->content_count || !r->contents[like].live || r->contents[like].composite)
+    if (!plain_content(r, like))
         return TW_ERR_INVALID;
     const uint32_t buffers = r->contents[like].buffers;
     uint32_t c;
@@ -256,19 +264,16 @@ int tw_renderer_add_composite(struct tw_renderer *r, uint32_t first, uint32_t se
                               uint32_t split, const struct tw_prototype *proto,
                               const struct tw_bvh *bvh, uint32_t *out)
 {
-    for (int k = 0; k < 2; k++) {
-        const uint32_t part = k ? second : first;
-        if (part >= r->content_count || !r->contents[part].live || r->contents[part].composite)
-            return TW_ERR_INVALID;
-    }
-    uint32_t c;
-    int err = take_contents(r, 1, &c);
+    if (!plain_content(r, second))
+        return TW_ERR_INVALID;
+    const int err = tw_renderer_add_content(r, first, proto, bvh, out);
     if (err)
         return err;
-    r->contents[c] = (struct tw_gpu_content){
-        .buffers = r->contents[first].buffers, .proto = UINT32_MAX, .bvh = bvh, .live = true,
-        .base = c, .own = proto, .composite = true, .part = {first, second}, .split = split};
-    *out = c;
+    struct tw_gpu_content *c = &r->contents[*out];
+    c->composite = true;
+    c->part[0] = first;
+    c->part[1] = second;
+    c->split = split;
     return TW_OK;
 }
 
@@ -294,18 +299,14 @@ bool tw_renderer_split(struct tw_renderer *r, uint32_t content, const uint32_t *
         !r->contents[content].composite)
         return false;
     const struct tw_gpu_content c = r->contents[content];
-    if (count > r->split_cap) {
-        uint32_t *a = realloc(r->split_clusters, (size_t)count * sizeof(*a));
-        if (!a) {
-            tw_log_printf(&r->log, TW_LOG_ERROR, "out of memory splitting %u draws: not drawn",
-                          count);
-            return true;
-        }
-        r->split_clusters = a;
-        r->split_cap = count;
+    if (tw_array_reserve_u32((void **)&r->split_clusters, &r->split_cap, count,
+                             sizeof(*r->split_clusters), 1024)) {
+        tw_log_printf(&r->log, TW_LOG_ERROR, "out of memory splitting %u draws: not drawn",
+                      count);
+        return true;
     }
-    /* fn may split again (it does not: parts are never composites), so
-     * the scratch is filled before the first call and read only after. */
+    /* One scratch for every split: the parts fn is given are never
+     * composites (tw_renderer_add_composite), so fn never splits again. */
     uint32_t *sub = r->split_clusters;
     for (uint32_t k = 0; k < count; k++)
         sub[k] = clusters[k] < c.split ? clusters[k] : clusters[k] - c.split;
@@ -383,7 +384,7 @@ const struct tw_gpu_buffers *tw_renderer_bind_content(struct tw_renderer *r, uin
         r->bound_vao = b->vao;
     }
     assert(!c->composite);
-    *proto = c->own ? c->own : &b->ts->prototypes[c->proto];
+    *proto = tw_renderer_content(r, content, NULL);
     return b;
 }
 

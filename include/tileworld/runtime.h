@@ -525,7 +525,8 @@ struct tw_object {
 
 /* Adds an object; *id names it until it is removed (ids of removed objects
  * are used again). Takes effect at the next frame of any view. TW_ERR_STATE
- * without object_models, in host rendering and with hierarchical cells;
+ * without object_models (a world with hierarchical cells is not made with
+ * them); in host rendering the objects come as batches of their own;
  * TW_ERR_INVALID for a model out of range or a position or yaw that is not
  * finite; TW_ERR_LIMIT beyond TW_MAX_OBJECTS. */
 #define TW_MAX_OBJECTS (1u << 20)
