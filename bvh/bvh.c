@@ -177,6 +177,40 @@ static double frontier(const struct tw_bvh_node *nodes, uint32_t node, uint32_t 
     return area;
 }
 
+/* Every node's box from its clusters up (children come after their
+ * parent in pre-order: from the last node up). */
+static void fit_boxes(struct tw_bvh *bvh, const struct tw_prototype *proto)
+{
+    for (uint32_t i = bvh->node_count; i-- > 0;) {
+        struct tw_bvh_node *n = &bvh->nodes[i];
+        n->box = tw_box_empty();
+        if (n->child[0] == TW_BVH_NONE) {
+            for (uint32_t c = 0; c < n->cluster_count; c++)
+                tw_box_add_box(&n->box,
+                               &proto->clusters[bvh->cluster_order[n->first_cluster + c]].box);
+        } else {
+            tw_box_add_box(&n->box, &bvh->nodes[n->child[0]].box);
+            tw_box_add_box(&n->box, &bvh->nodes[n->child[1]].box);
+        }
+    }
+}
+
+/* Every node's tight boxes from the boxes, their counts decided already
+ * (stack: room for a frontier's walk). */
+static void fill_tight(struct tw_bvh *bvh, uint32_t *stack)
+{
+    for (uint32_t i = 0; i < bvh->node_count; i++) {
+        const struct tw_bvh_node *n = &bvh->nodes[i];
+        if (n->tight_count == 1) {
+            bvh->tight_boxes[n->first_tight] = n->box;
+            continue;
+        }
+        uint32_t count = 0;
+        frontier(bvh->nodes, i, bvh->tight_depth, stack, &count, bvh->tight_boxes + n->first_tight);
+        assert(count == n->tight_count);
+    }
+}
+
 static uint64_t bvh_bytes(const struct tw_bvh *bvh)
 {
     return sizeof(*bvh) + (uint64_t)bvh->node_count * sizeof(*bvh->nodes) +
@@ -225,26 +259,21 @@ static int flatten(struct stage *st, const struct tw_prototype *proto,
     bvh->cluster_count = st->leaf_cluster_count;
     st->leaf_clusters = NULL;
 
-    /* Boxes and triangle counts from the clusters up: children come after
-     * their parent in pre-order. */
+    /* Boxes, then triangle counts from the clusters up. */
+    fit_boxes(bvh, proto);
     for (uint32_t i = bvh->node_count; i-- > 0;) {
         struct tw_bvh_node *n = &bvh->nodes[i];
-        n->box = tw_box_empty();
         if (n->child[0] == TW_BVH_NONE) {
             uint64_t triangles = 0;
-            for (uint32_t c = 0; c < n->cluster_count; c++) {
-                const struct tw_cluster *cl = &proto->clusters[bvh->cluster_order[n->first_cluster + c]];
-                tw_box_add_box(&n->box, &cl->box);
-                triangles += cl->triangle_count;
-            }
+            for (uint32_t c = 0; c < n->cluster_count; c++)
+                triangles += proto->clusters[bvh->cluster_order[n->first_cluster + c]]
+                                 .triangle_count;
             n->triangle_count = (uint32_t)triangles;
             n->cluster_total = n->cluster_count;
             bvh->leaf_count++;
         } else {
             const struct tw_bvh_node *l = &bvh->nodes[n->child[0]];
             const struct tw_bvh_node *r = &bvh->nodes[n->child[1]];
-            tw_box_add_box(&n->box, &l->box);
-            tw_box_add_box(&n->box, &r->box);
             n->triangle_count = l->triangle_count + r->triangle_count;
             n->cluster_total = l->cluster_total + r->cluster_total;
         }
@@ -273,19 +302,8 @@ static int flatten(struct stage *st, const struct tw_prototype *proto,
         ret = TW_ERR_NOMEM;
         goto fail;
     }
-    for (uint32_t i = 0; i < bvh->node_count; i++) {
-        const struct tw_bvh_node *n = &bvh->nodes[i];
-        if (n->tight_count == 1) {
-            bvh->tight_boxes[n->first_tight] = n->box;
-        } else {
-            uint32_t count = 0;
-            frontier(bvh->nodes, i, s->tight_depth, stack_nodes, &count,
-                     bvh->tight_boxes + n->first_tight);
-            assert(count == n->tight_count);
-        }
-    }
-
     bvh->tight_depth = s->tight_depth;
+    fill_tight(bvh, stack_nodes);
     bvh->bytes = bvh_bytes(bvh);
     free(stack_nodes);
     free(stack);
@@ -407,33 +425,12 @@ int tw_bvh_pack(struct tw_bvh **bvh)
 
 void tw_bvh_refit(struct tw_bvh *bvh, const struct tw_prototype *proto)
 {
-    /* Children come after their parent (pre-order): from the last node up. */
-    for (uint32_t i = bvh->node_count; i-- > 0;) {
-        struct tw_bvh_node *n = &bvh->nodes[i];
-        n->box = tw_box_empty();
-        if (n->child[0] == TW_BVH_NONE) {
-            for (uint32_t c = 0; c < n->cluster_count; c++)
-                tw_box_add_box(&n->box,
-                               &proto->clusters[bvh->cluster_order[n->first_cluster + c]].box);
-        } else {
-            tw_box_add_box(&n->box, &bvh->nodes[n->child[0]].box);
-            tw_box_add_box(&n->box, &bvh->nodes[n->child[1]].box);
-        }
-    }
-    /* The tight boxes: the same frontiers, as the topology is the same. */
+    fit_boxes(bvh, proto);
+    /* The tight boxes: the same frontiers, as the topology is the same. The
+     * depth-first walk holds at most one entry per level and one more:
+     * enough for any tree up to 128 deep (builds stop at 32). */
     uint32_t stack[2 * 64 + 2];
-    for (uint32_t i = 0; i < bvh->node_count; i++) {
-        const struct tw_bvh_node *n = &bvh->nodes[i];
-        if (n->tight_count == 1) {
-            bvh->tight_boxes[n->first_tight] = n->box;
-            continue;
-        }
-        uint32_t count = 0;
-        /* The depth-first walk holds at most one entry per level and one
-         * more: enough for any tree up to 128 deep (builds stop at 32). */
-        frontier(bvh->nodes, i, bvh->tight_depth, stack, &count, bvh->tight_boxes + n->first_tight);
-        assert(count == n->tight_count);
-    }
+    fill_tight(bvh, stack);
 }
 
 double tw_bvh_spread(const struct tw_bvh *bvh)
