@@ -14,7 +14,7 @@
 
 int tw_report_make_dirs(const char *dir)
 {
-    char buf[1024];
+    char buf[4096];
     if (strlen(dir) >= sizeof(buf))
         return ENAMETOOLONG;
     strcpy(buf, dir);

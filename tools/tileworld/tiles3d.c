@@ -13,6 +13,7 @@
 #include "tileworld/tiles.h"
 #include "tilesets/tilesets-private.h"
 #include "tools/outfile.h"
+#include "tools/tileworld/report.h"
 
 /* glTF's numbers for what the writer uses. */
 enum {
@@ -27,25 +28,13 @@ int tw_tiles3d_make_parents(const char *path, char *err, size_t err_size)
 {
     char dir[4096];
     const char *slash = strrchr(path, '/');
-    if (!slash)
+    if (!slash || slash == path)
         return TW_OK;
-    const size_t n = (size_t)(slash - path);
-    if (n >= sizeof(dir)) {
-        snprintf(err, err_size, "%s: %s", path, strerror(ENAMETOOLONG));
+    const int n = snprintf(dir, sizeof(dir), "%.*s", (int)(slash - path), path);
+    const int e = n < 0 || (size_t)n >= sizeof(dir) ? ENAMETOOLONG : tw_report_make_dirs(dir);
+    if (e) {
+        snprintf(err, err_size, "%s: cannot make the folder: %s", dir, strerror(e));
         return TW_ERR_IO;
-    }
-    memcpy(dir, path, n);
-    dir[n] = '\0';
-    for (size_t k = 1; k <= n; k++) {
-        if (dir[k] != '/' && dir[k] != '\0')
-            continue;
-        const char c = dir[k];
-        dir[k] = '\0';
-        if (mkdir(dir, 0777) != 0 && errno != EEXIST) {
-            snprintf(err, err_size, "%s: cannot make the folder: %s", dir, strerror(errno));
-            return TW_ERR_IO;
-        }
-        dir[k] = c;
     }
     return TW_OK;
 }
