@@ -97,6 +97,10 @@ struct tw_objects {
     struct tw_cell_map *composite_of;   /* cell -> its struct composite list */
     uint32_t next_key;
     bool changed;                   /* since the last frame */
+    /* Heap bytes (tw_objects_bytes), counted again only after something
+     * that holds them changed: the budget asks several times a frame. */
+    uint64_t bytes;
+    bool bytes_known;
     /* The last frame's work. */
     uint32_t rebuilds;
     double ms;
@@ -196,6 +200,7 @@ static void composite_free(struct tw_world *w, struct composite *c)
         return;
     if (c->content != UINT32_MAX)
         tw_renderer_remove_content(w->renderer, c->content);
+    w->objects->bytes_known = false;
     tw_bvh_destroy(c->bvh);
     free(c->proto.clusters);
     free(c);
@@ -549,9 +554,11 @@ static bool count_composite(void *user, struct tw_cell cell, uint64_t value)
 
 uint64_t tw_objects_bytes(const struct tw_world *w)
 {
-    const struct tw_objects *ob = w->objects;
+    struct tw_objects *ob = w->objects;
     if (!ob)
         return 0;
+    if (ob->bytes_known)
+        return ob->bytes;
     uint64_t b = sizeof(*ob) + ob->object_cap * sizeof(struct object) +
                  ob->free_object_cap * sizeof(uint32_t) + ob->group_cap * sizeof(void *) +
                  ob->free_group_cap * sizeof(uint32_t) + tw_cell_map_bytes(ob->group_of) +
@@ -562,6 +569,8 @@ uint64_t tw_objects_bytes(const struct tw_world *w)
              g->cluster_cap * sizeof(struct tw_cluster) + (g->bvh ? g->bvh->bytes : 0);
     }
     tw_cell_map_filter(ob->composite_of, count_composite, &b);
+    ob->bytes = b;
+    ob->bytes_known = true;
     return b;
 }
 
@@ -627,6 +636,7 @@ static int object_add(struct tw_world *w, const struct tw_object *o, uint32_t *i
         return err;
     }
     ob->changed = true;
+    ob->bytes_known = false;
     *id = k;
     return TW_OK;
 }
@@ -652,6 +662,8 @@ static int object_update(struct tw_world *w, uint32_t id, const struct tw_object
             g->moved = true;
         obj->o = n;
         ob->changed = true;
+        ob->bytes_known = false;
+    ob->bytes_known = false;
         return TW_OK;
     }
     if (tw_array_reserve((void **)&ob->free_groups, &ob->free_group_cap, ob->group_count + 1,
@@ -674,6 +686,7 @@ static int object_update(struct tw_world *w, uint32_t id, const struct tw_object
     obj = &ob->objects[id];
     obj->o = n;
     ob->changed = true;
+    ob->bytes_known = false;
     return TW_OK;
 }
 
@@ -696,6 +709,7 @@ static int object_remove(struct tw_world *w, uint32_t id)
     ob->objects[id].live = false;
     ob->free_objects[ob->free_object_count++] = id;    /* room: reserved when added */
     ob->changed = true;
+    ob->bytes_known = false;
     return TW_OK;
 }
 
@@ -759,6 +773,7 @@ int tw_objects_apply(struct tw_world *w)
             tw_box_add_box(&box, &g->proto.box);
     }
     ob->changed = false;
+    ob->bytes_known = false;
     /* The common box holds every group's box (the cells in view follow
      * it: tw_cull_cells_of_frame). */
     w->grid.common_box = box;
@@ -796,12 +811,16 @@ int tw_objects_tile(struct tw_world *w, struct tw_cell cell, struct tw_cull_tile
         c = c->next;
     /* The group built afresh since: into the same composite while its
      * slots hold it (rejoin_composite), else a composite afresh. */
-    if (c && c->version != g->version && rejoin_composite(c, g) != TW_OK)
-        c->version = UINT32_MAX;    /* stale: pruned below */
+    if (c && c->version != g->version) {
+        ob->bytes_known = false;
+        if (rejoin_composite(c, g) != TW_OK)
+            c->version = UINT32_MAX;    /* stale: pruned below */
+    }
     if (c && c->version != g->version)
         c = NULL;
     if (!c) {
         int err = make_composite(w, g, tile, &c);
+        ob->bytes_known = false;
         if (err)
             return err;
         /* Stale ones go: made for another version of the group, unused for
