@@ -18,10 +18,8 @@
 set -u
 tw=$1
 check=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fails=0
-fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
+. "$(dirname "$0")/test-lib.sh"
+fail() { bad "$@"; }
 
 "$tw" bake --tileset city-gen --cells -3,-3:2,2 --out "$tmp/baked" --workers 2 --quiet ||
     { echo "FAIL: the bake failed"; exit 1; }
@@ -31,8 +29,8 @@ walk=(walk --frames 60 --view-distance 150 --deterministic --png-every 20 --size
     >"$tmp/file.out" 2>"$tmp/file.err"
 rc=$?
 [ "$rc" = 0 ] || fail "the file:// walk exits $rc: $(tail -3 "$tmp/file.err" "$tmp/file.out")"
-grep -q "3D Tiles: .*, 0 failures" "$tmp/file.err" || fail "the file:// walk failed requests: $(grep '3D Tiles' "$tmp/file.err")"
-"$tw" "${walk[@]}" --tileset city-gen --out "$tmp/gen" >"$tmp/gen.out" 2>"$tmp/gen.err" ||
+grep -q "3D Tiles: .*, 0 failures" "$tmp/file.err" && ok || fail "the file:// walk failed requests: $(grep '3D Tiles' "$tmp/file.err")"
+"$tw" "${walk[@]}" --tileset city-gen --out "$tmp/gen" >"$tmp/gen.out" 2>"$tmp/gen.err" && ok ||
     fail "the city-gen walk fails: $(tail -3 "$tmp/gen.err")"
 n=0
 for f in "$tmp"/gen/frame-*.png; do
@@ -45,20 +43,17 @@ for f in "$tmp"/gen/frame-*.png; do
         fail "$name: the images differ ($line)"
     n=$((n + 1))
 done
-[ "$n" -ge 3 ] || fail "only $n frames compared"
+[ "$n" -ge 3 ] && ok || fail "only $n frames compared"
 
 # Bad URLs: one line, never a crash.
 "$tw" info --tileset "file://$tmp/nothing/tileset.json" >"$tmp/bad.out" 2>"$tmp/bad.err"
 rc=$?
 { [ "$rc" = 1 ] || [ "$rc" = 2 ]; } || fail "a missing tileset.json exits $rc"
-grep -q "tileset.json" "$tmp/bad.err" || fail "a missing tileset.json is not named: $(cat "$tmp/bad.err")"
+grep -q "tileset.json" "$tmp/bad.err" && ok || fail "a missing tileset.json is not named: $(cat "$tmp/bad.err")"
 "$tw" info --tileset "file://$tmp/baked/bake.json" >"$tmp/bad.out" 2>"$tmp/bad.err"
 rc=$?
 [ "$rc" = 2 ] || fail "a JSON that is no baked tileset exits $rc: $(cat "$tmp/bad.err")"
-grep -q "extras.tileworld" "$tmp/bad.err" || fail "no reason given: $(cat "$tmp/bad.err")"
+grep -q "extras.tileworld" "$tmp/bad.err" && ok || fail "no reason given: $(cat "$tmp/bad.err")"
 
-if [ "$fails" != 0 ]; then
-    echo "$fails failure(s)"
-    exit 1
-fi
-echo "tiles3d: file:// draws what city-gen draws ($n frames compared)"
+echo "file:// draws what city-gen draws ($n frames compared)"
+finish tiles3d
