@@ -663,7 +663,6 @@ static int object_update(struct tw_world *w, uint32_t id, const struct tw_object
         obj->o = n;
         ob->changed = true;
         ob->bytes_known = false;
-    ob->bytes_known = false;
         return TW_OK;
     }
     if (tw_array_reserve((void **)&ob->free_groups, &ob->free_group_cap, ob->group_count + 1,
