@@ -30,7 +30,7 @@ int main(void)
     const int cube = add_cube(ts);
     const int terrain = add_grid(ts, 64, 40.0f, false);
     CHECK(red >= 0 && green >= 0 && cube >= 0 && terrain >= 0);
-    /* 0: a block of 400 small buildings (edge collapse stalls on closed boxes) */
+    /* 0: a block of 400 small buildings (closed boxes: edge collapse stalls) */
     const int block = tw_tileset_add_prototype(ts, "block", 1.0f);
     CHECK(add_houses(ts, block, cube, red));
     /* 1: terrain, green */
@@ -70,7 +70,9 @@ int main(void)
                   "facade level %u: error %g m with %u of 200 window triangles", k + 1, e,
                   dark_triangles);
     }
-    CHECK_MSG(l.count[0] >= 2, "%u levels of the block", l.count[0]);
+    /* The block: its houses' boxes cannot be made coarser, only fewer
+     * (a house gone is off by its own size); one level at least. */
+    CHECK_MSG(l.count[0] >= 1, "%u levels of the block", l.count[0]);
     CHECK_MSG(l.count[1] >= 3, "%u levels of the field", l.count[1]);
     CHECK(l.count[2] == 0);
     for (uint32_t p = 0; p < 2 && l.levels; p++) {

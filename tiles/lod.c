@@ -250,7 +250,10 @@ static int grid_build(struct grid *g, const struct tw_box *box, const float *pos
     float extent = 0.0f;
     for (int a = 0; a < 3; a++)
         extent = fmaxf(extent, box->max[a] - box->min[a]);
-    g->cell = fmaxf(fmaxf(extent / GRID_MAX, min_cell), 1e-3f);
+    /* About four cells a triangle at most: a class of a few triangles is
+     * not binned into a grid of a hundred thousand cells. */
+    const float by_count = extent / cbrtf(4.0f * (float)n + 8.0f);
+    g->cell = fmaxf(fmaxf(fmaxf(extent / GRID_MAX, by_count), min_cell), 1e-3f);
     size_t cells = 1;
     for (int a = 0; a < 3; a++) {
         g->lo[a] = box->min[a];
@@ -442,13 +445,16 @@ static bool colour_match(const struct baked *m, const uint32_t *tri, const uint8
 
 /* The largest distance from a full-detail vertex of m to a triangle of the
  * level (idx[0 .. 3 n), into m) of the vertex's colour, at most the size of
- * its patch (size2), or at_least if that is larger: rings of grid cells
+ * its patch (size2), or at_least if that is larger, over the vertices only
+ * marks (all where NULL); a result above give_up may stop short of the
+ * largest: rings of grid cells
  * searched outwards until no farther ring can hold a nearer triangle. A
  * window removed from a facade is as far as the nearest window left, or its
  * own size, not as the wall behind it: what the eye misses is its colour,
  * over its size. */
-static int measure_error(const struct baked *m, const float *size2, const struct tw_box *box,
-                         const uint32_t *idx, size_t n, float at_least, float *out)
+static int measure_error(const struct baked *m, const float *size2, const uint8_t *only,
+                         const struct tw_box *box, const uint32_t *idx, size_t n, float at_least,
+                         float give_up, float *out)
 {
     struct grid g;
     /* Cells of half the error already known: a search rarely goes past
@@ -467,8 +473,8 @@ static int measure_error(const struct baked *m, const float *size2, const struct
      * triangle is done. */
     float worst2 = at_least * at_least;
     for (uint32_t v = 0; v < m->vertices; v++) {
-        /* Kept, or in a patch too small to raise the worst: done. */
-        if (kept[v] || size2[v] <= worst2)
+        /* Not asked, kept, or in a patch too small to raise the worst: done. */
+        if ((only && !only[v]) || kept[v] || size2[v] <= worst2)
             continue;
         const float *p = m->pos + 3 * (size_t)v;
         const uint8_t *colour = m->rgba + 4 * (size_t)v;
@@ -479,10 +485,11 @@ static int measure_error(const struct baked *m, const float *size2, const struct
         float best2 = size2[v];
         const int rmax = g.dim[0] + g.dim[1] + g.dim[2];
         for (int r = 0; r <= rmax; r++) {
-            /* Every triangle in a cell beyond ring r lies at least r
-             * cells away. */
-            const float reach = (float)r * g.cell;
-            if (best2 <= reach * reach || best2 <= worst2)
+            /* A triangle in a cell of ring r or beyond lies at least
+             * r - 1 cells away (the vertex may lie anywhere in its cell,
+             * or beyond the grid's edge, clamped to it). */
+            const float reach = (float)(r > 0 ? r - 1 : 0) * g.cell;
+            if ((r > 0 && best2 <= reach * reach) || best2 <= worst2)
                 break;
             /* The shell of ring r only: cost grows as r^2, not r^3. */
             for (int z = c[2] - r; z <= c[2] + r; z++) {
@@ -520,6 +527,9 @@ static int measure_error(const struct baked *m, const float *size2, const struct
          * search stopped early for it, and best2 only bounds from above. */
         if (best2 > worst2)
             worst2 = best2;
+        /* Past what the caller would take: the rest cannot change that. */
+        if (worst2 > give_up * give_up)
+            break;
 next:;
     }
     grid_free(&g);
@@ -558,6 +568,199 @@ static void unweld(const struct baked *b, const struct welded *w, const uint32_t
     }
 }
 
+/* A level is made colour by colour: the full-detail triangles are sorted
+ * into classes by the colour of their first corner, and each class is
+ * simplified on its own (its own vertices, its own extent), so that a
+ * colour's patch moves over its own surface and never takes another
+ * colour's place. Each class's error is measured against its own
+ * full-detail vertices; a level's error is the largest of its classes'. */
+struct classes {
+    uint32_t count;
+    uint32_t *first;    /* class c's full-detail triangles: tri[first[c] .. first[c + 1]) */
+    uint32_t *tri;
+    uint8_t *mask;      /* scratch: the baked vertices of one class */
+    float *error;       /* per class: the error of its triangles now */
+};
+
+static void classes_free(struct classes *c)
+{
+    free(c->first);
+    free(c->tri);
+    free(c->mask);
+    free(c->error);
+    memset(c, 0, sizeof(*c));
+}
+
+static int classes_make(const struct baked *b, struct classes *c)
+{
+    memset(c, 0, sizeof(*c));
+    uint32_t *of = malloc(sizeof(*of) * ((size_t)b->triangles + 1));
+    uint8_t(*colour)[4] = malloc(4 * ((size_t)b->triangles + 1));
+    c->tri = malloc(sizeof(*c->tri) * ((size_t)b->triangles + 1));
+    c->mask = calloc((size_t)b->vertices + 1, 1);
+    if (!of || !colour || !c->tri || !c->mask) {
+        free(of);
+        free(colour);
+        classes_free(c);
+        return TW_ERR_NOMEM;
+    }
+    /* A handful of materials: a linear search over the colours seen. */
+    for (uint32_t t = 0; t < b->triangles; t++) {
+        const uint8_t *q = b->rgba + 4 * (size_t)b->idx[3 * t];
+        uint32_t k = 0;
+        while (k < c->count && memcmp(colour[k], q, 4) != 0)
+            k++;
+        if (k == c->count)
+            memcpy(colour[c->count++], q, 4);
+        of[t] = k;
+    }
+    free(colour);
+    c->first = calloc((size_t)c->count + 1, sizeof(*c->first));
+    c->error = calloc((size_t)c->count + 1, sizeof(*c->error));
+    if (!c->first || !c->error) {
+        free(of);
+        classes_free(c);
+        return TW_ERR_NOMEM;
+    }
+    for (uint32_t t = 0; t < b->triangles; t++)
+        c->first[of[t] + 1]++;
+    for (uint32_t k = 0; k < c->count; k++)
+        c->first[k + 1] += c->first[k];
+    uint32_t *fill = calloc((size_t)c->count + 1, sizeof(*fill));
+    if (!fill) {
+        free(of);
+        classes_free(c);
+        return TW_ERR_NOMEM;
+    }
+    for (uint32_t t = 0; t < b->triangles; t++)
+        c->tri[c->first[of[t]] + fill[of[t]]++] = t;
+    free(fill);
+    free(of);
+    return TW_OK;
+}
+
+/* Scratch for simplifying one class: its triangles over its own vertices. */
+struct part {
+    uint32_t *local;    /* per welded vertex: its index in the part, or ~0u */
+    uint32_t *global;   /* per part vertex: its welded vertex */
+    float *pos;
+    uint32_t *idx, *a, *b;
+    uint32_t *baked;    /* a candidate's triangles in baked vertices */
+};
+
+static void part_free(struct part *p)
+{
+    free(p->local);
+    free(p->global);
+    free(p->pos);
+    free(p->idx);
+    free(p->a);
+    free(p->b);
+    free(p->baked);
+}
+
+static int part_alloc(struct part *p, const struct baked *b, const struct welded *w)
+{
+    memset(p, 0, sizeof(*p));
+    const size_t t3 = 3 * (size_t)b->triangles + 1;
+    p->local = malloc(sizeof(*p->local) * ((size_t)w->vertices + 1));
+    p->global = malloc(sizeof(*p->global) * ((size_t)w->vertices + 1));
+    p->pos = malloc(sizeof(float) * 3 * ((size_t)w->vertices + 1));
+    p->idx = malloc(sizeof(uint32_t) * t3);
+    p->a = malloc(sizeof(uint32_t) * t3);
+    p->b = malloc(sizeof(uint32_t) * t3);
+    p->baked = malloc(sizeof(uint32_t) * t3);
+    if (!p->local || !p->global || !p->pos || !p->idx || !p->a || !p->b || !p->baked) {
+        part_free(p);
+        return TW_ERR_NOMEM;
+    }
+    for (uint32_t v = 0; v < w->vertices; v++)
+        p->local[v] = ~0u;
+    return TW_OK;
+}
+
+/* Class k's triangles in[0 .. 3 n) (welded) simplified within target
+ * metres, into out (welded): vertex clustering on a grid of the target
+ * (it removes parts thinner than a cell: posts, kerbs, a window's reveal)
+ * and then edge collapses (they merge what is flat), or edge collapses
+ * alone where the clustering costs more than the target, or the triangles
+ * as they were. Returns the triangle count; the class's error is raised to
+ * what was measured. */
+static int simplify_class(const struct baked *b, const struct welded *w, const float *size2,
+                          const struct tw_box *box, struct classes *cl, uint32_t k,
+                          struct part *p, const uint32_t *in, size_t n, float target,
+                          uint32_t *out, size_t *out_n)
+{
+    *out_n = n;
+    memcpy(out, in, sizeof(uint32_t) * 3 * n);
+    if (n == 0)
+        return TW_OK;
+    uint32_t nv = 0;
+    for (size_t i = 0; i < 3 * n; i++) {
+        const uint32_t v = in[i];
+        if (p->local[v] == ~0u) {
+            p->local[v] = nv;
+            p->global[nv] = v;
+            memcpy(p->pos + 3 * (size_t)nv, w->pos + 3 * (size_t)v, sizeof(float) * 3);
+            nv++;
+        }
+        p->idx[i] = p->local[v];
+    }
+    for (uint32_t i = 0; i < nv; i++)
+        p->local[p->global[i]] = ~0u;
+    const float scale = meshopt_simplifyScale(p->pos, nv, sizeof(float) * 3);
+    if (!(scale > 0.0f))
+        return TW_OK;
+    const float rel = target / scale;
+    /* The class's full-detail vertices: what its error is measured at. */
+    for (uint32_t t = cl->first[k]; t < cl->first[k + 1]; t++)
+        for (int c = 0; c < 3; c++)
+            cl->mask[b->idx[3 * (size_t)cl->tri[t] + c]] = 1;
+    /* meshoptimizer's errors are estimates of its own: where the measure
+     * finds more than the target, it is asked again for less. */
+    static const struct {
+        bool cluster;
+        float share;
+    } attempts[] = {{true, 1.0f}, {false, 1.0f}, {true, 0.5f}, {false, 0.5f}, {false, 0.25f}};
+    int err = TW_OK;
+    for (size_t attempt = 0; attempt < sizeof(attempts) / sizeof(attempts[0]); attempt++) {
+        const float r = rel * attempts[attempt].share;
+        size_t m;
+        if (attempts[attempt].cluster) {
+            const size_t s = meshopt_simplifySloppy(p->a, p->idx, 3 * n, p->pos, nv,
+                                                    sizeof(float) * 3, 0, r, NULL);
+            m = meshopt_simplify(p->b, p->a, s, p->pos, nv, sizeof(float) * 3, 0, r, 0, NULL) / 3;
+        } else {
+            m = meshopt_simplify(p->b, p->idx, 3 * n, p->pos, nv, sizeof(float) * 3, 0, r, 0,
+                                 NULL) / 3;
+        }
+        if (m >= *out_n)
+            continue;
+        for (size_t i = 0; i < 3 * m; i++)
+            p->a[i] = p->global[p->b[i]];
+        unweld(b, w, p->a, m, p->baked);
+        float measured = 0.0f;
+        err = measure_error(b, size2, cl->mask, box, p->baked, m, cl->error[k], target,
+                            &measured);
+        if (err)
+            break;
+        if (measured <= target) {
+            memcpy(out, p->a, sizeof(uint32_t) * 3 * m);
+            *out_n = m;
+            cl->error[k] = fmaxf(cl->error[k], measured);
+            break;
+        }
+    }
+    for (uint32_t t = cl->first[k]; t < cl->first[k + 1]; t++)
+        for (int c = 0; c < 3; c++)
+            cl->mask[b->idx[3 * (size_t)cl->tri[t] + c]] = 0;
+    return err;
+}
+
+/* The targets of the levels: from 2^-TARGET_STEPS of the prototype's
+ * extent, doubling, up to the extent. */
+#define TARGET_STEPS 10
+
 /* The levels of prototype p of ts, added to levels: their number into
  * *count and their errors (metres) into errors. */
 static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_tileset *levels,
@@ -571,56 +774,68 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
         return err;
     }
     struct welded w;
+    struct classes cl = {0};
+    struct part part = {0};
     err = weld(&b, &w);
-    uint32_t *widx = malloc(sizeof(uint32_t) * 3 * (size_t)b.triangles);
-    uint32_t *pidx = malloc(sizeof(uint32_t) * 3 * (size_t)b.triangles);
-    uint32_t *idx = malloc(sizeof(uint32_t) * 3 * (size_t)b.triangles);
+    if (!err)
+        err = classes_make(&b, &cl);
+    if (!err)
+        err = part_alloc(&part, &b, &w);
+    /* The level now, class after class (start[k] .. start[k + 1]), and the
+     * next one being made. */
+    const size_t t3 = 3 * (size_t)b.triangles + 1;
+    uint32_t *cur = malloc(sizeof(uint32_t) * t3);
+    uint32_t *next = malloc(sizeof(uint32_t) * t3);
+    uint32_t *idx = malloc(sizeof(uint32_t) * t3);
+    size_t *start = calloc((size_t)cl.count + 1, sizeof(*start));
+    size_t *next_start = calloc((size_t)cl.count + 1, sizeof(*next_start));
     float *size2 = err ? NULL : patch_sizes(&b, &w);
-    if (!err && pidx)
-        memcpy(pidx, w.idx, sizeof(uint32_t) * 3 * (size_t)b.triangles);
-    if (err || !idx || !widx || !pidx || !size2) {
-        free(size2);
-        free(idx);
-        free(widx);
-        free(pidx);
-        welded_free(&w);
-        baked_free(&b);
-        return err ? err : TW_ERR_NOMEM;
+    if (err || !cur || !next || !idx || !start || !next_start || !size2) {
+        err = err ? err : TW_ERR_NOMEM;
+        goto out;
     }
-    const float scale = meshopt_simplifyScale(w.pos, w.vertices, sizeof(float) * 3);
+    for (uint32_t k = 0; k < cl.count; k++) {
+        for (uint32_t t = cl.first[k]; t < cl.first[k + 1]; t++)
+            memcpy(cur + 3 * (size_t)t, w.idx + 3 * (size_t)cl.tri[t], sizeof(uint32_t) * 3);
+        start[k + 1] = cl.first[k + 1];
+    }
+    const float extent = meshopt_simplifyScale(w.pos, w.vertices, sizeof(float) * 3);
     size_t previous = b.triangles;
-    float previous_error = 0.0f;
-    for (uint32_t level = 1; level <= TW_LOD_MAX_LEVELS; level++) {
-        const size_t target = previous / 2;
-        if (target < LOD_MIN_TRIANGLES)
-            break;
-        /* Edge collapses first: they keep the surface's topology and its
-         * colour seams. Many small closed meshes (buildings, trees) soon
-         * stop collapsing; then clustering, which may merge or remove
-         * whole components. Each level simplifies the one before; its
-         * error is measured against full detail below. */
-        float rel = 0.0f;
-        size_t n = meshopt_simplify(widx, pidx, 3 * previous, w.pos, w.vertices,
-                                    sizeof(float) * 3, 3 * target, 1.0f, 0, &rel) / 3;
-        if ((double)n > LOD_KEEP_RATIO * (double)previous)
-            n = meshopt_simplifySloppy(widx, pidx, 3 * previous, w.pos, w.vertices,
-                                       sizeof(float) * 3, 3 * target, 1.0f, &rel) / 3;
-        if (n < LOD_MIN_TRIANGLES / 2 || (double)n > LOD_KEEP_RATIO * (double)previous)
-            break;
-        unweld(&b, &w, widx, n, idx);
-        float measured = 0.0f;
-        /* meshoptimizer's error is against the level before; the measure
-         * is against full detail, and never below the level before's. */
-        const float floor_error = fmaxf(previous_error, rel * scale);
-        err = measure_error(&b, size2, &ts->prototypes[p].box, idx, n, floor_error, &measured);
+    for (int step = TARGET_STEPS; step >= 0 && *count < TW_LOD_MAX_LEVELS && !err; step--) {
+        const float target = ldexpf(extent, -step);
+        size_t total = 0;
+        for (uint32_t k = 0; k < cl.count && !err; k++) {
+            size_t m = 0;
+            next_start[k] = total;
+            err = simplify_class(&b, &w, size2, &ts->prototypes[p].box, &cl, k, &part,
+                                 cur + 3 * start[k], start[k + 1] - start[k], target,
+                                 next + 3 * total, &m);
+            total += m;
+        }
+        next_start[cl.count] = total;
         if (err)
             break;
-        float error = fmaxf(floor_error, measured);
-        if (!(error >= previous_error))
-            error = previous_error;   /* a coarser level is never called more exact */
+        uint32_t *swap = cur;
+        cur = next;
+        next = swap;
+        size_t *swap_start = start;
+        start = next_start;
+        next_start = swap_start;
+        if (total == 0)
+            break;  /* nothing left: the level before is the coarsest */
+        /* A level that saves little costs memory and a BVH for nothing;
+         * the next target starts from it all the same. */
+        if ((double)total > LOD_KEEP_RATIO * (double)previous)
+            continue;
+        float error = 0.0f;
+        for (uint32_t k = 0; k < cl.count; k++)
+            error = fmaxf(error, cl.error[k]);
+        if (*count > 0 && error < errors[*count - 1])
+            error = errors[*count - 1];   /* a coarser level is never called more exact */
+        unweld(&b, &w, cur, total, idx);
         char name[48];
-        snprintf(name, sizeof(name), "%.36s/lod%u", ts->prototypes[p].name, level);
-        err = add_level(levels, white, name, &b, idx, n);
+        snprintf(name, sizeof(name), "%.36s/lod%u", ts->prototypes[p].name, *count + 1);
+        err = add_level(levels, white, name, &b, idx, total);
         if (err == TW_ERR_INVALID || err == TW_ERR_LIMIT) {
             err = TW_OK;    /* a level the tileset refuses: the prototype stops at the last */
             break;
@@ -628,15 +843,19 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
         if (err)
             break;
         errors[(*count)++] = error;
-        /* The next level simplifies this one: each costs half the last. */
-        memcpy(pidx, widx, sizeof(uint32_t) * 3 * n);
-        previous = n;
-        previous_error = error;
+        previous = total;
+        if (total < LOD_MIN_TRIANGLES)
+            break;  /* what is left is a few boxes */
     }
+out:
     free(size2);
+    free(cur);
+    free(next);
     free(idx);
-    free(widx);
-    free(pidx);
+    free(start);
+    free(next_start);
+    part_free(&part);
+    classes_free(&cl);
     welded_free(&w);
     baked_free(&b);
     return err;
