@@ -13,7 +13,7 @@
 
 /* A level is kept only if it has at most this share of the previous one's
  * triangles: a level that saves little costs memory and a BVH for nothing. */
-#define LOD_KEEP_RATIO 0.75
+#define LOD_KEEP_RATIO 0.6
 /* No level below this many triangles: what is left is a few boxes. */
 #define LOD_MIN_TRIANGLES 8u
 

@@ -58,7 +58,17 @@ void tw_box_add_box(struct tw_box *b, const struct tw_box *o);
 struct tw_box tw_box_transform(const struct tw_box *b, const float m[12]);
 float tw_box_surface_area(const struct tw_box *b);
 /* Squared distance from p to the nearest point of b (0 inside). */
-float tw_box_distance2(const struct tw_box *b, const float p[3]);
+static inline float tw_box_distance2(const struct tw_box *b, const float p[3])
+{
+    float d2 = 0.0f;
+    for (int k = 0; k < 3; k++) {
+        float e = 0.0f;
+        if (p[k] < b->min[k]) e = b->min[k] - p[k];
+        else if (p[k] > b->max[k]) e = p[k] - b->max[k];
+        d2 += e * e;
+    }
+    return d2;
+}
 
 /* ---- cells --------------------------------------------------------------- */
 

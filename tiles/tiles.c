@@ -221,18 +221,6 @@ float tw_box_surface_area(const struct tw_box *b)
     return 2.0f * (dx * dy + dy * dz + dz * dx);
 }
 
-float tw_box_distance2(const struct tw_box *b, const float p[3])
-{
-    float d2 = 0.0f;
-    for (int k = 0; k < 3; k++) {
-        float e = 0.0f;
-        if (p[k] < b->min[k]) e = b->min[k] - p[k];
-        else if (p[k] > b->max[k]) e = p[k] - b->max[k];
-        d2 += e * e;
-    }
-    return d2;
-}
-
 /* ---- cells -------------------------------------------------------------------- */
 
 int64_t tw_tiles_floor_div(int64_t a, int64_t b)
