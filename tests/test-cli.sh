@@ -41,6 +41,8 @@ expect_usage_error walk --frames -1
 expect_usage_error walk --frames 0
 expect_usage_error walk --frames 99999999999999999999999
 expect_usage_error walk --frames 1.5
+expect_usage_error walk --fps 0
+expect_usage_error walk --fps 10001
 expect_usage_error walk --seed 1e5
 expect_usage_error walk --seed -3
 expect_usage_error walk --start-cell 1,
@@ -137,6 +139,15 @@ if "$tw" walk --size=96x54 --frames=3 --png-every=0 --quiet --method=vfc --out="
    [ "$(wc -l <"$tmp/eq/frames.csv")" -eq 4 ] && grep -q '"size": "96x54"' "$tmp/eq/summary.json" &&
    [ "$(tail -n +2 "$tmp/eq/frames.csv" | cut -d, -f2 | sort -u)" = vfc ]; then ok; else
     bad "walk with --opt=value: $(cat "$tmp/err")"; fi
+
+# --fps paces the frames: 24 frames at 8 a second take at least 2.875 s
+# (23 intervals), whatever a frame costs (unpaced, this walk takes about
+# 0.3 s here).
+t0=$(date +%s.%N)
+"$tw" walk --size 64x36 --frames 24 --fps 8 --max-screen-error 0 --png-every 0 --quiet \
+    --out "$tmp/fps" >/dev/null 2>"$tmp/err" &&
+    awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { exit !(b - a >= 2.875) }' && ok ||
+    bad "walk --fps 8: 24 frames did not take 2.875 s or more: $(cat "$tmp/err")"
 
 # Malformed path files: the message names the file and the line.
 printf 'cell_i,cell_j,x,y,z,yaw,pitch\n0,0,1,1.7,1,0,nan\n' >"$tmp/nan.csv"

@@ -14,8 +14,8 @@
 # Each is a refusal with its cause in the world's log line (its
 # TW_TILE_REFUSED event): under --policy wait the frame goes on once the
 # tile is refused (every cause checked); under --policy skip the frames are
-# drawn with holes meanwhile (the walk may end before the slow refusals:
-# the 404's is checked); the walk ends with status 0, within a bound
+# drawn with holes meanwhile, at a real-time pace (the walk may end before
+# the slow refusals: the 404's is checked); the walk ends with status 0, within a bound
 # (timeout), and summary.json counts the four refusals (tile_cache.refused)
 # and the provider's failures (tiles3d.failures). Then ETag revalidation: a second walk with
 # --http-cache gets 304s and serves them from the cache. Then the server
@@ -87,12 +87,14 @@ start
 url="http://127.0.0.1:$port/tileset.json"
 walk=(walk --tileset "$url" --view-distance 150 --png-every 0 --size 160x90 --workers 2
       --http-timeout 500)
-# Under skip a frame does not wait: the camera stands at the start, long
-# enough that the refusals (up to 4 x 0.5 s and the back-off) come before
-# the walk ends.
+# Under skip a frame does not wait: the camera stands at the start for
+# 1000 frames paced at 100 a second (--fps), at least 10 s whatever a frame
+# costs (a frame with holes costs next to nothing: unpaced, the walk could
+# end before the tiles were asked for), long enough that the refusals (up
+# to 4 x 0.5 s and the back-off) come before the walk ends.
 {
     echo cell_i,cell_j,x,y,z,yaw,pitch
-    yes 0,0,0.5,1.7,0.5,0,0 | head -n 2000
+    yes 0,0,0.5,1.7,0.5,0,0 | head -n 1000
 } >"$tmp/still.csv"
 
 causes() {  # FILE: the refusals' causes it must name
@@ -105,7 +107,7 @@ causes() {  # FILE: the refusals' causes it must name
 
 for policy in skip wait; do
     path=(--frames 30)
-    [ "$policy" = skip ] && path=(--path "$tmp/still.csv")
+    [ "$policy" = skip ] && path=(--path "$tmp/still.csv" --fps 100)
     timeout 60 "$tw" "${walk[@]}" "${path[@]}" --policy "$policy" --out "$tmp/$policy" >"$tmp/$policy.out" 2>"$tmp/$policy.err"
     rc=$?
     [ "$rc" = 0 ] || fail "--policy $policy: exit status $rc: $(tail -3 "$tmp/$policy.err")"

@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <json-c/json.h>
@@ -115,6 +116,27 @@ static int draw_set(struct tw_world *world, const struct tw_camera *cam,
     out->triangles = st.triangles;
     out->draws = st.draws;
     return TW_OK;
+}
+
+/* --fps: sleeps until frame `next` is due, next / fps s after `from`
+ * (a frame that ran late is not made up for by the next ones running
+ * early: the pace starts again from it). */
+static void pace(struct timespec *from, uint32_t next, uint32_t fps)
+{
+    double due = from->tv_sec + from->tv_nsec * 1e-9 + (double)next / fps;
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    double t = now.tv_sec + now.tv_nsec * 1e-9;
+    if (t >= due) {
+        /* Late: the pace counts from this frame on. */
+        double start = t - (double)next / fps;
+        from->tv_sec = (time_t)start;
+        from->tv_nsec = (long)((start - (double)from->tv_sec) * 1e9);
+        return;
+    }
+    struct timespec until = {(time_t)due, (long)((due - (double)(time_t)due) * 1e9)};
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &until, NULL) == EINTR) {
+    }
 }
 
 /* --views 2: a camera 25 m behind and 12 m above the path's, looking 10
@@ -244,6 +266,8 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
     if (rc)
         goto out;
     double total_ms = 0.0;
+    struct timespec paced_from;
+    clock_gettime(CLOCK_MONOTONIC, &paced_from);
     progress(&line, run, 0, run->path->count, 0.0);
     for (uint32_t f = 0; f < run->path->count; f++) {
         /* The cars move once a frame, before its first method: every
@@ -323,6 +347,8 @@ int tw_run_execute(struct tw_run *run, struct tw_context *ctx, char *err, size_t
         }
         progress(&line, run, f + 1, run->path->count,
                  total_ms / ((f + 1) * (double)run->method_count));
+        if (run->fps && f + 1 < run->path->count)
+            pace(&paced_from, f + 1, run->fps);
     }
     report.about.has_totals = tw_world_cache_totals(world, &report.about.totals) == TW_OK;
     report.about.has_tiles3d = run->tiles3d != NULL;

@@ -38,6 +38,9 @@ struct tw_run {
     uint32_t method_count;
     const char *out;                    /* output folder */
     uint32_t png_every;
+    uint32_t fps;                       /* --fps: 0, frames as fast as they render; else a
+                                           frame starts no sooner than 1 / fps s after the
+                                           last one was due (a late frame restarts the pace) */
     uint32_t views;                     /* 2: a chase camera drawn as a viewport after every
                                            frame (its frames are not reported; the memory
                                            figures are the shared world's); 0, 1: one */

@@ -41,6 +41,7 @@ struct options {
     enum tw_method methods[TW_METHOD_ALL];
     uint32_t method_count;
     uint32_t png_every;
+    uint32_t fps;               /* --fps; 0: not paced */
     uint32_t views;             /* --views */
     uint32_t cars;              /* --cars */
     bool cars_given;
@@ -66,7 +67,7 @@ static const char walk_synopsis[] =
     "                        [--tile-neighbours 4|8] [--evict-after N] [--chc-batch N] [--chc-nav N]\n"
     "                        [--chc-suspend N] [--threshold T] [--no-cost-model] [--first-sight-draws]\n"
     "                        [--hzb-pyramid auto|gpu|cpu] [--mutate-query-shrink F] [--workers N]\n"
-    "                        [--policy wait|skip]\n"
+    "                        [--policy wait|skip] [--fps N]\n"
     "                        [--budget BYTES] [--upload-budget BYTES] [--gl auto|egl|osmesa] [--gpu N]\n"
     "                        [--http-cache DIR] [--http-cache-bytes BYTES] [--http-timeout MS]\n";
 static const char bench_synopsis[] =
@@ -165,6 +166,9 @@ static const char run_help[] =
     "--workers N           threads generating a provider's tiles, 1..64 (default: cores - 1)\n"
     "--policy wait|skip    a visible tile not ready: the frame waits for it (wait, default)\n"
     "                      or draws without it, a hole counted in tiles_pending (skip)\n"
+    "--fps N               frames paced to at most N a second, 1..10000, as a real-time\n"
+    "                      walk shows them (with --policy skip: what streams in while it\n"
+    "                      walks); default: each frame as soon as the last is done\n"
     "--budget BYTES        the tile cache's budget, every byte a tile costs, CPU and GPU;\n"
     "                      a number with an optional binary suffix K, M, G or T (also KiB,\n"
     "                      MiB, GiB, TiB; 64M = 64 MiB); 0: none (the default)\n"
@@ -261,6 +265,7 @@ enum {
     OPT_ALLOW_MISSED,
     OPT_VIEWS,
     OPT_CARS,
+    OPT_FPS,
 };
 
 static const struct option options_table[] = {
@@ -270,6 +275,7 @@ static const struct option options_table[] = {
     {"png-every", required_argument, NULL, OPT_PNG_EVERY},
     {"views", required_argument, NULL, OPT_VIEWS},
     {"cars", required_argument, NULL, OPT_CARS},
+    {"fps", required_argument, NULL, OPT_FPS},
     {"methods", required_argument, NULL, OPT_METHODS},
     {"cluster-triangles", required_argument, NULL, OPT_CLUSTER_TRIANGLES},
     {"sweep", required_argument, NULL, OPT_SWEEP},
@@ -328,6 +334,7 @@ static void apply_option(void *user, int opt, const char *name, const char *v)
         break;
     case OPT_VERIFY: ws->verify = true; break;
     case OPT_PNG_EVERY: o->png_every = (uint32_t)tw_cli_u64(program, name, v, 0, 10000000); break;
+    case OPT_FPS: o->fps = (uint32_t)tw_cli_u64(program, name, v, 1, 10000); break;
     case OPT_VIEWS: o->views = (uint32_t)tw_cli_u64(program, name, v, 1, 2); break;
     case OPT_CARS:
         o->cars = (uint32_t)tw_cli_u64(program, name, v, 0, TW_RUN_MAX_CARS);
@@ -516,6 +523,7 @@ static int run(const struct options *o, bool bench)
     r.path_name = o->cli.path;
     r.out = o->out;
     r.png_every = o->png_every;
+    r.fps = o->fps;
     r.views = o->views;
     r.scenario_frames = o->cli.frames;
     r.bench = bench;
