@@ -75,6 +75,16 @@ int main(void)
     CHECK_MSG(l.count[0] >= 1, "%u levels of the block", l.count[0]);
     CHECK_MSG(l.count[1] >= 3, "%u levels of the field", l.count[1]);
     CHECK(l.count[2] == 0);
+    /* Every prototype that can be simplified ends at a box at most (12
+     * triangles), whatever the simplifier leaves: far enough away, a cell
+     * of a block of hierarchical cells is drawn as one. */
+    for (uint32_t p = 0; p < 4 && l.levels; p++) {
+        if (p == 2 || l.count[p] == 0)
+            continue;
+        const struct tw_prototype *last = &l.levels->prototypes[l.first[p] + l.count[p] - 1];
+        CHECK_MSG(last->triangle_count <= 12, "prototype %u ends at %llu triangles", p,
+                  (unsigned long long)last->triangle_count);
+    }
     for (uint32_t p = 0; p < 2 && l.levels; p++) {
         uint64_t previous = ts->prototypes[p].triangle_count;
         float previous_error = 0.0f;

@@ -16,6 +16,8 @@
 #define LOD_KEEP_RATIO 0.6
 /* No level below this many triangles: what is left is a few boxes. */
 #define LOD_MIN_TRIANGLES 8u
+/* A box's triangles: the coarsest level there is. */
+#define BOX_TRIANGLES 12u
 
 /* One prototype baked: tile-local positions, normals and colours (the
  * material's colour times the vertex colour), every instance drawn. */
@@ -538,6 +540,117 @@ next:;
     return TW_OK;
 }
 
+/* The coarsest level where simplifying stopped above a box: the box of
+ * b's vertices (its faces of no area left out), of the colour that covers
+ * the most area, added to levels as a level of its own; its error measured
+ * as any level's, at least at_least, into *error. */
+static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *name,
+                         const struct baked *b, const float *size2, const struct tw_box *box,
+                         float at_least, float *error)
+{
+    /* The colour of most area. */
+    double best_area = -1.0;
+    uint32_t colour_of = 0;
+    uint32_t *order = malloc(sizeof(*order) * b->triangles);
+    double *area = malloc(sizeof(*area) * b->triangles);
+    if (!order || !area) {
+        free(order);
+        free(area);
+        return TW_ERR_NOMEM;
+    }
+    for (uint32_t t = 0; t < b->triangles; t++) {
+        const float *p0 = b->pos + 3 * (size_t)b->idx[3 * (size_t)t];
+        const float *p1 = b->pos + 3 * (size_t)b->idx[3 * (size_t)t + 1];
+        const float *p2 = b->pos + 3 * (size_t)b->idx[3 * (size_t)t + 2];
+        const float u[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+        const float v[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
+        const float c[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                            u[0] * v[1] - u[1] * v[0]};
+        area[t] = 0.5 * sqrt((double)c[0] * c[0] + (double)c[1] * c[1] + (double)c[2] * c[2]);
+        order[t] = t;
+    }
+    /* Areas summed colour by colour (a colour is its triangles' first
+     * corner's, as a class's). */
+    for (uint32_t t = 0; t < b->triangles; t++) {
+        if (order[t] != t)
+            continue;   /* counted with an earlier one of its colour */
+        const uint8_t *c = b->rgba + 4 * (size_t)b->idx[3 * (size_t)t];
+        double sum = 0.0;
+        for (uint32_t u = t; u < b->triangles; u++) {
+            if (memcmp(b->rgba + 4 * (size_t)b->idx[3 * (size_t)u], c, 4) == 0) {
+                sum += area[u];
+                order[u] = t;
+            }
+        }
+        if (sum > best_area) {
+            best_area = sum;
+            colour_of = b->idx[3 * (size_t)t];
+        }
+    }
+    free(area);
+    free(order);
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t v = 0; v < b->vertices; v++)
+        for (int a = 0; a < 3; a++) {
+            lo[a] = fminf(lo[a], b->pos[3 * (size_t)v + a]);
+            hi[a] = fmaxf(hi[a], b->pos[3 * (size_t)v + a]);
+        }
+    /* b's vertices and the box's 24 (4 a face) together, so the measure
+     * and add_level see one mesh. */
+    struct baked x = {0};
+    const uint32_t nv = b->vertices + 24;
+    x.pos = malloc(sizeof(float) * 3 * (size_t)nv);
+    x.nrm = malloc(sizeof(float) * 3 * (size_t)nv);
+    x.rgba = malloc(4 * (size_t)nv);
+    float *size2x = malloc(sizeof(float) * (size_t)nv);
+    uint32_t idx[36];
+    int err = TW_OK;
+    if (!x.pos || !x.nrm || !x.rgba || !size2x) {
+        err = TW_ERR_NOMEM;
+        goto out;
+    }
+    memcpy(x.pos, b->pos, sizeof(float) * 3 * (size_t)b->vertices);
+    memcpy(x.nrm, b->nrm, sizeof(float) * 3 * (size_t)b->vertices);
+    memcpy(x.rgba, b->rgba, 4 * (size_t)b->vertices);
+    memcpy(size2x, size2, sizeof(float) * (size_t)b->vertices);
+    x.vertices = b->vertices;
+    size_t n = 0;
+    for (int a = 0; a < 3; a++) {
+        const int u = (a + 1) % 3, w = (a + 2) % 3;
+        if (!(hi[u] > lo[u]) || !(hi[w] > lo[w]))
+            continue;   /* a face of no area */
+        for (int side = 0; side < 2; side++) {
+            const uint32_t v0 = x.vertices;
+            /* Corners counter-clockwise seen from outside. */
+            const float su[4] = {0, 1, 1, 0}, sw[4] = {0, 0, 1, 1};
+            for (int k = 0; k < 4; k++) {
+                float *q = x.pos + 3 * (size_t)x.vertices;
+                float *nq = x.nrm + 3 * (size_t)x.vertices;
+                q[a] = side ? hi[a] : lo[a];
+                q[u] = su[side ? k : 3 - k] ? hi[u] : lo[u];
+                q[w] = sw[side ? k : 3 - k] ? hi[w] : lo[w];
+                nq[a] = side ? 1.0f : -1.0f;
+                nq[u] = nq[w] = 0.0f;
+                memcpy(x.rgba + 4 * (size_t)x.vertices, b->rgba + 4 * (size_t)colour_of, 4);
+                size2x[x.vertices] = 0.0f;
+                x.vertices++;
+            }
+            const uint32_t quad[6] = {v0, v0 + 1, v0 + 2, v0, v0 + 2, v0 + 3};
+            memcpy(idx + 3 * n, quad, sizeof(quad));
+            n += 2;
+        }
+    }
+    if (n == 0)
+        goto out;   /* no box of any area: no level */
+    err = measure_error(&x, size2x, NULL, box, idx, n, at_least, INFINITY, error);
+    if (!err)
+        err = add_level(levels, white, name, &x, idx, n);
+out:
+    baked_free(&x);
+    free(size2x);
+    return err;
+}
+
 /* Triangles widx[0 .. 3 n) of welded vertices back into baked vertices:
  * each corner the one of its welded vertex's (all of one colour) whose
  * normal is nearest the triangle's own (a box corner takes the vertex of
@@ -846,6 +959,22 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
         previous = total;
         if (total < LOD_MIN_TRIANGLES)
             break;  /* what is left is a few boxes */
+    }
+    /* Where the last level is still far from a box (every class gone at
+     * the next target, or none simplified further), a box ends the
+     * levels: far enough away, a cell of a block is drawn as one. */
+    if (!err && *count < TW_LOD_MAX_LEVELS && previous >= 2 * BOX_TRIANGLES) {
+        char name[48];
+        snprintf(name, sizeof(name), "%.36s/lod%u", ts->prototypes[p].name, *count + 1);
+        const float last = *count > 0 ? errors[*count - 1] : 0.0f;
+        float error = 0.0f;
+        err = add_box_level(levels, white, name, &b, size2, &ts->prototypes[p].box, last,
+                            &error);
+        if (err == TW_ERR_INVALID || err == TW_ERR_LIMIT)
+            err = TW_OK;    /* refused: the prototype stops at the last */
+        else if (!err && levels->prototype_count > 0 &&
+                 strcmp(levels->prototypes[levels->prototype_count - 1].name, name) == 0)
+            errors[(*count)++] = fmaxf(error, last);
     }
 out:
     free(size2);
