@@ -540,21 +540,28 @@ next:;
     return TW_OK;
 }
 
+/* The colours a box level is tried in: those covering the most area. */
+#define BOX_COLOURS 8
+
 /* The coarsest level where simplifying stopped above a box: the box of
- * b's vertices (its faces of no area left out), of the colour that covers
- * the most area, added to levels as a level of its own; its error measured
- * as any level's, at least at_least, into *error. */
+ * b's vertices (its faces of no area left out) in the one of the
+ * BOX_COLOURS colours of most area whose error is least (a box of the
+ * facades' colour leaves the ground's vertices off by the ground's size),
+ * added to levels as a level of its own; its error measured as any
+ * level's, at least at_least, into *error. */
 static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *name,
                          const struct baked *b, const float *size2, const struct tw_box *box,
                          float at_least, float *error)
 {
-    /* The colour of most area. */
-    double best_area = -1.0;
-    uint32_t colour_of = 0;
-    uint32_t *order = malloc(sizeof(*order) * b->triangles);
+    /* Areas summed colour by colour (a triangle's colour is its first
+     * corner's, as a class's); the largest kept, with a vertex of each. */
+    double top_area[BOX_COLOURS];
+    uint32_t top_vertex[BOX_COLOURS];
+    uint32_t tops = 0;
+    uint32_t *seen = malloc(sizeof(*seen) * b->triangles);
     double *area = malloc(sizeof(*area) * b->triangles);
-    if (!order || !area) {
-        free(order);
+    if (!seen || !area) {
+        free(seen);
         free(area);
         return TW_ERR_NOMEM;
     }
@@ -567,28 +574,36 @@ static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *
         const float c[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
                             u[0] * v[1] - u[1] * v[0]};
         area[t] = 0.5 * sqrt((double)c[0] * c[0] + (double)c[1] * c[1] + (double)c[2] * c[2]);
-        order[t] = t;
+        seen[t] = 0;
     }
-    /* Areas summed colour by colour (a colour is its triangles' first
-     * corner's, as a class's). */
     for (uint32_t t = 0; t < b->triangles; t++) {
-        if (order[t] != t)
+        if (seen[t])
             continue;   /* counted with an earlier one of its colour */
         const uint8_t *c = b->rgba + 4 * (size_t)b->idx[3 * (size_t)t];
         double sum = 0.0;
         for (uint32_t u = t; u < b->triangles; u++) {
-            if (memcmp(b->rgba + 4 * (size_t)b->idx[3 * (size_t)u], c, 4) == 0) {
+            if (!seen[u] && memcmp(b->rgba + 4 * (size_t)b->idx[3 * (size_t)u], c, 4) == 0) {
                 sum += area[u];
-                order[u] = t;
+                seen[u] = 1;
             }
         }
-        if (sum > best_area) {
-            best_area = sum;
-            colour_of = b->idx[3 * (size_t)t];
+        /* Into the top list, largest first. */
+        uint32_t at = tops < BOX_COLOURS ? tops++ : BOX_COLOURS;
+        if (at == BOX_COLOURS) {
+            if (sum <= top_area[BOX_COLOURS - 1])
+                continue;
+            at = BOX_COLOURS - 1;
         }
+        while (at > 0 && top_area[at - 1] < sum) {
+            top_area[at] = top_area[at - 1];
+            top_vertex[at] = top_vertex[at - 1];
+            at--;
+        }
+        top_area[at] = sum;
+        top_vertex[at] = b->idx[3 * (size_t)t];
     }
     free(area);
-    free(order);
+    free(seen);
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (uint32_t v = 0; v < b->vertices; v++)
         for (int a = 0; a < 3; a++) {
@@ -631,7 +646,6 @@ static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *
                 q[w] = sw[side ? k : 3 - k] ? hi[w] : lo[w];
                 nq[a] = side ? 1.0f : -1.0f;
                 nq[u] = nq[w] = 0.0f;
-                memcpy(x.rgba + 4 * (size_t)x.vertices, b->rgba + 4 * (size_t)colour_of, 4);
                 size2x[x.vertices] = 0.0f;
                 x.vertices++;
             }
@@ -640,9 +654,23 @@ static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *
             n += 2;
         }
     }
-    if (n == 0)
+    if (n == 0 || tops == 0)
         goto out;   /* no box of any area: no level */
-    err = measure_error(&x, size2x, NULL, box, idx, n, at_least, INFINITY, error);
+    /* The colour of least error. */
+    uint32_t best = 0;
+    *error = INFINITY;
+    for (uint32_t k = 0; k < tops && !err; k++) {
+        for (uint32_t v = b->vertices; v < x.vertices; v++)
+            memcpy(x.rgba + 4 * (size_t)v, b->rgba + 4 * (size_t)top_vertex[k], 4);
+        float e = 0.0f;
+        err = measure_error(&x, size2x, NULL, box, idx, n, at_least, *error, &e);
+        if (!err && e < *error) {
+            *error = e;
+            best = k;
+        }
+    }
+    for (uint32_t v = b->vertices; v < x.vertices; v++)
+        memcpy(x.rgba + 4 * (size_t)v, b->rgba + 4 * (size_t)top_vertex[best], 4);
     if (!err)
         err = add_level(levels, white, name, &x, idx, n);
 out:
