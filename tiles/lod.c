@@ -445,6 +445,95 @@ static bool colour_match(const struct baked *m, const uint32_t *tri, const uint8
     return false;
 }
 
+/* The squared distance from p to the nearest triangle of g (indices idx
+ * into m) of colour c, or best2 if none is nearer; it may stop at any
+ * value at most enough2 (the caller has no use for less): rings of grid
+ * cells searched outwards until no farther ring can hold a nearer
+ * triangle. */
+static float nearest_of_colour2(const struct grid *g, const struct baked *m, const uint32_t *idx,
+                                const float *p, const uint8_t *colour, float best2, float enough2)
+{
+    int c[3];
+    for (int a = 0; a < 3; a++)
+        c[a] = cell_of(g, a, p[a]);
+    const int rmax = g->dim[0] + g->dim[1] + g->dim[2];
+    for (int r = 0; r <= rmax; r++) {
+        /* A triangle in a cell of ring r or beyond lies at least r - 1
+         * cells away (p may lie anywhere in its cell, or beyond the
+         * grid's edge, clamped to it). */
+        const float reach = (float)(r > 0 ? r - 1 : 0) * g->cell;
+        if ((r > 0 && best2 <= reach * reach) || best2 <= enough2)
+            return best2;
+        /* The shell of ring r only: cost grows as r^2, not r^3. */
+        for (int z = c[2] - r; z <= c[2] + r; z++) {
+            if (z < 0 || z >= g->dim[2])
+                continue;
+            for (int y = c[1] - r; y <= c[1] + r; y++) {
+                if (y < 0 || y >= g->dim[1])
+                    continue;
+                const bool face = abs(z - c[2]) == r || abs(y - c[1]) == r;
+                const int step = face || r == 0 ? 1 : 2 * r;
+                for (int x = c[0] - r; x <= c[0] + r; x += step) {
+                    if (x < 0 || x >= g->dim[0])
+                        continue;
+                    const size_t cell = ((size_t)z * g->dim[1] + y) * g->dim[0] + x;
+                    for (uint32_t k = g->first[cell]; k < g->first[cell + 1]; k++) {
+                        const uint32_t t = g->tri[k];
+                        if (!colour_match(m, idx + 3 * (size_t)t, colour))
+                            continue;
+                        /* The triangle's box first: most are farther. */
+                        if (tw_box_distance2(&g->box[t], p) >= best2)
+                            continue;
+                        const float d2 = point_triangle2(p, m->pos + 3 * (size_t)idx[3 * t],
+                                                         m->pos + 3 * (size_t)idx[3 * t + 1],
+                                                         m->pos + 3 * (size_t)idx[3 * t + 2]);
+                        if (d2 < best2)
+                            best2 = d2;
+                    }
+                    if (best2 <= enough2)
+                        return best2;   /* cannot matter to the caller */
+                }
+            }
+        }
+    }
+    return best2;
+}
+
+/* The other way round: the largest distance from a level's triangles
+ * (idx[0 .. 3 n), into m) to the full-detail triangles of their colour
+ * (full, a grid of the full-detail triangles full_idx, into m), at least at_least; a result above
+ * give_up may stop short of the largest. A level's corners are
+ * full-detail vertices (edge collapse and clustering alike keep some of
+ * them), so its edges' midpoints and its triangles' centres are what is
+ * asked: a triangle that spans a gap between two windows, or fills a
+ * courtyard, paints its colour where the full detail has none. */
+static void reverse_error(const struct baked *m, const struct grid *full,
+                          const uint32_t *full_idx, const uint32_t *idx, size_t n, float at_least,
+                          float give_up, float *out)
+{
+    float worst2 = at_least * at_least;
+    /* No search needs to look farther than past give_up. */
+    const float cap2 = isfinite(give_up) ? 4.0f * give_up * give_up + 1e-6f : INFINITY;
+    for (size_t t = 0; t < n && worst2 <= give_up * give_up; t++) {
+        const float *a = m->pos + 3 * (size_t)idx[3 * t], *b = m->pos + 3 * (size_t)idx[3 * t + 1],
+                    *c = m->pos + 3 * (size_t)idx[3 * t + 2];
+        const uint8_t *colour = m->rgba + 4 * (size_t)idx[3 * t];
+        float q[4][3];
+        for (int k = 0; k < 3; k++) {
+            q[0][k] = 0.5f * (a[k] + b[k]);
+            q[1][k] = 0.5f * (b[k] + c[k]);
+            q[2][k] = 0.5f * (c[k] + a[k]);
+            q[3][k] = (a[k] + b[k] + c[k]) / 3.0f;
+        }
+        for (int k = 0; k < 4; k++) {
+            const float d2 = nearest_of_colour2(full, m, full_idx, q[k], colour, cap2, worst2);
+            if (d2 > worst2)
+                worst2 = d2;
+        }
+    }
+    *out = sqrtf(worst2);
+}
+
 /* The largest distance from a full-detail vertex of m to a triangle of the
  * level (idx[0 .. 3 n), into m) of the vertex's colour, at most the size of
  * its patch (size2), or at_least if that is larger, over the vertices only
@@ -480,51 +569,8 @@ static int measure_error(const struct baked *m, const float *size2, const uint8_
             continue;
         const float *p = m->pos + 3 * (size_t)v;
         const uint8_t *colour = m->rgba + 4 * (size_t)v;
-        int c[3];
-        for (int a = 0; a < 3; a++)
-            c[a] = cell_of(&g, a, p[a]);
         /* Its patch gone, a vertex is off by its patch's size at most. */
-        float best2 = size2[v];
-        const int rmax = g.dim[0] + g.dim[1] + g.dim[2];
-        for (int r = 0; r <= rmax; r++) {
-            /* A triangle in a cell of ring r or beyond lies at least
-             * r - 1 cells away (the vertex may lie anywhere in its cell,
-             * or beyond the grid's edge, clamped to it). */
-            const float reach = (float)(r > 0 ? r - 1 : 0) * g.cell;
-            if ((r > 0 && best2 <= reach * reach) || best2 <= worst2)
-                break;
-            /* The shell of ring r only: cost grows as r^2, not r^3. */
-            for (int z = c[2] - r; z <= c[2] + r; z++) {
-                if (z < 0 || z >= g.dim[2])
-                    continue;
-                for (int y = c[1] - r; y <= c[1] + r; y++) {
-                    if (y < 0 || y >= g.dim[1])
-                        continue;
-                    const bool face = abs(z - c[2]) == r || abs(y - c[1]) == r;
-                    const int step = face || r == 0 ? 1 : 2 * r;
-                    for (int x = c[0] - r; x <= c[0] + r; x += step) {
-                        if (x < 0 || x >= g.dim[0])
-                            continue;
-                        const size_t cell = ((size_t)z * g.dim[1] + y) * g.dim[0] + x;
-                        for (uint32_t k = g.first[cell]; k < g.first[cell + 1]; k++) {
-                            const uint32_t t = g.tri[k];
-                            if (!colour_match(m, idx + 3 * (size_t)t, colour))
-                                continue;
-                            /* The triangle's box first: most are farther. */
-                            if (tw_box_distance2(&g.box[t], p) >= best2)
-                                continue;
-                            const float d2 = point_triangle2(p, m->pos + 3 * (size_t)idx[3 * t],
-                                                             m->pos + 3 * (size_t)idx[3 * t + 1],
-                                                             m->pos + 3 * (size_t)idx[3 * t + 2]);
-                            if (d2 < best2)
-                                best2 = d2;
-                        }
-                        if (best2 <= worst2)
-                            goto next;  /* cannot raise the worst */
-                    }
-                }
-            }
-        }
+        const float best2 = nearest_of_colour2(&g, m, idx, p, colour, size2[v], worst2);
         /* A vertex no nearer than the worst so far cannot raise it: the
          * search stopped early for it, and best2 only bounds from above. */
         if (best2 > worst2)
@@ -532,7 +578,6 @@ static int measure_error(const struct baked *m, const float *size2, const uint8_
         /* Past what the caller would take: the rest cannot change that. */
         if (worst2 > give_up * give_up)
             break;
-next:;
     }
     grid_free(&g);
     free(kept);
@@ -550,8 +595,8 @@ next:;
  * added to levels as a level of its own; its error measured as any
  * level's, at least at_least, into *error. */
 static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *name,
-                         const struct baked *b, const float *size2, const struct tw_box *box,
-                         float at_least, float *error)
+                         const struct baked *b, const float *size2, const struct grid *full,
+                         const struct tw_box *box, float at_least, float *error)
 {
     /* Areas summed colour by colour (a triangle's colour is its first
      * corner's, as a class's); the largest kept, with a vertex of each. */
@@ -664,6 +709,8 @@ static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *
             memcpy(x.rgba + 4 * (size_t)v, b->rgba + 4 * (size_t)top_vertex[k], 4);
         float e = 0.0f;
         err = measure_error(&x, size2x, NULL, box, idx, n, at_least, *error, &e);
+        if (!err && e < *error)
+            reverse_error(&x, full, b->idx, idx, n, e, *error, &e);
         if (!err && e < *error) {
             *error = e;
             best = k;
@@ -828,7 +875,7 @@ static int part_alloc(struct part *p, const struct baked *b, const struct welded
  * as they were. Returns the triangle count; the class's error is raised to
  * what was measured. */
 static int simplify_class(const struct baked *b, const struct welded *w, const float *size2,
-                          const struct tw_box *box, struct classes *cl, uint32_t k,
+                          const struct grid *full, const struct tw_box *box, struct classes *cl, uint32_t k,
                           struct part *p, const uint32_t *in, size_t n, float target,
                           uint32_t *out, size_t *out_n)
 {
@@ -885,6 +932,8 @@ static int simplify_class(const struct baked *b, const struct welded *w, const f
                             &measured);
         if (err)
             break;
+        if (measured <= target)
+            reverse_error(b, full, b->idx, p->baked, m, measured, target, &measured);
         if (measured <= target) {
             memcpy(out, p->a, sizeof(uint32_t) * 3 * m);
             *out_n = m;
@@ -931,6 +980,10 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
     size_t *start = calloc((size_t)cl.count + 1, sizeof(*start));
     size_t *next_start = calloc((size_t)cl.count + 1, sizeof(*next_start));
     float *size2 = err ? NULL : patch_sizes(&b, &w);
+    /* The full-detail triangles, for the measure the other way round. */
+    struct grid full = {0};
+    if (!err)
+        err = grid_build(&full, &ts->prototypes[p].box, b.pos, b.idx, b.triangles, 0.0f);
     if (err || !cur || !next || !idx || !start || !next_start || !size2) {
         err = err ? err : TW_ERR_NOMEM;
         goto out;
@@ -948,7 +1001,7 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
         for (uint32_t k = 0; k < cl.count && !err; k++) {
             size_t m = 0;
             next_start[k] = total;
-            err = simplify_class(&b, &w, size2, &ts->prototypes[p].box, &cl, k, &part,
+            err = simplify_class(&b, &w, size2, &full, &ts->prototypes[p].box, &cl, k, &part,
                                  cur + 3 * start[k], start[k + 1] - start[k], target,
                                  next + 3 * total, &m);
             total += m;
@@ -996,8 +1049,8 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
         snprintf(name, sizeof(name), "%.36s/lod%u", ts->prototypes[p].name, *count + 1);
         const float last = *count > 0 ? errors[*count - 1] : 0.0f;
         float error = 0.0f;
-        err = add_box_level(levels, white, name, &b, size2, &ts->prototypes[p].box, last,
-                            &error);
+        err = add_box_level(levels, white, name, &b, size2, &full, &ts->prototypes[p].box,
+                            last, &error);
         if (err == TW_ERR_INVALID || err == TW_ERR_LIMIT)
             err = TW_OK;    /* refused: the prototype stops at the last */
         else if (!err && levels->prototype_count > 0 &&
@@ -1005,6 +1058,7 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
             errors[(*count)++] = fmaxf(error, last);
     }
 out:
+    grid_free(&full);
     free(size2);
     free(cur);
     free(next);
