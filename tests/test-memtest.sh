@@ -118,17 +118,20 @@ if command -v gnuplot >/dev/null; then
     [ -s "$tmp/m/chart-memory.png" ] && [ -s "$tmp/m/chart-loads.png" ] && ok || bad "charts missing: $(cat "$tmp/m/gnuplot.log")"
 fi
 
-# A budget above what most frames of this walk draw (the cache holds ~47 MiB
-# at 48M; the view's peak need over 3 km of it is 67 MiB) but below what the
-# walk wants (~104 MiB without a budget, every prefetch kept):
-# tiles made ahead of need must not evict tiles needed a few frames later.
-# Before prefetching stopped at a full cache, 300 of these 352 loads were
-# reloads; now a handful at most.
-run "$tmp/churn" --budget 48M
+# A budget above what the frames of this walk draw (the view's need peaks at
+# 80-111 MiB, with the loads' timing) but below what the walk wants (168 MiB
+# without a budget, every prefetch kept): tiles made ahead of need must not
+# evict tiles needed a few frames later. Before prefetching stopped at a full
+# cache, 300 of 352 loads were reloads (at 48M, with tiles of fewer levels of
+# detail). The colour-class levels made a tile larger, and nearer the need the
+# walk thrashes with the timing: at 64M 2 of 32 loads were reloads in one run,
+# 37 of 79 with a progress line every frame; at 96M 3 of 37 or 20 of 60; at
+# 128M 2 or 3 of 45 (README, known limits).
+run "$tmp/churn" --budget 128M
 loads=$(sed -n 's/^ *"loads_done": \([0-9]*\),$/\1/p' "$tmp/churn/summary.json")
 reloads=$(sed -n 's/^ *"reloads": \([0-9]*\),$/\1/p' "$tmp/churn/summary.json")
 [ -n "$loads" ] && [ -n "$reloads" ] && [ "$loads" -gt 0 ] && [ $((4 * reloads)) -le "$loads" ] && ok ||
-    bad "48M: ${reloads:-?} of ${loads:-?} loads are reloads"
+    bad "128M: ${reloads:-?} of ${loads:-?} loads are reloads"
 
 # No budget: check 1 is not applicable, never "yes".
 run "$tmp/none" --budget 0
