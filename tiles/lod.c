@@ -585,147 +585,6 @@ static int measure_error(const struct baked *m, const float *size2, const uint8_
     return TW_OK;
 }
 
-/* The colours a box level is tried in: those covering the most area. */
-#define BOX_COLOURS 8
-
-/* The coarsest level where simplifying stopped above a box: the box of
- * b's vertices (its faces of no area left out) in the one of the
- * BOX_COLOURS colours of most area whose error is least (a box of the
- * facades' colour leaves the ground's vertices off by the ground's size),
- * added to levels as a level of its own; its error measured as any
- * level's, at least at_least, into *error. */
-static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *name,
-                         const struct baked *b, const float *size2, const struct grid *full,
-                         const struct tw_box *box, float at_least, float *error)
-{
-    /* Areas summed colour by colour (a triangle's colour is its first
-     * corner's, as a class's); the largest kept, with a vertex of each. */
-    double top_area[BOX_COLOURS];
-    uint32_t top_vertex[BOX_COLOURS];
-    uint32_t tops = 0;
-    uint32_t *seen = malloc(sizeof(*seen) * b->triangles);
-    double *area = malloc(sizeof(*area) * b->triangles);
-    if (!seen || !area) {
-        free(seen);
-        free(area);
-        return TW_ERR_NOMEM;
-    }
-    for (uint32_t t = 0; t < b->triangles; t++) {
-        const float *p0 = b->pos + 3 * (size_t)b->idx[3 * (size_t)t];
-        const float *p1 = b->pos + 3 * (size_t)b->idx[3 * (size_t)t + 1];
-        const float *p2 = b->pos + 3 * (size_t)b->idx[3 * (size_t)t + 2];
-        const float u[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
-        const float v[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
-        const float c[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
-                            u[0] * v[1] - u[1] * v[0]};
-        area[t] = 0.5 * sqrt((double)c[0] * c[0] + (double)c[1] * c[1] + (double)c[2] * c[2]);
-        seen[t] = 0;
-    }
-    for (uint32_t t = 0; t < b->triangles; t++) {
-        if (seen[t])
-            continue;   /* counted with an earlier one of its colour */
-        const uint8_t *c = b->rgba + 4 * (size_t)b->idx[3 * (size_t)t];
-        double sum = 0.0;
-        for (uint32_t u = t; u < b->triangles; u++) {
-            if (!seen[u] && memcmp(b->rgba + 4 * (size_t)b->idx[3 * (size_t)u], c, 4) == 0) {
-                sum += area[u];
-                seen[u] = 1;
-            }
-        }
-        /* Into the top list, largest first. */
-        uint32_t at = tops < BOX_COLOURS ? tops++ : BOX_COLOURS;
-        if (at == BOX_COLOURS) {
-            if (sum <= top_area[BOX_COLOURS - 1])
-                continue;
-            at = BOX_COLOURS - 1;
-        }
-        while (at > 0 && top_area[at - 1] < sum) {
-            top_area[at] = top_area[at - 1];
-            top_vertex[at] = top_vertex[at - 1];
-            at--;
-        }
-        top_area[at] = sum;
-        top_vertex[at] = b->idx[3 * (size_t)t];
-    }
-    free(area);
-    free(seen);
-    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (uint32_t v = 0; v < b->vertices; v++)
-        for (int a = 0; a < 3; a++) {
-            lo[a] = fminf(lo[a], b->pos[3 * (size_t)v + a]);
-            hi[a] = fmaxf(hi[a], b->pos[3 * (size_t)v + a]);
-        }
-    /* b's vertices and the box's 24 (4 a face) together, so the measure
-     * and add_level see one mesh. */
-    struct baked x = {0};
-    const uint32_t nv = b->vertices + 24;
-    x.pos = malloc(sizeof(float) * 3 * (size_t)nv);
-    x.nrm = malloc(sizeof(float) * 3 * (size_t)nv);
-    x.rgba = malloc(4 * (size_t)nv);
-    float *size2x = malloc(sizeof(float) * (size_t)nv);
-    uint32_t idx[36];
-    int err = TW_OK;
-    if (!x.pos || !x.nrm || !x.rgba || !size2x) {
-        err = TW_ERR_NOMEM;
-        goto out;
-    }
-    memcpy(x.pos, b->pos, sizeof(float) * 3 * (size_t)b->vertices);
-    memcpy(x.nrm, b->nrm, sizeof(float) * 3 * (size_t)b->vertices);
-    memcpy(x.rgba, b->rgba, 4 * (size_t)b->vertices);
-    memcpy(size2x, size2, sizeof(float) * (size_t)b->vertices);
-    x.vertices = b->vertices;
-    size_t n = 0;
-    for (int a = 0; a < 3; a++) {
-        const int u = (a + 1) % 3, w = (a + 2) % 3;
-        if (!(hi[u] > lo[u]) || !(hi[w] > lo[w]))
-            continue;   /* a face of no area */
-        for (int side = 0; side < 2; side++) {
-            const uint32_t v0 = x.vertices;
-            /* Corners counter-clockwise seen from outside. */
-            const float su[4] = {0, 1, 1, 0}, sw[4] = {0, 0, 1, 1};
-            for (int k = 0; k < 4; k++) {
-                float *q = x.pos + 3 * (size_t)x.vertices;
-                float *nq = x.nrm + 3 * (size_t)x.vertices;
-                q[a] = side ? hi[a] : lo[a];
-                q[u] = su[side ? k : 3 - k] ? hi[u] : lo[u];
-                q[w] = sw[side ? k : 3 - k] ? hi[w] : lo[w];
-                nq[a] = side ? 1.0f : -1.0f;
-                nq[u] = nq[w] = 0.0f;
-                size2x[x.vertices] = 0.0f;
-                x.vertices++;
-            }
-            const uint32_t quad[6] = {v0, v0 + 1, v0 + 2, v0, v0 + 2, v0 + 3};
-            memcpy(idx + 3 * n, quad, sizeof(quad));
-            n += 2;
-        }
-    }
-    if (n == 0 || tops == 0)
-        goto out;   /* no box of any area: no level */
-    /* The colour of least error. */
-    uint32_t best = 0;
-    *error = INFINITY;
-    for (uint32_t k = 0; k < tops && !err; k++) {
-        for (uint32_t v = b->vertices; v < x.vertices; v++)
-            memcpy(x.rgba + 4 * (size_t)v, b->rgba + 4 * (size_t)top_vertex[k], 4);
-        float e = 0.0f;
-        err = measure_error(&x, size2x, NULL, box, idx, n, at_least, *error, &e);
-        if (!err && e < *error)
-            reverse_error(&x, full, b->idx, idx, n, e, *error, &e);
-        if (!err && e < *error) {
-            *error = e;
-            best = k;
-        }
-    }
-    for (uint32_t v = b->vertices; v < x.vertices; v++)
-        memcpy(x.rgba + 4 * (size_t)v, b->rgba + 4 * (size_t)top_vertex[best], 4);
-    if (!err)
-        err = add_level(levels, white, name, &x, idx, n);
-out:
-    baked_free(&x);
-    free(size2x);
-    return err;
-}
-
 /* Triangles widx[0 .. 3 n) of welded vertices back into baked vertices:
  * each corner the one of its welded vertex's (all of one colour) whose
  * normal is nearest the triangle's own (a box corner takes the vertex of
@@ -947,6 +806,125 @@ static int simplify_class(const struct baked *b, const struct welded *w, const f
     return err;
 }
 
+/* The colours a box level is tried in: those covering the most area. */
+#define BOX_COLOURS 8
+
+/* The coarsest level where simplifying stopped above a box: box, the
+ * prototype's (its faces of no area left out), in the colour of the one
+ * of cl's BOX_COLOURS classes of most area whose error is least (a box of
+ * the facades' colour leaves the ground's vertices off by the ground's
+ * size), added to levels as a level of its own, *added set; its error
+ * measured as any level's, at least at_least, into *error. */
+static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *name,
+                         const struct baked *b, const struct classes *cl, const float *size2,
+                         const struct grid *full, const struct tw_box *box, float at_least,
+                         float *error, bool *added)
+{
+    *added = false;
+    /* The classes of most area, largest first. */
+    double top_area[BOX_COLOURS];
+    uint32_t top_vertex[BOX_COLOURS];
+    uint32_t tops = 0;
+    for (uint32_t k = 0; k < cl->count; k++) {
+        double area = 0.0;
+        for (uint32_t t = cl->first[k]; t < cl->first[k + 1]; t++) {
+            const uint32_t *tri = b->idx + 3 * (size_t)cl->tri[t];
+            const float *p0 = b->pos + 3 * (size_t)tri[0], *p1 = b->pos + 3 * (size_t)tri[1],
+                        *p2 = b->pos + 3 * (size_t)tri[2];
+            const float u[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+            const float v[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
+            const float c[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                                u[0] * v[1] - u[1] * v[0]};
+            area += 0.5 * sqrt((double)dot3(c, c));
+        }
+        uint32_t at;
+        if (tops < BOX_COLOURS)
+            at = tops++;
+        else if (area > top_area[BOX_COLOURS - 1])
+            at = BOX_COLOURS - 1;   /* the smallest of the list goes */
+        else
+            continue;
+        while (at > 0 && top_area[at - 1] < area) {
+            top_area[at] = top_area[at - 1];
+            top_vertex[at] = top_vertex[at - 1];
+            at--;
+        }
+        top_area[at] = area;
+        top_vertex[at] = b->idx[3 * (size_t)cl->tri[cl->first[k]]];
+    }
+    /* b's vertices and the box's 24 (4 a face) together, so the measure
+     * and add_level see one mesh. */
+    struct baked x = {0};
+    const uint32_t nv = b->vertices + 24;
+    x.pos = malloc(sizeof(float) * 3 * (size_t)nv);
+    x.nrm = malloc(sizeof(float) * 3 * (size_t)nv);
+    x.rgba = malloc(4 * (size_t)nv);
+    float *size2x = malloc(sizeof(float) * (size_t)nv);
+    uint32_t idx[36];
+    int err = TW_OK;
+    if (!x.pos || !x.nrm || !x.rgba || !size2x) {
+        err = TW_ERR_NOMEM;
+        goto out;
+    }
+    memcpy(x.pos, b->pos, sizeof(float) * 3 * (size_t)b->vertices);
+    memcpy(x.nrm, b->nrm, sizeof(float) * 3 * (size_t)b->vertices);
+    memcpy(x.rgba, b->rgba, 4 * (size_t)b->vertices);
+    memcpy(size2x, size2, sizeof(float) * (size_t)b->vertices);
+    x.vertices = b->vertices;
+    const float *lo = box->min, *hi = box->max;
+    size_t n = 0;
+    for (int a = 0; a < 3; a++) {
+        const int u = (a + 1) % 3, w = (a + 2) % 3;
+        if (!(hi[u] > lo[u]) || !(hi[w] > lo[w]))
+            continue;   /* a face of no area */
+        for (int side = 0; side < 2; side++) {
+            const uint32_t v0 = x.vertices;
+            /* Corners counter-clockwise seen from outside. */
+            const float su[4] = {0, 1, 1, 0}, sw[4] = {0, 0, 1, 1};
+            for (int k = 0; k < 4; k++) {
+                float *q = x.pos + 3 * (size_t)x.vertices;
+                float *nq = x.nrm + 3 * (size_t)x.vertices;
+                q[a] = side ? hi[a] : lo[a];
+                q[u] = su[side ? k : 3 - k] ? hi[u] : lo[u];
+                q[w] = sw[side ? k : 3 - k] ? hi[w] : lo[w];
+                nq[a] = side ? 1.0f : -1.0f;
+                nq[u] = nq[w] = 0.0f;
+                size2x[x.vertices] = 0.0f;
+                x.vertices++;
+            }
+            const uint32_t quad[6] = {v0, v0 + 1, v0 + 2, v0, v0 + 2, v0 + 3};
+            memcpy(idx + 3 * n, quad, sizeof(quad));
+            n += 2;
+        }
+    }
+    if (n == 0 || tops == 0)
+        goto out;   /* no box of any area: no level */
+    /* The colour of least error. */
+    uint32_t best = 0;
+    *error = INFINITY;
+    for (uint32_t k = 0; k < tops && !err; k++) {
+        for (uint32_t v = b->vertices; v < x.vertices; v++)
+            memcpy(x.rgba + 4 * (size_t)v, b->rgba + 4 * (size_t)top_vertex[k], 4);
+        float e = 0.0f;
+        err = measure_error(&x, size2x, NULL, box, idx, n, at_least, *error, &e);
+        if (!err && e < *error)
+            reverse_error(&x, full, b->idx, idx, n, e, *error, &e);
+        if (!err && e < *error) {
+            *error = e;
+            best = k;
+        }
+    }
+    for (uint32_t v = b->vertices; v < x.vertices; v++)
+        memcpy(x.rgba + 4 * (size_t)v, b->rgba + 4 * (size_t)top_vertex[best], 4);
+    if (!err)
+        err = add_level(levels, white, name, &x, idx, n);
+    *added = !err;
+out:
+    baked_free(&x);
+    free(size2x);
+    return err;
+}
+
 /* The targets of the levels: from 2^-TARGET_STEPS of the prototype's
  * extent, doubling, up to the extent. */
 #define TARGET_STEPS 10
@@ -1049,12 +1027,12 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
         snprintf(name, sizeof(name), "%.36s/lod%u", ts->prototypes[p].name, *count + 1);
         const float last = *count > 0 ? errors[*count - 1] : 0.0f;
         float error = 0.0f;
-        err = add_box_level(levels, white, name, &b, size2, &full, &ts->prototypes[p].box,
-                            last, &error);
+        bool added = false;
+        err = add_box_level(levels, white, name, &b, &cl, size2, &full, &ts->prototypes[p].box,
+                            last, &error, &added);
         if (err == TW_ERR_INVALID || err == TW_ERR_LIMIT)
             err = TW_OK;    /* refused: the prototype stops at the last */
-        else if (!err && levels->prototype_count > 0 &&
-                 strcmp(levels->prototypes[levels->prototype_count - 1].name, name) == 0)
+        else if (added)
             errors[(*count)++] = fmaxf(error, last);
     }
 out:
