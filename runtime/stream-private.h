@@ -68,6 +68,8 @@ struct pool {
     pthread_cond_t done;                 /* a job finished, or a worker stopped
                                             (CLOCK_MONOTONIC, for the wait at destroy) */
     bool quit;
+    atomic_bool stop;                    /* quit, read without the lock: a job's levels
+                                            give up (tw_lods_build) */
     uint32_t refs;                       /* the stream's, and one per worker thread */
 };
 

@@ -170,11 +170,15 @@ void tw_stream_job_run(struct worker *wk, struct tw_cell cell, struct job_result
     if (wk->lods) {
         /* Its levels of detail (DESIGN §17), made here with the tile. */
         err = tw_lods_build(r->ts, p->max_cluster_triangles ? p->max_cluster_triangles : 2048,
-                            &r->lods);
+                            &wk->pool->stop, &r->lods);
         const uint32_t n = r->lods.levels ? r->lods.levels->prototype_count : 0;
         if (!err && n > 0 && !(r->lod_bvhs = calloc(n, sizeof(*r->lod_bvhs))))
             err = TW_ERR_NOMEM;
         for (uint32_t k = 0; k < n && !err; k++) {
+            if (atomic_load_explicit(&wk->pool->stop, memory_order_relaxed)) {
+                err = TW_ERR_STATE;     /* the stream is stopping: nobody will use them */
+                break;
+            }
             err = tw_bvh_build(wk->builder, &r->lods.levels->prototypes[k], &wk->bvh,
                                &r->lod_bvhs[k]);
             if (!err)
@@ -383,6 +387,7 @@ static int pool_create(struct pool **out)
     struct pool *pool = calloc(1, sizeof(*pool));
     if (!pool)
         return TW_ERR_NOMEM;
+    atomic_init(&pool->stop, false);
     pthread_condattr_t attr;
     pthread_condattr_init(&attr);
     pthread_condattr_setclock(&attr, CLOCK_MONOTONIC);
@@ -459,6 +464,7 @@ uint32_t tw_stream_workers_stop(struct tw_stream *s, char *cells, size_t cells_s
     cells[0] = '\0';
     pthread_mutex_lock(&pool->lock);
     pool->quit = true;
+    atomic_store(&pool->stop, true);
     pthread_cond_broadcast(&pool->work);
     for (bool timed_out = false;;) {
         bool running = false;

@@ -208,7 +208,7 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
  * their BVHs too, uploaded and counted with the shared content. */
 static int shared_levels(struct tw_world *w, const struct tw_tileset *ts)
 {
-    int err = tw_lods_build(ts, ts->max_cluster_triangles, &w->lods);
+    int err = tw_lods_build(ts, ts->max_cluster_triangles, NULL, &w->lods);
     if (err) {
         tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot build the levels of detail of %s: %s",
                       ts->name, tw_error_to_str(err));

@@ -102,4 +102,45 @@ static inline void add_facade(struct tw_tileset *ts, uint32_t n, int *wall, int 
     *win = tw_tileset_add_mesh(ts, wpos, NULL, 400, widx, 200);
 }
 
+/* Rough ground: n x n quads, size metres across, heights at random (seed)
+ * up to 4 m, each quad in one of colours materials at random, as prototype
+ * proto: little of it simplifies, so its levels take long to build (and
+ * to measure). False where the builder refused a part. */
+static inline bool add_rough_ground(struct tw_tileset *ts, int proto, uint32_t n, float size,
+                                    uint32_t colours, uint64_t seed)
+{
+    const uint32_t nv = (n + 1) * (n + 1);
+    float *pos = malloc(sizeof(float) * 3 * nv);
+    uint32_t *idx = malloc(sizeof(uint32_t) * 6 * (size_t)n * n);
+    bool ok = pos && idx && proto >= 0;
+    uint64_t h = seed;
+    for (uint32_t v = 0; v < nv && ok; v++) {
+        h = h * 6364136223846793005ull + 1442695040888963407ull;
+        pos[3 * v] = size * (float)(v % (n + 1)) / (float)n;
+        pos[3 * v + 1] = (float)((h >> 33) % 1000) * 0.004f;
+        pos[3 * v + 2] = size * (float)(v / (n + 1)) / (float)n;
+    }
+    for (uint32_t c = 0; c < colours && ok; c++) {
+        uint32_t nt = 0;
+        for (uint32_t q = 0; q < n * n; q++) {
+            const uint64_t hq = (q + 1) * 0x9E3779B97F4A7C15ull ^ seed;
+            if ((hq >> 40) % colours != c)
+                continue;
+            const uint32_t v = (q / n) * (n + 1) + q % n;
+            const uint32_t quad[6] = {v, v + n + 1, v + 1, v + 1, v + n + 1, v + n + 2};
+            memcpy(idx + 3 * (size_t)nt, quad, sizeof(quad));
+            nt += 2;
+        }
+        const float k = (float)c / (float)colours;
+        const int mat = tw_tileset_add_material(ts, (const float[4]){0.1f + 0.8f * k, 0.5f,
+                                                                     0.9f - 0.8f * k, 1.0f});
+        const int mesh = tw_tileset_add_mesh(ts, pos, NULL, nv, idx, nt);
+        ok = mat >= 0 && mesh >= 0 &&
+             tw_tileset_add_instance(ts, (uint32_t)proto, (uint32_t)mesh, (uint32_t)mat, NULL) >= 0;
+    }
+    free(pos);
+    free(idx);
+    return ok;
+}
+
 #endif

@@ -9,8 +9,11 @@
 #include "tileworld/tiles.h"
 
 #include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 
 static bool box_inside(const struct tw_box *in, const struct tw_box *out)
@@ -19,6 +22,40 @@ static bool box_inside(const struct tw_box *in, const struct tw_box *out)
         if (in->min[a] < out->min[a] || in->max[a] > out->max[a])
             return false;
     return true;
+}
+
+static void *stop_soon(void *arg)
+{
+    const struct timespec t = {0, 20 * 1000000L};
+    nanosleep(&t, NULL);
+    atomic_store((atomic_bool *)arg, true);
+    return NULL;
+}
+
+/* The stop (a tile's worker at the world's destroy): set before, nothing
+ * is built; set 20 ms into a build of about 0.8 s (here), the build gives
+ * up with TW_ERR_STATE and leaves nothing to free. */
+static void test_stop(void)
+{
+    struct tw_tileset *ts;
+    CHECK(tw_tileset_create("rough", 40, 40, &ts) == TW_OK);
+    const int proto = tw_tileset_add_prototype(ts, "rough", 1.0f);
+    CHECK(add_rough_ground(ts, proto, 160, 40.0f, 8, 99));
+    CHECK(tw_tileset_finish(ts, 2048) == TW_OK);
+    atomic_bool stop;
+    atomic_init(&stop, true);
+    struct tw_lods l;
+    CHECK(tw_lods_build(ts, 2048, &stop, &l) == TW_ERR_STATE && l.levels == NULL &&
+          l.first == NULL);
+    atomic_store(&stop, false);
+    pthread_t t;
+    const bool started = pthread_create(&t, NULL, stop_soon, &stop) == 0;
+    CHECK(started);
+    if (started) {
+        CHECK(tw_lods_build(ts, 2048, &stop, &l) == TW_ERR_STATE && l.levels == NULL);
+        pthread_join(t, NULL);
+    }
+    tw_tileset_destroy(ts);
 }
 
 int main(void)
@@ -52,7 +89,7 @@ int main(void)
     CHECK(tw_tileset_finish(ts, 256) == TW_OK);
 
     struct tw_lods l;
-    CHECK(tw_lods_build(ts, 256, &l) == TW_OK);
+    CHECK(tw_lods_build(ts, 256, NULL, &l) == TW_OK);
     CHECK(l.levels != NULL && l.source_count == 4);
     /* The facade: a level that takes windows out says so. A window gone
      * is off by the distance to the next one or its own size (at least
@@ -137,8 +174,9 @@ int main(void)
     /* Unfinished: refused. */
     struct tw_tileset *raw;
     CHECK(tw_tileset_create("raw", 10, 10, &raw) == TW_OK);
-    CHECK(tw_lods_build(raw, 256, &l) == TW_ERR_INVALID && l.levels == NULL);
+    CHECK(tw_lods_build(raw, 256, NULL, &l) == TW_ERR_INVALID && l.levels == NULL);
     tw_tileset_destroy(raw);
     tw_tileset_destroy(ts);
+    test_stop();
     return check_summary("test-lod");
 }

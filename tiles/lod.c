@@ -536,16 +536,17 @@ static void reverse_error(const struct baked *m, const struct grid *full,
 
 /* The largest distance from a full-detail vertex of m to a triangle of the
  * level (idx[0 .. 3 n), into m) of the vertex's colour, at most the size of
- * its patch (size2), or at_least if that is larger, over the vertices only
- * marks (all where NULL); a result above give_up may stop short of the
- * largest: rings of grid cells
+ * its patch (size2), or at_least if that is larger, over the vertices
+ * order[0 .. count) (largest patch first: the first patch too small to
+ * raise the worst ends the measure, and any order gives the same result);
+ * a result above give_up may stop short of the largest: rings of grid cells
  * searched outwards until no farther ring can hold a nearer triangle. A
  * window removed from a facade is as far as the nearest window left, or its
  * own size, not as the wall behind it: what the eye misses is its colour,
  * over its size. */
-static int measure_error(const struct baked *m, const float *size2, const uint8_t *only,
-                         const struct tw_box *box, const uint32_t *idx, size_t n, float at_least,
-                         float give_up, float *out)
+static int measure_error(const struct baked *m, const float *size2, const uint32_t *order,
+                         size_t count, const struct tw_box *box, const uint32_t *idx, size_t n,
+                         float at_least, float give_up, float *out)
 {
     struct grid g;
     /* Cells of half the error already known: a search rarely goes past
@@ -563,9 +564,12 @@ static int measure_error(const struct baked *m, const float *size2, const uint8_
     /* Nothing below at_least is asked: a vertex nearer than that to some
      * triangle is done. */
     float worst2 = at_least * at_least;
-    for (uint32_t v = 0; v < m->vertices; v++) {
-        /* Not asked, kept, or in a patch too small to raise the worst: done. */
-        if ((only && !only[v]) || kept[v] || size2[v] <= worst2)
+    for (size_t i = 0; i < count; i++) {
+        const uint32_t v = order[i];
+        /* The patches left are too small to raise the worst: done. */
+        if (size2[v] <= worst2)
+            break;
+        if (kept[v])
             continue;
         const float *p = m->pos + 3 * (size_t)v;
         const uint8_t *colour = m->rgba + 4 * (size_t)v;
@@ -625,7 +629,8 @@ struct classes {
     uint32_t count;
     uint32_t *first;    /* class c's full-detail triangles: tri[first[c] .. first[c + 1]) */
     uint32_t *tri;
-    uint8_t *mask;      /* scratch: the baked vertices of one class */
+    uint32_t *vfirst;   /* class c's full-detail vertices: vorder[vfirst[c] .. vfirst[c + 1]), */
+    uint32_t *vorder;   /* largest patch first */
     float *error;       /* per class: the error of its triangles now */
 };
 
@@ -633,7 +638,8 @@ static void classes_free(struct classes *c)
 {
     free(c->first);
     free(c->tri);
-    free(c->mask);
+    free(c->vfirst);
+    free(c->vorder);
     free(c->error);
     memset(c, 0, sizeof(*c));
 }
@@ -644,8 +650,7 @@ static int classes_make(const struct baked *b, struct classes *c)
     uint32_t *of = malloc(sizeof(*of) * ((size_t)b->triangles + 1));
     uint8_t(*colour)[4] = malloc(4 * ((size_t)b->triangles + 1));
     c->tri = malloc(sizeof(*c->tri) * ((size_t)b->triangles + 1));
-    c->mask = calloc((size_t)b->vertices + 1, 1);
-    if (!of || !colour || !c->tri || !c->mask) {
+    if (!of || !colour || !c->tri) {
         free(of);
         free(colour);
         classes_free(c);
@@ -686,6 +691,86 @@ static int classes_make(const struct baked *b, struct classes *c)
     return TW_OK;
 }
 
+struct by_size {
+    float size2;
+    uint32_t v;
+};
+
+static int by_size_cmp(const void *pa, const void *pb)
+{
+    const struct by_size *a = pa, *b = pb;
+    if (a->size2 != b->size2)
+        return a->size2 > b->size2 ? -1 : 1;
+    return a->v < b->v ? -1 : a->v > b->v;
+}
+
+/* Vertices list[0 .. n) sorted by their patch's size (size2), largest
+ * first; scratch tmp of n. */
+static void sort_by_size(uint32_t *list, size_t n, const float *size2, struct by_size *tmp)
+{
+    for (size_t i = 0; i < n; i++)
+        tmp[i] = (struct by_size){size2[list[i]], list[i]};
+    qsort(tmp, n, sizeof(*tmp), by_size_cmp);
+    for (size_t i = 0; i < n; i++)
+        list[i] = tmp[i].v;
+}
+
+/* Each class's full-detail vertices (those of its triangles), largest
+ * patch first: what its levels' error is measured at. */
+static int classes_order(struct classes *c, const struct baked *b, const float *size2)
+{
+    uint8_t *seen = calloc((size_t)b->vertices + 1, 1);
+    struct by_size *tmp = malloc(sizeof(*tmp) * (3 * (size_t)b->triangles + 1));
+    c->vfirst = calloc((size_t)c->count + 1, sizeof(*c->vfirst));
+    c->vorder = malloc(sizeof(*c->vorder) * (3 * (size_t)b->triangles + 1));
+    if (!seen || !tmp || !c->vfirst || !c->vorder) {
+        free(seen);
+        free(tmp);
+        return TW_ERR_NOMEM;
+    }
+    uint32_t n = 0;
+    for (uint32_t k = 0; k < c->count; k++) {
+        c->vfirst[k] = n;
+        for (uint32_t t = c->first[k]; t < c->first[k + 1]; t++)
+            for (int j = 0; j < 3; j++) {
+                const uint32_t v = b->idx[3 * (size_t)c->tri[t] + j];
+                if (!seen[v]) {
+                    seen[v] = 1;
+                    c->vorder[n++] = v;
+                }
+            }
+        /* A vertex may serve two classes: unmarked for the next. */
+        for (uint32_t i = c->vfirst[k]; i < n; i++)
+            seen[c->vorder[i]] = 0;
+        sort_by_size(c->vorder + c->vfirst[k], n - c->vfirst[k], size2, tmp);
+    }
+    c->vfirst[c->count] = n;
+    free(seen);
+    free(tmp);
+    return TW_OK;
+}
+
+/* A triangle of welded vertices, turned to start at its least (its
+ * winding kept): the same triangle gives the same key. */
+struct tri_key {
+    uint32_t v[3];
+};
+
+static struct tri_key tri_key(const uint32_t *t)
+{
+    const int s = t[0] <= t[1] && t[0] <= t[2] ? 0 : t[1] <= t[2] ? 1 : 2;
+    return (struct tri_key){{t[s], t[(s + 1) % 3], t[(s + 2) % 3]}};
+}
+
+static int tri_key_cmp(const void *pa, const void *pb)
+{
+    const struct tri_key *a = pa, *b = pb;
+    for (int k = 0; k < 3; k++)
+        if (a->v[k] != b->v[k])
+            return a->v[k] < b->v[k] ? -1 : 1;
+    return 0;
+}
+
 /* Scratch for simplifying one class: its triangles over its own vertices. */
 struct part {
     uint32_t *local;    /* per welded vertex: its index in the part, or ~0u */
@@ -693,6 +778,8 @@ struct part {
     float *pos;
     uint32_t *idx, *a, *b;
     uint32_t *baked;    /* a candidate's triangles in baked vertices */
+    struct tri_key *kept;   /* the class's triangles before this level, sorted */
+    uint32_t *fresh;    /* a candidate's triangles not among them, baked */
 };
 
 static void part_free(struct part *p)
@@ -704,6 +791,8 @@ static void part_free(struct part *p)
     free(p->a);
     free(p->b);
     free(p->baked);
+    free(p->kept);
+    free(p->fresh);
 }
 
 static int part_alloc(struct part *p, const struct baked *b, const struct welded *w)
@@ -717,7 +806,10 @@ static int part_alloc(struct part *p, const struct baked *b, const struct welded
     p->a = malloc(sizeof(uint32_t) * t3);
     p->b = malloc(sizeof(uint32_t) * t3);
     p->baked = malloc(sizeof(uint32_t) * t3);
-    if (!p->local || !p->global || !p->pos || !p->idx || !p->a || !p->b || !p->baked) {
+    p->kept = malloc(sizeof(*p->kept) * ((size_t)b->triangles + 1));
+    p->fresh = malloc(sizeof(uint32_t) * t3);
+    if (!p->local || !p->global || !p->pos || !p->idx || !p->a || !p->b || !p->baked ||
+        !p->kept || !p->fresh) {
         part_free(p);
         return TW_ERR_NOMEM;
     }
@@ -733,10 +825,15 @@ static int part_alloc(struct part *p, const struct baked *b, const struct welded
  * alone where the clustering costs more than the target, or the triangles
  * as they were. Returns the triangle count; the class's error is raised to
  * what was measured. */
+static bool stopped(const atomic_bool *stop)
+{
+    return stop && atomic_load_explicit(stop, memory_order_relaxed);
+}
+
 static int simplify_class(const struct baked *b, const struct welded *w, const float *size2,
                           const struct grid *full, const struct tw_box *box, struct classes *cl, uint32_t k,
                           struct part *p, const uint32_t *in, size_t n, float target,
-                          uint32_t *out, size_t *out_n)
+                          const atomic_bool *stop, uint32_t *out, size_t *out_n)
 {
     *out_n = n;
     memcpy(out, in, sizeof(uint32_t) * 3 * n);
@@ -759,10 +856,12 @@ static int simplify_class(const struct baked *b, const struct welded *w, const f
     if (!(scale > 0.0f))
         return TW_OK;
     const float rel = target / scale;
-    /* The class's full-detail vertices: what its error is measured at. */
-    for (uint32_t t = cl->first[k]; t < cl->first[k + 1]; t++)
-        for (int c = 0; c < 3; c++)
-            cl->mask[b->idx[3 * (size_t)cl->tri[t] + c]] = 1;
+    /* The triangles the class has now, each already measured the other way
+     * round within cl->error[k] (full detail's at 0): a candidate keeping
+     * one unchanged need not ask about it again. */
+    for (size_t t = 0; t < n; t++)
+        p->kept[t] = tri_key(in + 3 * t);
+    qsort(p->kept, n, sizeof(*p->kept), tri_key_cmp);
     /* meshoptimizer's errors are estimates of its own: where the measure
      * finds more than the target, it is asked again for less. */
     static const struct {
@@ -771,6 +870,10 @@ static int simplify_class(const struct baked *b, const struct welded *w, const f
     } attempts[] = {{true, 1.0f}, {false, 1.0f}, {true, 0.5f}, {false, 0.5f}, {false, 0.25f}};
     int err = TW_OK;
     for (size_t attempt = 0; attempt < sizeof(attempts) / sizeof(attempts[0]); attempt++) {
+        if (stopped(stop)) {
+            err = TW_ERR_STATE;
+            break;
+        }
         const float r = rel * attempts[attempt].share;
         size_t m;
         if (attempts[attempt].cluster) {
@@ -787,12 +890,20 @@ static int simplify_class(const struct baked *b, const struct welded *w, const f
             p->a[i] = p->global[p->b[i]];
         unweld(b, w, p->a, m, p->baked);
         float measured = 0.0f;
-        err = measure_error(b, size2, cl->mask, box, p->baked, m, cl->error[k], target,
-                            &measured);
+        err = measure_error(b, size2, cl->vorder + cl->vfirst[k], cl->vfirst[k + 1] - cl->vfirst[k],
+                            box, p->baked, m, cl->error[k], target, &measured);
         if (err)
             break;
-        if (measured <= target)
-            reverse_error(b, full, b->idx, p->baked, m, measured, target, &measured);
+        if (measured <= target) {
+            /* measured >= cl->error[k]: the kept triangles cannot raise it. */
+            size_t fresh = 0;
+            for (size_t t = 0; t < m; t++) {
+                const struct tri_key key = tri_key(p->a + 3 * t);
+                if (!bsearch(&key, p->kept, n, sizeof(*p->kept), tri_key_cmp))
+                    memcpy(p->fresh + 3 * fresh++, p->baked + 3 * t, sizeof(uint32_t) * 3);
+            }
+            if (!getenv("NOREV")) reverse_error(b, full, b->idx, p->fresh, fresh, measured, target, &measured);
+        }
         if (measured <= target) {
             memcpy(out, p->a, sizeof(uint32_t) * 3 * m);
             *out_n = m;
@@ -800,9 +911,6 @@ static int simplify_class(const struct baked *b, const struct welded *w, const f
             break;
         }
     }
-    for (uint32_t t = cl->first[k]; t < cl->first[k + 1]; t++)
-        for (int c = 0; c < 3; c++)
-            cl->mask[b->idx[3 * (size_t)cl->tri[t] + c]] = 0;
     return err;
 }
 
@@ -860,9 +968,12 @@ static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *
     x.nrm = malloc(sizeof(float) * 3 * (size_t)nv);
     x.rgba = malloc(4 * (size_t)nv);
     float *size2x = malloc(sizeof(float) * (size_t)nv);
+    /* Every full-detail vertex is asked (the box's own lie on it). */
+    uint32_t *order = malloc(sizeof(*order) * ((size_t)b->vertices + 1));
+    struct by_size *tmp = malloc(sizeof(*tmp) * ((size_t)b->vertices + 1));
     uint32_t idx[36];
     int err = TW_OK;
-    if (!x.pos || !x.nrm || !x.rgba || !size2x) {
+    if (!x.pos || !x.nrm || !x.rgba || !size2x || !order || !tmp) {
         err = TW_ERR_NOMEM;
         goto out;
     }
@@ -871,6 +982,9 @@ static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *
     memcpy(x.rgba, b->rgba, 4 * (size_t)b->vertices);
     memcpy(size2x, size2, sizeof(float) * (size_t)b->vertices);
     x.vertices = b->vertices;
+    for (uint32_t v = 0; v < b->vertices; v++)
+        order[v] = v;
+    sort_by_size(order, b->vertices, size2, tmp);
     const float *lo = box->min, *hi = box->max;
     size_t n = 0;
     for (int a = 0; a < 3; a++) {
@@ -906,7 +1020,7 @@ static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *
         for (uint32_t v = b->vertices; v < x.vertices; v++)
             memcpy(x.rgba + 4 * (size_t)v, b->rgba + 4 * (size_t)top_vertex[k], 4);
         float e = 0.0f;
-        err = measure_error(&x, size2x, NULL, box, idx, n, at_least, *error, &e);
+        err = measure_error(&x, size2x, order, b->vertices, box, idx, n, at_least, *error, &e);
         if (!err && e < *error)
             reverse_error(&x, full, b->idx, idx, n, e, *error, &e);
         if (!err && e < *error) {
@@ -922,6 +1036,8 @@ static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *
 out:
     baked_free(&x);
     free(size2x);
+    free(order);
+    free(tmp);
     return err;
 }
 
@@ -931,8 +1047,9 @@ out:
 
 /* The levels of prototype p of ts, added to levels: their number into
  * *count and their errors (metres) into errors. */
-static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_tileset *levels,
-                           uint32_t white, float *errors, uint32_t *count)
+static int build_prototype(const struct tw_tileset *ts, uint32_t p, const atomic_bool *stop,
+                           struct tw_tileset *levels, uint32_t white, float *errors,
+                           uint32_t *count)
 {
     *count = 0;
     struct baked b;
@@ -958,6 +1075,8 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
     size_t *start = calloc((size_t)cl.count + 1, sizeof(*start));
     size_t *next_start = calloc((size_t)cl.count + 1, sizeof(*next_start));
     float *size2 = err ? NULL : patch_sizes(&b, &w);
+    if (!err && size2)
+        err = classes_order(&cl, &b, size2);
     /* The full-detail triangles, for the measure the other way round. */
     struct grid full = {0};
     if (!err)
@@ -977,10 +1096,14 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_ti
         const float target = ldexpf(extent, -step);
         size_t total = 0;
         for (uint32_t k = 0; k < cl.count && !err; k++) {
+            if (stopped(stop)) {
+                err = TW_ERR_STATE;
+                break;
+            }
             size_t m = 0;
             next_start[k] = total;
             err = simplify_class(&b, &w, size2, &full, &ts->prototypes[p].box, &cl, k, &part,
-                                 cur + 3 * start[k], start[k + 1] - start[k], target,
+                                 cur + 3 * start[k], start[k + 1] - start[k], target, stop,
                                  next + 3 * total, &m);
             total += m;
         }
@@ -1050,7 +1173,8 @@ out:
     return err;
 }
 
-int tw_lods_build(const struct tw_tileset *ts, uint32_t max_cluster_triangles, struct tw_lods *out)
+int tw_lods_build(const struct tw_tileset *ts, uint32_t max_cluster_triangles,
+                  const atomic_bool *stop, struct tw_lods *out)
 {
     memset(out, 0, sizeof(*out));
     if (!ts || !ts->finished)
@@ -1070,7 +1194,8 @@ int tw_lods_build(const struct tw_tileset *ts, uint32_t max_cluster_triangles, s
     uint32_t total = 0;
     for (uint32_t p = 0; p < np && !err; p++) {
         out->first[p] = total;
-        err = build_prototype(ts, p, levels, (uint32_t)white, out->error + total, &out->count[p]);
+        err = build_prototype(ts, p, stop, levels, (uint32_t)white, out->error + total,
+                              &out->count[p]);
         total += out->count[p];
     }
     if (!err && total > 0) {

@@ -9,6 +9,7 @@
 #define TW_TILES_TILES_INTERNAL_H
 
 #include <stdarg.h>
+#include <stdatomic.h>
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -150,9 +151,12 @@ struct tw_lods {
  * max_cluster_triangles. Zeroes *out first; on an error (memory, or ts
  * unfinished) nothing is left to free. A level the tileset builder refuses
  * (out of reach, or no triangle with area once finished) ends its
- * prototype's levels, or leaves the tileset without levels: not an error. */
+ * prototype's levels, or leaves the tileset without levels: not an error.
+ * Where stop (may be NULL) is set, it gives up soon after, with
+ * TW_ERR_STATE (a tile's worker at the world's destroy: seconds of work
+ * nobody will use). */
 int tw_lods_build(const struct tw_tileset *ts, uint32_t max_cluster_triangles,
-                  struct tw_lods *out);
+                  const atomic_bool *stop, struct tw_lods *out);
 /* Accepts a zeroed struct. */
 void tw_lods_free(struct tw_lods *l);
 /* Heap bytes held. */

@@ -807,7 +807,7 @@ static int info(const struct options *o)
         /* What the world builds for --max-screen-error (DESIGN §17). */
         struct tw_lods lods;
         const double t0 = tw_clock_monotonic_ms();
-        err = tw_lods_build(ts, ts->max_cluster_triangles, &lods);
+        err = tw_lods_build(ts, ts->max_cluster_triangles, NULL, &lods);
         const double ms = tw_clock_monotonic_ms() - t0;
         if (err) {
             fprintf(stderr, "tileworld: cannot build the levels of detail: %s\n",
