@@ -23,7 +23,6 @@
 #include <time.h>
 
 #include "tests/captured-log.h"
-#include "tests/meshes.h"
 #include "tests/check.h"
 #include "tiles/tiles-internal.h"
 #include "tileworld/context.h"
@@ -742,64 +741,6 @@ static void test_stuck_provider(struct tw_context *ctx)
     printf("slow provider: destroy waited for its %u generate() calls\n", st.entered);
 }
 
-/* ---- a tile whose levels take long: stopped at the destroy --------------------------------- */
-
-#define ROUGH_N 320      /* quads a side: one tile's levels take 3.4 s to build here */
-
-struct rough {
-    atomic_uint returned;
-};
-
-static int generate_rough(void *user, struct tw_cell cell, struct tw_tileset *ts)
-{
-    struct rough *r = user;
-    const int proto = tw_tileset_add_prototype(ts, "rough", 1.0f);
-    const bool ok = add_rough_ground(ts, proto, ROUGH_N, FOOTPRINT, 8,
-                                     tw_tiles_hash(99, cell.i, cell.j));
-    atomic_fetch_add(&r->returned, 1u);
-    return ok ? TW_OK : TW_ERR_NOMEM;
-}
-
-/* A worker building a tile's levels of detail when the world is destroyed
- * stops there (tw_lods_build's stop, which test-lod checks on its own): the
- * destroy does not wait out what the levels take, and no worker is left
- * behind to run on after the program returns (a worker left in Embree at
- * exit aborts it: CI's ThreadSanitizer run of test-tiles3d-nginx did). One
- * tile's levels take 3.4 s here and far more than the default 5 s
- * timeout under ThreadSanitizer; the destroy comes as the workers leave
- * generate() (what follows it before the levels, the tile's clusters and
- * BVH, does not stop: 0.35 s here). */
-static void test_stop_levels(struct tw_context *ctx)
-{
-    enum { TIMEOUT_MS = 5000 };
-    static struct rough r;
-    atomic_init(&r.returned, 0u);
-    const struct tw_tile_provider p = {
-        .name = "rough",
-        .footprint = {FOOTPRINT, FOOTPRINT},
-        .bound = {{0.0f, 0.0f, 0.0f}, {FOOTPRINT, 4.0f, FOOTPRINT}},
-        .generate = generate_rough,
-        .user = &r,
-    };
-    struct captured_log cap = {0};
-    struct tw_world *w = make_stuck_world(ctx, &p, TIMEOUT_MS, &cap);
-    CHECK(w != NULL);
-    if (!w)
-        return;
-    const struct tw_camera cam = walk_camera(0);
-    CHECK(tw_world_frame(w, &cam, NULL) == TW_OK);
-    /* Both workers past generate(), into the tile's BVH and levels. */
-    const double end = now_s() + 60.0;
-    while (atomic_load(&r.returned) < 2 && now_s() < end)
-        sleep_ms(1);
-    CHECK(atomic_load(&r.returned) >= 2);
-    const double t0 = now_s();
-    const uint32_t left = tw_world_destroy(w);
-    const double waited = now_s() - t0;
-    CHECK_MSG(left == 0 && cap.errors == 0, "%u left behind: \"%s\"", left, cap.last);
-    printf("levels stopped: destroyed in %.3f s, %u workers left behind\n", waited, left);
-}
-
 int main(void)
 {
     struct tw_context *ctx = NULL;
@@ -816,7 +757,6 @@ int main(void)
     test_many_cells(ctx);
     test_out_of_memory(ctx);
     test_stuck_provider(ctx);
-    test_stop_levels(ctx);
     tw_context_destroy(ctx);
     return check_summary("test-stream");
 }

@@ -499,6 +499,46 @@ static float nearest_of_colour2(const struct grid *g, const struct baked *m, con
     return best2;
 }
 
+static bool stopped(const atomic_bool *stop)
+{
+    return stop && atomic_load_explicit(stop, memory_order_relaxed);
+}
+
+/* Which baked vertices share a triangle: to[first[v] .. first[v + 1]) are
+ * v's neighbours (a patch's, by patch_sizes: one triangle, one patch). */
+struct adjacency {
+    uint32_t *first, *to;
+};
+
+static void adjacency_free(struct adjacency *a)
+{
+    free(a->first);
+    free(a->to);
+    memset(a, 0, sizeof(*a));
+}
+
+static int adjacency_build(const struct baked *b, struct adjacency *a)
+{
+    a->first = calloc((size_t)b->vertices + 2, sizeof(*a->first));
+    a->to = malloc(sizeof(*a->to) * (6 * (size_t)b->triangles + 1));
+    if (!a->first || !a->to) {
+        adjacency_free(a);
+        return TW_ERR_NOMEM;
+    }
+    for (size_t k = 0; k < 3 * (size_t)b->triangles; k++)
+        a->first[b->idx[k] + 2] += 2;
+    for (uint32_t v = 0; v < b->vertices; v++)
+        a->first[v + 2] += a->first[v + 1];
+    /* first[v + 1] is v's fill point, and ends as first[v + 2]'s old start. */
+    for (uint32_t t = 0; t < b->triangles; t++)
+        for (int c = 0; c < 3; c++) {
+            const uint32_t v = b->idx[3 * t + c];
+            a->to[a->first[v + 1]++] = b->idx[3 * t + (c + 1) % 3];
+            a->to[a->first[v + 1]++] = b->idx[3 * t + (c + 2) % 3];
+        }
+    return TW_OK;
+}
+
 /* The other way round: the largest distance from a level's triangles
  * (idx[0 .. 3 n), into m) to the full-detail triangles of their colour
  * (full, a grid of the full-detail triangles full_idx, into m), at least at_least; a result above
@@ -544,37 +584,64 @@ static void reverse_error(const struct baked *m, const struct grid *full,
  * window removed from a facade is as far as the nearest window left, or its
  * own size, not as the wall behind it: what the eye misses is its colour,
  * over its size. */
-static int measure_error(const struct baked *m, const float *size2, const uint32_t *order,
-                         size_t count, const struct tw_box *box, const uint32_t *idx, size_t n,
-                         float at_least, float give_up, float *out)
+static int measure_error(const struct baked *m, const float *size2, const struct adjacency *adj,
+                         const uint32_t *order, size_t count, const struct tw_box *box,
+                         const uint32_t *idx, size_t n, float at_least, float give_up,
+                         const atomic_bool *stop, float *out)
 {
     struct grid g;
     /* Cells of half the error already known: a search rarely goes past
      * the second ring. */
     int err = grid_build(&g, box, m->pos, idx, n, 0.5f * at_least);
-    uint8_t *kept = calloc(m->vertices ? m->vertices : 1, 1);
-    if (err || !kept) {
+    uint8_t *known = calloc(m->vertices ? m->vertices : 1, 1);
+    float *dist = malloc(sizeof(*dist) * (m->vertices ? m->vertices : 1));
+    if (err || !known || !dist) {
         grid_free(&g);
-        free(kept);
+        free(known);
+        free(dist);
         return err ? err : TW_ERR_NOMEM;
     }
     /* A vertex the level kept lies on it. */
-    for (size_t k = 0; k < 3 * n; k++)
-        kept[idx[k]] = 1;
+    for (size_t k = 0; k < 3 * n; k++) {
+        known[idx[k]] = 1;
+        dist[idx[k]] = 0.0f;
+    }
     /* Nothing below at_least is asked: a vertex nearer than that to some
      * triangle is done. */
     float worst2 = at_least * at_least;
     for (size_t i = 0; i < count; i++) {
+        if (i % 1024 == 1023 && stopped(stop)) {
+            err = TW_ERR_STATE;
+            break;
+        }
         const uint32_t v = order[i];
         /* The patches left are too small to raise the worst: done. */
         if (size2[v] <= worst2)
             break;
-        if (kept[v])
+        if (known[v])
             continue;
         const float *p = m->pos + 3 * (size_t)v;
         const uint8_t *colour = m->rgba + 4 * (size_t)v;
         /* Its patch gone, a vertex is off by its patch's size at most. */
-        const float best2 = nearest_of_colour2(&g, m, idx, p, colour, size2[v], worst2);
+        float bound2 = size2[v];
+        /* A neighbour of its colour (so of its patch) already measured is
+         * as far, plus the edge between them, at most: where that cannot
+         * raise the worst, no search. */
+        for (uint32_t k = adj->first[v]; k < adj->first[v + 1]; k++) {
+            const uint32_t u = adj->to[k];
+            if (!known[u] || memcmp(m->rgba + 4 * (size_t)u, colour, 4) != 0)
+                continue;
+            const float *q = m->pos + 3 * (size_t)u;
+            const float e[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
+            const float d = dist[u] + sqrtf(dot3(e, e));
+            if (d * d < bound2)
+                bound2 = d * d;
+        }
+        float best2 = bound2;
+        if (bound2 > worst2)
+            best2 = nearest_of_colour2(&g, m, idx, p, colour, bound2, worst2);
+        known[v] = 1;
+        dist[v] = sqrtf(best2);
         /* A vertex no nearer than the worst so far cannot raise it: the
          * search stopped early for it, and best2 only bounds from above. */
         if (best2 > worst2)
@@ -584,9 +651,10 @@ static int measure_error(const struct baked *m, const float *size2, const uint32
             break;
     }
     grid_free(&g);
-    free(kept);
+    free(known);
+    free(dist);
     *out = sqrtf(worst2);
-    return TW_OK;
+    return err;
 }
 
 /* Triangles widx[0 .. 3 n) of welded vertices back into baked vertices:
@@ -631,6 +699,7 @@ struct classes {
     uint32_t *tri;
     uint32_t *vfirst;   /* class c's full-detail vertices: vorder[vfirst[c] .. vfirst[c + 1]), */
     uint32_t *vorder;   /* largest patch first */
+    struct adjacency adj;   /* of all the full-detail vertices */
     float *error;       /* per class: the error of its triangles now */
 };
 
@@ -640,6 +709,7 @@ static void classes_free(struct classes *c)
     free(c->tri);
     free(c->vfirst);
     free(c->vorder);
+    adjacency_free(&c->adj);
     free(c->error);
     memset(c, 0, sizeof(*c));
 }
@@ -723,7 +793,7 @@ static int classes_order(struct classes *c, const struct baked *b, const float *
     struct by_size *tmp = malloc(sizeof(*tmp) * (3 * (size_t)b->triangles + 1));
     c->vfirst = calloc((size_t)c->count + 1, sizeof(*c->vfirst));
     c->vorder = malloc(sizeof(*c->vorder) * (3 * (size_t)b->triangles + 1));
-    if (!seen || !tmp || !c->vfirst || !c->vorder) {
+    if (!seen || !tmp || !c->vfirst || !c->vorder || adjacency_build(b, &c->adj)) {
         free(seen);
         free(tmp);
         return TW_ERR_NOMEM;
@@ -825,11 +895,6 @@ static int part_alloc(struct part *p, const struct baked *b, const struct welded
  * alone where the clustering costs more than the target, or the triangles
  * as they were. Returns the triangle count; the class's error is raised to
  * what was measured. */
-static bool stopped(const atomic_bool *stop)
-{
-    return stop && atomic_load_explicit(stop, memory_order_relaxed);
-}
-
 static int simplify_class(const struct baked *b, const struct welded *w, const float *size2,
                           const struct grid *full, const struct tw_box *box, struct classes *cl, uint32_t k,
                           struct part *p, const uint32_t *in, size_t n, float target,
@@ -890,8 +955,9 @@ static int simplify_class(const struct baked *b, const struct welded *w, const f
             p->a[i] = p->global[p->b[i]];
         unweld(b, w, p->a, m, p->baked);
         float measured = 0.0f;
-        err = measure_error(b, size2, cl->vorder + cl->vfirst[k], cl->vfirst[k + 1] - cl->vfirst[k],
-                            box, p->baked, m, cl->error[k], target, &measured);
+        err = measure_error(b, size2, &cl->adj, cl->vorder + cl->vfirst[k],
+                            cl->vfirst[k + 1] - cl->vfirst[k], box, p->baked, m, cl->error[k],
+                            target, stop, &measured);
         if (err)
             break;
         if (measured <= target) {
@@ -1020,7 +1086,8 @@ static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *
         for (uint32_t v = b->vertices; v < x.vertices; v++)
             memcpy(x.rgba + 4 * (size_t)v, b->rgba + 4 * (size_t)top_vertex[k], 4);
         float e = 0.0f;
-        err = measure_error(&x, size2x, order, b->vertices, box, idx, n, at_least, *error, &e);
+        err = measure_error(&x, size2x, &cl->adj, order, b->vertices, box, idx, n, at_least,
+                            *error, NULL, &e);
         if (!err && e < *error)
             reverse_error(&x, full, b->idx, idx, n, e, *error, &e);
         if (!err && e < *error) {
