@@ -18,7 +18,9 @@
 # the slow refusals: the 404's is checked); the walk ends with status 0, within a bound
 # (timeout), and summary.json counts the four refusals (tile_cache.refused)
 # and the provider's failures (tiles3d.failures). Then ETag revalidation: a second walk with
-# --http-cache gets 304s and serves them from the cache. Then the server
+# --http-cache gets 304s and serves them from the cache. A fetch still
+# coming when the walk ends leaves its worker behind: the walk ends with
+# status 0 all the same. Then the server
 # stopped mid-walk: the walk goes on, serves what its cache holds (stale
 # copies), refuses what it cannot fetch, and ends.
 # Usage: test-tiles3d-nginx.sh TILEWORLD
@@ -131,6 +133,22 @@ for policy in skip wait; do
     fi
 done
 grep -c "3/3/3.glb" "$tmp/nginx/access.log" | awk '{ exit !($1 >= 1) }' || fail "the 404 was never asked for"
+
+# A fetch that outlasts the world: the slow tile with a timeout of minutes
+# is still coming when a short walk ends, so its worker is left behind at
+# the destroy (after 5 s). The program keeps the provider that worker is
+# in, says so, and ends at once with status 0 (no exit-time destructors
+# under a running thread).
+head -n 41 "$tmp/still.csv" >"$tmp/short.csv"
+timeout 60 "$tw" walk --tileset "$url" --view-distance 150 --png-every 0 --size 160x90 --workers 2 \
+    --http-timeout 600000 --path "$tmp/short.csv" --fps 10 --policy skip --out "$tmp/left" \
+    >"$tmp/left.out" 2>"$tmp/left.err"
+rc=$?
+[ "$rc" = 0 ] || fail "the walk leaving a fetch behind exits $rc: $(tail -3 "$tmp/left.err")"
+grep -q "gave up after 5.0 s waiting for 1 tile worker still generating (cells (0, 1))" "$tmp/left.err" && ok ||
+    fail "no worker left behind on the slow tile: $(grep -i error "$tmp/left.err" | head -3)"
+grep -q "1 tile worker still in the provider's generate(): ending without waiting for it" "$tmp/left.err" && ok ||
+    fail "no line on the worker left behind: $(tail -3 "$tmp/left.err")"
 
 # ETag revalidation.
 cache=$tmp/cache

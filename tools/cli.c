@@ -393,12 +393,33 @@ void tw_cli_world_apply(const struct tw_cli_world *w, struct tw_world_settings *
     ws->provider = w->source;
 }
 
+/* Workers the program's worlds left behind, still running. */
+static uint32_t left_behind;
+
+void tw_cli_world_destroy(struct tw_world *w)
+{
+    left_behind += tw_world_destroy(w);
+}
+
 void tw_cli_world_finish(struct tw_cli_world *w)
 {
     tw_tileset_destroy(w->tileset);
-    tw_tilesets_provider_destroy(w->provider);
-    tw_tiles3d_provider_destroy(w->tiles3d);
+    if (left_behind == 0) {
+        tw_tilesets_provider_destroy(w->provider);
+        tw_tiles3d_provider_destroy(w->tiles3d);
+    }
     memset(w, 0, sizeof(*w));
+}
+
+int tw_cli_exit(const char *program, int rc)
+{
+    if (left_behind == 0)
+        return rc;
+    tw_cli_message(program, "%u tile worker%s still in the provider's generate(): ending without "
+                   "waiting for %s", left_behind, left_behind == 1 ? "" : "s",
+                   left_behind == 1 ? "it" : "them");
+    fflush(NULL);
+    _exit(rc);
 }
 
 void tw_cli_world_tiles3d_line(const char *program, const struct tw_cli_world *w)

@@ -226,8 +226,18 @@ void tw_cli_world_load(const struct tw_cli *c, uint32_t cluster_triangles,
                        const struct tw_log *log, struct tw_cli_world *out);
 /* Sets ws->tileset or ws->provider (the other NULL) to what w shows. */
 void tw_cli_world_apply(const struct tw_cli_world *w, struct tw_world_settings *ws);
-/* Frees what w owns; accepts a zeroed w. */
+/* Frees what w owns; accepts a zeroed w. Where a destroyed world left
+ * workers behind (tw_cli_world_destroy), the providers stay: those
+ * workers may still be in their code. */
 void tw_cli_world_finish(struct tw_cli_world *w);
+/* tw_world_destroy(), counting the workers it left behind (stuck in a
+ * provider's generate() past the shutdown timeout). */
+void tw_cli_world_destroy(struct tw_world *w);
+/* How a program ends with status rc: where workers were left behind, at
+ * once (stdio flushed, no exit-time destructors: Embree's, libcurl's and
+ * the C library's would run under those threads), after a line that says
+ * so; else it returns rc. */
+int tw_cli_exit(const char *program, int rc);
 /* For a baked tileset streamed back (w->tiles3d), the line that ends a
  * run on stderr: the tiles read and what the fetches did. Nothing for
  * another world. */

@@ -370,7 +370,7 @@ out:
     free(rgb);
     free(car_ids);
     tw_viewport_destroy(chase_view);
-    tw_world_destroy(world);
+    tw_cli_world_destroy(world);
     return rc;
 }
 

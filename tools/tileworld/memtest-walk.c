@@ -397,7 +397,7 @@ static void summarise(struct walk_run *run, double t0)
 static void walk_teardown(struct walk_run *run)
 {
     tw_outfile_discard(&run->csv);
-    tw_world_destroy(run->world);
+    tw_cli_world_destroy(run->world);
     tw_cell_map_destroy(run->evicted);
     free(run->frame_ms.v);
     free(run->latency.v);

@@ -676,7 +676,7 @@ static int print_calibration(const struct options *o, const struct tw_cli_world 
            "cluster\n",
            c->triangle_ns > 0 ? c->query_batched_ms * 1e6 / c->triangle_ns : 0.0,
            c->draw_ms > 0 ? c->query_batched_ms / c->draw_ms : 0.0);
-    tw_world_destroy(w);
+    tw_cli_world_destroy(w);
     tw_context_destroy(ctx);
     return 0;
 }
@@ -858,7 +858,14 @@ static int info(const struct options *o)
     return rc;
 }
 
+static int tileworld_main(int argc, char **argv);
+
 int main(int argc, char **argv)
+{
+    return tw_cli_exit(program, tileworld_main(argc, argv));
+}
+
+static int tileworld_main(int argc, char **argv)
 {
     if (argc < 2) {
         fprintf(stderr, "tileworld: no command given (walk, bench, info, view, import, memtest, bake; "

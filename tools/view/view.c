@@ -1043,11 +1043,11 @@ int main(int argc, char **argv)
 out:
     unfreeze(&v);
     overlay_finish(&v.ov);
-    tw_world_destroy(v.world);
+    tw_cli_world_destroy(v.world);
     if (v.win)
         glfwDestroyWindow(v.win);
     glfwTerminate();
     tw_path_finish(&path);
     tw_cli_world_finish(&v.shown);
-    return rc;
+    return tw_cli_exit(program, rc);
 }
