@@ -60,7 +60,7 @@ static int proxy_generate(void *user, struct tw_cell block, struct tw_tileset *t
             protos[z * side + x] = content < w->shared_count ? content : TW_HLOD_EMPTY;
         }
     float input_error;
-    const int err = tw_hlod_block_fill(p->shared, w->lods.levels ? &w->lods : NULL, protos, side,
+    const int err = tw_hlod_block_fill(p->shared, w->lods->levels ? w->lods : NULL, protos, side,
                                        l->error, ts, &input_error);
     free(protos);
     return err;
@@ -178,7 +178,7 @@ int tw_world_hlod_start(struct tw_world *w)
          * error) costs memory and time for nothing, and is always refined
          * (no stream). */
         uint64_t input;
-        const bool pays = tw_hlod_level_pays(p->shared, &w->lods, k, l->error, &input);
+        const bool pays = tw_hlod_level_pays(p->shared, w->lods, k, l->error, &input);
         tw_log_printf(&w->s.log, TW_LOG_INFO,
                       "hierarchical cells: blocks of %ux%u cells, error %.3g m, proxies of up "
                       "to %llu triangles: %s",

@@ -139,7 +139,8 @@ struct tw_world {
     bool lod_on;
     bool lod_full;                  /* a full-detail pass is drawing: level 0 everywhere */
     float lod_px_per_m;             /* the view's pixels per metre at a distance of 1 m */
-    struct tw_lods lods;            /* of the shared prototypes */
+    const struct tw_lods *lods;     /* of the shared prototypes: kept with their tileset,
+                                       shared with the other worlds over it (never NULL) */
     struct tw_bvh **lod_bvhs;       /* one per level */
     uint32_t lod_count;             /* levels of the shared prototypes */
     uint32_t lod_first;             /* the renderer's content of the first level */

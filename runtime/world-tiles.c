@@ -264,10 +264,10 @@ static int base_tile(struct tw_world *w, struct tw_cell cell, uint32_t node_leve
             *out = (struct tw_cull_tile){.key = TW_CULL_KEY_EMPTY};
             return TW_OK;
         }
-        const uint32_t level = tw_lods_pick(&w->lods, c, max_error);
+        const uint32_t level = tw_lods_pick(w->lods, c, max_error);
         if (level > 0) {
-            const uint32_t k = w->lods.first[c] + level - 1;
-            out->proto = &w->lods.levels->prototypes[k];
+            const uint32_t k = w->lods->first[c] + level - 1;
+            out->proto = &w->lods->levels->prototypes[k];
             out->bvh = w->lod_bvhs[k];
             out->content = w->lod_first + k;
             out->key = w->shared_count + k;

@@ -204,17 +204,22 @@ static const char *out_of_range(const struct tw_world_settings *s, int methods)
 static int create(const struct tw_world_settings *settings, const struct tw_world_tuning *tuning,
                   int methods, struct tw_world **out);
 
-/* The levels of detail of the shared prototypes (DESIGN §17): built,
- * their BVHs too, uploaded and counted with the shared content. */
+/* A world without levels: none for any prototype. */
+static const struct tw_lods no_lods;
+
+/* The levels of detail of the shared prototypes (DESIGN §17): built once
+ * for their tileset (the other worlds over it share them), their BVHs
+ * built, uploaded and counted with the shared content. */
 static int shared_levels(struct tw_world *w, const struct tw_tileset *ts)
 {
-    int err = tw_lods_build(ts, ts->max_cluster_triangles, NULL, &w->lods);
+    int err = tw_lods_of_tileset(ts, &w->lods);
     if (err) {
+        w->lods = &no_lods;
         tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot build the levels of detail of %s: %s",
                       ts->name, tw_error_to_str(err));
         return err;
     }
-    const struct tw_tileset *levels = w->lods.levels;
+    const struct tw_tileset *levels = w->lods->levels;
     if (!levels)
         return TW_OK;   /* nothing simplifies */
     w->lod_bvhs = calloc(levels->prototype_count, sizeof(*w->lod_bvhs));
@@ -230,14 +235,14 @@ static int shared_levels(struct tw_world *w, const struct tw_tileset *ts)
         err = tw_renderer_upload(w->renderer, levels, (const struct tw_bvh *const *)w->lod_bvhs,
                                  &w->lod_first, &gpu);
     w->shared_gpu += gpu;
-    w->shared_cpu += tw_lods_bytes(&w->lods);
+    w->shared_cpu += tw_lods_bytes(w->lods);
     for (uint32_t k = 0; k < w->lod_count && !err; k++)
         w->shared_cpu += w->lod_bvhs[k]->bytes;
     for (uint32_t p = 0; p < ts->prototype_count && !err; p++) {
         tw_renderer_tag_levels(w->renderer, w->calibration_first + p,
-                               w->lod_first + w->lods.first[p], w->lods.count[p]);
-        if (w->lods.count[p] > 0)
-            w->lod_least_error = fminf(w->lod_least_error, w->lods.error[w->lods.first[p]]);
+                               w->lod_first + w->lods->first[p], w->lods->count[p]);
+        if (w->lods->count[p] > 0)
+            w->lod_least_error = fminf(w->lod_least_error, w->lods->error[w->lods->first[p]]);
     }
     return err;
 }
@@ -345,6 +350,8 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
         return TW_ERR_INVALID;
     }
     struct tw_world *w = calloc(1, sizeof(*w));
+    if (w)
+        w->lods = &no_lods;
     if (!w) {
         tw_log_printf(log, TW_LOG_ERROR, "cannot create the world: out of memory");
         return TW_ERR_NOMEM;
@@ -649,7 +656,6 @@ uint32_t tw_world_destroy(struct tw_world *w)
     free(w->events);
     free(w->next_events);
     tw_renderer_destroy(w->renderer);
-    tw_lods_free(&w->lods);     /* after the renderer, which held its tileset */
     free(w);
     return left_behind;
 }

@@ -32,6 +32,49 @@ static void *stop_soon(void *arg)
     return NULL;
 }
 
+struct shared_call {
+    const struct tw_tileset *ts;
+    const struct tw_lods *got;
+    int err;
+};
+
+static void *ask_shared(void *arg)
+{
+    struct shared_call *c = arg;
+    c->err = tw_lods_of_tileset(c->ts, &c->got);
+    return NULL;
+}
+
+/* The levels kept with a tileset: two threads asking at once get one
+ * build, the same as tw_lods_build's; later calls get it again. */
+static void test_shared(const struct tw_tileset *ts, const struct tw_lods *built)
+{
+    struct shared_call a = {ts, NULL, -99}, b = {ts, NULL, -99};
+    pthread_t ta, tb;
+    const bool sa = pthread_create(&ta, NULL, ask_shared, &a) == 0;
+    const bool sb = pthread_create(&tb, NULL, ask_shared, &b) == 0;
+    CHECK(sa && sb);
+    if (sa)
+        pthread_join(ta, NULL);
+    if (sb)
+        pthread_join(tb, NULL);
+    if (!sa || !sb)
+        return;
+    CHECK(a.err == TW_OK && b.err == TW_OK && a.got != NULL && a.got == b.got);
+    const struct tw_lods *again = NULL;
+    CHECK(tw_lods_of_tileset(ts, &again) == TW_OK && again == a.got);
+    if (!a.got)
+        return;
+    CHECK(a.got->source_count == built->source_count);
+    CHECK(a.got->levels && built->levels &&
+          a.got->levels->prototype_count == built->levels->prototype_count);
+    for (uint32_t p = 0; p < built->source_count; p++) {
+        CHECK(a.got->count[p] == built->count[p] && a.got->first[p] == built->first[p]);
+        for (uint32_t k = 0; k < built->count[p]; k++)
+            CHECK(a.got->error[built->first[p] + k] == built->error[built->first[p] + k]);
+    }
+}
+
 /* The stop (a tile's worker at the world's destroy): set before, nothing
  * is built; set 20 ms into a build of about 0.8 s (here), the build gives
  * up with TW_ERR_STATE and leaves nothing to free. */
@@ -167,6 +210,7 @@ int main(void)
         CHECK(tw_lods_pick(&l, 1, l.error[l.first[1] + k]) >= k + 1);
     CHECK(tw_lods_pick(&l, 1, 0.5f * l.error[l.first[1]]) == 0 || l.error[l.first[1]] == 0.0f);
     CHECK(tw_lods_bytes(&l) > tw_tileset_geometry_bytes(l.levels) / 2);
+    test_shared(ts, &l);
     tw_lods_free(&l);
     tw_lods_free(&l);   /* twice: zeroed */
     CHECK(l.levels == NULL && l.first == NULL);
@@ -175,6 +219,8 @@ int main(void)
     struct tw_tileset *raw;
     CHECK(tw_tileset_create("raw", 10, 10, &raw) == TW_OK);
     CHECK(tw_lods_build(raw, 256, NULL, &l) == TW_ERR_INVALID && l.levels == NULL);
+    const struct tw_lods *none = &l;
+    CHECK(tw_lods_of_tileset(raw, &none) == TW_ERR_INVALID && none == NULL);
     tw_tileset_destroy(raw);
     tw_tileset_destroy(ts);
     test_stop();

@@ -7,6 +7,7 @@
 #include <float.h>
 #include <math.h>
 #include <meshoptimizer.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -923,10 +924,9 @@ static int simplify_class(const struct baked *b, const struct welded *w, const f
     const float rel = target / scale;
     /* The triangles the class has now, each already measured the other way
      * round within cl->error[k] (full detail's at 0): a candidate keeping
-     * one unchanged need not ask about it again. */
-    for (size_t t = 0; t < n; t++)
-        p->kept[t] = tri_key(in + 3 * t);
-    qsort(p->kept, n, sizeof(*p->kept), tri_key_cmp);
+     * one unchanged need not ask about it again. Sorted once a candidate
+     * gets that far. */
+    bool sorted = false;
     /* meshoptimizer's errors are estimates of its own: where the measure
      * finds more than the target, it is asked again for less. */
     static const struct {
@@ -962,6 +962,12 @@ static int simplify_class(const struct baked *b, const struct welded *w, const f
             break;
         if (measured <= target) {
             /* measured >= cl->error[k]: the kept triangles cannot raise it. */
+            if (!sorted) {
+                for (size_t t = 0; t < n; t++)
+                    p->kept[t] = tri_key(in + 3 * t);
+                qsort(p->kept, n, sizeof(*p->kept), tri_key_cmp);
+                sorted = true;
+            }
             size_t fresh = 0;
             for (size_t t = 0; t < m; t++) {
                 const struct tri_key key = tri_key(p->a + 3 * t);
@@ -1287,6 +1293,50 @@ int tw_lods_build(const struct tw_tileset *ts, uint32_t max_cluster_triangles,
     if (err)
         tw_lods_free(out);
     return err;
+}
+
+/* A tileset's levels, shared by the worlds over it. */
+struct tw_lods_cache {
+    pthread_mutex_t lock;       /* held while they are built */
+    bool built;
+    struct tw_lods lods;
+};
+
+/* Guards the tilesets' slots while a cache is made. */
+static pthread_mutex_t slots_lock = PTHREAD_MUTEX_INITIALIZER;
+
+int tw_lods_of_tileset(const struct tw_tileset *ts, const struct tw_lods **out)
+{
+    *out = NULL;
+    if (!ts || !ts->finished)
+        return TW_ERR_INVALID;
+    struct tw_lods_cache **slot = tw_tileset_lods_slot(ts);
+    pthread_mutex_lock(&slots_lock);
+    if (!*slot && (*slot = calloc(1, sizeof(**slot))) != NULL)
+        pthread_mutex_init(&(*slot)->lock, NULL);
+    struct tw_lods_cache *c = *slot;
+    pthread_mutex_unlock(&slots_lock);
+    if (!c)
+        return TW_ERR_NOMEM;
+    pthread_mutex_lock(&c->lock);
+    int err = TW_OK;
+    if (!c->built) {
+        err = tw_lods_build(ts, ts->max_cluster_triangles, NULL, &c->lods);
+        c->built = err == TW_OK;
+    }
+    pthread_mutex_unlock(&c->lock);
+    if (!err)
+        *out = &c->lods;
+    return err;
+}
+
+void tw_lods_cache_free(struct tw_lods_cache *c)
+{
+    if (!c)
+        return;
+    tw_lods_free(&c->lods);
+    pthread_mutex_destroy(&c->lock);
+    free(c);
 }
 
 void tw_lods_free(struct tw_lods *l)

@@ -157,6 +157,17 @@ struct tw_lods {
  * nobody will use). */
 int tw_lods_build(const struct tw_tileset *ts, uint32_t max_cluster_triangles,
                   const atomic_bool *stop, struct tw_lods *out);
+/* The levels of ts (finished) as tw_lods_build(ts, ts->max_cluster_triangles,
+ * NULL, ...) makes them, built by the first call and kept with ts until
+ * tw_tileset_destroy(): the worlds over one tileset share one build (a
+ * city's takes seconds). Safe to call from several threads at once; the
+ * result is read-only. A failed build is not kept: the next call tries
+ * again. */
+int tw_lods_of_tileset(const struct tw_tileset *ts, const struct tw_lods **out);
+struct tw_lods_cache;
+/* For tileset.c: where ts keeps its levels, and how they go. */
+struct tw_lods_cache **tw_tileset_lods_slot(const struct tw_tileset *ts);
+void tw_lods_cache_free(struct tw_lods_cache *c);
 /* Accepts a zeroed struct. */
 void tw_lods_free(struct tw_lods *l);
 /* Heap bytes held. */

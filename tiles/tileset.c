@@ -19,6 +19,7 @@ struct tileset {
     uint32_t *instance_cap;       /* per prototype, prototype_cap of them; NULL once packed */
     uint64_t packed_bytes;        /* the size of the block tw_tileset_pack() made; 0: not one */
     char failure[256];            /* why a provider could not make it (tw_tileset_fail) */
+    struct tw_lods_cache *lods;   /* its levels, once a world asked (tw_lods_of_tileset) */
 };
 
 static struct tileset *impl(struct tw_tileset *ts)
@@ -29,6 +30,12 @@ static struct tileset *impl(struct tw_tileset *ts)
 static const struct tileset *impl_const(const struct tw_tileset *ts)
 {
     return (const struct tileset *)ts;
+}
+
+struct tw_lods_cache **tw_tileset_lods_slot(const struct tw_tileset *ts)
+{
+    /* The tileset is not changed: what is derived from it is kept with it. */
+    return &((struct tileset *)(uintptr_t)ts)->lods;
 }
 
 static int grow(void **array, uint32_t *cap, uint32_t need, size_t elem)
@@ -79,6 +86,7 @@ void tw_tileset_destroy(struct tw_tileset *ts)
     if (!ts)
         return;
     struct tileset *t = impl(ts);
+    tw_lods_cache_free(t->lods);
     if (t->packed_bytes) {
         tw_pack_free(t, t->packed_bytes); /* one block (tw_tileset_pack) */
         return;
@@ -712,6 +720,7 @@ static void *pack_into(const void *from, struct tw_pack_cursor *c)
     out->prototype_cap = ts->prototype_count;
     out->instance_cap = NULL;
     out->packed_bytes = c->used;
+    out->lods = NULL;           /* the levels stay with the original's */
     return &out->ts;
 }
 
