@@ -27,6 +27,13 @@ expect_usage_error() {
 }
 
 small=(--size 96x54 --frames 2 --png-every 0 --quiet --out "$tmp/x")
+# Full detail where the command's contract does not depend on the levels:
+# a process that shows the city builds them first (about 3 s; ten under
+# AddressSanitizer), and this test runs many. Its walks of the report
+# (below) and of a full run into a folder, and info, keep the default;
+# test-lod-world, test-hlod-world, test-charts and test-tiles3d-levels
+# cover the levels through the program.
+full=(--max-screen-error 0)
 expect_usage_error
 expect_usage_error frobnicate
 expect_usage_error walk --tileset nope "${small[@]}"
@@ -135,7 +142,7 @@ done
 grep -q -- '--mutate-query-shrink F  testing only' "$tmp/out" && ok || bad "--help: --mutate-query-shrink not marked testing only"
 
 # --opt=value is applied as --opt value is.
-if "$tw" walk --size=96x54 --frames=3 --png-every=0 --quiet --method=vfc --out="$tmp/eq" 2>"$tmp/err" &&
+if "$tw" walk --size=96x54 --frames=3 --png-every=0 --quiet --method=vfc "${full[@]}" --out="$tmp/eq" 2>"$tmp/err" &&
    [ "$(wc -l <"$tmp/eq/frames.csv")" -eq 4 ] && grep -q '"size": "96x54"' "$tmp/eq/summary.json" &&
    [ "$(tail -n +2 "$tmp/eq/frames.csv" | cut -d, -f2 | sort -u)" = vfc ]; then ok; else
     bad "walk with --opt=value: $(cat "$tmp/err")"; fi
@@ -163,7 +170,7 @@ if grep -q "nan.csv:2:" <("$tw" walk --path "$tmp/nan.csv" "${small[@]}" 2>&1); 
 
 # A path file works wherever a path name goes, and --frames defaults to its rows.
 printf 'cell_i,cell_j,x,y,z,yaw,pitch\n0,0,0,1.7,3,0,0\n0,0,0,1.7,4,10,0\n-1,0,79.5,1.7,5,20,1\n' >"$tmp/good.csv"
-if "$tw" walk --path "$tmp/good.csv" --size 96x54 --png-every 0 --quiet --out "$tmp/csv" 2>"$tmp/err" &&
+if "$tw" walk --path "$tmp/good.csv" --size 96x54 --png-every 0 --quiet "${full[@]}" --out "$tmp/csv" 2>"$tmp/err" &&
    [ "$(wc -l <"$tmp/csv/frames.csv")" -eq 4 ]; then ok; else bad "walk over a CSV path: $(cat "$tmp/err")"; fi
 
 # A walk writes frames.csv (header + one row per frame), summary.json, PNGs.
@@ -194,7 +201,8 @@ else
 fi
 
 # Far from the origin: the same PNG files, byte for byte (DESIGN §3).
-common=(walk --tileset city --path street --frames 12 --method vfc --size 160x90 --png-every 4 --repeat 4 --quiet)
+common=(walk --tileset city --path street --frames 12 --method vfc --size 160x90 --png-every 4 --repeat 4 --quiet
+        "${full[@]}")
 if "$tw" "${common[@]}" --start-cell 0,0 --out "$tmp/near" 2>"$tmp/err" &&
    "$tw" "${common[@]}" --start-cell 1099511627776,1099511627776 --out "$tmp/far" 2>>"$tmp/err"; then
     n=0
@@ -209,7 +217,7 @@ fi
 
 # The accuracy options reach the run and its summaries (the mutation misses
 # pixels: --allow-missed keeps the exit status 0).
-if "$tw" bench --methods vfc,chc --frames 3 --size 96x54 --verify --verify-tolerance 0.001 \
+if "$tw" bench --methods vfc,chc --frames 3 --size 96x54 --verify --verify-tolerance 0.001 "${full[@]}" \
       --deterministic --mutate-query-shrink 0.25 --allow-missed --png-every 0 --quiet --out "$tmp/acc" \
       >"$tmp/out" 2>"$tmp/err"; then
     grep -q '"verify_tolerance": 0.001,' "$tmp/acc/summary.json" && ok || bad "summary.json: verify_tolerance"
@@ -235,7 +243,7 @@ fi
 expect_usage_error walk --split "${small[@]}"
 expect_usage_error bench --split --scenario spin "${small[@]}"
 expect_usage_error bench --split --sweep n_av=1,2 "${small[@]}"
-if "$tw" bench --methods chc,tilequery+chc,oracle --frames 3 --size 96x54 --split --png-every 0 \
+if "$tw" bench --methods chc,tilequery+chc,oracle --frames 3 --size 96x54 --split --png-every 0 "${full[@]}" \
       --quiet --out "$tmp/split" 2>"$tmp/err"; then
     rows=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; next }
         { n++; if ($c["set_triangles"] == $c["triangles"] && $c["set_triangles"] > 0 &&
@@ -251,7 +259,7 @@ if "$tw" bench --methods chc,tilequery+chc,oracle --frames 3 --size 96x54 --spli
 else
     bad "bench --split: $(cat "$tmp/err")"
 fi
-"$tw" bench --methods chc --frames 2 --size 96x54 --png-every 0 --quiet --out "$tmp/nosplit" 2>"$tmp/err" &&
+"$tw" bench --methods chc --frames 2 --size 96x54 --png-every 0 --quiet "${full[@]}" --out "$tmp/nosplit" 2>"$tmp/err" &&
     ! grep -q 'Where the CPU time goes' "$tmp/nosplit/summary.md" &&
     [ "$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "set_triangles") k = i; next } { s += $k } END { print s + 0 }' "$tmp/nosplit/frames.csv")" = 0 ] &&
     ok || bad "a bench without --split reports a split"
@@ -297,7 +305,7 @@ fi
 
 # info --calibrate prints the cost model measured in a world at --size:
 # a query and a draw that cost something, a query dearer than a draw.
-if "$tw" info --tileset city --calibrate --size 96x54 >"$tmp/cal" 2>"$tmp/err"; then
+if "$tw" info --tileset city --calibrate --size 96x54 "${full[@]}" >"$tmp/cal" 2>"$tmp/err"; then
     awk '/^cost model at 96x54 \(measured/ {m=1} $1 == "query" && $2 > 0 {q=$2}
          $1 == "draw" && $3 > 0 {d=$3} END {exit !(m && q > 0 && d > 0 && q > d)}' "$tmp/cal" &&
         ok || bad "info --calibrate output: $(cat "$tmp/cal")"
@@ -364,7 +372,7 @@ if "$tw" bench --tileset city-gen --cars 300 --frames 4 --size 96x54 --png-every
 # same images twice, other images than without cars.
 for run in a b none; do
     n=$([ $run = none ] && echo 0 || echo 2000)
-    "$tw" walk --cars $n --frames 3 --size 160x90 --png-every 1 --quiet --out "$tmp/cars-$run" \
+    "$tw" walk --cars $n --frames 3 --size 160x90 --png-every 1 --quiet "${full[@]}" --out "$tmp/cars-$run" \
         >/dev/null 2>"$tmp/err" || bad "walk --cars $n: $(cat "$tmp/err")"
 done
 same=0 other=0
@@ -380,7 +388,7 @@ awk -F, 'NR == 1 { for (k = 1; k <= NF; k++) col[$k] = k; next }
          $col["frame"] > 1 { rebuilt += $col["object_rebuilds"] } END { exit rebuilt > 0 ? 0 : 1 }' \
     "$tmp/cars-a/frames.csv" && ok || bad "walk --cars 2000: no car moved: $(cat "$tmp/cars-a/frames.csv")"
 # A sweep of the number of cars: one row per method and value.
-if "$tw" bench --sweep cars=0,200 --methods vfc,tilequery+chc --frames 2 --size 96x54 \
+if "$tw" bench --sweep cars=0,200 --methods vfc,tilequery+chc --frames 2 --size 96x54 "${full[@]}" \
        --png-every 0 --quiet --out "$tmp/cars-sweep" >/dev/null 2>"$tmp/err" &&
    [ "$(grep -c ',cars,200,' "$tmp/cars-sweep/sweep.csv")" = 2 ] &&
    grep -Eq '"cars": *200' "$tmp/cars-sweep/sweep-cars-200/summary.json"; then ok; else
@@ -437,7 +445,7 @@ echo mine >"$out/frame-1.png"
 mkdir -p "$out/chart-data" && echo mine >"$out/chart-data/mine.txt"
 : >"$out/chart-sweep.png"            # an earlier bench's, to be removed
 expect_write_error "write error" "^tileworld: $out/frames.csv: cannot write: File too large$" \
-    limited 2 "$tw" walk --frames 40 --size 96x54 --png-every 0 --quiet --out "$out"
+    limited 2 "$tw" walk --frames 40 --size 96x54 --png-every 0 --quiet "${full[@]}" --out "$out"
 for f in frames.csv summary.json frame-00000.png frame-00010.png chart-sweep.png; do
     [ ! -e "$out/$f" ] && ok || bad "a failed run left $f"
 done
@@ -447,14 +455,14 @@ no_temporaries "$out"
 
 # A PNG that cannot be written stops the run at once, naming the PNG.
 expect_write_error "PNG write error" "^tileworld: $out/frame-0000[0-2].png: cannot write: File too large$" \
-    limited 8 "$tw" walk --frames 3 --size 640x360 --png-every 1 --quiet --out "$out"
+    limited 8 "$tw" walk --frames 3 --size 640x360 --png-every 1 --quiet "${full[@]}" --out "$out"
 no_temporaries "$out"
 
 # A real full disk, where a small tmpfs can be mounted (as root; else skipped).
 if [ "$(id -u)" -eq 0 ] && mkdir -p "$tmp/small" &&
    mount -t tmpfs -o size=64k tmpfs "$tmp/small" 2>/dev/null; then
     expect_write_error "full disk" ": cannot write: No space left on device$" \
-        "$tw" walk --frames 20 --size 160x90 --png-every 1 --quiet --out "$tmp/small/run"
+        "$tw" walk --frames 20 --size 160x90 --png-every 1 --quiet "${full[@]}" --out "$tmp/small/run"
     [ ! -e "$tmp/small/run/frames.csv" ] && [ ! -e "$tmp/small/run/summary.json" ] && ok ||
         bad "full disk: summaries left"
     for f in "$tmp"/small/run/frame-*.png; do
@@ -471,7 +479,7 @@ fi
 # no frames.csv, no summary.json; only its hidden temporary, which the next
 # run removes.
 killed="$tmp/killed"
-"$tw" walk --frames 100000 --size 96x54 --png-every 0 --quiet --out "$killed" 2>/dev/null &
+"$tw" walk --frames 100000 --size 96x54 --png-every 0 --quiet "${full[@]}" --out "$killed" 2>/dev/null &
 pid=$!
 for _ in $(seq 1 600); do
     [ -s "$killed/.frames.csv.tmp" ] && break
@@ -481,7 +489,7 @@ kill -KILL "$pid" 2>/dev/null
 wait "$pid" 2>/dev/null
 if [ -s "$killed/.frames.csv.tmp" ] && [ ! -e "$killed/frames.csv" ] && [ ! -e "$killed/summary.json" ]; then
     ok; else bad "after a kill: $(ls -A "$killed" 2>&1)"; fi
-if "$tw" walk --frames 2 --size 96x54 --png-every 0 --quiet --out "$killed" 2>"$tmp/err" &&
+if "$tw" walk --frames 2 --size 96x54 --png-every 0 --quiet "${full[@]}" --out "$killed" 2>"$tmp/err" &&
    [ "$(wc -l <"$killed/frames.csv")" -eq 3 ] && [ -f "$killed/summary.json" ]; then ok; else
     bad "walk after a kill: $(cat "$tmp/err")"; fi
 no_temporaries "$killed"
