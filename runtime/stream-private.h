@@ -67,9 +67,8 @@ struct pool {
     pthread_cond_t work;                 /* a job was queued, or quit */
     pthread_cond_t done;                 /* a job finished, or a worker stopped
                                             (CLOCK_MONOTONIC, for the wait at destroy) */
-    bool quit;
-    atomic_bool stop;                    /* quit, read without the lock: a job's levels
-                                            give up (tw_lods_build) */
+    atomic_bool quit;                    /* set under the lock; a running job's levels
+                                            read it without (tw_lods_build's stop) */
     uint32_t refs;                       /* the stream's, and one per worker thread */
 };
 

@@ -170,12 +170,12 @@ void tw_stream_job_run(struct worker *wk, struct tw_cell cell, struct job_result
     if (wk->lods) {
         /* Its levels of detail (DESIGN §17), made here with the tile. */
         err = tw_lods_build(r->ts, p->max_cluster_triangles ? p->max_cluster_triangles : 2048,
-                            &wk->pool->stop, &r->lods);
+                            &wk->pool->quit, &r->lods);
         const uint32_t n = r->lods.levels ? r->lods.levels->prototype_count : 0;
         if (!err && n > 0 && !(r->lod_bvhs = calloc(n, sizeof(*r->lod_bvhs))))
             err = TW_ERR_NOMEM;
         for (uint32_t k = 0; k < n && !err; k++) {
-            if (atomic_load_explicit(&wk->pool->stop, memory_order_relaxed)) {
+            if (atomic_load_explicit(&wk->pool->quit, memory_order_relaxed)) {
                 err = TW_ERR_STATE;     /* the stream is stopping: nobody will use them */
                 break;
             }
@@ -346,9 +346,9 @@ static void *worker_main(void *arg)
     for (;;) {
         uint32_t index = UINT32_MAX;
         /* quit is set before any worker is left behind: wk->s is valid here. */
-        while (!pool->quit && (index = pop_job(wk->s)) == UINT32_MAX)
+        while (!atomic_load(&pool->quit) && (index = pop_job(wk->s)) == UINT32_MAX)
             pthread_cond_wait(&pool->work, &pool->lock);
-        if (pool->quit)
+        if (atomic_load(&pool->quit))
             break;
         struct entry *e = &wk->s->entries[index];
         e->jstate = J_RUNNING;
@@ -387,7 +387,7 @@ static int pool_create(struct pool **out)
     struct pool *pool = calloc(1, sizeof(*pool));
     if (!pool)
         return TW_ERR_NOMEM;
-    atomic_init(&pool->stop, false);
+    atomic_init(&pool->quit, false);
     pthread_condattr_t attr;
     pthread_condattr_init(&attr);
     pthread_condattr_setclock(&attr, CLOCK_MONOTONIC);
@@ -463,8 +463,7 @@ uint32_t tw_stream_workers_stop(struct tw_stream *s, char *cells, size_t cells_s
     size_t at = 0;
     cells[0] = '\0';
     pthread_mutex_lock(&pool->lock);
-    pool->quit = true;
-    atomic_store(&pool->stop, true);
+    atomic_store(&pool->quit, true);
     pthread_cond_broadcast(&pool->work);
     for (bool timed_out = false;;) {
         bool running = false;

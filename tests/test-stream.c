@@ -129,6 +129,19 @@ static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tile_
     return tw_world_create(&s, &w) == TW_OK ? w : NULL;
 }
 
+static double now_s(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static void sleep_ms(long ms)
+{
+    const struct timespec t = {ms / 1000, (ms % 1000) * 1000000L};
+    nanosleep(&t, NULL);
+}
+
 /* A walk with turns: along +z, a right turn, along +x, a look around. */
 static struct tw_camera walk_camera(uint32_t f)
 {
@@ -420,9 +433,6 @@ static void test_impure_selection(struct tw_context *ctx)
     tw_tileset_destroy(ts);
 }
 
-static double now_s(void);
-static void sleep_ms(long ms);
-
 /* Skip: holes at first, counted, filled in later frames. */
 static void test_skip(struct tw_context *ctx)
 {
@@ -572,19 +582,6 @@ static int generate_stuck(void *user, struct tw_cell cell, struct tw_tileset *ts
     pthread_cond_broadcast(&st->changed);
     pthread_mutex_unlock(&st->lock);
     return err;
-}
-
-static double now_s(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
-static void sleep_ms(long ms)
-{
-    const struct timespec t = {ms / 1000, (ms % 1000) * 1000000L};
-    nanosleep(&t, NULL);
 }
 
 /* Waits up to seconds for the count of generate() calls that entered (or,

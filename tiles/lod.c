@@ -974,7 +974,7 @@ static int simplify_class(const struct baked *b, const struct welded *w, const f
                 if (!bsearch(&key, p->kept, n, sizeof(*p->kept), tri_key_cmp))
                     memcpy(p->fresh + 3 * fresh++, p->baked + 3 * t, sizeof(uint32_t) * 3);
             }
-            if (!getenv("NOREV")) reverse_error(b, full, b->idx, p->fresh, fresh, measured, target, &measured);
+            reverse_error(b, full, b->idx, p->fresh, fresh, measured, target, &measured);
         }
         if (measured <= target) {
             memcpy(out, p->a, sizeof(uint32_t) * 3 * m);
@@ -1169,10 +1169,6 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, const atomic
         const float target = ldexpf(extent, -step);
         size_t total = 0;
         for (uint32_t k = 0; k < cl.count && !err; k++) {
-            if (stopped(stop)) {
-                err = TW_ERR_STATE;
-                break;
-            }
             size_t m = 0;
             next_start[k] = total;
             err = simplify_class(&b, &w, size2, &full, &ts->prototypes[p].box, &cl, k, &part,

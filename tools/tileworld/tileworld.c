@@ -805,9 +805,10 @@ static int info(const struct options *o)
            (unsigned long long)tw_tileset_geometry_bytes(ts));
     if (o->cli.world.max_screen_error > 0.0f) {
         /* What the world builds for --max-screen-error (DESIGN §17). */
-        struct tw_lods lods;
+        /* The tileset's own: --calibrate's world shares them. */
+        const struct tw_lods *lods = NULL;
         const double t0 = tw_clock_monotonic_ms();
-        err = tw_lods_build(ts, ts->max_cluster_triangles, NULL, &lods);
+        err = tw_lods_of_tileset(ts, &lods);
         const double ms = tw_clock_monotonic_ms() - t0;
         if (err) {
             fprintf(stderr, "tileworld: cannot build the levels of detail: %s\n",
@@ -817,14 +818,14 @@ static int info(const struct options *o)
         }
         printf("levels of detail (built in %.0f ms, %llu bytes with their geometry): triangles "
                "(geometric error, m) of each level, full detail first\n", ms,
-               (unsigned long long)tw_lods_bytes(&lods));
+               (unsigned long long)tw_lods_bytes(lods));
         for (uint32_t p = 0; p < ts->prototype_count; p++) {
             printf("%-16s %llu", tw_cli_escape(ts->prototypes[p].name, name, sizeof(name)),
                    (unsigned long long)ts->prototypes[p].triangle_count);
-            for (uint32_t k = 0; k < lods.count[p]; k++)
+            for (uint32_t k = 0; k < lods->count[p]; k++)
                 printf(", %llu (%.2g)",
-                       (unsigned long long)lods.levels->prototypes[lods.first[p] + k].triangle_count,
-                       lods.error[lods.first[p] + k]);
+                       (unsigned long long)lods->levels->prototypes[lods->first[p] + k].triangle_count,
+                       lods->error[lods->first[p] + k]);
             printf("\n");
         }
         const uint32_t levels = o->cli.tuning.hlod_levels;
@@ -840,14 +841,13 @@ static int info(const struct options *o)
                 const float error =
                     tw_hlod_level_error(ts->footprint, k, ws.max_screen_error, TW_HLOD_BLOCK_PX);
                 uint64_t input;
-                const bool pays = tw_hlod_level_pays(ts, &lods, k, error, &input);
+                const bool pays = tw_hlod_level_pays(ts, lods, k, error, &input);
                 printf("blocks of %ux%u cells: error %.3g m, from %.0f m, proxies of up to %llu "
                        "triangles: %s\n", 1u << k, 1u << k, (double)error,
                        error * focal / ws.max_screen_error, (unsigned long long)input,
                        pays ? "used" : "too many, always refined");
             }
         }
-        tw_lods_free(&lods);
     }
     int rc = 0;
     if (o->calibrate)
