@@ -3,9 +3,6 @@
 #include "tilesets/http.h"
 #include "tilesets/tilesets-private.h"
 
-#include <dirent.h>
-#include <errno.h>
-#include <fcntl.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -15,6 +12,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "tiles/file-cache.h"
 #include "tiles/tiles-internal.h"
 
 #ifdef TW_HAVE_CURL
@@ -27,13 +25,11 @@ static const char cache_magic[] = "tileworld-http-cache 1\n";
 
 struct tw_http {
     struct tw_tiles3d_settings settings;
-    char *cache_dir;                /* NULL: no cache */
+    struct tw_file_cache *cache;    /* NULL: no cache */
     pthread_mutex_t lock;           /* guards pool, pool_count, and the back-off waits */
     pthread_cond_t wake;            /* signalled by tw_http_cancel() */
     CURL *pool[POOL_MAX];
     int pool_count;
-    pthread_mutex_t cache_lock;     /* one eviction at a time */
-    _Atomic uint64_t cache_bytes;   /* the cache's files, as last counted plus writes since */
     _Atomic bool cancelled;
     _Atomic uint64_t requests, bytes, cache_hits, not_modified, retries, failures, stale;
 };
@@ -48,82 +44,16 @@ static void global_init(void)
 
 /* ---- the cache ---------------------------------------------------------------- */
 
-static void cache_path(const struct tw_http *h, const char *url, char *out, size_t size)
+static uint64_t cache_key(const char *url)
 {
-    const uint64_t key = tw_hash_bytes((const uint8_t *)url, strlen(url));
-    snprintf(out, size, "%s/%016llx.twc", h->cache_dir, (unsigned long long)key);
-}
-
-struct cache_entry {
-    char name[32];
-    uint64_t bytes;
-    struct timespec mtime;
-};
-
-static int older_first(const void *a, const void *b)
-{
-    const struct cache_entry *x = a, *y = b;
-    if (x->mtime.tv_sec != y->mtime.tv_sec)
-        return x->mtime.tv_sec < y->mtime.tv_sec ? -1 : 1;
-    if (x->mtime.tv_nsec != y->mtime.tv_nsec)
-        return x->mtime.tv_nsec < y->mtime.tv_nsec ? -1 : 1;
-    return strcmp(x->name, y->name);
-}
-
-/* Counts the cache's files and, with evict, removes the oldest until the
- * rest fit 7/8 of the limit, so that the next scan comes only after an
- * eighth of the cache has been written again, not at every write of a
- * full cache. Returns the bytes that stay. */
-static uint64_t cache_scan(struct tw_http *h, bool evict)
-{
-    DIR *d = opendir(h->cache_dir);
-    if (!d)
-        return 0;
-    struct cache_entry *list = NULL;
-    size_t count = 0, cap = 0;
-    uint64_t total = 0;
-    const struct dirent *e;
-    while ((e = readdir(d))) {
-        const size_t n = strlen(e->d_name);
-        if (e->d_name[0] == '.' || n < 5 || n >= sizeof(list->name) ||
-            strcmp(e->d_name + n - 4, ".twc") != 0)
-            continue;
-        struct stat st;
-        if (fstatat(dirfd(d), e->d_name, &st, 0) != 0 || !S_ISREG(st.st_mode))
-            continue;
-        if (count == cap) {
-            const size_t ncap = cap ? 2 * cap : 256;
-            struct cache_entry *grown = realloc(list, ncap * sizeof(*list));
-            if (!grown)
-                break;
-            list = grown;
-            cap = ncap;
-        }
-        memcpy(list[count].name, e->d_name, n + 1);
-        list[count].bytes = (uint64_t)st.st_size;
-        list[count].mtime = st.st_mtim;
-        total += (uint64_t)st.st_size;
-        count++;
-    }
-    const uint64_t keep = h->settings.cache_max_bytes - h->settings.cache_max_bytes / 8;
-    if (evict && total > h->settings.cache_max_bytes) {
-        qsort(list, count, sizeof(*list), older_first);
-        for (size_t k = 0; k < count && total > keep; k++)
-            if (unlinkat(dirfd(d), list[k].name, 0) == 0)
-                total -= list[k].bytes;
-    }
-    closedir(d);
-    free(list);
-    return total;
+    return tw_hash_bytes((const uint8_t *)url, strlen(url));
 }
 
 /* The cached body of url and its ETag, if the cache holds them. */
 static bool cache_read(const struct tw_http *h, const char *url, char *etag, size_t etag_size,
                        void **body, size_t *size)
 {
-    char path[4200];
-    cache_path(h, url, path, sizeof(path));
-    FILE *f = fopen(path, "rb");
+    FILE *f = tw_file_cache_get(h->cache, cache_key(url));
     if (!f)
         return false;
     bool ok = false;
@@ -169,47 +99,24 @@ out:
 /* Marks the cached file of url used now (eviction takes the oldest). */
 static void cache_touch(const struct tw_http *h, const char *url)
 {
-    char path[4200];
-    cache_path(h, url, path, sizeof(path));
-    utimensat(AT_FDCWD, path, NULL, 0);
+    tw_file_cache_touch(h->cache, cache_key(url));
 }
 
-/* Stores body under url with etag: written whole or not at all (a
- * temporary of its own, then a rename); a failure only loses the copy. */
+/* Stores body under url with etag: written whole or not at all; a failure
+ * only loses the copy. */
 static void cache_write(struct tw_http *h, const char *url, const char *etag, const void *body,
                         size_t size)
 {
     if (!etag[0] || strchr(url, '\n') || strchr(etag, '\n'))
         return;
-    char path[4200], tmp[4200];
-    cache_path(h, url, path, sizeof(path));
-    snprintf(tmp, sizeof(tmp), "%s/.tmp.XXXXXX", h->cache_dir);
-    const int fd = mkstemp(tmp);
-    if (fd < 0)
+    const size_t head_size = strlen(cache_magic) + strlen(url) + strlen(etag) + 3;
+    char *head = malloc(head_size);
+    if (!head)
         return;
-    FILE *f = fdopen(fd, "wb");
-    if (!f) {
-        close(fd);
-        unlink(tmp);
-        return;
-    }
-    const int header = fprintf(f, "%s%s\n%s\n", cache_magic, url, etag);
-    bool ok = header > 0 && fwrite(body, 1, size, f) == size;
-    ok = fclose(f) == 0 && ok;
-    if (!ok || rename(tmp, path) != 0) {
-        unlink(tmp);
-        return;
-    }
-    /* A file replaced stays counted too: the count errs high, and the
-     * scan it brings on counts again. */
-    const uint64_t written = (uint64_t)header + size;
-    const uint64_t total = atomic_fetch_add(&h->cache_bytes, written) + written;
-    if (total > h->settings.cache_max_bytes) {
-        pthread_mutex_lock(&h->cache_lock);
-        if (atomic_load(&h->cache_bytes) > h->settings.cache_max_bytes)
-            atomic_store(&h->cache_bytes, cache_scan(h, true));
-        pthread_mutex_unlock(&h->cache_lock);
-    }
+    const int n = snprintf(head, head_size, "%s%s\n%s\n", cache_magic, url, etag);
+    if (n > 0 && (size_t)n < head_size)
+        (void)tw_file_cache_put(h->cache, cache_key(url), head, (size_t)n, body, size);
+    free(head);
 }
 
 /* ---- creation ------------------------------------------------------------------ */
@@ -231,28 +138,13 @@ int tw_http_create(const struct tw_tiles3d_settings *settings, struct tw_http **
     h->settings = *settings;
     pthread_mutex_init(&h->lock, NULL);
     pthread_cond_init(&h->wake, NULL);
-    pthread_mutex_init(&h->cache_lock, NULL);
     if (settings->cache_dir && settings->cache_dir[0]) {
-        h->cache_dir = strdup(settings->cache_dir);
-        if (!h->cache_dir) {
+        const int rc = tw_file_cache_open(settings->cache_dir, "twc", settings->cache_max_bytes,
+                                          &h->cache, err, err_size);
+        if (rc) {
             tw_http_destroy(h);
-            snprintf(err, err_size, "%s", tw_error_to_str(TW_ERR_NOMEM));
-            return TW_ERR_NOMEM;
+            return rc;
         }
-        h->settings.cache_dir = h->cache_dir;
-        struct stat st;
-        if (mkdir(h->cache_dir, 0777) != 0 && errno != EEXIST) {
-            snprintf(err, err_size, "the cache folder %s cannot be made: %s", h->cache_dir,
-                     strerror(errno));
-            tw_http_destroy(h);
-            return TW_ERR_IO;
-        }
-        if (stat(h->cache_dir, &st) != 0 || !S_ISDIR(st.st_mode)) {
-            snprintf(err, err_size, "the cache folder %s is not a folder", h->cache_dir);
-            tw_http_destroy(h);
-            return TW_ERR_IO;
-        }
-        atomic_store(&h->cache_bytes, cache_scan(h, true));
     }
     *out = h;
     return TW_OK;
@@ -274,8 +166,7 @@ void tw_http_destroy(struct tw_http *h)
         curl_easy_cleanup(h->pool[k]);
     pthread_mutex_destroy(&h->lock);
     pthread_cond_destroy(&h->wake);
-    pthread_mutex_destroy(&h->cache_lock);
-    free(h->cache_dir);
+    tw_file_cache_close(h->cache);
     free(h);
 }
 
@@ -419,7 +310,7 @@ int tw_http_get(struct tw_http *h, const char *url, uint64_t max_bytes, void **b
     *size = 0;
     *status = 0;
     *missing = false;
-    const bool use_cache = h->cache_dir && strncmp(url, "file:", 5) != 0;
+    const bool use_cache = h->cache && strncmp(url, "file:", 5) != 0;
     char cached_etag[256] = "";
     if (use_cache && !cache_read(h, url, cached_etag, sizeof(cached_etag), NULL, NULL))
         cached_etag[0] = '\0';
