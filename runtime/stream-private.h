@@ -79,6 +79,7 @@ struct worker {
                                             left behind comes back */
     struct tw_bvh_settings bvh;
     bool lods;                           /* build the tiles' levels of detail */
+    struct tw_file_cache *lods_store;    /* and keep them there (may be NULL) */
     uint64_t max_triangles, max_bytes;   /* caps of a tile (0: none) */
     struct tw_stream_hooks hooks;
     pthread_t thread;

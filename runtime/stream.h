@@ -64,6 +64,8 @@ struct tw_stream_settings {
     uint32_t key_base;               /* instance keys of own tiles start here (above the
                                         shared contents' numbers) */
     bool lods;                       /* build each tile's levels of detail (DESIGN §17) */
+    struct tw_file_cache *lods_store; /* where they are kept on disk (tw_lods_store());
+                                        NULL: nowhere */
     uint32_t stop_ms;                /* how long destroy waits for jobs still running;
                                         0: TW_STREAM_STOP_MS */
     uint32_t retry_after;            /* a refused tile is asked again this many frames

@@ -137,6 +137,7 @@ struct tw_world {
     uint64_t shared_cpu, shared_gpu;/* bytes of the shared content, counted once */
     /* Levels of detail (DESIGN §17): on when max_screen_error > 0. */
     bool lod_on;
+    struct tw_file_cache *lods_store;  /* the levels kept on disk (tw_lods_store()); NULL: not */
     bool lod_full;                  /* a full-detail pass is drawing: level 0 everywhere */
     float lod_px_per_m;             /* the view's pixels per metre at a distance of 1 m */
     const struct tw_lods *lods;     /* of the shared prototypes: kept with their tileset,

@@ -212,7 +212,7 @@ static const struct tw_lods no_lods;
  * built, uploaded and counted with the shared content. */
 static int shared_levels(struct tw_world *w, const struct tw_tileset *ts)
 {
-    int err = tw_lods_of_tileset(ts, &w->lods);
+    int err = tw_lods_of_tileset(ts, w->lods_store, &w->lods);
     if (err) {
         w->lods = &no_lods;
         tw_log_printf(&w->s.log, TW_LOG_ERROR, "cannot build the levels of detail of %s: %s",
@@ -361,6 +361,14 @@ static int create(const struct tw_world_settings *settings, const struct tw_worl
     w->cur = w->last = &w->own;
     w->view_count = 1;
     w->lod_on = w->s.max_screen_error > 0.0f;
+    if (w->lod_on && w->s.levels_cache_dir && w->s.levels_cache_dir[0]) {
+        /* A store that cannot be made costs time, not the world. */
+        char why[320];
+        if (tw_lods_store(w->s.levels_cache_dir, w->s.levels_cache_bytes, &w->lods_store, why,
+                          sizeof(why)) != TW_OK)
+            tw_log_printf(log, TW_LOG_WARN, "levels of detail are built, not kept on disk: %s",
+                          why);
+    }
     w->lod_least_error = INFINITY;
     if (tuning)
         w->t = *tuning;

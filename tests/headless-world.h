@@ -9,6 +9,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 
 #include "runtime/runtime-internal.h"
 #include "tileworld/context.h"
@@ -69,6 +71,9 @@ static inline struct tw_world_settings world_settings(struct tw_context *ctx, co
     s.view_distance = view_distance;
     s.get_proc = tw_context_get_proc(ctx);
     s.log = test_log;
+    /* The levels' store of the test run (tests/meson.build), as a program's. */
+    const char *store = getenv("TW_LEVELS_CACHE");
+    s.levels_cache_dir = store && store[0] && strcmp(store, "off") != 0 ? store : NULL;
     return s;
 }
 

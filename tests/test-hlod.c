@@ -3,7 +3,7 @@
  * prototype, a block of several the sum of its cells' chosen levels, placed;
  * empty cells show nothing; meshes shared between cells are copied once;
  * the block simplifies with tw_lods_build(); bad input is refused; the
- * same inputs give the same block. Then, printed only, the figures of the
+ * same inputs give the same block. Then, printed only, NULL, the figures of the
  * built-in city's blocks as side doubles.
  */
 #include "check.h"
@@ -337,7 +337,7 @@ static void test_block_levels(const struct tw_tileset *ts, const struct tw_lods 
     if (!b)
         return;
     struct tw_lods bl;
-    CHECK(tw_lods_build(b, CLUSTER, NULL, &bl) == TW_OK);
+    CHECK(tw_lods_build(b, CLUSTER, NULL, NULL, &bl) == TW_OK);
     CHECK(bl.levels != NULL && bl.source_count == 1 && bl.count[0] >= 2);
     float previous = 0.0f;
     uint64_t triangles = b->prototypes[0].triangle_count;
@@ -474,7 +474,7 @@ static void print_blocks(const struct tw_tileset *ts, const struct tw_lods *l)
             break;
         struct tw_lods bl;
         t0 = tw_clock_monotonic_ms();
-        err = tw_lods_build(b, CLUSTER, NULL, &bl);
+        err = tw_lods_build(b, CLUSTER, NULL, NULL, &bl);
         const double levels_ms = tw_clock_monotonic_ms() - t0;
         CHECK_MSG(err == TW_OK, "%s block %u levels: %s", ts->name, side, tw_error_to_str(err));
         const uint32_t pick = tw_lods_pick(&bl, 0, max_error);
@@ -504,7 +504,7 @@ static void print_city(void)
     if (!city)
         return;
     struct tw_lods l;
-    err = tw_lods_build(city, CLUSTER, NULL, &l);
+    err = tw_lods_build(city, CLUSTER, NULL, NULL, &l);
     CHECK_MSG(err == TW_OK, "city levels: %s", tw_error_to_str(err));
     if (!err)
         print_blocks(city, &l);
@@ -551,7 +551,7 @@ int main(int argc, char **argv)
         merged |= ts->prototypes[0].instances[k].merged;
     CHECK(merged);
     struct tw_lods l;
-    CHECK(tw_lods_build(ts, CLUSTER, NULL, &l) == TW_OK);
+    CHECK(tw_lods_build(ts, CLUSTER, NULL, NULL, &l) == TW_OK);
     CHECK(l.levels != NULL && l.count[4] == 0);
     if (l.levels) {
         test_one_cell(ts, &l);

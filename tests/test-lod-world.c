@@ -2,6 +2,7 @@
  * coarser, every method and the oracle culling the same selection (no
  * missed pixel), what LOD changes in the image measured against full
  * detail, generated tiles too, and full detail when asked for. */
+#include <dirent.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -17,6 +18,9 @@ static const struct tw_camera high = {{{0, 0}, {20.0f, 120.0f, 20.0f}}, 35.0f, -
 /* At eye height down a street. */
 static const struct tw_camera street = {{{0, 0}, {0.0f, 1.7f, 2.0f}}, 10.0f, 3.0f};
 
+/* Where the worlds keep their levels: the test run's store, unless set. */
+static const char *store_dir;
+
 static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tileset *ts,
                                    const struct tw_tile_provider *provider, float max_screen_error,
                                    bool verify)
@@ -28,6 +32,8 @@ static struct tw_world *make_world(struct tw_context *ctx, const struct tw_tiles
         s.workers = 1;
     }
     s.max_screen_error = max_screen_error;
+    if (store_dir)
+        s.levels_cache_dir = store_dir;
     s.verify = verify;
     s.deterministic = true;
     struct tw_world *w = NULL;
@@ -130,7 +136,19 @@ int main(void)
     CHECK(tw_tilesets_provider_create("city-gen", 1, 0, &test_log, &gen) == TW_OK);
     uint64_t gen_full = 0, gen_lod = 0;
     triangles_of(ctx, NULL, tw_tilesets_provider_get(gen), &high, TW_FULL_DETAIL, &gen_full);
+    /* A world keeps its tiles' levels in its store (a folder of its own
+     * here, empty), and the worlds after it read them back. */
+    char root[] = "/tmp/tw-test-lod-world-XXXXXX";
+    CHECK(mkdtemp(root) != NULL);
+    store_dir = root;
     triangles_of(ctx, NULL, tw_tilesets_provider_get(gen), &high, 1.0f, &gen_lod);
+    int files = 0;
+    DIR *d = opendir(root);
+    for (const struct dirent *e; d && (e = readdir(d));)
+        files += strstr(e->d_name, ".levels") != NULL && e->d_name[0] != '.';
+    if (d)
+        closedir(d);
+    CHECK_MSG(files > 0, "the world kept no levels in %s", root);
     CHECK_MSG(gen_lod > 0 && gen_lod < gen_full, "city-gen triangles: full %llu, 1 px %llu",
               (unsigned long long)gen_full, (unsigned long long)gen_lod);
     struct tw_world *w = make_world(ctx, NULL, tw_tilesets_provider_get(gen), 1.0f, true);
@@ -142,6 +160,15 @@ int main(void)
                   (unsigned long long)st.missed_pixels);
     }
     tw_world_destroy(w);
+    /* Read back: the same triangles. */
+    uint64_t again = 0;
+    triangles_of(ctx, NULL, tw_tilesets_provider_get(gen), &high, 1.0f, &again);
+    CHECK_MSG(again == gen_lod, "city-gen triangles read back %llu, built %llu",
+              (unsigned long long)again, (unsigned long long)gen_lod);
+    store_dir = NULL;
+    char cmd[200];
+    snprintf(cmd, sizeof(cmd), "rm -rf '%s'", root);
+    CHECK(system(cmd) == 0);
     tw_tilesets_provider_destroy(gen);
     tw_tileset_destroy(ts);
     tw_context_destroy(ctx);

@@ -8,8 +8,12 @@
 #include "tiles/tiles-internal.h"
 #include "tileworld/tiles.h"
 
+#include <dirent.h>
 #include <math.h>
 #include <pthread.h>
+#include <stdio.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
@@ -41,7 +45,7 @@ struct shared_call {
 static void *ask_shared(void *arg)
 {
     struct shared_call *c = arg;
-    c->err = tw_lods_of_tileset(c->ts, &c->got);
+    c->err = tw_lods_of_tileset(c->ts, NULL, &c->got);
     return NULL;
 }
 
@@ -62,7 +66,7 @@ static void test_shared(const struct tw_tileset *ts, const struct tw_lods *built
         return;
     CHECK(a.err == TW_OK && b.err == TW_OK && a.got != NULL && a.got == b.got);
     const struct tw_lods *again = NULL;
-    CHECK(tw_lods_of_tileset(ts, &again) == TW_OK && again == a.got);
+    CHECK(tw_lods_of_tileset(ts, NULL, &again) == TW_OK && again == a.got);
     if (!a.got)
         return;
     CHECK(a.got->source_count == built->source_count);
@@ -73,6 +77,140 @@ static void test_shared(const struct tw_tileset *ts, const struct tw_lods *built
         for (uint32_t k = 0; k < built->count[p]; k++)
             CHECK(a.got->error[built->first[p] + k] == built->error[built->first[p] + k]);
     }
+}
+
+/* Whether a and b are the same levels: counts, errors and every level's
+ * geometry, byte for byte. */
+static bool same_levels(const struct tw_lods *a, const struct tw_lods *b)
+{
+    if (a->source_count != b->source_count || !a->levels != !b->levels)
+        return false;
+    for (uint32_t p = 0; p < a->source_count; p++) {
+        if (a->count[p] != b->count[p] || a->first[p] != b->first[p])
+            return false;
+        for (uint32_t k = 0; k < a->count[p]; k++)
+            if (a->error[a->first[p] + k] != b->error[b->first[p] + k])
+                return false;
+    }
+    if (!a->levels)
+        return true;
+    if (a->levels->mesh_count != b->levels->mesh_count ||
+        a->levels->prototype_count != b->levels->prototype_count)
+        return false;
+    for (uint32_t m = 0; m < a->levels->mesh_count; m++) {
+        const struct tw_mesh *x = &a->levels->meshes[m], *y = &b->levels->meshes[m];
+        if (x->vertex_count != y->vertex_count || x->triangle_count != y->triangle_count ||
+            !x->colors != !y->colors ||
+            memcmp(x->positions, y->positions, 12 * (size_t)x->vertex_count) != 0 ||
+            memcmp(x->normals, y->normals, 12 * (size_t)x->vertex_count) != 0 ||
+            memcmp(x->indices, y->indices, 12 * (size_t)x->triangle_count) != 0 ||
+            (x->colors && memcmp(x->colors, y->colors, 4 * (size_t)x->vertex_count) != 0))
+            return false;
+    }
+    return true;
+}
+
+/* The files a store's folder holds: their number, and with damage, each
+ * one changed (1: a byte of its middle flipped, 2: cut to half). */
+static int store_files(const char *dir, int damage)
+{
+    DIR *d = opendir(dir);
+    if (!d)
+        return -1;
+    int n = 0;
+    const struct dirent *e;
+    while ((e = readdir(d))) {
+        const size_t len = strlen(e->d_name);
+        if (len < 8 || strcmp(e->d_name + len - 7, ".levels") != 0)
+            continue;
+        n++;
+        char path[512];
+        snprintf(path, sizeof(path), "%s/%s", dir, e->d_name);
+        struct stat st;
+        if (!damage || stat(path, &st) != 0)
+            continue;
+        if (damage == 2) {
+            CHECK(truncate(path, st.st_size / 2) == 0);
+            continue;
+        }
+        FILE *f = fopen(path, "r+b");
+        CHECK(f != NULL);
+        if (!f)
+            continue;
+        fseek(f, st.st_size / 2, SEEK_SET);
+        const int c = fgetc(f);
+        fseek(f, st.st_size / 2, SEEK_SET);
+        fputc(c ^ 0x40, f);
+        fclose(f);
+    }
+    closedir(d);
+    return n;
+}
+
+/* The levels' store: what it reads back is what was built, byte for byte
+ * (a box level too); a file damaged or cut is built again, not trusted;
+ * past its byte limit the oldest files go; a folder that cannot be made
+ * says why; its parents are made. */
+static void test_store(const struct tw_tileset *ts, const struct tw_lods *built)
+{
+    char root[] = "/tmp/tw-test-lod-XXXXXX";
+    CHECK(mkdtemp(root) != NULL);
+    char dir[128], why[320] = "";
+    snprintf(dir, sizeof(dir), "%s/a/b/levels", root);
+    struct tw_file_cache *store = NULL, *again = NULL;
+    CHECK(tw_lods_store(dir, 0, &store, why, sizeof(why)) == TW_OK && store != NULL);
+    CHECK(tw_lods_store(dir, 0, &again, why, sizeof(why)) == TW_OK && again == store);
+    if (!store)
+        return;
+    /* Built and written: one file a prototype with levels. */
+    uint32_t with_levels = 0;
+    for (uint32_t p = 0; p < built->source_count; p++)
+        with_levels += built->count[p] > 0;
+    struct tw_lods l;
+    CHECK(tw_lods_build(ts, 256, store, NULL, &l) == TW_OK && l.stored == 0);
+    CHECK(same_levels(&l, built));
+    tw_lods_free(&l);
+    CHECK_MSG(store_files(dir, 0) >= (int)with_levels && with_levels > 0, "%d files, %u prototypes",
+              store_files(dir, 0), with_levels);
+    /* Read back: the same levels. */
+    CHECK(tw_lods_build(ts, 256, store, NULL, &l) == TW_OK);
+    CHECK_MSG(l.stored >= with_levels, "%u prototypes read back of %u", l.stored, with_levels);
+    CHECK(same_levels(&l, built));
+    tw_lods_free(&l);
+    /* Damaged, then cut: built again (and written again). */
+    for (int damage = 1; damage <= 2; damage++) {
+        CHECK(store_files(dir, damage) > 0);
+        CHECK(tw_lods_build(ts, 256, store, NULL, &l) == TW_OK);
+        CHECK_MSG(l.stored == 0, "damage %d: %u prototypes read back", damage, l.stored);
+        CHECK(same_levels(&l, built));
+        tw_lods_free(&l);
+    }
+    CHECK(tw_lods_build(ts, 256, store, NULL, &l) == TW_OK && l.stored >= with_levels);
+    tw_lods_free(&l);
+    /* A store of 1 kB holds none of these (each file is larger). */
+    char small[160];
+    snprintf(small, sizeof(small), "%s/small", root);
+    struct tw_file_cache *tiny = NULL;
+    CHECK(tw_lods_store(small, 1024, &tiny, why, sizeof(why)) == TW_OK);
+    CHECK(tw_lods_build(ts, 256, tiny, NULL, &l) == TW_OK && same_levels(&l, built));
+    tw_lods_free(&l);
+    CHECK(store_files(small, 0) == 0);
+    /* A folder under a file cannot be made. */
+    char bad[160];
+    snprintf(bad, sizeof(bad), "%s/a/b/levels/%s", root, "x");
+    FILE *f = fopen(bad, "w");
+    CHECK(f != NULL);
+    if (f)
+        fclose(f);
+    snprintf(bad, sizeof(bad), "%s/a/b/levels/x/y", root);
+    struct tw_file_cache *none = NULL;
+    why[0] = '\0';
+    CHECK(tw_lods_store(bad, 0, &none, why, sizeof(why)) == TW_ERR_IO && none == NULL);
+    CHECK_MSG(strstr(why, "cannot be made") != NULL, "%s", why);
+    CHECK(tw_lods_store("", 0, &none, why, sizeof(why)) == TW_ERR_INVALID);
+    char cmd[200];
+    snprintf(cmd, sizeof(cmd), "rm -rf '%s'", root);
+    CHECK(system(cmd) == 0);
 }
 
 /* The stop (a tile's worker at the world's destroy): set before, nothing
@@ -88,14 +226,14 @@ static void test_stop(void)
     atomic_bool stop;
     atomic_init(&stop, true);
     struct tw_lods l;
-    CHECK(tw_lods_build(ts, 2048, &stop, &l) == TW_ERR_STATE && l.levels == NULL &&
+    CHECK(tw_lods_build(ts, 2048, NULL, &stop, &l) == TW_ERR_STATE && l.levels == NULL &&
           l.first == NULL);
     atomic_store(&stop, false);
     pthread_t t;
     const bool started = pthread_create(&t, NULL, stop_soon, &stop) == 0;
     CHECK(started);
     if (started) {
-        CHECK(tw_lods_build(ts, 2048, &stop, &l) == TW_ERR_STATE && l.levels == NULL);
+        CHECK(tw_lods_build(ts, 2048, NULL, &stop, &l) == TW_ERR_STATE && l.levels == NULL);
         pthread_join(t, NULL);
     }
     tw_tileset_destroy(ts);
@@ -132,7 +270,7 @@ int main(void)
     CHECK(tw_tileset_finish(ts, 256) == TW_OK);
 
     struct tw_lods l;
-    CHECK(tw_lods_build(ts, 256, NULL, &l) == TW_OK);
+    CHECK(tw_lods_build(ts, 256, NULL, NULL, &l) == TW_OK);
     CHECK(l.levels != NULL && l.source_count == 4);
     /* The facade: a level that takes windows out says so. A window gone
      * is off by the distance to the next one or its own size (at least
@@ -211,6 +349,7 @@ int main(void)
     CHECK(tw_lods_pick(&l, 1, 0.5f * l.error[l.first[1]]) == 0 || l.error[l.first[1]] == 0.0f);
     CHECK(tw_lods_bytes(&l) > tw_tileset_geometry_bytes(l.levels) / 2);
     test_shared(ts, &l);
+    test_store(ts, &l);
     tw_lods_free(&l);
     tw_lods_free(&l);   /* twice: zeroed */
     CHECK(l.levels == NULL && l.first == NULL);
@@ -218,9 +357,9 @@ int main(void)
     /* Unfinished: refused. */
     struct tw_tileset *raw;
     CHECK(tw_tileset_create("raw", 10, 10, &raw) == TW_OK);
-    CHECK(tw_lods_build(raw, 256, NULL, &l) == TW_ERR_INVALID && l.levels == NULL);
+    CHECK(tw_lods_build(raw, 256, NULL, NULL, &l) == TW_ERR_INVALID && l.levels == NULL);
     const struct tw_lods *none = &l;
-    CHECK(tw_lods_of_tileset(raw, &none) == TW_ERR_INVALID && none == NULL);
+    CHECK(tw_lods_of_tileset(raw, NULL, &none) == TW_ERR_INVALID && none == NULL);
     tw_tileset_destroy(raw);
     tw_tileset_destroy(ts);
     test_stop();

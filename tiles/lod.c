@@ -4,6 +4,7 @@
 #include "tiles/tiles-internal.h"
 #include "tileworld/tiles.h"
 
+#include <errno.h>
 #include <float.h>
 #include <math.h>
 #include <meshoptimizer.h>
@@ -11,6 +12,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+
+#include "lod-source-hash.h"
+#include "tiles/file-cache.h"
 
 /* A level is kept only if it has at most this share of the previous one's
  * triangles: a level that saves little costs memory and a BVH for nothing. */
@@ -986,6 +991,61 @@ static int simplify_class(const struct baked *b, const struct welded *w, const f
     return err;
 }
 
+/* b's vertices and those of box's faces of some area (4 a face, as
+ * triangles idx[0 .. 3 *n), of b's first colour until given another)
+ * together, so that the measure and add_level see one mesh. */
+static int box_baked(const struct baked *b, const struct tw_box *box, struct baked *x,
+                     uint32_t idx[36], size_t *n)
+{
+    *n = 0;
+    memset(x, 0, sizeof(*x));
+    const uint32_t nv = b->vertices + 24;
+    x->pos = malloc(sizeof(float) * 3 * (size_t)nv);
+    x->nrm = malloc(sizeof(float) * 3 * (size_t)nv);
+    x->rgba = malloc(4 * (size_t)nv);
+    if (!x->pos || !x->nrm || !x->rgba) {
+        baked_free(x);
+        return TW_ERR_NOMEM;
+    }
+    memcpy(x->pos, b->pos, sizeof(float) * 3 * (size_t)b->vertices);
+    memcpy(x->nrm, b->nrm, sizeof(float) * 3 * (size_t)b->vertices);
+    memcpy(x->rgba, b->rgba, 4 * (size_t)b->vertices);
+    x->vertices = b->vertices;
+    const float *lo = box->min, *hi = box->max;
+    for (int a = 0; a < 3; a++) {
+        const int u = (a + 1) % 3, w = (a + 2) % 3;
+        if (!(hi[u] > lo[u]) || !(hi[w] > lo[w]))
+            continue;   /* a face of no area */
+        for (int side = 0; side < 2; side++) {
+            const uint32_t v0 = x->vertices;
+            /* Corners counter-clockwise seen from outside. */
+            const float su[4] = {0, 1, 1, 0}, sw[4] = {0, 0, 1, 1};
+            for (int k = 0; k < 4; k++) {
+                float *q = x->pos + 3 * (size_t)x->vertices;
+                float *nq = x->nrm + 3 * (size_t)x->vertices;
+                q[a] = side ? hi[a] : lo[a];
+                q[u] = su[side ? k : 3 - k] ? hi[u] : lo[u];
+                q[w] = sw[side ? k : 3 - k] ? hi[w] : lo[w];
+                nq[a] = side ? 1.0f : -1.0f;
+                nq[u] = nq[w] = 0.0f;
+                memcpy(x->rgba + 4 * (size_t)x->vertices, b->rgba, 4);
+                x->vertices++;
+            }
+            const uint32_t quad[6] = {v0, v0 + 1, v0 + 2, v0, v0 + 2, v0 + 3};
+            memcpy(idx + 3 * *n, quad, sizeof(quad));
+            *n += 2;
+        }
+    }
+    return TW_OK;
+}
+
+/* The box's corners in the colour of b's vertex v. */
+static void box_colour(const struct baked *b, struct baked *x, uint32_t v)
+{
+    for (uint32_t k = b->vertices; k < x->vertices; k++)
+        memcpy(x->rgba + 4 * (size_t)k, b->rgba + 4 * (size_t)v, 4);
+}
+
 /* The colours a box level is tried in: those covering the most area. */
 #define BOX_COLOURS 8
 
@@ -994,11 +1054,12 @@ static int simplify_class(const struct baked *b, const struct welded *w, const f
  * of cl's BOX_COLOURS classes of most area whose error is least (a box of
  * the facades' colour leaves the ground's vertices off by the ground's
  * size), added to levels as a level of its own, *added set; its error
- * measured as any level's, at least at_least, into *error. */
+ * measured as any level's, at least at_least, into *error, and the vertex
+ * of b whose colour it took into *colour. */
 static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *name,
                          const struct baked *b, const struct classes *cl, const float *size2,
                          const struct grid *full, const struct tw_box *box, float at_least,
-                         float *error, bool *added)
+                         float *error, bool *added, uint32_t *colour)
 {
     *added = false;
     /* The classes of most area, largest first. */
@@ -1032,65 +1093,29 @@ static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *
         top_area[at] = area;
         top_vertex[at] = b->idx[3 * (size_t)cl->tri[cl->first[k]]];
     }
-    /* b's vertices and the box's 24 (4 a face) together, so the measure
-     * and add_level see one mesh. */
     struct baked x = {0};
-    const uint32_t nv = b->vertices + 24;
-    x.pos = malloc(sizeof(float) * 3 * (size_t)nv);
-    x.nrm = malloc(sizeof(float) * 3 * (size_t)nv);
-    x.rgba = malloc(4 * (size_t)nv);
-    float *size2x = malloc(sizeof(float) * (size_t)nv);
+    float *size2x = malloc(sizeof(float) * ((size_t)b->vertices + 24));
     /* Every full-detail vertex is asked (the box's own lie on it). */
     uint32_t *order = malloc(sizeof(*order) * ((size_t)b->vertices + 1));
     struct by_size *tmp = malloc(sizeof(*tmp) * ((size_t)b->vertices + 1));
     uint32_t idx[36];
-    int err = TW_OK;
-    if (!x.pos || !x.nrm || !x.rgba || !size2x || !order || !tmp) {
-        err = TW_ERR_NOMEM;
+    size_t n = 0;
+    int err = size2x && order && tmp ? box_baked(b, box, &x, idx, &n) : TW_ERR_NOMEM;
+    if (err)
         goto out;
-    }
-    memcpy(x.pos, b->pos, sizeof(float) * 3 * (size_t)b->vertices);
-    memcpy(x.nrm, b->nrm, sizeof(float) * 3 * (size_t)b->vertices);
-    memcpy(x.rgba, b->rgba, 4 * (size_t)b->vertices);
     memcpy(size2x, size2, sizeof(float) * (size_t)b->vertices);
-    x.vertices = b->vertices;
+    for (uint32_t v = b->vertices; v < x.vertices; v++)
+        size2x[v] = 0.0f;
     for (uint32_t v = 0; v < b->vertices; v++)
         order[v] = v;
     sort_by_size(order, b->vertices, size2, tmp);
-    const float *lo = box->min, *hi = box->max;
-    size_t n = 0;
-    for (int a = 0; a < 3; a++) {
-        const int u = (a + 1) % 3, w = (a + 2) % 3;
-        if (!(hi[u] > lo[u]) || !(hi[w] > lo[w]))
-            continue;   /* a face of no area */
-        for (int side = 0; side < 2; side++) {
-            const uint32_t v0 = x.vertices;
-            /* Corners counter-clockwise seen from outside. */
-            const float su[4] = {0, 1, 1, 0}, sw[4] = {0, 0, 1, 1};
-            for (int k = 0; k < 4; k++) {
-                float *q = x.pos + 3 * (size_t)x.vertices;
-                float *nq = x.nrm + 3 * (size_t)x.vertices;
-                q[a] = side ? hi[a] : lo[a];
-                q[u] = su[side ? k : 3 - k] ? hi[u] : lo[u];
-                q[w] = sw[side ? k : 3 - k] ? hi[w] : lo[w];
-                nq[a] = side ? 1.0f : -1.0f;
-                nq[u] = nq[w] = 0.0f;
-                size2x[x.vertices] = 0.0f;
-                x.vertices++;
-            }
-            const uint32_t quad[6] = {v0, v0 + 1, v0 + 2, v0, v0 + 2, v0 + 3};
-            memcpy(idx + 3 * n, quad, sizeof(quad));
-            n += 2;
-        }
-    }
     if (n == 0 || tops == 0)
         goto out;   /* no box of any area: no level */
     /* The colour of least error. */
     uint32_t best = 0;
     *error = INFINITY;
     for (uint32_t k = 0; k < tops && !err; k++) {
-        for (uint32_t v = b->vertices; v < x.vertices; v++)
-            memcpy(x.rgba + 4 * (size_t)v, b->rgba + 4 * (size_t)top_vertex[k], 4);
+        box_colour(b, &x, top_vertex[k]);
         float e = 0.0f;
         err = measure_error(&x, size2x, &cl->adj, order, b->vertices, box, idx, n, at_least,
                             *error, NULL, &e);
@@ -1101,11 +1126,11 @@ static int add_box_level(struct tw_tileset *levels, uint32_t white, const char *
             best = k;
         }
     }
-    for (uint32_t v = b->vertices; v < x.vertices; v++)
-        memcpy(x.rgba + 4 * (size_t)v, b->rgba + 4 * (size_t)top_vertex[best], 4);
+    box_colour(b, &x, top_vertex[best]);
     if (!err)
         err = add_level(levels, white, name, &x, idx, n);
     *added = !err;
+    *colour = top_vertex[best];
 out:
     baked_free(&x);
     free(size2x);
@@ -1114,22 +1139,333 @@ out:
     return err;
 }
 
+/* ---- the store: a prototype's levels on disk ------------------------------------ */
+
+/* A prototype's levels as build_prototype made them, enough to make them
+ * again without the search: each level's error and what add_level was
+ * given (its triangles, in baked vertices; for a box, the vertex whose
+ * colour it took). Written after the head below, and a checksum of it
+ * after it; all numbers in this machine's byte order (the key has it). */
+enum { STORED_TRIANGLES = 0, STORED_BOX = 1 };
+
+struct stored_head {
+    char magic[24];
+    uint64_t key[2];
+    uint32_t vertices, triangles, count, body_words;
+};
+
+static const char stored_magic[24] = "tileworld-levels 1\n";
+
+struct record {
+    uint32_t *w;    /* per level: kind, error (a float's bits), n or colour, then 3 n indices */
+    size_t n, cap;
+    bool failed;    /* out of memory: nothing is stored */
+};
+
+static void record_put(struct record *r, const uint32_t *w, size_t n)
+{
+    if (r->failed)
+        return;
+    if (r->n + n > r->cap) {
+        size_t cap = r->cap ? 2 * r->cap : 4096;
+        while (cap < r->n + n)
+            cap *= 2;
+        uint32_t *grown = realloc(r->w, sizeof(*grown) * cap);
+        if (!grown) {
+            r->failed = true;
+            return;
+        }
+        r->w = grown;
+        r->cap = cap;
+    }
+    memcpy(r->w + r->n, w, sizeof(*w) * n);
+    r->n += n;
+}
+
+static void record_level(struct record *r, uint32_t kind, float error, uint32_t n,
+                         const uint32_t *idx)
+{
+    uint32_t head[3] = {kind, 0, n};
+    memcpy(&head[1], &error, sizeof(error));
+    record_put(r, head, 3);
+    if (kind == STORED_TRIANGLES)
+        record_put(r, idx, 3 * (size_t)n);
+}
+
+/* What the levels of baked prototype b with box box depend on, hashed two
+ * ways (FNV-1a, and a multiply-rotate over words): the levels' code (this
+ * file's text), meshoptimizer's version, and the content. */
+static void stored_key(const struct baked *b, const struct tw_box *box, uint64_t key[2])
+{
+    static const char source[] = TW_LOD_SOURCE_HASH;
+    const uint32_t version = MESHOPTIMIZER_VERSION;
+    const struct {
+        const void *p;
+        size_t n;
+    } parts[] = {
+        {source, sizeof(source)},
+        {&version, sizeof(version)},
+        {&b->vertices, sizeof(b->vertices)},
+        {&b->triangles, sizeof(b->triangles)},
+        {box, sizeof(*box)},
+        {b->pos, sizeof(float) * 3 * (size_t)b->vertices},
+        {b->nrm, sizeof(float) * 3 * (size_t)b->vertices},
+        {b->rgba, 4 * (size_t)b->vertices},
+        {b->idx, sizeof(uint32_t) * 3 * (size_t)b->triangles},
+    };
+    uint64_t h = TW_HASH_START, g = 0x9e3779b97f4a7c15ull;
+    for (size_t k = 0; k < sizeof(parts) / sizeof(parts[0]); k++) {
+        h = tw_hash_more(h, parts[k].p, parts[k].n);
+        const uint8_t *q = parts[k].p;
+        for (size_t i = 0; i < parts[k].n; i += 8) {
+            uint64_t w = 0;
+            memcpy(&w, q + i, parts[k].n - i < 8 ? parts[k].n - i : 8);
+            g ^= w;
+            g = ((g << 31) | (g >> 33)) * 0x9e3779b97f4a7c15ull;
+        }
+        g ^= parts[k].n;
+    }
+    key[0] = h;
+    key[1] = g;
+}
+
+static void stored_write(struct tw_file_cache *store, const uint64_t key[2], const struct baked *b,
+                         uint32_t count, const struct record *r)
+{
+    if (r->failed || r->n > UINT32_MAX - 2)
+        return;
+    struct stored_head head;
+    memset(&head, 0, sizeof(head));
+    memcpy(head.magic, stored_magic, sizeof(head.magic));
+    head.key[0] = key[0];
+    head.key[1] = key[1];
+    head.vertices = b->vertices;
+    head.triangles = b->triangles;
+    head.count = count;
+    head.body_words = (uint32_t)r->n;
+    /* The body and its checksum: what a reader trusts is what was written. */
+    struct record body = *r;
+    const uint64_t sum = tw_hash_more(TW_HASH_START, r->w, sizeof(uint32_t) * r->n);
+    uint32_t tail[2];
+    memcpy(tail, &sum, sizeof(sum));
+    body.w = NULL;
+    body.cap = 0;
+    body.n = 0;
+    record_put(&body, r->w, r->n);
+    record_put(&body, tail, 2);
+    if (!body.failed)
+        (void)tw_file_cache_put(store, key[0], &head, sizeof(head), body.w,
+                                sizeof(uint32_t) * body.n);
+    free(body.w);
+}
+
+/* The record stored for key and b, checked whole: its head, its checksum,
+ * every level's kind, error, size and indices; false if there is none or
+ * it does not hold. */
+static bool stored_read(struct tw_file_cache *store, const uint64_t key[2], const struct baked *b,
+                        struct record *r, uint32_t *count)
+{
+    FILE *f = tw_file_cache_get(store, key[0]);
+    if (!f)
+        return false;
+    struct stored_head head;
+    bool ok = fread(&head, sizeof(head), 1, f) == 1 &&
+              memcmp(head.magic, stored_magic, sizeof(head.magic)) == 0 &&
+              head.key[0] == key[0] && head.key[1] == key[1] && head.vertices == b->vertices &&
+              head.triangles == b->triangles && head.count <= TW_LOD_MAX_LEVELS &&
+              head.body_words <= 3 * (size_t)(TW_LOD_MAX_LEVELS) * (1 + (size_t)b->triangles);
+    if (ok) {
+        r->n = 0;
+        r->w = malloc(sizeof(uint32_t) * ((size_t)head.body_words + 2));
+        ok = r->w && fread(r->w, sizeof(uint32_t), (size_t)head.body_words + 2, f) ==
+                         (size_t)head.body_words + 2 && fgetc(f) == EOF;
+    }
+    fclose(f);
+    if (ok) {
+        r->n = head.body_words;
+        uint64_t sum;
+        memcpy(&sum, r->w + r->n, sizeof(sum));
+        ok = sum == tw_hash_more(TW_HASH_START, r->w, sizeof(uint32_t) * r->n);
+    }
+    /* Each level in turn, errors never smaller. */
+    size_t at = 0;
+    float last = 0.0f;
+    for (uint32_t k = 0; ok && k < head.count; k++) {
+        ok = at + 3 <= r->n;
+        if (!ok)
+            break;
+        const uint32_t kind = r->w[at], n = r->w[at + 2];
+        float error;
+        memcpy(&error, &r->w[at + 1], sizeof(error));
+        ok = isfinite(error) && error >= last &&
+             ((kind == STORED_BOX && n < b->vertices) ||
+              (kind == STORED_TRIANGLES && n > 0 && n <= b->triangles &&
+               at + 3 + 3 * (size_t)n <= r->n));
+        last = error;
+        at += 3;
+        if (ok && kind == STORED_TRIANGLES) {
+            for (size_t i = 0; i < 3 * (size_t)n && ok; i++)
+                ok = r->w[at + i] < b->vertices;
+            at += 3 * (size_t)n;
+        }
+    }
+    ok = ok && at == r->n;
+    if (ok) {
+        *count = head.count;
+        tw_file_cache_touch(store, key[0]);
+    } else {
+        free(r->w);
+        memset(r, 0, sizeof(*r));
+    }
+    return ok;
+}
+
+/* The levels of record r (stored_read's, count of them) added to levels as
+ * build_prototype adds them; their errors into errors, their number into
+ * *added. */
+static int stored_replay(const struct record *r, uint32_t count, const struct baked *b,
+                         const struct tw_box *box, const char *proto_name, struct tw_tileset *levels,
+                         uint32_t white, float *errors, uint32_t *added)
+{
+    *added = 0;
+    uint32_t *idx = malloc(sizeof(uint32_t) * (3 * (size_t)b->triangles + 1));
+    if (!idx)
+        return TW_ERR_NOMEM;
+    int err = TW_OK;
+    size_t at = 0;
+    for (uint32_t k = 0; k < count && !err; k++) {
+        const uint32_t kind = r->w[at], n = r->w[at + 2];
+        float error;
+        memcpy(&error, &r->w[at + 1], sizeof(error));
+        at += 3;
+        char name[56];
+        snprintf(name, sizeof(name), "%.36s/lod%u", proto_name, k + 1);
+        if (kind == STORED_TRIANGLES) {
+            memcpy(idx, r->w + at, sizeof(uint32_t) * 3 * (size_t)n);
+            at += 3 * (size_t)n;
+            err = add_level(levels, white, name, b, idx, n);
+        } else {
+            struct baked x;
+            uint32_t bidx[36];
+            size_t bn = 0;
+            err = box_baked(b, box, &x, bidx, &bn);
+            if (!err) {
+                box_colour(b, &x, n);
+                err = add_level(levels, white, name, &x, bidx, bn);
+            }
+            baked_free(&x);
+        }
+        if (err == TW_ERR_INVALID || err == TW_ERR_LIMIT) {
+            err = TW_OK;    /* refused, as when built: the prototype stops at the last */
+            break;
+        }
+        if (!err)
+            errors[(*added)++] = error;
+    }
+    free(idx);
+    return err;
+}
+
+/* The stores opened, one a folder, kept until the process ends. */
+struct store_entry {
+    struct store_entry *next;
+    struct tw_file_cache *cache;
+    char dir[];
+};
+static pthread_mutex_t stores_lock = PTHREAD_MUTEX_INITIALIZER;
+static struct store_entry *stores;
+
+/* Makes dir and the folders above it that are missing. */
+static int make_folders(const char *dir, char *err, size_t err_size)
+{
+    char path[4096];
+    if (snprintf(path, sizeof(path), "%s", dir) >= (int)sizeof(path)) {
+        snprintf(err, err_size, "the cache folder %.200s... is too long a path", dir);
+        return TW_ERR_INVALID;
+    }
+    for (char *q = path + 1; *q; q++) {
+        if (*q != '/')
+            continue;
+        *q = '\0';
+        if (mkdir(path, 0777) != 0 && errno != EEXIST) {
+            snprintf(err, err_size, "the cache folder %s cannot be made: %s", path, strerror(errno));
+            return TW_ERR_IO;
+        }
+        *q = '/';
+    }
+    return TW_OK;
+}
+
+int tw_lods_store(const char *dir, uint64_t max_bytes, struct tw_file_cache **out, char *err,
+                  size_t err_size)
+{
+    *out = NULL;
+    if (!dir || !dir[0]) {
+        snprintf(err, err_size, "no cache folder");
+        return TW_ERR_INVALID;
+    }
+    pthread_mutex_lock(&stores_lock);
+    struct store_entry *e = stores;
+    while (e && strcmp(e->dir, dir) != 0)
+        e = e->next;
+    int rc = TW_OK;
+    if (!e) {
+        const size_t len = strlen(dir) + 1;
+        e = calloc(1, sizeof(*e) + len);
+        rc = e ? make_folders(dir, err, err_size) : TW_ERR_NOMEM;
+        if (!rc)
+            rc = tw_file_cache_open(dir, "levels", max_bytes ? max_bytes : TW_LODS_STORE_BYTES,
+                                    &e->cache, err, err_size);
+        if (rc) {
+            if (rc == TW_ERR_NOMEM)
+                snprintf(err, err_size, "%s", tw_error_to_str(rc));
+            free(e);
+            e = NULL;
+        } else {
+            memcpy(e->dir, dir, len);
+            e->next = stores;
+            stores = e;
+        }
+    }
+    pthread_mutex_unlock(&stores_lock);
+    if (e)
+        *out = e->cache;
+    return rc;
+}
+
 /* The targets of the levels: from 2^-TARGET_STEPS of the prototype's
  * extent, doubling, up to the extent. */
 #define TARGET_STEPS 10
 
 /* The levels of prototype p of ts, added to levels: their number into
  * *count and their errors (metres) into errors. */
-static int build_prototype(const struct tw_tileset *ts, uint32_t p, const atomic_bool *stop,
-                           struct tw_tileset *levels, uint32_t white, float *errors,
-                           uint32_t *count)
+static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_file_cache *store,
+                           const atomic_bool *stop, struct tw_tileset *levels, uint32_t white,
+                           float *errors, uint32_t *count, bool *from_store)
 {
     *count = 0;
+    *from_store = false;
     struct baked b;
     int err = bake(ts, p, &b);
     if (err || b.triangles < 2 * LOD_MIN_TRIANGLES) {
         baked_free(&b);
         return err;
+    }
+    /* What is built is recorded for the store, what it holds is made
+     * again from it. */
+    uint64_t key[2] = {0, 0};
+    struct record rec = {0};
+    if (store) {
+        stored_key(&b, &ts->prototypes[p].box, key);
+        uint32_t n = 0;
+        if (stored_read(store, key, &b, &rec, &n)) {
+            err = stored_replay(&rec, n, &b, &ts->prototypes[p].box, ts->prototypes[p].name,
+                                levels, white, errors, count);
+            *from_store = err == TW_OK;
+            free(rec.w);
+            baked_free(&b);
+            return err;
+        }
     }
     struct welded w;
     struct classes cl = {0};
@@ -1199,7 +1535,11 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, const atomic
         unweld(&b, &w, cur, total, idx);
         char name[48];
         snprintf(name, sizeof(name), "%.36s/lod%u", ts->prototypes[p].name, *count + 1);
+        const size_t mark = rec.n;
+        record_level(&rec, STORED_TRIANGLES, error, (uint32_t)total, idx);
         err = add_level(levels, white, name, &b, idx, total);
+        if (err)
+            rec.n = mark;
         if (err == TW_ERR_INVALID || err == TW_ERR_LIMIT) {
             err = TW_OK;    /* a level the tileset refuses: the prototype stops at the last */
             break;
@@ -1220,14 +1560,20 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, const atomic
         const float last = *count > 0 ? errors[*count - 1] : 0.0f;
         float error = 0.0f;
         bool added = false;
+        uint32_t colour = 0;
         err = add_box_level(levels, white, name, &b, &cl, size2, &full, &ts->prototypes[p].box,
-                            last, &error, &added);
-        if (err == TW_ERR_INVALID || err == TW_ERR_LIMIT)
+                            last, &error, &added, &colour);
+        if (err == TW_ERR_INVALID || err == TW_ERR_LIMIT) {
             err = TW_OK;    /* refused: the prototype stops at the last */
-        else if (added)
+        } else if (added) {
             errors[(*count)++] = fmaxf(error, last);
+            record_level(&rec, STORED_BOX, errors[*count - 1], colour, NULL);
+        }
     }
+    if (!err && store)
+        stored_write(store, key, &b, *count, &rec);
 out:
+    free(rec.w);
     grid_free(&full);
     free(size2);
     free(cur);
@@ -1243,7 +1589,7 @@ out:
 }
 
 int tw_lods_build(const struct tw_tileset *ts, uint32_t max_cluster_triangles,
-                  const atomic_bool *stop, struct tw_lods *out)
+                  struct tw_file_cache *store, const atomic_bool *stop, struct tw_lods *out)
 {
     memset(out, 0, sizeof(*out));
     if (!ts || !ts->finished)
@@ -1263,9 +1609,11 @@ int tw_lods_build(const struct tw_tileset *ts, uint32_t max_cluster_triangles,
     uint32_t total = 0;
     for (uint32_t p = 0; p < np && !err; p++) {
         out->first[p] = total;
-        err = build_prototype(ts, p, stop, levels, (uint32_t)white, out->error + total,
-                              &out->count[p]);
+        bool from_store = false;
+        err = build_prototype(ts, p, store, stop, levels, (uint32_t)white, out->error + total,
+                              &out->count[p], &from_store);
         total += out->count[p];
+        out->stored += from_store;
     }
     if (!err && total > 0) {
         levels->merge_triangles = 1;   /* one instance each: nothing to merge */
@@ -1301,7 +1649,8 @@ struct tw_lods_cache {
 /* Guards the tilesets' slots while a cache is made. */
 static pthread_mutex_t slots_lock = PTHREAD_MUTEX_INITIALIZER;
 
-int tw_lods_of_tileset(const struct tw_tileset *ts, const struct tw_lods **out)
+int tw_lods_of_tileset(const struct tw_tileset *ts, struct tw_file_cache *store,
+                       const struct tw_lods **out)
 {
     *out = NULL;
     if (!ts || !ts->finished)
@@ -1317,7 +1666,7 @@ int tw_lods_of_tileset(const struct tw_tileset *ts, const struct tw_lods **out)
     pthread_mutex_lock(&c->lock);
     int err = TW_OK;
     if (!c->built) {
-        err = tw_lods_build(ts, ts->max_cluster_triangles, NULL, &c->lods);
+        err = tw_lods_build(ts, ts->max_cluster_triangles, store, NULL, &c->lods);
         c->built = err == TW_OK;
     }
     pthread_mutex_unlock(&c->lock);

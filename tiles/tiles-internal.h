@@ -17,6 +17,13 @@
 
 #include "tileworld/tiles.h"
 
+/* ---- hashing ------------------------------------------------------------ */
+
+/* FNV-1a: h for n more bytes at p; from TW_HASH_START. */
+#define TW_HASH_START 0xcbf29ce484222325ull
+uint64_t tw_hash_more(uint64_t h, const void *p, uint64_t n);
+uint64_t tw_hash_bytes(const uint8_t *p, uint64_t n);
+
 /* ---- logging ------------------------------------------------------------ */
 
 /* Formats a message and hands it to the logger (no-op for a zeroed one). */
@@ -145,7 +152,24 @@ struct tw_lods {
     uint32_t *first;            /* per source prototype */
     uint32_t *count;            /* per source prototype: its levels, 0 .. TW_LOD_MAX_LEVELS */
     float *error;               /* per level */
+    uint32_t stored;            /* prototypes whose levels were read from the store */
 };
+
+/* The levels' store: an on-disk cache of what tw_lods_build() makes of a
+ * prototype, keyed by the prototype's content (its baked geometry and box),
+ * by lod.c's source text and by meshoptimizer's version, so that a second
+ * process, or a tile made again, reads its levels back in milliseconds
+ * instead of building them in seconds; read back, they are the same levels,
+ * byte for byte (README "Levels of detail"). The store of folder dir
+ * (made if missing, its parents too), its files together at most max_bytes
+ * (0: TW_LODS_STORE_BYTES), opened once per folder and kept until the
+ * process ends (a worker left behind may still use it; the first opener's
+ * max_bytes holds). TW_ERR_IO with a sentence in err where the folder
+ * cannot be made. */
+#define TW_LODS_STORE_BYTES (1ull << 30)
+struct tw_file_cache;
+int tw_lods_store(const char *dir, uint64_t max_bytes, struct tw_file_cache **out, char *err,
+                  size_t err_size);
 
 /* Builds the levels of ts (finished), their clusters of at most
  * max_cluster_triangles. Zeroes *out first; on an error (memory, or ts
@@ -154,16 +178,20 @@ struct tw_lods {
  * prototype's levels, or leaves the tileset without levels: not an error.
  * Where stop (may be NULL) is set, it gives up soon after, with
  * TW_ERR_STATE (a tile's worker at the world's destroy: seconds of work
- * nobody will use). */
+ * nobody will use). With a store (may be NULL; tw_lods_store()), each
+ * prototype's levels are read from it where it holds them, and written to
+ * it where they are built; a store that cannot be read or written only
+ * costs the build. */
 int tw_lods_build(const struct tw_tileset *ts, uint32_t max_cluster_triangles,
-                  const atomic_bool *stop, struct tw_lods *out);
+                  struct tw_file_cache *store, const atomic_bool *stop, struct tw_lods *out);
 /* The levels of ts (finished) as tw_lods_build(ts, ts->max_cluster_triangles,
- * NULL, ...) makes them, built by the first call and kept with ts until
+ * store, NULL, ...) makes them, built by the first call (its store) and kept with ts until
  * tw_tileset_destroy(): the worlds over one tileset share one build (a
  * city's takes seconds). Safe to call from several threads at once; the
  * result is read-only. A failed build is not kept: the next call tries
  * again. */
-int tw_lods_of_tileset(const struct tw_tileset *ts, const struct tw_lods **out);
+int tw_lods_of_tileset(const struct tw_tileset *ts, struct tw_file_cache *store,
+                       const struct tw_lods **out);
 struct tw_lods_cache;
 /* For tileset.c: where ts keeps its levels, and how they go. */
 struct tw_lods_cache **tw_tileset_lods_slot(const struct tw_tileset *ts);

@@ -176,6 +176,19 @@ bool tw_box_is_empty(const struct tw_box *b)
     return b->min[0] > b->max[0] || b->min[1] > b->max[1] || b->min[2] > b->max[2];
 }
 
+uint64_t tw_hash_more(uint64_t h, const void *p, uint64_t n)
+{
+    const uint8_t *b = p;
+    for (uint64_t k = 0; k < n; k++)
+        h = (h ^ b[k]) * 0x100000001b3ull;
+    return h;
+}
+
+uint64_t tw_hash_bytes(const uint8_t *p, uint64_t n)
+{
+    return tw_hash_more(TW_HASH_START, p, n);
+}
+
 void tw_box_add_point(struct tw_box *b, const float p[3])
 {
     for (int k = 0; k < 3; k++) {

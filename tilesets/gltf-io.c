@@ -249,14 +249,6 @@ void tw_gltf_shared_finish(struct tw_gltf_shared *shared)
     shared->images = NULL;
 }
 
-uint64_t tw_hash_bytes(const uint8_t *p, uint64_t n)
-{
-    uint64_t h = 0xcbf29ce484222325ull;
-    for (uint64_t k = 0; k < n; k++)
-        h = (h ^ p[k]) * 0x100000001b3ull;
-    return h;
-}
-
 static uint64_t hash_words(const uint64_t *w, int n, uint64_t h)
 {
     for (int k = 0; k < n; k++) {

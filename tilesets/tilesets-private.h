@@ -305,9 +305,6 @@ int tw_gltf_import_fd(int fd, int dir_fd, const char *name,
 void tw_gltf_placement(const float position[3], float yaw_degrees, float scale,
                        float out[12]);
 
-/* FNV-1a over n bytes (gltf-io.c). */
-uint64_t tw_hash_bytes(const uint8_t *p, uint64_t n);
-
 /* ---- implicit tiling's indices (tiles3d-provider.c; the bake's writer uses them) ---- */
 
 /* The number of tiles of a quadtree's levels [0, levels): (4^levels - 1) / 3. */

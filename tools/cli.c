@@ -484,6 +484,22 @@ void tw_cli_init(struct tw_cli *c, const char *program)
     c->world.method = TW_METHOD_TILEQUERY_CHC;
     c->world.view_distance = 600.0f;
     c->world.max_screen_error = 1.0f;
+    c->world.levels_cache_dir = tw_cli_levels_cache();
+}
+
+const char *tw_cli_levels_cache(void)
+{
+    static char dir[4096];
+    const char *env = getenv("TW_LEVELS_CACHE");
+    if (env)
+        return env[0] && strcmp(env, "off") != 0 ? env : NULL;
+    const char *xdg = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
+    int n = -1;
+    if (xdg && xdg[0] == '/')
+        n = snprintf(dir, sizeof(dir), "%s/tileworld/levels", xdg);
+    else if (home && home[0] == '/')
+        n = snprintf(dir, sizeof(dir), "%s/.cache/tileworld/levels", home);
+    return n > 0 && (size_t)n < sizeof(dir) ? dir : NULL;
 }
 
 /* Applies a shared option; false for a program's own. */

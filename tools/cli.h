@@ -114,6 +114,11 @@ bool tw_cli_given(const struct tw_cli *c, int opt);
  * 600 m; the program sets its own size and path. Calls
  * tw_cli_catch_crashes(program) first. */
 void tw_cli_init(struct tw_cli *c, const char *program);
+/* Where the programs keep the levels of detail (tw_world_settings.
+ * levels_cache_dir): the environment's TW_LEVELS_CACHE ("" or "off":
+ * nowhere), else $XDG_CACHE_HOME/tileworld/levels, else
+ * $HOME/.cache/tileworld/levels; NULL: nowhere. */
+const char *tw_cli_levels_cache(void);
 
 /* Makes a crash (SIGSEGV, SIGBUS) end with one line on stderr before the
  * program dies of it: "PROGRAM: crashed (SIGSEGV) under an address-space

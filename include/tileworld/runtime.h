@@ -223,6 +223,16 @@ struct tw_world_settings {
                                           projects to at most this many pixels; default (0)
                                           1; TW_FULL_DETAIL (negative): full detail always,
                                           and no levels are built */
+    const char *levels_cache_dir;      /* levels of detail kept in this folder (made if
+                                          missing), keyed by the content they are made of,
+                                          and read back by later worlds and processes
+                                          instead of built again: the same levels, in
+                                          milliseconds (README "Levels of detail");
+                                          NULL: none */
+    uint64_t levels_cache_bytes;       /* the folder's files together, the least recently
+                                          used going beyond it; default (0) 1 GiB; the
+                                          first world of a process to name a folder sets
+                                          it */
     uint32_t evict_after_frames;       /* tile cache; default 60 */
     bool verify;                       /* run the oracle's ID pass every frame (untimed) and
                                           count what the method missed (missed_pixels) */

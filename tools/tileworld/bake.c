@@ -528,7 +528,7 @@ static void bake_block(struct bake *b, uint64_t k)
     }
     rc = tw_tileset_finish(ts, BLOCK_CLUSTER_TRIANGLES);
     if (!rc)
-        rc = tw_lods_build(ts, BLOCK_CLUSTER_TRIANGLES, NULL, &lods);
+        rc = tw_lods_build(ts, BLOCK_CLUSTER_TRIANGLES, NULL, NULL, &lods);
     if (rc) {
         fail_run(b, "%s: cannot simplify the block: %s", path, tw_error_to_str(rc));
         goto out;

@@ -808,7 +808,12 @@ static int info(const struct options *o)
         /* The tileset's own: --calibrate's world shares them. */
         const struct tw_lods *lods = NULL;
         const double t0 = tw_clock_monotonic_ms();
-        err = tw_lods_of_tileset(ts, &lods);
+        struct tw_file_cache *store = NULL;
+        char why[320];
+        if (o->cli.world.levels_cache_dir &&
+            tw_lods_store(o->cli.world.levels_cache_dir, 0, &store, why, sizeof(why)) != TW_OK)
+            fprintf(stderr, "tileworld: levels of detail are built, not kept on disk: %s\n", why);
+        err = tw_lods_of_tileset(ts, store, &lods);
         const double ms = tw_clock_monotonic_ms() - t0;
         if (err) {
             fprintf(stderr, "tileworld: cannot build the levels of detail: %s\n",
@@ -816,9 +821,12 @@ static int info(const struct options *o)
             tw_tileset_destroy(ts);
             return 1;
         }
-        printf("levels of detail (built in %.0f ms, %llu bytes with their geometry): triangles "
-               "(geometric error, m) of each level, full detail first\n", ms,
-               (unsigned long long)tw_lods_bytes(lods));
+        printf("levels of detail (%s in %.0f ms, %llu bytes with their geometry): triangles "
+               "(geometric error, m) of each level, full detail first\n",
+               lods->stored == 0                      ? "built"
+               : lods->stored == ts->prototype_count ? "read from the levels cache"
+                                                      : "built or read from the levels cache",
+               ms, (unsigned long long)tw_lods_bytes(lods));
         for (uint32_t p = 0; p < ts->prototype_count; p++) {
             printf("%-16s %llu", tw_cli_escape(ts->prototypes[p].name, name, sizeof(name)),
                    (unsigned long long)ts->prototypes[p].triangle_count);
