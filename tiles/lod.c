@@ -1144,14 +1144,15 @@ out:
 /* A prototype's levels as build_prototype made them, enough to make them
  * again without the search: each level's error and what add_level was
  * given (its triangles, in baked vertices; for a box, the vertex whose
- * colour it took). Written after the head below, and a checksum of it
- * after it; all numbers in this machine's byte order (the key has it). */
+ * colour it took). Written after the head below, which holds its checksum;
+ * all numbers in this machine's byte order (the key has it). */
 enum { STORED_TRIANGLES = 0, STORED_BOX = 1 };
 
 struct stored_head {
     char magic[24];
     uint64_t key[2];
     uint32_t vertices, triangles, count, body_words;
+    uint64_t sum;   /* FNV-1a of the body: what a reader trusts is what was written */
 };
 
 static const char stored_magic[24] = "tileworld-levels 1\n";
@@ -1232,7 +1233,7 @@ static void stored_key(const struct baked *b, const struct tw_box *box, uint64_t
 static void stored_write(struct tw_file_cache *store, const uint64_t key[2], const struct baked *b,
                          uint32_t count, const struct record *r)
 {
-    if (r->failed || r->n > UINT32_MAX - 2)
+    if (r->failed || r->n > UINT32_MAX)
         return;
     struct stored_head head;
     memset(&head, 0, sizeof(head));
@@ -1243,20 +1244,8 @@ static void stored_write(struct tw_file_cache *store, const uint64_t key[2], con
     head.triangles = b->triangles;
     head.count = count;
     head.body_words = (uint32_t)r->n;
-    /* The body and its checksum: what a reader trusts is what was written. */
-    struct record body = *r;
-    const uint64_t sum = tw_hash_more(TW_HASH_START, r->w, sizeof(uint32_t) * r->n);
-    uint32_t tail[2];
-    memcpy(tail, &sum, sizeof(sum));
-    body.w = NULL;
-    body.cap = 0;
-    body.n = 0;
-    record_put(&body, r->w, r->n);
-    record_put(&body, tail, 2);
-    if (!body.failed)
-        (void)tw_file_cache_put(store, key[0], &head, sizeof(head), body.w,
-                                sizeof(uint32_t) * body.n);
-    free(body.w);
+    head.sum = tw_hash_more(TW_HASH_START, r->w, sizeof(uint32_t) * r->n);
+    (void)tw_file_cache_put(store, key[0], &head, sizeof(head), r->w, sizeof(uint32_t) * r->n);
 }
 
 /* The record stored for key and b, checked whole: its head, its checksum,
@@ -1275,17 +1264,14 @@ static bool stored_read(struct tw_file_cache *store, const uint64_t key[2], cons
               head.triangles == b->triangles && head.count <= TW_LOD_MAX_LEVELS &&
               head.body_words <= 3 * (size_t)(TW_LOD_MAX_LEVELS) * (1 + (size_t)b->triangles);
     if (ok) {
-        r->n = 0;
-        r->w = malloc(sizeof(uint32_t) * ((size_t)head.body_words + 2));
-        ok = r->w && fread(r->w, sizeof(uint32_t), (size_t)head.body_words + 2, f) ==
-                         (size_t)head.body_words + 2 && fgetc(f) == EOF;
+        r->w = malloc(sizeof(uint32_t) * ((size_t)head.body_words + 1));
+        ok = r->w && fread(r->w, sizeof(uint32_t), head.body_words, f) == head.body_words &&
+             fgetc(f) == EOF;
     }
     fclose(f);
     if (ok) {
         r->n = head.body_words;
-        uint64_t sum;
-        memcpy(&sum, r->w + r->n, sizeof(sum));
-        ok = sum == tw_hash_more(TW_HASH_START, r->w, sizeof(uint32_t) * r->n);
+        ok = head.sum == tw_hash_more(TW_HASH_START, r->w, sizeof(uint32_t) * r->n);
     }
     /* Each level in turn, errors never smaller. */
     size_t at = 0;
