@@ -4,6 +4,7 @@
  * detail, generated tiles too, and full detail when asked for. */
 #include <dirent.h>
 #include <stdio.h>
+#include <sys/stat.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -17,6 +18,37 @@ enum { W = 320, H = 180 };
 static const struct tw_camera high = {{{0, 0}, {20.0f, 120.0f, 20.0f}}, 35.0f, -8.0f};
 /* At eye height down a street. */
 static const struct tw_camera street = {{{0, 0}, {0.0f, 1.7f, 2.0f}}, 10.0f, 3.0f};
+
+/* A file of a levels store: its name, inode and time of last use. */
+enum { MAX_STORED = 1024 };
+struct stored {
+    char name[64];
+    unsigned long long inode;
+    long long mtime_ns;
+};
+
+/* The files of levels in dir, at most max of them into out; their number. */
+static int stored_files(const char *dir, struct stored *out, int max)
+{
+    DIR *d = opendir(dir);
+    int n = 0;
+    for (const struct dirent *e; d && (e = readdir(d));) {
+        if (e->d_name[0] == '.' || !strstr(e->d_name, ".levels"))
+            continue;
+        char path[512];
+        struct stat st;
+        snprintf(path, sizeof(path), "%s/%s", dir, e->d_name);
+        if (n < max && stat(path, &st) == 0) {
+            snprintf(out[n].name, sizeof(out[n].name), "%.63s", e->d_name);
+            out[n].inode = (unsigned long long)st.st_ino;
+            out[n].mtime_ns = (long long)st.st_mtim.tv_sec * 1000000000ll + st.st_mtim.tv_nsec;
+        }
+        n++;
+    }
+    if (d)
+        closedir(d);
+    return n;
+}
 
 /* Where the worlds keep their levels: the test run's store, unless set. */
 static const char *store_dir;
@@ -142,13 +174,9 @@ int main(void)
     CHECK(mkdtemp(root) != NULL);
     store_dir = root;
     triangles_of(ctx, NULL, tw_tilesets_provider_get(gen), &high, 1.0f, &gen_lod);
-    int files = 0;
-    DIR *d = opendir(root);
-    for (const struct dirent *e; d && (e = readdir(d));)
-        files += strstr(e->d_name, ".levels") != NULL && e->d_name[0] != '.';
-    if (d)
-        closedir(d);
-    CHECK_MSG(files > 0, "the world kept no levels in %s", root);
+    static struct stored before[MAX_STORED];
+    const int files = stored_files(root, before, MAX_STORED);
+    CHECK_MSG(files > 0 && files <= MAX_STORED, "the world kept %d files of levels in %s", files, root);
     CHECK_MSG(gen_lod > 0 && gen_lod < gen_full, "city-gen triangles: full %llu, 1 px %llu",
               (unsigned long long)gen_full, (unsigned long long)gen_lod);
     struct tw_world *w = make_world(ctx, NULL, tw_tilesets_provider_get(gen), 1.0f, true);
@@ -160,11 +188,22 @@ int main(void)
                   (unsigned long long)st.missed_pixels);
     }
     tw_world_destroy(w);
-    /* Read back: the same triangles. */
+    /* Read back: the same triangles, and the files read (a read marks
+     * its file used now), not written again (a write replaces the file). */
     uint64_t again = 0;
     triangles_of(ctx, NULL, tw_tilesets_provider_get(gen), &high, 1.0f, &again);
     CHECK_MSG(again == gen_lod, "city-gen triangles read back %llu, built %llu",
               (unsigned long long)again, (unsigned long long)gen_lod);
+    static struct stored after[MAX_STORED];
+    CHECK(stored_files(root, after, MAX_STORED) == files);
+    int kept = 0, read = 0;
+    for (int i = 0; i < files && i < MAX_STORED; i++)
+        for (int k = 0; k < files && k < MAX_STORED; k++)
+            if (strcmp(before[i].name, after[k].name) == 0) {
+                kept += before[i].inode == after[k].inode;
+                read += after[k].mtime_ns > before[i].mtime_ns;
+            }
+    CHECK_MSG(kept == files && read > 0, "of %d files, %d kept, %d read back", files, kept, read);
     store_dir = NULL;
     char cmd[200];
     snprintf(cmd, sizeof(cmd), "rm -rf '%s'", root);

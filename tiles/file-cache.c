@@ -109,12 +109,25 @@ int tw_file_cache_open(const char *dir, const char *suffix, uint64_t max_bytes,
     snprintf(c->suffix, sizeof(c->suffix), ".%s", suffix);
     c->max_bytes = max_bytes;
     pthread_mutex_init(&c->lock, NULL);
-    struct stat st;
-    if (mkdir(c->dir, 0777) != 0 && errno != EEXIST) {
-        snprintf(err, err_size, "the cache folder %s cannot be made: %s", c->dir, strerror(errno));
-        tw_file_cache_close(c);
-        return TW_ERR_IO;
+    /* The folder and those above it that are missing. */
+    for (char *q = c->dir + 1;; q++) {
+        if (*q != '/' && *q != '\0')
+            continue;
+        const char end = *q;
+        *q = '\0';
+        const bool made = mkdir(c->dir, 0777) == 0 || errno == EEXIST;
+        if (!made)
+            snprintf(err, err_size, "the cache folder %s cannot be made: %s", c->dir,
+                     strerror(errno));
+        *q = end;
+        if (!made) {
+            tw_file_cache_close(c);
+            return TW_ERR_IO;
+        }
+        if (end == '\0')
+            break;
     }
+    struct stat st;
     if (stat(c->dir, &st) != 0 || !S_ISDIR(st.st_mode)) {
         snprintf(err, err_size, "the cache folder %s is not a folder", c->dir);
         tw_file_cache_close(c);

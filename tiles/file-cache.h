@@ -16,7 +16,7 @@
 
 struct tw_file_cache;
 
-/* A cache in dir (copied; made if missing, not its parents), its files
+/* A cache in dir (copied; made if missing, with its parents), its files
  * named KEY.suffix (suffix copied, up to 7 characters), at most max_bytes
  * together (> 0). Fails with TW_ERR_IO and a sentence in err for a folder
  * that cannot be made or is not one; TW_ERR_INVALID for bad arguments. */

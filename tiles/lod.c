@@ -4,7 +4,6 @@
 #include "tiles/tiles-internal.h"
 #include "tileworld/tiles.h"
 
-#include <errno.h>
 #include <float.h>
 #include <math.h>
 #include <meshoptimizer.h>
@@ -12,7 +11,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 #include "lod-source-hash.h"
 #include "tiles/file-cache.h"
@@ -1139,6 +1137,12 @@ out:
     return err;
 }
 
+/* The name of level k (1, 2, ...) of prototype proto_name. */
+static void level_name(char name[48], const char *proto_name, uint32_t k)
+{
+    snprintf(name, 48, "%.36s/lod%u", proto_name, k % 100000u);
+}
+
 /* ---- the store: a prototype's levels on disk ------------------------------------ */
 
 /* A prototype's levels as build_prototype made them, enough to make them
@@ -1324,8 +1328,8 @@ static int stored_replay(const struct record *r, uint32_t count, const struct ba
         float error;
         memcpy(&error, &r->w[at + 1], sizeof(error));
         at += 3;
-        char name[56];
-        snprintf(name, sizeof(name), "%.36s/lod%u", proto_name, k + 1);
+        char name[48];
+        level_name(name, proto_name, k + 1);
         if (kind == STORED_TRIANGLES) {
             memcpy(idx, r->w + at, sizeof(uint32_t) * 3 * (size_t)n);
             at += 3 * (size_t)n;
@@ -1361,27 +1365,6 @@ struct store_entry {
 static pthread_mutex_t stores_lock = PTHREAD_MUTEX_INITIALIZER;
 static struct store_entry *stores;
 
-/* Makes dir and the folders above it that are missing. */
-static int make_folders(const char *dir, char *err, size_t err_size)
-{
-    char path[4096];
-    if (snprintf(path, sizeof(path), "%s", dir) >= (int)sizeof(path)) {
-        snprintf(err, err_size, "the cache folder %.200s... is too long a path", dir);
-        return TW_ERR_INVALID;
-    }
-    for (char *q = path + 1; *q; q++) {
-        if (*q != '/')
-            continue;
-        *q = '\0';
-        if (mkdir(path, 0777) != 0 && errno != EEXIST) {
-            snprintf(err, err_size, "the cache folder %s cannot be made: %s", path, strerror(errno));
-            return TW_ERR_IO;
-        }
-        *q = '/';
-    }
-    return TW_OK;
-}
-
 int tw_lods_store(const char *dir, uint64_t max_bytes, struct tw_file_cache **out, char *err,
                   size_t err_size)
 {
@@ -1398,13 +1381,14 @@ int tw_lods_store(const char *dir, uint64_t max_bytes, struct tw_file_cache **ou
     if (!e) {
         const size_t len = strlen(dir) + 1;
         e = calloc(1, sizeof(*e) + len);
-        rc = e ? make_folders(dir, err, err_size) : TW_ERR_NOMEM;
-        if (!rc)
+        if (!e) {
+            rc = TW_ERR_NOMEM;
+            snprintf(err, err_size, "%s", tw_error_to_str(rc));
+        } else {
             rc = tw_file_cache_open(dir, "levels", max_bytes ? max_bytes : TW_LODS_STORE_BYTES,
                                     &e->cache, err, err_size);
+        }
         if (rc) {
-            if (rc == TW_ERR_NOMEM)
-                snprintf(err, err_size, "%s", tw_error_to_str(rc));
             free(e);
             e = NULL;
         } else {
@@ -1520,7 +1504,7 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_fi
             error = errors[*count - 1];   /* a coarser level is never called more exact */
         unweld(&b, &w, cur, total, idx);
         char name[48];
-        snprintf(name, sizeof(name), "%.36s/lod%u", ts->prototypes[p].name, *count + 1);
+        level_name(name, ts->prototypes[p].name, *count + 1);
         const size_t mark = rec.n;
         record_level(&rec, STORED_TRIANGLES, error, (uint32_t)total, idx);
         err = add_level(levels, white, name, &b, idx, total);
@@ -1542,7 +1526,7 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_fi
      * levels: far enough away, a cell of a block is drawn as one. */
     if (!err && *count < TW_LOD_MAX_LEVELS && previous >= 2 * BOX_TRIANGLES) {
         char name[48];
-        snprintf(name, sizeof(name), "%.36s/lod%u", ts->prototypes[p].name, *count + 1);
+        level_name(name, ts->prototypes[p].name, *count + 1);
         const float last = *count > 0 ? errors[*count - 1] : 0.0f;
         float error = 0.0f;
         bool added = false;

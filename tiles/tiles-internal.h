@@ -161,7 +161,7 @@ struct tw_lods {
  * process, or a tile made again, reads its levels back in milliseconds
  * instead of building them in seconds; read back, they are the same levels,
  * byte for byte (README "Levels of detail"). The store of folder dir
- * (made if missing, its parents too), its files together at most max_bytes
+ * (made if missing, its parents too: tw_file_cache_open()), its files together at most max_bytes
  * (0: TW_LODS_STORE_BYTES), opened once per folder and kept until the
  * process ends (a worker left behind may still use it; the first opener's
  * max_bytes holds). TW_ERR_IO with a sentence in err where the folder

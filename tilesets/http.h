@@ -26,7 +26,7 @@
 struct tw_http;
 
 /* A fetcher with settings (resolved: no zero defaults left); cache_dir is
- * copied (NULL or "": no cache) and made if missing. Fails with
+ * copied (NULL or "": no cache) and made if missing, with its parents. Fails with
  * TW_ERR_IO and err for a cache folder that cannot be made. */
 int tw_http_create(const struct tw_tiles3d_settings *settings, struct tw_http **out, char *err,
                    size_t err_size);

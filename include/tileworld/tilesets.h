@@ -282,7 +282,7 @@ void tw_tilesets_provider_destroy(struct tw_tilesets_provider *p);
  * the defaults of tw_tiles3d_default_settings(). */
 struct tw_tiles3d_settings {
     const char *cache_dir;          /* an on-disk cache of bodies with their ETag, made if
-                                       missing (copied at creation); NULL: none */
+                                       missing, with its parents (copied at creation); NULL: none */
     uint64_t cache_max_bytes;       /* the cache's files together; beyond it the oldest go;
                                        default 1 GiB */
     uint32_t connect_timeout_ms;    /* a connection's setup; default 5000 */
