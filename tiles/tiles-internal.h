@@ -130,27 +130,25 @@ void tw_tileset_bake(const struct tw_tileset *ts, uint32_t p, const uint32_t *li
 
 /* ---- levels of detail (DESIGN §17) ---------------------------------------- */
 
-/* The most levels a prototype has besides its full detail. */
-#define TW_LOD_MAX_LEVELS 8u
-
 /* The coarser levels of a finished tileset's prototypes, built by
- * meshoptimizer: each prototype baked into one tile-local mesh (colours
- * baked into its vertices), welded by position and colour, then simplified
- * to about half the triangles of the level before, by edge collapse and,
- * where that stalls (many small closed meshes), by vertex clustering; each
- * corner given back the normal and colour of a full-detail vertex; each
- * level's indices ordered for the vertex cache and for overdraw. Level k of
- * prototype p (k = 1 .. count[p]) is levels->prototypes[first[p] + k - 1],
- * with geometric error error[first[p] + k - 1] in metres: the largest
- * distance from a full-detail vertex to the level's surface, or
- * meshoptimizer's estimate where larger; it never decreases with k. Every
- * level lies within its prototype's box: simplification keeps original
- * vertex positions. */
+ * meshoptimizer (lod.c): each prototype baked into one tile-local mesh
+ * (colours baked into its vertices), welded by position and colour, its
+ * triangles sorted by colour into classes, each class simplified on its
+ * own for targets of error sqrt(2) apart; each corner given back the
+ * normal of a full-detail vertex; each level's indices ordered for the
+ * vertex cache and for overdraw; at most 12 levels, the last possibly the
+ * prototype's box. Level k of prototype p (k = 1 .. count[p]) is
+ * levels->prototypes[first[p] + k - 1], with geometric error
+ * error[first[p] + k - 1] in metres, measured both ways and by colour: the
+ * largest distance from a full-detail vertex to the level's triangles of
+ * its colour (at most its colour patch's size), and from the level's
+ * triangles to the full detail's of theirs; it never decreases with k.
+ * Every level lies within its prototype's box. */
 struct tw_lods {
     struct tw_tileset *levels;  /* finished and packed; NULL: no prototype has a level */
     uint32_t source_count;      /* the source tileset's prototypes */
     uint32_t *first;            /* per source prototype */
-    uint32_t *count;            /* per source prototype: its levels, 0 .. TW_LOD_MAX_LEVELS */
+    uint32_t *count;            /* per source prototype: its levels, 0 .. 12 */
     float *error;               /* per level */
     uint32_t stored;            /* prototypes whose levels were read from the store */
 };
