@@ -53,9 +53,10 @@ static const char help[] =
     "--out DIR             the tileset's folder, made if missing\n"
     "--levels N            quadtree levels with content, 1..8 and at most the quadtree's\n"
     "                      (default 1: the cells only); each coarser level's tile is its\n"
-    "                      four children merged and simplified to about a quarter, made\n"
-    "                      by --finish (or a run without --shard); the levels above are\n"
-    "                      tiles without content\n"
+    "                      four children merged and simplified within their error (a\n"
+    "                      tileset's blocks above 2x2 cells: from its cells' own coarser\n"
+    "                      levels), made by --finish (or a run without --shard); the\n"
+    "                      levels above are tiles without content\n"
     "--shard K/N           bakes only the cells whose index in the rectangle,\n"
     "                      (J - J0) (I1 - I0 + 1) + I - I0, is K modulo N (0 <= K < N <=\n"
     "                      1000000), and writes no tileset.json and no subtrees: --finish\n"
@@ -111,6 +112,7 @@ struct bake {
     uint64_t max_cells;
 
     uint64_t nx, ny;              /* cells along i and j */
+    const struct tw_lods *cell_lods;   /* a prototype tileset's levels, for its blocks; or NULL */
     uint32_t leaf;                /* the finest level */
     struct tw_cli_world world;
     struct tw_log log;
@@ -472,6 +474,95 @@ static int read_child(const char *path, struct tw_tileset *ts, uint32_t proto,
     return rc;
 }
 
+/* Bakes block (x, y) of side 2^up cells of a prototype tileset from its
+ * cells' own coarser levels, as the library's proxies are (tiles/hlod.c),
+ * rather than from its children's files: each cell at its coarsest level
+ * within half of twice the children's error, merged, then simplified to
+ * the coarsest level within what is left of it. Its children's files,
+ * already simplified within their error, merged and simplified again
+ * within the same error, kept what the children kept (tree crowns, a
+ * city's blocks clustered into patches larger than that error): every
+ * level of blocks above the 2x2 ones held as much as the one below. The
+ * error written is the cells' levels' plus the simplification's, at most
+ * twice the children's, so errors still double from level to level. 1
+ * when written, 0 when the run failed (fail_run), -1 when this block is
+ * not made so (its cells' input past TW_HLOD_MAX_INPUT triangles): the
+ * caller merges the children's files instead. */
+/* The most triangles (a bound: the heaviest cell's, times the cells) a block
+ * made from its cells' levels takes in: four times what the runtime's
+ * proxies do (TW_HLOD_MAX_INPUT), a bake being made once. */
+#define BAKE_BLOCK_MAX_INPUT (4 * (uint64_t)TW_HLOD_MAX_INPUT)
+
+static int bake_block_of_cells(struct bake *b, uint64_t x, uint64_t y, uint32_t up,
+                               double child_error, const double origin[3], const char *path)
+{
+    const struct tw_tileset *cells = b->world.tileset;
+    const struct tw_lods *cell_lods = b->cell_lods;
+    const double allowed = 2.0 * child_error;
+    /* Half for the cells' levels, half for the block's own simplification;
+     * where that input would be too heavy to simplify, all of it for the
+     * cells' levels, merged as they are. */
+    double input_allowed = 0.5 * allowed;
+    uint64_t input = 0;
+    tw_hlod_level_pays(cells, cell_lods, up, (float)input_allowed, &input);
+    if (input > BAKE_BLOCK_MAX_INPUT) {
+        input_allowed = allowed;
+        tw_hlod_level_pays(cells, cell_lods, up, (float)input_allowed, &input);
+        if (input > BAKE_BLOCK_MAX_INPUT)
+            return -1;
+    }
+    const uint64_t side = 1ull << up;
+    uint32_t *protos = malloc(sizeof(*protos) * side * side);
+    if (!protos) {
+        fail_run(b, "%s: %s", path, tw_error_to_str(TW_ERR_NOMEM));
+        return 0;
+    }
+    for (uint64_t cy = 0; cy < side; cy++)
+        for (uint64_t cx = 0; cx < side; cx++) {
+            const uint64_t gx = x * side + cx, gy = y * side + cy;
+            uint32_t p = TW_HLOD_EMPTY;
+            if (gx < b->nx && gy < b->ny) {
+                const struct tw_cell cell = {b->first.i + (int64_t)gx, b->first.j + (int64_t)gy};
+                const uint32_t q = tw_tiles_select(cells, &b->cli.world.selection, cell);
+                p = q == TW_TILE_EMPTY ? TW_HLOD_EMPTY : q;
+            }
+            protos[cy * side + cx] = p;
+        }
+    struct tw_tileset *block = NULL;
+    struct tw_lods lods = {0};
+    float input_error = 0.0f;
+    int rc = tw_hlod_block_build(cells, cell_lods, protos, (uint32_t)side, (float)input_allowed,
+                             BLOCK_CLUSTER_TRIANGLES, &block, &input_error);
+    free(protos);
+    if (!rc && !block) {
+        atomic_fetch_add(&b->empty, 1);
+        return 1;
+    }
+    if (!rc)
+        rc = tw_lods_build(block, BLOCK_CLUSTER_TRIANGLES, NULL, NULL, &lods);
+    if (rc) {
+        fail_run(b, "%s: cannot simplify the block: %s", path, tw_error_to_str(rc));
+        tw_tileset_destroy(block);
+        return 0;
+    }
+    const float *err_of = lods.error + lods.first[0];
+    uint32_t pick = 0;
+    while (pick < lods.count[0] && (double)input_error + err_of[pick] <= allowed)
+        pick++;
+    const double error = (double)input_error + (pick ? err_of[pick - 1] : 0.0);
+    char err[1200];
+    rc = write_prototype(pick ? lods.levels : block, pick ? lods.first[0] + pick - 1 : 0, path,
+                         origin, error > 0.0 ? error : 1e-6, err, sizeof(err));
+    tw_lods_free(&lods);
+    tw_tileset_destroy(block);
+    if (rc) {
+        fail_run(b, "%s", err);
+        return 0;
+    }
+    atomic_fetch_add(&b->written, 1);
+    return 1;
+}
+
 /* Bakes tile k (row-major) of the coarser level b->block_level: its
  * children's .glb files (the level below) merged into one tile-local mesh
  * and simplified by the levels of detail (tiles/lod.c, meshoptimizer) to
@@ -525,6 +616,11 @@ static void bake_block(struct bake *b, uint64_t k)
     if (input == 0) {
         atomic_fetch_add(&b->empty, 1);
         goto out;
+    }
+    if (up >= 2 && b->cell_lods && child_error > 0.0) {
+        const int done = bake_block_of_cells(b, x, y, up, child_error, origin, path);
+        if (done >= 0)
+            goto out;   /* written, or the run failed */
     }
     rc = tw_tileset_finish(ts, BLOCK_CLUSTER_TRIANGLES);
     if (!rc)
@@ -928,6 +1024,22 @@ static int finish(struct bake *b)
     struct level lv[MAX_LEAF_LEVEL + 1];
     memset(lv, 0, sizeof(lv));
     int rc = 0;
+    /* A prototype tileset's blocks above the 2x2 ones are made from the
+     * cells' levels (bake_block_of_cells): built once, before the workers
+     * ask, and kept in the levels cache as the other programs keep them. */
+    if (b->world.tileset && b->levels > 2) {
+        struct tw_file_cache *store = NULL;
+        char why[320];
+        if (b->cli.world.levels_cache_dir &&
+            tw_lods_store(b->cli.world.levels_cache_dir, 0, &store, why, sizeof(why)) != TW_OK)
+            tw_cli_message(program, "levels of detail are built, not kept on disk: %s", why);
+        rc = tw_lods_of_tileset(b->world.tileset, store, &b->cell_lods);
+        if (rc) {
+            tw_cli_message(program, "bake: cannot build the cells' levels of detail: %s",
+                           tw_error_to_str(rc));
+            return 1;
+        }
+    }
     /* The coarser levels, from the finest up: each from the files below it. */
     for (uint32_t k = 1; k < b->levels && !rc; k++) {
         b->block_level = b->leaf - k;
