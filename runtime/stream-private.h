@@ -80,6 +80,9 @@ struct worker {
     struct tw_bvh_settings bvh;
     bool lods;                           /* build the tiles' levels of detail */
     struct tw_file_cache *lods_store;    /* and keep them there (may be NULL) */
+    int (*levels)(void *user, struct tw_cell cell, const struct tw_tileset *ts,
+                  const atomic_bool *stop, struct tw_lods *out);   /* or NULL */
+    void *levels_user;
     uint64_t max_triangles, max_bytes;   /* caps of a tile (0: none) */
     struct tw_stream_hooks hooks;
     pthread_t thread;

@@ -17,6 +17,10 @@
 #include "cull/cull.h"
 #include "tileworld/runtime.h"
 
+#include <stdatomic.h>
+
+struct tw_lods;
+
 /* Where finished tiles go, on the render thread. upload() takes a finished
  * tileset and one BVH per prototype (all stay the stream's) and returns the
  * content number its first prototype is drawn by (the others follow) and
@@ -66,6 +70,13 @@ struct tw_stream_settings {
     bool lods;                       /* build each tile's levels of detail (DESIGN §17) */
     struct tw_file_cache *lods_store; /* where they are kept on disk (tw_lods_store());
                                         NULL: nowhere */
+    /* Makes a tile's levels of detail instead of tw_lods_build() (with
+     * lods; NULL: that), on the worker, for the tile of cell that ts
+     * holds; levels_user its user. Same contract as tw_lods_build(): out
+     * zeroed on an error, TW_ERR_STATE when stop is set. */
+    int (*levels)(void *user, struct tw_cell cell, const struct tw_tileset *ts,
+                  const atomic_bool *stop, struct tw_lods *out);
+    void *levels_user;
     uint32_t stop_ms;                /* how long destroy waits for jobs still running;
                                         0: TW_STREAM_STOP_MS */
     uint32_t retry_after;            /* a refused tile is asked again this many frames

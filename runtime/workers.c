@@ -169,8 +169,10 @@ void tw_stream_job_run(struct worker *wk, struct tw_cell cell, struct job_result
     }
     if (wk->lods) {
         /* Its levels of detail (DESIGN §17), made here with the tile. */
-        err = tw_lods_build(r->ts, p->max_cluster_triangles ? p->max_cluster_triangles : 2048,
-                            wk->lods_store, &wk->pool->quit, &r->lods);
+        err = wk->levels
+                  ? wk->levels(wk->levels_user, cell, r->ts, &wk->pool->quit, &r->lods)
+                  : tw_lods_build(r->ts, p->max_cluster_triangles ? p->max_cluster_triangles : 2048,
+                                  wk->lods_store, &wk->pool->quit, &r->lods);
         const uint32_t n = r->lods.levels ? r->lods.levels->prototype_count : 0;
         if (!err && n > 0 && !(r->lod_bvhs = calloc(n, sizeof(*r->lod_bvhs))))
             err = TW_ERR_NOMEM;
@@ -411,6 +413,8 @@ int tw_stream_workers_start(struct tw_stream *s)
     s->inline_worker.bvh = s->set.bvh;
     s->inline_worker.lods = s->set.lods;
     s->inline_worker.lods_store = s->set.lods_store;
+    s->inline_worker.levels = s->set.levels;
+    s->inline_worker.levels_user = s->set.levels_user;
     s->inline_worker.max_triangles = s->set.max_triangles;
     s->inline_worker.max_bytes = s->set.max_bytes;
     s->inline_worker.hooks = s->set.hooks;

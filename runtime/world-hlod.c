@@ -40,17 +40,16 @@ static struct tw_cell block_of(struct tw_cell cell, uint32_t level)
     return (struct tw_cell){cell.i >> level, cell.j >> level};
 }
 
-/* A proxy, on a worker: the block's cells' prototypes at their coarsest
- * level within the level's error, into ts (the block's footprint). */
-static int proxy_generate(void *user, struct tw_cell block, struct tw_tileset *ts)
+/* The shared prototype of each cell of level l's block (TW_HLOD_EMPTY:
+ * none), row by row; NULL when out of memory. */
+static uint32_t *block_protos(const struct tw_world_hlod_level *l, struct tw_cell block)
 {
-    const struct tw_world_hlod_level *l = user;
     const struct tw_world *w = l->w;
     const uint32_t side = 1u << l->level;
     const struct tw_cell base = block_base(block, l->level);
     uint32_t *protos = malloc(sizeof(*protos) * side * side);
     if (!protos)
-        return TW_ERR_NOMEM;
+        return NULL;
     const struct tw_tile_provider *p = &w->provider;
     for (uint32_t z = 0; z < side; z++)
         for (uint32_t x = 0; x < side; x++) {
@@ -59,9 +58,44 @@ static int proxy_generate(void *user, struct tw_cell block, struct tw_tileset *t
             const uint32_t content = p->content(p->user, c);
             protos[z * side + x] = content < w->shared_count ? content : TW_HLOD_EMPTY;
         }
+    return protos;
+}
+
+/* A proxy, on a worker: the block's cells' prototypes at their coarsest
+ * level within the level's error, into ts (the block's footprint). */
+static int proxy_generate(void *user, struct tw_cell block, struct tw_tileset *ts)
+{
+    const struct tw_world_hlod_level *l = user;
+    const struct tw_world *w = l->w;
+    const uint32_t side = 1u << l->level;
+    uint32_t *protos = block_protos(l, block);
+    if (!protos)
+        return TW_ERR_NOMEM;
+    const struct tw_tile_provider *p = &w->provider;
     float input_error;
     const int err = tw_hlod_block_fill(p->shared, w->lods->levels ? w->lods : NULL, protos, side,
                                        l->error, ts, &input_error);
+    free(protos);
+    return err;
+}
+
+/* A proxy's levels of detail, on a worker: the same cells at their coarser
+ * levels (tw_hlod_block_levels()), not the proxy simplified (ts, unused,
+ * is what proxy_generate() made of them). */
+static int proxy_levels(void *user, struct tw_cell block, const struct tw_tileset *ts,
+                        const atomic_bool *stop, struct tw_lods *out)
+{
+    (void)ts;
+    const struct tw_world_hlod_level *l = user;
+    const struct tw_world *w = l->w;
+    uint32_t *protos = block_protos(l, block);
+    if (!protos) {
+        memset(out, 0, sizeof(*out));
+        return TW_ERR_NOMEM;
+    }
+    const int err = tw_hlod_block_levels(w->provider.shared, w->lods->levels ? w->lods : NULL,
+                                         protos, 1u << l->level, l->error,
+                                         w->provider.shared->max_cluster_triangles, stop, out);
     free(protos);
     return err;
 }
@@ -112,8 +146,12 @@ static int start_level(struct tw_world *w, struct tw_world_hlod_level *l,
         .user = l,
         .max_cluster_triangles = max_cluster_triangles,
     };
-    const struct tw_stream_settings ss =
+    struct tw_stream_settings ss =
         tw_world_stream_settings(w, &l->provider, HLOD_KEY_BASE + (k << HLOD_KEY_SHIFT));
+    if (generate == proxy_generate) {
+        ss.levels = proxy_levels;
+        ss.levels_user = l;
+    }
     return tw_stream_create(&ss, &l->stream);
 }
 
@@ -242,8 +280,9 @@ int tw_world_hlod_get(struct tw_world *w, struct tw_cell cell, uint32_t level, f
 {
     if (level >= w->hlod.count || !w->hlod.levels[level].stream)
         return TW_ERR_INVALID;
-    /* A proxy's levels are simplified from the proxy, whose cells already
-     * have up to the level's error: what is left for them. */
+    /* A proxy's levels' errors are counted beyond the level's, which its
+     * cells already have (tw_hlod_block_levels(), or a provider's own
+     * simplified): what is left for them. */
     const float left = max_error - w->hlod.levels[level].error;
     return tw_stream_get(w->hlod.levels[level].stream, block_of(cell, level), distance, flags,
                          left > 0.0f ? left : 0.0f, out);

@@ -356,6 +356,63 @@ static void test_block_levels(const struct tw_tileset *ts, const struct tw_lods 
     tw_tileset_destroy(b);
 }
 
+/* 5b: a proxy's levels from its cells' coarser levels: each level is the
+ * block tw_hlod_block_build() makes of the same cells at a larger error
+ * (the same triangles), fewer triangles than the level before, its error
+ * beyond the base the largest of its cells' levels' less the base; a stop
+ * set gives TW_ERR_STATE and nothing; no cell coarser (the base past every
+ * level), no levels. */
+static void test_levels_from_cells(const struct tw_tileset *ts, const struct tw_lods *l)
+{
+    const uint32_t protos[4] = {0, 1, 2, 3};
+    const float base = 0.2f;
+    struct tw_lods bl;
+    CHECK(tw_hlod_block_levels(ts, l, protos, 2, base, CLUSTER, NULL, &bl) == TW_OK);
+    CHECK(bl.levels != NULL && bl.source_count == 1 && bl.first[0] == 0 && bl.count[0] >= 2 &&
+          bl.count[0] <= TW_HLOD_MAX_LEVELS);
+    struct tw_tileset *b0 = NULL;
+    float e0;
+    CHECK(tw_hlod_block_build(ts, l, protos, 2, base, CLUSTER, &b0, &e0) == TW_OK && b0);
+    uint64_t triangles = b0 ? b0->prototypes[0].triangle_count : 0;
+    float previous = 0.0f;
+    for (uint32_t k = 0; bl.levels && k < bl.count[0]; k++) {
+        const struct tw_prototype *lv = &bl.levels->prototypes[k];
+        const float err = bl.error[k];
+        CHECK_MSG(err > 0.0f && err >= previous, "level %u: error %g after %g", k + 1, err,
+                  previous);
+        CHECK_MSG((double)lv->triangle_count <= TW_HLOD_KEEP_RATIO * (double)triangles,
+                  "level %u: %llu triangles after %llu", k + 1,
+                  (unsigned long long)lv->triangle_count, (unsigned long long)triangles);
+        /* The same cells at the level's error, merged: the same triangles,
+         * and the largest of their errors is what the level says. */
+        struct tw_tileset *same = NULL;
+        float e;
+        CHECK(tw_hlod_block_build(ts, l, protos, 2, base + err, CLUSTER, &same, &e) == TW_OK &&
+              same);
+        if (same) {
+            CHECK_MSG(same->prototypes[0].triangle_count == lv->triangle_count,
+                      "level %u: %llu triangles, the block at %g m has %llu", k + 1,
+                      (unsigned long long)lv->triangle_count, (double)(base + err),
+                      (unsigned long long)same->prototypes[0].triangle_count);
+            CHECK_MSG(fabsf(e - (base + err)) <= 1e-4f * (1.0f + e) || err == previous,
+                      "level %u: error %g beyond %g, its cells' %g", k + 1, err, base, e);
+        }
+        tw_tileset_destroy(same);
+        previous = err;
+        triangles = lv->triangle_count;
+    }
+    tw_lods_free(&bl);
+    tw_tileset_destroy(b0);
+    atomic_bool stop = true;
+    CHECK(tw_hlod_block_levels(ts, l, protos, 2, base, CLUSTER, &stop, &bl) == TW_ERR_STATE &&
+          bl.levels == NULL);
+    CHECK(tw_hlod_block_levels(ts, l, protos, 2, 1e9f, CLUSTER, NULL, &bl) == TW_OK &&
+          bl.levels == NULL);
+    CHECK(tw_hlod_block_levels(ts, NULL, protos, 2, base, CLUSTER, NULL, &bl) == TW_OK &&
+          bl.levels == NULL);
+    CHECK(tw_hlod_block_levels(ts, l, protos, 0, base, CLUSTER, NULL, &bl) == TW_ERR_INVALID);
+}
+
 /* 6: bad input. */
 static void test_refused(const struct tw_tileset *ts, const struct tw_lods *l)
 {
@@ -558,6 +615,7 @@ int main(int argc, char **argv)
         test_blocks(ts, &l);
         test_shared_meshes(ts, &l);
         test_block_levels(ts, &l);
+        test_levels_from_cells(ts, &l);
         test_refused(ts, &l);
         test_deterministic(ts, &l);
         test_level_pays(ts, &l);

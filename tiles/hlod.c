@@ -288,3 +288,89 @@ float tw_hlod_level_error(const float footprint[2], uint32_t level, float max_sc
     const double cell = footprint[0] > footprint[1] ? footprint[0] : footprint[1];
     return (float)((double)((uint64_t)1 << level) * cell * max_screen_error / block_px);
 }
+
+/* The largest error of any level the block's cells have: past it, every
+ * cell is at its coarsest. */
+static float block_ceiling(const struct tw_lods *lods, const uint32_t *protos, uint32_t side)
+{
+    float ceiling = 0.0f;
+    for (uint32_t c = 0; c < side * side; c++) {
+        const uint32_t p = protos[c];
+        if (p == TW_HLOD_EMPTY || lods->count[p] == 0)
+            continue;
+        const float e = lods->error[lods->first[p] + lods->count[p] - 1];
+        ceiling = e > ceiling ? e : ceiling;
+    }
+    return ceiling;
+}
+
+int tw_hlod_block_levels(const struct tw_tileset *ts, const struct tw_lods *lods,
+                         const uint32_t *protos, uint32_t side, float base_error,
+                         uint32_t max_cluster_triangles, const atomic_bool *stop,
+                         struct tw_lods *out)
+{
+    if (out)
+        memset(out, 0, sizeof(*out));
+    if (!ts || !protos || !out || side == 0 || !ts->finished || !(base_error >= 0.0f))
+        return TW_ERR_INVALID;
+    if (!lods || !lods->levels)
+        return TW_OK;   /* the cells have no coarser levels to give */
+    uint64_t previous;
+    float largest;
+    int err = count_block(ts, lods, protos, side, base_error, &previous, &largest);
+    if (err || previous == 0)
+        return err;
+    const float ceiling = block_ceiling(lods, protos, side);
+    struct tw_tileset *levels = NULL;
+    char name[64];
+    snprintf(name, sizeof(name), "%.40s/block%u levels", ts->name, side);
+    err = tw_tileset_create(name, (float)side * ts->footprint[0], (float)side * ts->footprint[1],
+                            &levels);
+    float errors[TW_HLOD_MAX_LEVELS];
+    uint32_t n = 0;
+    float at = base_error;
+    while (!err && n < TW_HLOD_MAX_LEVELS && at < ceiling) {
+        if (stop && atomic_load_explicit(stop, memory_order_relaxed)) {
+            err = TW_ERR_STATE;
+            break;
+        }
+        at = at > 0.0f ? at * 1.41421356f : ceiling;
+        if (at > ceiling)
+            at = ceiling;
+        uint64_t triangles;
+        err = count_block(ts, lods, protos, side, at, &triangles, &largest);
+        /* A level that saves little costs memory and a BVH for nothing. */
+        if (err || (double)triangles > TW_HLOD_KEEP_RATIO * (double)previous)
+            continue;
+        err = fill(ts, lods, protos, side, at, levels);
+        if (err)
+            break;
+        /* Beyond the block's own (base_error): what the selection adds it
+         * to, never less than the level before's. */
+        const float beyond = largest - base_error;
+        errors[n] = n > 0 && errors[n - 1] > beyond ? errors[n - 1] : beyond;
+        n++;
+        previous = triangles;
+    }
+    if (!err && n > 0)
+        err = tw_tileset_finish(levels, max_cluster_triangles);
+    if (!err && n > 0)
+        err = tw_tileset_pack(&levels);
+    if (!err && n > 0) {
+        out->first = calloc(1, sizeof(*out->first));
+        out->count = malloc(sizeof(*out->count));
+        out->error = malloc(sizeof(*out->error) * n);
+        if (!out->first || !out->count || !out->error)
+            err = TW_ERR_NOMEM;
+    }
+    if (err || n == 0) {
+        tw_tileset_destroy(levels);
+        tw_lods_free(out);
+        return err;
+    }
+    out->levels = levels;
+    out->source_count = 1;
+    out->count[0] = n;
+    memcpy(out->error, errors, sizeof(*errors) * n);
+    return TW_OK;
+}

@@ -366,6 +366,32 @@ int tw_hlod_block_build(const struct tw_tileset *ts, const struct tw_lods *lods,
                         uint32_t max_cluster_triangles, struct tw_tileset **out,
                         float *input_error);
 
+/* The coarser levels of a block's proxy (what tw_hlod_block_build() makes
+ * of the same cells at base_error), made from its cells' own coarser
+ * levels rather than by simplifying the proxy: level k is every cell at
+ * its coarsest level within an error sqrt(2)^j times base_error (j = 1,
+ * 2, ... up to the largest error of any cell's levels), merged as
+ * tw_hlod_block_build() merges them, kept where it has at most
+ * TW_HLOD_KEEP_RATIO of the triangles of the level before (the proxy
+ * itself first); at most TW_HLOD_MAX_LEVELS. A proxy simplified within
+ * what is left of the error above base_error kept what its cells kept at
+ * base_error (tree crowns, a city's blocks clustered into patches larger
+ * than it), while the same cells drawn alone went on to their coarser
+ * levels. out: one source prototype (first[0] = 0, count[0] levels), each
+ * level's error the largest of its cells' levels' errors less base_error
+ * (never decreasing), what the runtime's selection adds to the proxy's
+ * own (tw_world_hlod_get()). No levels (out zeroed, TW_OK) where lods has
+ * none or no cell goes coarser. stop (may be NULL): set, the build gives
+ * up with TW_ERR_STATE. Same errors as tw_hlod_block_build(); on an error
+ * out is zeroed. The caller frees out (tw_lods_free()). Thread-safe for
+ * distinct outputs. */
+#define TW_HLOD_MAX_LEVELS 12u
+#define TW_HLOD_KEEP_RATIO 0.6
+int tw_hlod_block_levels(const struct tw_tileset *ts, const struct tw_lods *lods,
+                         const uint32_t *protos, uint32_t side, float base_error,
+                         uint32_t max_cluster_triangles, const atomic_bool *stop,
+                         struct tw_lods *out);
+
 /* The most triangles a block's proxy is made of (before it is simplified)
  * for its level to pay: above, the proxy copies what the cells draw from
  * shared prototypes, for little. */
