@@ -474,25 +474,25 @@ static int read_child(const char *path, struct tw_tileset *ts, uint32_t proto,
     return rc;
 }
 
-/* Bakes block (x, y) of side 2^up cells of a prototype tileset from its
- * cells' own coarser levels, as the library's proxies are (tiles/hlod.c),
- * rather than from its children's files: each cell at its coarsest level
- * within half of twice the children's error, merged, then simplified to
- * the coarsest level within what is left of it. Its children's files,
- * already simplified within their error, merged and simplified again
- * within the same error, kept what the children kept (tree crowns, a
- * city's blocks clustered into patches larger than that error): every
- * level of blocks above the 2x2 ones held as much as the one below. The
- * error written is the cells' levels' plus the simplification's, at most
- * twice the children's, so errors still double from level to level. 1
- * when written, 0 when the run failed (fail_run), -1 when this block is
- * not made so (its cells' input past TW_HLOD_MAX_INPUT triangles): the
- * caller merges the children's files instead. */
 /* The most triangles (a bound: the heaviest cell's, times the cells) a block
  * made from its cells' levels takes in: four times what the runtime's
  * proxies do (TW_HLOD_MAX_INPUT), a bake being made once. */
 #define BAKE_BLOCK_MAX_INPUT (4 * (uint64_t)TW_HLOD_MAX_INPUT)
 
+/* Bakes block (x, y) of side 2^up cells of a prototype tileset from its
+ * cells' own coarser levels, as the library's proxies are (tiles/hlod.c),
+ * rather than from its children's files: each cell at its coarsest level
+ * within the children's error, merged, then simplified to the coarsest
+ * level within the rest of twice that error. Its children's files, already
+ * simplified within their error, merged and simplified again within the
+ * same error, kept what the children kept (tree crowns, a city's blocks
+ * clustered into patches larger than that error): every level of blocks
+ * above the 2x2 ones held as much as the one below. The error written is
+ * the cells' levels' plus the simplification's, at most twice the
+ * children's, so errors still double from level to level. 1 when written,
+ * 0 when the run failed (fail_run), -1 when this block is not made so (its
+ * cells' input could pass BAKE_BLOCK_MAX_INPUT triangles even at twice the
+ * children's error): the caller merges the children's files instead. */
 static int bake_block_of_cells(struct bake *b, uint64_t x, uint64_t y, uint32_t up,
                                double child_error, const double origin[3], const char *path)
 {
@@ -532,7 +532,7 @@ static int bake_block_of_cells(struct bake *b, uint64_t x, uint64_t y, uint32_t 
     struct tw_lods lods = {0};
     float input_error = 0.0f;
     int rc = tw_hlod_block_build(cells, cell_lods, protos, (uint32_t)side, (float)input_allowed,
-                             BLOCK_CLUSTER_TRIANGLES, &block, &input_error);
+                                 BLOCK_CLUSTER_TRIANGLES, &block, &input_error);
     free(protos);
     if (!rc && !block) {
         atomic_fetch_add(&b->empty, 1);
