@@ -369,7 +369,7 @@ static void test_levels_from_cells(const struct tw_tileset *ts, const struct tw_
     struct tw_lods bl;
     CHECK(tw_hlod_block_levels(ts, l, protos, 2, base, CLUSTER, NULL, &bl) == TW_OK);
     CHECK(bl.levels != NULL && bl.source_count == 1 && bl.first[0] == 0 && bl.count[0] >= 2 &&
-          bl.count[0] <= TW_HLOD_MAX_LEVELS);
+          bl.count[0] <= TW_LOD_MAX_LEVELS);
     struct tw_tileset *b0 = NULL;
     float e0;
     CHECK(tw_hlod_block_build(ts, l, protos, 2, base, CLUSTER, &b0, &e0) == TW_OK && b0);
@@ -380,7 +380,7 @@ static void test_levels_from_cells(const struct tw_tileset *ts, const struct tw_
         const float err = bl.error[k];
         CHECK_MSG(err > 0.0f && err >= previous, "level %u: error %g after %g", k + 1, err,
                   previous);
-        CHECK_MSG((double)lv->triangle_count <= TW_HLOD_KEEP_RATIO * (double)triangles,
+        CHECK_MSG((double)lv->triangle_count <= TW_LOD_KEEP_RATIO * (double)triangles,
                   "level %u: %llu triangles after %llu", k + 1,
                   (unsigned long long)lv->triangle_count, (unsigned long long)triangles);
         /* The same cells at the level's error, merged: the same triangles,

@@ -326,10 +326,10 @@ int tw_hlod_block_levels(const struct tw_tileset *ts, const struct tw_lods *lods
     snprintf(name, sizeof(name), "%.40s/block%u levels", ts->name, side);
     err = tw_tileset_create(name, (float)side * ts->footprint[0], (float)side * ts->footprint[1],
                             &levels);
-    float errors[TW_HLOD_MAX_LEVELS];
+    float errors[TW_LOD_MAX_LEVELS];
     uint32_t n = 0;
     float at = base_error;
-    while (!err && n < TW_HLOD_MAX_LEVELS && at < ceiling) {
+    while (!err && n < TW_LOD_MAX_LEVELS && at < ceiling) {
         if (stop && atomic_load_explicit(stop, memory_order_relaxed)) {
             err = TW_ERR_STATE;
             break;
@@ -340,7 +340,7 @@ int tw_hlod_block_levels(const struct tw_tileset *ts, const struct tw_lods *lods
         uint64_t triangles;
         err = count_block(ts, lods, protos, side, at, &triangles, &largest);
         /* A level that saves little costs memory and a BVH for nothing. */
-        if (err || (double)triangles > TW_HLOD_KEEP_RATIO * (double)previous)
+        if (err || (double)triangles > TW_LOD_KEEP_RATIO * (double)previous)
             continue;
         err = fill(ts, lods, protos, side, at, levels);
         if (err)

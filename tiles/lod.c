@@ -15,17 +15,8 @@
 #include "lod-source-hash.h"
 #include "tiles/file-cache.h"
 
-/* A level is kept only if it has at most this share of the previous one's
- * triangles: a level that saves little costs memory and a BVH for nothing. */
-#define LOD_KEEP_RATIO 0.6
 /* No level below this many triangles: what is left is a few boxes. */
 #define LOD_MIN_TRIANGLES 8u
-/* The most levels a prototype has besides its full detail: with targets
- * sqrt(2) apart, enough for city's prototypes to end at their box (at 8,
- * four of twelve stopped at 20 to 114 triangles, and a block of 32x32
- * such cells was too heavy for a proxy). The stream's instance keys hold
- * a level in 4 bits. */
-#define LOD_MAX_LEVELS 12u
 /* A box's triangles: the coarsest level there is. */
 #define BOX_TRIANGLES 12u
 
@@ -1274,8 +1265,8 @@ static bool stored_read(struct tw_file_cache *store, const uint64_t key[2], cons
     bool ok = fread(&head, sizeof(head), 1, f) == 1 &&
               memcmp(head.magic, stored_magic, sizeof(head.magic)) == 0 &&
               head.key[0] == key[0] && head.key[1] == key[1] && head.vertices == b->vertices &&
-              head.triangles == b->triangles && head.count <= LOD_MAX_LEVELS &&
-              head.body_words <= 3 * (size_t)(LOD_MAX_LEVELS) * (1 + (size_t)b->triangles);
+              head.triangles == b->triangles && head.count <= TW_LOD_MAX_LEVELS &&
+              head.body_words <= 3 * (size_t)(TW_LOD_MAX_LEVELS) * (1 + (size_t)b->triangles);
     if (ok) {
         r->w = malloc(sizeof(uint32_t) * ((size_t)head.body_words + 1));
         ok = r->w && fread(r->w, sizeof(uint32_t), head.body_words, f) == head.body_words &&
@@ -1483,7 +1474,7 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_fi
     }
     const float extent = meshopt_simplifyScale(w.pos, w.vertices, sizeof(float) * 3);
     size_t previous = b.triangles;
-    for (int step = TARGET_STEPS; step >= 0 && *count < LOD_MAX_LEVELS && !err; step--) {
+    for (int step = TARGET_STEPS; step >= 0 && *count < TW_LOD_MAX_LEVELS && !err; step--) {
         const float target = 2.0f * (extent * powf(2.0f, -0.5f * (float)step));
         size_t total = 0;
         for (uint32_t k = 0; k < cl.count && !err; k++) {
@@ -1507,7 +1498,7 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_fi
             break;  /* nothing left: the level before is the coarsest */
         /* A level that saves little costs memory and a BVH for nothing;
          * the next target starts from it all the same. */
-        if ((double)total > LOD_KEEP_RATIO * (double)previous)
+        if ((double)total > TW_LOD_KEEP_RATIO * (double)previous)
             continue;
         float error = 0.0f;
         for (uint32_t k = 0; k < cl.count; k++)
@@ -1536,7 +1527,7 @@ static int build_prototype(const struct tw_tileset *ts, uint32_t p, struct tw_fi
     /* Where the last level is still far from a box (every class gone at
      * the next target, or none simplified further), a box ends the
      * levels: far enough away, a cell of a block is drawn as one. */
-    if (!err && *count < LOD_MAX_LEVELS && previous >= 2 * BOX_TRIANGLES) {
+    if (!err && *count < TW_LOD_MAX_LEVELS && previous >= 2 * BOX_TRIANGLES) {
         char name[48];
         level_name(name, ts->prototypes[p].name, *count + 1);
         const float last = *count > 0 ? errors[*count - 1] : 0.0f;
@@ -1580,7 +1571,7 @@ int tw_lods_build(const struct tw_tileset *ts, uint32_t max_cluster_triangles,
     out->source_count = np;
     out->first = calloc(np, sizeof(*out->first));
     out->count = calloc(np, sizeof(*out->count));
-    out->error = malloc(sizeof(*out->error) * (size_t)np * LOD_MAX_LEVELS + 1);
+    out->error = malloc(sizeof(*out->error) * (size_t)np * TW_LOD_MAX_LEVELS + 1);
     int err = out->first && out->count && out->error ? TW_OK : TW_ERR_NOMEM;
     struct tw_tileset *levels = NULL;
     if (!err)

@@ -130,13 +130,24 @@ void tw_tileset_bake(const struct tw_tileset *ts, uint32_t p, const uint32_t *li
 
 /* ---- levels of detail (DESIGN §17) ---------------------------------------- */
 
+/* The most levels a content has besides its full detail (a prototype's,
+ * a proxy's): with targets sqrt(2) apart, enough for city's prototypes to
+ * end at their box (at 8, four of twelve stopped at 20 to 114 triangles,
+ * and a block of 32x32 such cells was too heavy for a proxy). The stream's
+ * instance keys hold a level in 4 bits. (This header is hashed into the
+ * levels store's key with lod.c.) */
+#define TW_LOD_MAX_LEVELS 12u
+/* A level is kept only if it has at most this share of the previous one's
+ * triangles: a level that saves little costs memory and a BVH for nothing. */
+#define TW_LOD_KEEP_RATIO 0.6
+
 /* The coarser levels of a finished tileset's prototypes, built by
  * meshoptimizer (lod.c): each prototype baked into one tile-local mesh
  * (colours baked into its vertices), welded by position and colour, its
  * triangles sorted by colour into classes, each class simplified on its
  * own for targets of error sqrt(2) apart; each corner given back the
  * normal of a full-detail vertex; each level's indices ordered for the
- * vertex cache and for overdraw; at most 12 levels, the last possibly the
+ * vertex cache and for overdraw; at most TW_LOD_MAX_LEVELS, the last possibly the
  * prototype's box. Level k of prototype p (k = 1 .. count[p]) is
  * levels->prototypes[first[p] + k - 1], with geometric error
  * error[first[p] + k - 1] in metres, measured both ways and by colour: the
@@ -148,14 +159,14 @@ struct tw_lods {
     struct tw_tileset *levels;  /* finished and packed; NULL: no prototype has a level */
     uint32_t source_count;      /* the source tileset's prototypes */
     uint32_t *first;            /* per source prototype */
-    uint32_t *count;            /* per source prototype: its levels, 0 .. 12 */
+    uint32_t *count;            /* per source prototype: its levels, 0 .. TW_LOD_MAX_LEVELS */
     float *error;               /* per level */
     uint32_t stored;            /* prototypes whose levels were read from the store */
 };
 
 /* The levels' store: an on-disk cache of what tw_lods_build() makes of a
  * prototype, keyed by the prototype's content (its baked geometry and box),
- * by lod.c's source text and by meshoptimizer's version, so that a second
+ * by lod.c's and this header's source text and by meshoptimizer's version, so that a second
  * process, or a tile made again, reads its levels back in milliseconds
  * instead of building them in seconds; read back, they are the same levels,
  * byte for byte (README "Levels of detail"). The store of folder dir
@@ -372,8 +383,8 @@ int tw_hlod_block_build(const struct tw_tileset *ts, const struct tw_lods *lods,
  * its coarsest level within an error sqrt(2)^j times base_error (j = 1,
  * 2, ... up to the largest error of any cell's levels), merged as
  * tw_hlod_block_build() merges them, kept where it has at most
- * TW_HLOD_KEEP_RATIO of the triangles of the level before (the proxy
- * itself first); at most TW_HLOD_MAX_LEVELS. A proxy simplified within
+ * TW_LOD_KEEP_RATIO of the triangles of the level before (the proxy
+ * itself first); at most TW_LOD_MAX_LEVELS. A proxy simplified within
  * what is left of the error above base_error kept what its cells kept at
  * base_error (tree crowns, a city's blocks clustered into patches larger
  * than it), while the same cells drawn alone went on to their coarser
@@ -385,8 +396,6 @@ int tw_hlod_block_build(const struct tw_tileset *ts, const struct tw_lods *lods,
  * up with TW_ERR_STATE. Same errors as tw_hlod_block_build(); on an error
  * out is zeroed. The caller frees out (tw_lods_free()). Thread-safe for
  * distinct outputs. */
-#define TW_HLOD_MAX_LEVELS 12u
-#define TW_HLOD_KEEP_RATIO 0.6
 int tw_hlod_block_levels(const struct tw_tileset *ts, const struct tw_lods *lods,
                          const uint32_t *protos, uint32_t side, float base_error,
                          uint32_t max_cluster_triangles, const atomic_bool *stop,

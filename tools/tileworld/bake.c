@@ -474,6 +474,28 @@ static int read_child(const char *path, struct tw_tileset *ts, uint32_t proto,
     return rc;
 }
 
+/* Writes block (its one prototype, full detail, or the coarsest of its
+ * levels lods whose error is within allowed) to path, placed at origin; the
+ * error written is base_error (what the block's input already has) plus
+ * the level's. Counts it written, or fails the run. */
+static void write_block(struct bake *b, const struct tw_tileset *block, const struct tw_lods *lods,
+                        double base_error, double allowed, const double origin[3],
+                        const char *path)
+{
+    const float *err_of = lods->error ? lods->error + lods->first[0] : NULL;
+    const uint32_t count = lods->count ? lods->count[0] : 0;
+    uint32_t pick = 0;
+    while (pick < count && err_of[pick] <= allowed)
+        pick++;
+    const double error = base_error + (pick ? err_of[pick - 1] : 0.0);
+    char err[1200];
+    if (write_prototype(pick ? lods->levels : block, pick ? lods->first[0] + pick - 1 : 0, path,
+                        origin, error > 0.0 ? error : 1e-6, err, sizeof(err)))
+        fail_run(b, "%s", err);
+    else
+        atomic_fetch_add(&b->written, 1);
+}
+
 /* The most triangles (a bound: the heaviest cell's, times the cells) a block
  * made from its cells' levels takes in: four times what the runtime's
  * proxies do (TW_HLOD_MAX_INPUT), a bake being made once. */
@@ -489,11 +511,11 @@ static int read_child(const char *path, struct tw_tileset *ts, uint32_t proto,
  * clustered into patches larger than that error): every level of blocks
  * above the 2x2 ones held as much as the one below. The error written is
  * the cells' levels' plus the simplification's, at most twice the
- * children's, so errors still double from level to level. 1 when written,
- * 0 when the run failed (fail_run), -1 when this block is not made so (its
- * cells' input could pass BAKE_BLOCK_MAX_INPUT triangles even at twice the
- * children's error): the caller merges the children's files instead. */
-static int bake_block_of_cells(struct bake *b, uint64_t x, uint64_t y, uint32_t up,
+ * children's, so errors still double from level to level. Whether the
+ * block was made so (written, or the run failed); false where its cells'
+ * input could pass BAKE_BLOCK_MAX_INPUT triangles even at twice the
+ * children's error: the caller merges the children's files instead. */
+static bool bake_block_of_cells(struct bake *b, uint64_t x, uint64_t y, uint32_t up,
                                double child_error, const double origin[3], const char *path)
 {
     const struct tw_tileset *cells = b->world.tileset;
@@ -509,13 +531,13 @@ static int bake_block_of_cells(struct bake *b, uint64_t x, uint64_t y, uint32_t 
         input_allowed = allowed;
         tw_hlod_level_pays(cells, cell_lods, up, (float)input_allowed, &input);
         if (input > BAKE_BLOCK_MAX_INPUT)
-            return -1;
+            return false;
     }
     const uint64_t side = 1ull << up;
     uint32_t *protos = malloc(sizeof(*protos) * side * side);
     if (!protos) {
         fail_run(b, "%s: %s", path, tw_error_to_str(TW_ERR_NOMEM));
-        return 0;
+        return true;
     }
     for (uint64_t cy = 0; cy < side; cy++)
         for (uint64_t cx = 0; cx < side; cx++) {
@@ -536,31 +558,19 @@ static int bake_block_of_cells(struct bake *b, uint64_t x, uint64_t y, uint32_t 
     free(protos);
     if (!rc && !block) {
         atomic_fetch_add(&b->empty, 1);
-        return 1;
+        return true;
     }
     if (!rc)
         rc = tw_lods_build(block, BLOCK_CLUSTER_TRIANGLES, NULL, NULL, &lods);
     if (rc) {
         fail_run(b, "%s: cannot simplify the block: %s", path, tw_error_to_str(rc));
         tw_tileset_destroy(block);
-        return 0;
+        return true;
     }
-    const float *err_of = lods.error + lods.first[0];
-    uint32_t pick = 0;
-    while (pick < lods.count[0] && (double)input_error + err_of[pick] <= allowed)
-        pick++;
-    const double error = (double)input_error + (pick ? err_of[pick - 1] : 0.0);
-    char err[1200];
-    rc = write_prototype(pick ? lods.levels : block, pick ? lods.first[0] + pick - 1 : 0, path,
-                         origin, error > 0.0 ? error : 1e-6, err, sizeof(err));
+    write_block(b, block, &lods, input_error, allowed - input_error, origin, path);
     tw_lods_free(&lods);
     tw_tileset_destroy(block);
-    if (rc) {
-        fail_run(b, "%s", err);
-        return 0;
-    }
-    atomic_fetch_add(&b->written, 1);
-    return 1;
+    return true;
 }
 
 /* Bakes tile k (row-major) of the coarser level b->block_level: its
@@ -618,8 +628,7 @@ static void bake_block(struct bake *b, uint64_t k)
         goto out;
     }
     if (up >= 2 && b->cell_lods && child_error > 0.0) {
-        const int done = bake_block_of_cells(b, x, y, up, child_error, origin, path);
-        if (done >= 0)
+        if (bake_block_of_cells(b, x, y, up, child_error, origin, path))
             goto out;   /* written, or the run failed */
     }
     rc = tw_tileset_finish(ts, BLOCK_CLUSTER_TRIANGLES);
@@ -644,16 +653,7 @@ static void bake_block(struct bake *b, uint64_t k)
                 break;
         }
     }
-    uint32_t pick = 0;
-    while (pick < lods.count[0] && err_of[pick] <= allowed)
-        pick++;
-    const double error = child_error + (pick ? lods.error[lods.first[0] + pick - 1] : 0.0);
-    rc = write_prototype(pick ? lods.levels : ts, pick ? lods.first[0] + pick - 1 : 0, path,
-                         origin, error > 0.0 ? error : 1e-6, err, sizeof(err));
-    if (rc)
-        fail_run(b, "%s", err);
-    else
-        atomic_fetch_add(&b->written, 1);
+    write_block(b, ts, &lods, child_error, allowed, origin, path);
 out:
     tw_lods_free(&lods);
     tw_tileset_destroy(ts);
